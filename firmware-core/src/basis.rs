@@ -118,7 +118,11 @@ pub fn ders_basis(win: &[f64], p: usize, x: f64, n: usize, ders: &mut BasisDeriv
                 d = a[s2][0] * ndu[rk as usize][pk];
             }
             let j1 = if rk >= -1 { 1 } else { (-rk) as usize };
-            let j2 = if (r as isize - 1) <= pk as isize { k - 1 } else { p - r };
+            let j2 = if (r as isize - 1) <= pk as isize {
+                k - 1
+            } else {
+                p - r
+            };
             for j in j1..=j2 {
                 let col = (rk + j as isize) as usize;
                 a[s2][j] = (a[s1][j] - a[s1][j - 1]) / ndu[pk + 1][col];
@@ -133,9 +137,9 @@ pub fn ders_basis(win: &[f64], p: usize, x: f64, n: usize, ders: &mut BasisDeriv
         }
     }
     let mut fac = p as f64;
-    for k in 1..=n.min(p) {
-        for j in 0..=p {
-            ders[k][j] *= fac;
+    for (k, row) in ders.iter_mut().enumerate().take(n.min(p) + 1).skip(1) {
+        for d in row.iter_mut().take(p + 1) {
+            *d *= fac;
         }
         fac *= (p - k) as f64;
     }
@@ -176,8 +180,8 @@ mod tests {
                 assert!(ders_basis(window(knots, p, span).unwrap(), p, x, 3, &mut d));
                 let s0: f64 = d[0][..=p].iter().sum();
                 assert!((s0 - 1.0).abs() < 1e-12, "p={p} x={x} sum={s0}");
-                for k in 1..=3.min(p) {
-                    let sk: f64 = d[k][..=p].iter().sum();
+                for (k, row) in d.iter().enumerate().take(3.min(p) + 1).skip(1) {
+                    let sk: f64 = row[..=p].iter().sum();
                     assert!(sk.abs() < 1e-9, "p={p} k={k} sum={sk}");
                 }
             }

@@ -1,5 +1,67 @@
-//! firmware-core: the servo-rate interpolator (work in progress; see docs/ARCHITECTURE.md).
+//! firmware-core: the servo-rate interpolator of a time-optimal feedrate plan.
+//!
+//! The host (planner-host) plans the squared feedrate q(s) = ṡ² as a cubic
+//! B-spline over arc length (Petráček, Vlček & Švéda 2022, §2.1) and writes
+//! it, with the NURBS toolpath and an s → u map, into one binary table. This
+//! crate validates that table and turns it into position setpoints at servo
+//! rate. `#![no_std]`, no heap, no `unsafe`, no panic path in parse or tick.
+//!
+//! # Layers, bottom up
+//!
+//! - [`basis`]: B-spline basis functions and derivatives on a knot window
+//!   (Piegl & Tiller A2.2/A2.3), shared with the host.
+//! - [`array`]: [`array::F64Array`] and friends, read-only indexed sources:
+//!   host slices, or zero-copy little-endian views ([`array::LeF64`],
+//!   [`array::LeU32`], [`array::LePoint4`]) into table bytes.
+//! - [`table`]: the binary format, defined once: [`table::TableParts`] and
+//!   [`table::encode`] on the host, [`table::Table::parse`] on the target —
+//!   header, directory, CRC-32, every value checked before any motion.
+//! - Evaluators over any [`array::F64Array`]:
+//!   - [`qspline`]: q, q′, q″, q‴ from the span-local power form
+//!     ([`qspline::QCursor`] moves span by span);
+//!   - [`sumap`]: u(s), quintics in a local τ per segment ([`sumap::SuCursor`]);
+//!   - [`nurbs`]: the rational curve r(u) in homogeneous coordinates on a
+//!     known knot span ([`nurbs::NurbsCursor`]).
+//! - [`interp`]: [`interp::Interpolator::tick`] — one order-4 Taylor step of
+//!   s(t) from q (eqs. 1, 4, 5), then u(s), then r(u): a [`interp::Setpoint`].
+//! - [`output`]: [`output::SetpointSink`], the trait setpoints leave through.
+//!
+//! # Example
+//!
+//! ```no_run
+//! use firmware_core::{interp::Interpolator, table::Table};
+//! # fn servo_write(_: [f64; 3]) {}
+//! # let bytes: &[u8] = &[];
+//! let table = Table::parse(bytes).expect("table refused before any motion");
+//! let mut ip = Interpolator::new(table, 250e-6).expect("period > 0");
+//! while !ip.is_done() {
+//!     match ip.tick() {
+//!         Ok(sp) => servo_write(sp.pos_mm),
+//!         Err(fault) => panic!("{fault:?}"),
+//!     }
+//! }
+//! ```
+//!
+//! Units throughout: mm, s, mm/s, mm/s², mm/s³; q in (mm/s)². Numerics are
+//! f64 (software double on a Cortex-M4F; see issue 3).
 #![no_std]
 #![forbid(unsafe_code)]
+#![warn(missing_docs)]
+// `!(x > 0.0)` is deliberate throughout: it is true for NaN, which must fail
+// every validity check.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+#[cfg(test)]
+extern crate std;
+
+pub mod array;
 pub mod basis;
+pub mod interp;
+pub mod nurbs;
+pub mod output;
+pub mod qspline;
+pub mod sumap;
+pub mod table;
+
+#[cfg(test)]
+mod tests;

@@ -1,1 +1,95 @@
-fn main() {}
+//! `feedplan`: plan a NURBS toolpath and write the firmware table.
+//!
+//! ```text
+//! feedplan plan CURVE.json [--sampling len] [--density P] [--limits FILE] -o TABLE.bin [--json]
+//! ```
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+use planner_host::arclength::ArcLength;
+use planner_host::curve::Nurbs;
+use planner_host::plan::{self, PlanConfig};
+use planner_host::sampling::Sampling;
+use planner_host::verify;
+use planner_host::limits;
+use planner_host::lp::{Objective, QhatBound};
+
+#[derive(Parser)]
+#[command(name = "feedplan", version, about = "Time-optimal jerk-limited feedrate planning on NURBS toolpaths (LP, Clarabel)")]
+struct Cli {
+    #[command(subcommand)]
+    cmd: Cmd,
+}
+
+#[derive(Subcommand)]
+enum Cmd {
+    /// Plan a toolpath (shared/curves JSON format) and write the firmware table.
+    Plan {
+        /// The toolpath: JSON with name, degree, weights, knots, control_points (mm).
+        curve: PathBuf,
+        /// Sampling of the toolpath: par, len or ada (paper §3).
+        #[arg(long, default_value = "len")]
+        sampling: Sampling,
+        /// Sampling density, points per mm of arc length.
+        #[arg(long, default_value_t = 1.0)]
+        density: f64,
+        /// Limits file (JSON: vbar, abar, jbar, v, a, j in mm and s); default the paper's Table 1.
+        #[arg(long)]
+        limits: Option<PathBuf>,
+        /// Where to write the table.
+        #[arg(short = 'o', long = "output")]
+        output: PathBuf,
+        /// Print the summary as one JSON object.
+        #[arg(long)]
+        json: bool,
+        /// Objective weights: integral (c·a = ∫q ds, eq. 7) or uniform (c = 1).
+        #[arg(long, default_value = "integral")]
+        objective: Objective,
+        /// How the plan stays under the pseudo-jerk: control (a ≤ â), eval (q ≤ q̂ at the evaluation points) or none.
+        #[arg(long, default_value = "control")]
+        qhat_bound: QhatBound,
+        /// Points per knot span of q in the dense re-evaluation of the plan.
+        #[arg(long, default_value_t = 20)]
+        dense: usize,
+    },
+}
+
+fn main() -> ExitCode {
+    match run(Cli::parse()) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("feedplan: error: {e}");
+            ExitCode::from(2)
+        }
+    }
+}
+
+fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
+    match cli.cmd {
+        Cmd::Plan { curve, sampling, density, limits: lim_path, output, json, dense, objective, qhat_bound } => {
+            let curve = Nurbs::load(&curve)?;
+            let limits = match lim_path {
+                Some(p) => limits::load(&p)?,
+                None => limits::TABLE1,
+            };
+            let cfg = PlanConfig { sampling, density_per_mm: density, limits, objective, qhat_bound, ..PlanConfig::default() };
+            let out = plan::plan_curve(&curve, &cfg)?;
+            let arc = ArcLength::new(&curve);
+            let check = verify::dense_check(&curve, &arc, &out.q_knots, &out.q_ctrl, &cfg.limits, dense);
+            plan::write_atomic(&output, &out.table_bytes)?;
+            if json {
+                let mut v = serde_json::to_value(&out)?;
+                v["dense_check"] = serde_json::to_value(&check)?;
+                v["table"] = serde_json::Value::String(output.display().to_string());
+                println!("{}", serde_json::to_string(&v)?);
+            } else {
+                print!("{}", out.summary(Some(&check)));
+                println!("  table written to {}", output.display());
+            }
+            Ok(())
+        }
+    }
+}
+

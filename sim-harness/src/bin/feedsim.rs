@@ -1,1 +1,178 @@
-fn main() {}
+//! `feedsim`: run a firmware table through the interpolator and simulated
+//! servos, and measure the motion.
+//!
+//! ```text
+//! feedsim run TABLE.bin [--period-us 250] [--csv OUT.csv] [--plot OUT.png] [--json] [--servo FILE]
+//! feedsim demo [--out DIR]
+//! ```
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+use planner_host::arclength::ArcLength;
+use planner_host::plan::{self, PlanConfig};
+use planner_host::{builtin, limits, sampling::Sampling, verify};
+use sim_harness::plot::{self, FeedPlot};
+use sim_harness::servo::ServoConfig;
+use sim_harness::sim::{self, SimConfig, SimResult};
+
+#[derive(Parser)]
+#[command(
+    name = "feedsim",
+    version,
+    about = "Run a feedrate table through firmware-core's interpolator and simulated servos; measure the motion"
+)]
+struct Cli {
+    #[command(subcommand)]
+    cmd: Cmd,
+}
+
+#[derive(Subcommand)]
+enum Cmd {
+    /// Simulate a table: machining time, ratios to the limits, contour and following error, feed fluctuation.
+    Run {
+        /// The firmware table (feedplan's output).
+        table: PathBuf,
+        /// Servo period, microseconds.
+        #[arg(long, default_value_t = 250.0)]
+        period_us: f64,
+        /// Write one CSV row per servo tick here (t,x,y,z,s,u,feed,ax,ay,az).
+        #[arg(long)]
+        csv: Option<PathBuf>,
+        /// Write the feedrate plot (PNG) here.
+        #[arg(long)]
+        plot: Option<PathBuf>,
+        /// Print one JSON object instead of the text summary.
+        #[arg(long)]
+        json: bool,
+        /// Servo model: JSON, one object for all axes or an array of 3 (x, y, z); fields as in
+        /// sim-harness/servo.example.json, missing ones keep the defaults.
+        #[arg(long)]
+        servo: Option<PathBuf>,
+    },
+    /// Plan the built-in Butterfly (Table 1 limits, LEN sampling, 1 point/mm), simulate it at 250 us,
+    /// write DIR/butterfly.bin, DIR/butterfly.csv and DIR/butterfly_feed.png.
+    Demo {
+        /// Output directory (created if missing).
+        #[arg(long, default_value = "out")]
+        out: PathBuf,
+    },
+}
+
+type BoxError = Box<dyn std::error::Error>;
+
+fn main() -> ExitCode {
+    match run(Cli::parse()) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("feedsim: error: {e}");
+            ExitCode::from(2)
+        }
+    }
+}
+
+fn run(cli: Cli) -> Result<(), BoxError> {
+    match cli.cmd {
+        Cmd::Run {
+            table,
+            period_us,
+            csv,
+            plot,
+            json,
+            servo,
+        } => {
+            if !(period_us.is_finite() && period_us > 0.0) {
+                return Err(format!("--period-us must be a positive number, got {period_us}").into());
+            }
+            let mut cfg = SimConfig {
+                period_s: period_us * 1e-6,
+                ..SimConfig::default()
+            };
+            if let Some(path) = servo {
+                cfg.servo = ServoConfig::load_axes(&path)?;
+            }
+            let bytes = std::fs::read(&table).map_err(|e| format!("cannot read {}: {e}", table.display()))?;
+            let res = sim::run_table(&bytes, &cfg).map_err(|e| format!("{}: {e}", table.display()))?;
+            if let Some(path) = &csv {
+                sim_harness::csv::write_csv(path, &res.ticks)?;
+            }
+            let title = table
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default();
+            if let Some(path) = &plot {
+                write_plot(path, &res, &title)?;
+            }
+            if json {
+                let mut v = serde_json::to_value(res.summary_json())?;
+                v["table"] = table.display().to_string().into();
+                if let Some(p) = &csv {
+                    v["csv"] = p.display().to_string().into();
+                }
+                if let Some(p) = &plot {
+                    v["plot"] = p.display().to_string().into();
+                }
+                println!("{}", serde_json::to_string(&v)?);
+            } else {
+                println!("{}", table.display());
+                print!("{}", res.summary());
+                if let Some(p) = &csv {
+                    println!("  wrote {}", p.display());
+                }
+                if let Some(p) = &plot {
+                    println!("  wrote {}", p.display());
+                }
+            }
+            Ok(())
+        }
+        Cmd::Demo { out } => demo(&out),
+    }
+}
+
+fn write_plot(path: &Path, res: &SimResult, name: &str) -> Result<(), BoxError> {
+    let (commanded, actual) = res.simulated_feed();
+    let title = format!(
+        "{name}: feed against arc length (T = {:.4} s simulated, {:.4} s predicted)",
+        res.metrics.machining_time_s, res.predicted_time_s
+    );
+    plot::plot_feed(
+        path,
+        &FeedPlot {
+            title: &title,
+            planned: &res.planned_feed,
+            commanded: &commanded,
+            actual: Some(&actual),
+            vbar_mm_s: Some(res.limits.vbar),
+        },
+    )?;
+    Ok(())
+}
+
+fn demo(out: &Path) -> Result<(), BoxError> {
+    std::fs::create_dir_all(out).map_err(|e| format!("cannot create {}: {e}", out.display()))?;
+    let curve = builtin::butterfly()?;
+    let cfg = PlanConfig {
+        sampling: Sampling::Len,
+        density_per_mm: 1.0,
+        limits: limits::TABLE1,
+        ..PlanConfig::default()
+    };
+    let planned = plan::plan_curve(&curve, &cfg)?;
+    let arc = ArcLength::new(&curve);
+    let check = verify::dense_check(&curve, &arc, &planned.q_knots, &planned.q_ctrl, &cfg.limits, 20);
+    println!("== plan");
+    print!("{}", planned.summary(Some(&check)));
+
+    let bin = out.join("butterfly.bin");
+    sim_harness::csv::write_atomic(&bin, &planned.table_bytes)?;
+    let res = sim::run_table(&planned.table_bytes, &SimConfig::default())?;
+    println!("== simulation");
+    print!("{}", res.summary());
+    let csv = out.join("butterfly.csv");
+    sim_harness::csv::write_csv(&csv, &res.ticks)?;
+    let png = out.join("butterfly_feed.png");
+    write_plot(&png, &res, "Butterfly")?;
+    println!("== wrote {}, {}, {}", bin.display(), csv.display(), png.display());
+    Ok(())
+}

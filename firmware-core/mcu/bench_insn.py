@@ -1,0 +1,156 @@
+#!/usr/bin/env python3
+"""Count Thumb instructions executed in marked windows of an MCU image under QEMU.
+
+How: QEMU runs the ELF with one guest instruction per translation block
+(`-singlestep`) and logs every executed block (`-d exec,nochain`), so every log
+line is exactly one executed instruction. The log goes through a FIFO (it is
+~120 bytes per instruction; nothing is written to disk) and is scanned in large
+chunks for the entry addresses of `firmware_mcu::mark_begin` and
+`firmware_mcu::mark_end` (found with `nm`). A window is the instructions from
+an entry of mark_begin up to (not including) the next entry of mark_end.
+
+The firmware prints `BENCH-GROUP <label> <n>` lines in execution order; the
+windows are split into groups by them. The first group must be `empty`
+(back-to-back markers): its median is the marker overhead, subtracted from
+every other window. Nothing is hard-coded: all numbers come from the run.
+
+Usage: bench_insn.py ELF [--csv FILE] [--timeout S] [--qemu QEMU]
+Exit code: the firmware's (semihosting) exit code, or 2 on a measurement error.
+"""
+import argparse
+import os
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import threading
+
+QEMU_ARGS = ["-cpu", "cortex-m4", "-machine", "mps2-an386", "-nographic",
+             "-semihosting-config", "enable=on,target=native"]
+
+
+def symbol_addr(elf, nm, name):
+    out = subprocess.run([nm, "-C", elf], check=True, capture_output=True, text=True).stdout
+    hits = [l.split()[0] for l in out.splitlines() if l.endswith(" " + name)]
+    if len(hits) != 1:
+        sys.exit(f"bench_insn: symbol {name!r}: {len(hits)} matches in {elf}")
+    return int(hits[0], 16) & ~1  # clear the Thumb bit
+
+
+def scan(fifo_path, begin, end, result):
+    """Streams the exec log; appends window lengths to result['windows']."""
+    # Exec-log line (QEMU 7.x): "Trace 0: 0xHOST [CSBASE/PC/FLAGS/CFLAGS] sym\n";
+    # match "/PC/" right after the 8-digit cs_base field.
+    pats = {b"/%08x/" % begin: "b", b"/%08x/" % end: "e"}
+    windows = result["windows"]
+    total = 0          # instructions (lines) seen so far
+    open_at = None     # line index of the current window's begin, or None
+    rest = b""
+    with open(fifo_path, "rb", buffering=0) as f:
+        while True:
+            chunk = f.read(1 << 24)
+            if not chunk:
+                break
+            buf = rest + chunk
+            cut = buf.rfind(b"\n") + 1
+            buf, rest = buf[:cut], buf[cut:]
+            hits = []
+            for pat, kind in pats.items():
+                i = buf.find(pat)
+                while i >= 0:
+                    if i >= 9 and buf[i - 9] == 0x5B:  # '[' before the cs_base field
+                        hits.append((i, kind))
+                    i = buf.find(pat, i + 1)
+            hits.sort()
+            pos, line = 0, total
+            for i, kind in hits:
+                line += buf.count(b"\n", pos, i)
+                pos = i
+                if kind == "b":
+                    if open_at is not None:
+                        result["errors"].append(f"nested mark_begin at insn {line}")
+                    open_at = line
+                else:
+                    if open_at is None:
+                        result["errors"].append(f"mark_end without mark_begin at insn {line}")
+                    else:
+                        windows.append(line - open_at)
+                        open_at = None
+            total += buf.count(b"\n")
+    result["total"] = total
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("elf")
+    ap.add_argument("--csv", help="write every window (group,index,insns) to this file")
+    ap.add_argument("--timeout", type=float, default=3600)
+    ap.add_argument("--qemu", default="qemu-system-arm")
+    ap.add_argument("--nm", default=shutil.which("arm-none-eabi-nm") or "nm")
+    a = ap.parse_args()
+
+    begin = symbol_addr(a.elf, a.nm, "firmware_mcu::mark_begin")
+    end = symbol_addr(a.elf, a.nm, "firmware_mcu::mark_end")
+    tmp = tempfile.mkdtemp(prefix="bench-insn-")
+    fifo = os.path.join(tmp, "exec.fifo")
+    os.mkfifo(fifo)
+    result = {"windows": [], "errors": [], "total": 0}
+    t = threading.Thread(target=scan, args=(fifo, begin, end, result))
+    t.start()
+    cmd = [a.qemu, *QEMU_ARGS, "-singlestep", "-d", "exec,nochain", "-D", fifo, "-kernel", a.elf]
+    try:
+        p = subprocess.run(cmd, capture_output=True, text=True, timeout=a.timeout)
+    except subprocess.TimeoutExpired:
+        # Unblock the reader if QEMU never opened the FIFO, then give up.
+        with open(fifo, "wb"):
+            pass
+        t.join()
+        shutil.rmtree(tmp)
+        sys.exit(f"bench_insn: QEMU timed out after {a.timeout} s")
+    t.join()
+    shutil.rmtree(tmp)
+    sys.stdout.write(p.stdout)
+    sys.stderr.write(p.stderr)
+    if p.returncode != 0:
+        print(f"bench_insn: firmware exited {p.returncode}", file=sys.stderr)
+        return p.returncode
+
+    groups = []
+    for l in p.stdout.splitlines():
+        if l.startswith("BENCH-GROUP "):
+            _, label, n = l.split()
+            groups.append((label, int(n)))
+    w = result["windows"]
+    if result["errors"] or sum(n for _, n in groups) != len(w) or not groups or groups[0][0] != "empty":
+        print(f"bench_insn: {len(w)} windows, groups {groups}, errors {result['errors'][:5]}",
+              file=sys.stderr)
+        return 2
+    print(f"== instructions executed: {result['total']} in total; {len(w)} windows "
+          f"(marker entries at 0x{begin:x}/0x{end:x})")
+    i = 0
+    base = None
+    rows = []
+    print(f"{'group':40} {'n':>7} {'mean':>10} {'median':>8} {'min':>7} {'max':>7}  (Thumb insns, marker overhead subtracted)")
+    for label, n in groups:
+        vals = w[i:i + n]
+        i += n
+        if base is None:
+            base = statistics.median_low(vals)
+            print(f"{'(marker overhead)':40} {n:7d} {statistics.mean(vals):10.1f} {base:8d} "
+                  f"{min(vals):7d} {max(vals):7d}")
+            continue
+        v = [x - base for x in vals]
+        rows += [(label, k, x) for k, x in enumerate(v)]
+        print(f"{label:40} {n:7d} {statistics.mean(v):10.1f} {statistics.median_low(v):8d} "
+              f"{min(v):7d} {max(v):7d}")
+    if a.csv:
+        with open(a.csv, "w") as f:
+            f.write("group,index,insns\n")
+            for r in rows:
+                f.write("%s,%d,%d\n" % r)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,146 @@
+//! Support code shared by the MCU binaries: semihosting exit, the panic and
+//! fault handlers, the instruction-count window markers, and the setpoint
+//! digest.
+//!
+//! # Instruction-count windows
+//!
+//! [`mark_begin`] and [`mark_end`] are tiny `#[inline(never)]` functions whose
+//! only job is to have an address. `bench-insn.sh` runs the image under QEMU
+//! with one guest instruction per translation block and an execution log, and
+//! counts the instructions executed from each entry of `mark_begin` to the
+//! next entry of `mark_end` (a "window"). The program announces, in execution
+//! order, which windows belong to which label with [`group`] lines
+//! (`BENCH-GROUP <label> <count>`); the script splits the window list by these
+//! lines. The fixed marker overhead is measured, not assumed: every program
+//! starts with a group `empty` of back-to-back begin/end pairs, whose count the
+//! script subtracts.
+//!
+//! # Setpoint digest
+//!
+//! [`Fnv1a64`] is FNV-1a, 64 bit (offset basis 0xcbf29ce484222325, prime
+//! 0x100000001b3), fed byte by byte. The run digest feeds, for every setpoint
+//! in tick order (the first tick at t = 0 included), `pos_mm[0]`, `pos_mm[1]`,
+//! `pos_mm[2]` as `f64::to_bits().to_le_bytes()` (8 bytes each, 24 bytes per
+//! tick). A host-side twin must do exactly this.
+#![no_std]
+
+use core::hint::black_box;
+use cortex_m_rt::{exception, ExceptionFrame};
+use cortex_m_semihosting::{debug, hprintln};
+
+/// Ends the QEMU run with exit code 0 (`ok`) or 1 via semihosting.
+pub fn exit(ok: bool) -> ! {
+    debug::exit(if ok { debug::EXIT_SUCCESS } else { debug::EXIT_FAILURE });
+    // Only reached when no semihosting host honours the exit (a debugger that
+    // resumes). Never spin silently: keep asking.
+    loop {
+        debug::exit(debug::EXIT_FAILURE);
+    }
+}
+
+#[panic_handler]
+fn panic(info: &core::panic::PanicInfo) -> ! {
+    hprintln!("PANIC: {}", info);
+    exit(false)
+}
+
+#[exception]
+unsafe fn HardFault(ef: &ExceptionFrame) -> ! {
+    hprintln!("HARDFAULT: {:?}", ef);
+    exit(false)
+}
+
+#[exception]
+unsafe fn DefaultHandler(irqn: i16) {
+    hprintln!("UNEXPECTED EXCEPTION/IRQ {}", irqn);
+    exit(false)
+}
+
+// The markers must survive LTO: a store to a never-read static is deleted
+// and a call to an empty function with it, `#[inline(never)]` or not.
+// `black_box` is an opaque side effect to the optimiser; the distinct
+// constants keep the two bodies from being merged.
+
+/// Start of an instruction-count window (see the module docs).
+#[inline(never)]
+pub fn mark_begin() {
+    black_box(0x6265_6769u32);
+}
+
+/// End of an instruction-count window (see the module docs).
+#[inline(never)]
+pub fn mark_end() {
+    black_box(0x656e_6421u32);
+}
+
+/// Announces that the next `count` windows are labelled `label`.
+pub fn group(label: &str, count: u32) {
+    hprintln!("BENCH-GROUP {} {}", label, count);
+}
+
+/// Runs `n` back-to-back empty windows: the marker overhead the bench script
+/// subtracts. Call first, before any other window.
+pub fn calibrate(n: u32) {
+    group("empty", n);
+    for _ in 0..n {
+        mark_begin();
+        mark_end();
+    }
+}
+
+/// FNV-1a 64 (see the module docs for the run digest built on it).
+#[derive(Clone, Copy, Debug)]
+pub struct Fnv1a64(pub u64);
+
+impl Default for Fnv1a64 {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Fnv1a64 {
+    pub const OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
+    pub const PRIME: u64 = 0x0000_0100_0000_01b3;
+
+    pub const fn new() -> Self {
+        Self(Self::OFFSET)
+    }
+
+    pub fn bytes(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.0 ^= u64::from(b);
+            self.0 = self.0.wrapping_mul(Self::PRIME);
+        }
+    }
+
+    /// Feeds `x.to_bits().to_le_bytes()`.
+    pub fn f64(&mut self, x: f64) {
+        self.bytes(&x.to_bits().to_le_bytes());
+    }
+
+    /// Feeds one setpoint position: x, y, z in that order.
+    pub fn pos(&mut self, pos_mm: &[f64; 3]) {
+        for &c in pos_mm {
+            self.f64(c);
+        }
+    }
+
+    pub fn finish(&self) -> u64 {
+        self.0
+    }
+}
+
+/// 8-byte aligned wrapper for `include_bytes!` data (the table is read as
+/// little-endian f64 fields; alignment keeps the door open for a direct view).
+#[repr(C, align(8))]
+pub struct Aligned<T: ?Sized>(pub T);
+
+/// CPACR (0xE000_ED88): CP10/CP11 full access bits 20..=23 set means the FPU
+/// is enabled (cortex-m-rt does this in its reset handler for `-eabihf`).
+pub fn fpu_enabled() -> (bool, u32) {
+    // Read-only use of the SCB; `steal` because the binaries don't otherwise
+    // own the peripherals.
+    let scb = unsafe { &*cortex_m::peripheral::SCB::PTR };
+    let cpacr = scb.cpacr.read();
+    ((cpacr >> 20) & 0xf == 0xf, cpacr)
+}

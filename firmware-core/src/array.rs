@@ -1,0 +1,275 @@
+//! Read-only indexed sources of numbers: host slices and zero-copy
+//! little-endian views into a table.
+//!
+//! Everything above this layer ([`crate::qspline`], [`crate::nurbs`],
+//! [`crate::sumap`]) reads its data through these traits, so one evaluation
+//! code path serves the host (`&[f64]`) and the firmware (bytes in flash).
+//! Reads are bounds-checked and return `None` past the end; nothing panics.
+
+use crate::basis::MAX_DEGREE;
+
+/// A read-only array of `f64`.
+pub trait F64Array {
+    /// Number of elements.
+    fn len(&self) -> usize;
+    /// Element `i`, `None` past the end.
+    fn get(&self, i: usize) -> Option<f64>;
+    /// `true` if there are no elements.
+    fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+    /// The last element.
+    fn last(&self) -> Option<f64> {
+        self.get(self.len().checked_sub(1)?)
+    }
+}
+
+impl F64Array for &[f64] {
+    fn len(&self) -> usize {
+        <[f64]>::len(self)
+    }
+    fn get(&self, i: usize) -> Option<f64> {
+        <[f64]>::get(self, i).copied()
+    }
+}
+
+/// A read-only array of homogeneous-table points `[x, y, z, w]` (x, y, z
+/// Cartesian in mm, w the weight).
+pub trait Point4Array {
+    /// Number of points.
+    fn len(&self) -> usize;
+    /// Point `i`, `None` past the end.
+    fn get(&self, i: usize) -> Option<[f64; 4]>;
+    /// `true` if there are no points.
+    fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+impl Point4Array for &[[f64; 4]] {
+    fn len(&self) -> usize {
+        <[[f64; 4]]>::len(self)
+    }
+    fn get(&self, i: usize) -> Option<[f64; 4]> {
+        <[[f64; 4]]>::get(self, i).copied()
+    }
+}
+
+/// Zero-copy view of little-endian `f64`s (8 bytes each).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LeF64<'a> {
+    bytes: &'a [u8],
+}
+
+impl<'a> LeF64<'a> {
+    /// The view over `bytes`; `None` unless the length is a multiple of 8.
+    pub fn new(bytes: &'a [u8]) -> Option<Self> {
+        (bytes.len() % 8 == 0).then_some(LeF64 { bytes })
+    }
+    /// The underlying bytes.
+    pub fn as_bytes(&self) -> &'a [u8] {
+        self.bytes
+    }
+    /// The values, in order.
+    pub fn iter(&self) -> impl Iterator<Item = f64> + 'a {
+        self.bytes.chunks_exact(8).map(|c| {
+            let mut b = [0u8; 8];
+            b.copy_from_slice(c);
+            f64::from_le_bytes(b)
+        })
+    }
+}
+
+impl F64Array for LeF64<'_> {
+    fn len(&self) -> usize {
+        self.bytes.len() / 8
+    }
+    fn get(&self, i: usize) -> Option<f64> {
+        let start = i.checked_mul(8)?;
+        let b: [u8; 8] = self.bytes.get(start..start.checked_add(8)?)?.try_into().ok()?;
+        Some(f64::from_le_bytes(b))
+    }
+}
+
+/// Zero-copy view of little-endian `u32`s (4 bytes each).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LeU32<'a> {
+    bytes: &'a [u8],
+}
+
+impl<'a> LeU32<'a> {
+    /// The view over `bytes`; `None` unless the length is a multiple of 4.
+    pub fn new(bytes: &'a [u8]) -> Option<Self> {
+        (bytes.len() % 4 == 0).then_some(LeU32 { bytes })
+    }
+    /// The underlying bytes.
+    pub fn as_bytes(&self) -> &'a [u8] {
+        self.bytes
+    }
+    /// Number of elements.
+    pub fn len(&self) -> usize {
+        self.bytes.len() / 4
+    }
+    /// `true` if there are no elements.
+    pub fn is_empty(&self) -> bool {
+        self.bytes.is_empty()
+    }
+    /// Element `i`, `None` past the end.
+    pub fn get(&self, i: usize) -> Option<u32> {
+        let start = i.checked_mul(4)?;
+        let b: [u8; 4] = self.bytes.get(start..start.checked_add(4)?)?.try_into().ok()?;
+        Some(u32::from_le_bytes(b))
+    }
+    /// The values, in order.
+    pub fn iter(&self) -> impl Iterator<Item = u32> + 'a {
+        self.bytes.chunks_exact(4).map(|c| {
+            let mut b = [0u8; 4];
+            b.copy_from_slice(c);
+            u32::from_le_bytes(b)
+        })
+    }
+}
+
+/// Zero-copy view of little-endian points `[x, y, z, w]` (32 bytes each).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LePoint4<'a> {
+    inner: LeF64<'a>,
+}
+
+impl<'a> LePoint4<'a> {
+    /// The view over `bytes`; `None` unless the length is a multiple of 32.
+    pub fn new(bytes: &'a [u8]) -> Option<Self> {
+        (bytes.len() % 32 == 0).then_some(LePoint4 {
+            inner: LeF64 { bytes },
+        })
+    }
+    /// The coordinates as one flat `f64` view (`4 × len` values).
+    pub fn flat(&self) -> LeF64<'a> {
+        self.inner
+    }
+}
+
+impl Point4Array for LePoint4<'_> {
+    fn len(&self) -> usize {
+        self.inner.len() / 4
+    }
+    fn get(&self, i: usize) -> Option<[f64; 4]> {
+        let b = i.checked_mul(4)?;
+        Some([
+            self.inner.get(b)?,
+            self.inner.get(b.checked_add(1)?)?,
+            self.inner.get(b.checked_add(2)?)?,
+            self.inner.get(b.checked_add(3)?)?,
+        ])
+    }
+}
+
+/// Knot-window buffer: room for the `2p` knots of [`crate::basis::window`].
+pub type KnotWindow = [f64; 2 * MAX_DEGREE];
+
+/// Copy the knot window `U[i−p+1] ..= U[i+p]` of span `span` out of `knots`
+/// into `buf` and return it as a slice (for [`crate::basis::ders_basis`]).
+pub fn copy_window<'b, A: F64Array>(
+    knots: &A,
+    degree: usize,
+    span: usize,
+    buf: &'b mut KnotWindow,
+) -> Option<&'b [f64]> {
+    let start = span.checked_add(1)?.checked_sub(degree)?;
+    let len = degree.checked_mul(2)?;
+    let win = buf.get_mut(..len)?;
+    for (k, slot) in win.iter_mut().enumerate() {
+        *slot = knots.get(start.checked_add(k)?)?;
+    }
+    buf.get(..len)
+}
+
+/// Index `i` of the knot span with `U[i] ≤ x < U[i+1]`, `p ≤ i ≤ n − 1`
+/// (`n` control points, `n + p + 1` knots); `x` at or past `U[n]` maps to the
+/// last non-empty span, `x` before `U[p]` to the first. Binary search over
+/// any [`F64Array`]; `None` if the knots are too few or all spans are empty.
+pub fn find_span<A: F64Array>(knots: &A, degree: usize, x: f64) -> Option<usize> {
+    let n_knots = knots.len();
+    if n_knots < degree.checked_mul(2)?.checked_add(2)? {
+        return None;
+    }
+    let n = n_knots - degree - 1; // number of control points; spans p ..= n−1
+    let lo_knot = knots.get(degree)?;
+    let hi_knot = knots.get(n)?;
+    if !(hi_knot > lo_knot) {
+        return None;
+    }
+    if x >= hi_knot {
+        return last_nonempty_span(knots, degree, n);
+    }
+    if x < lo_knot {
+        return first_nonempty_span(knots, degree, n);
+    }
+    // Invariant: U[lo] ≤ x < U[hi], lo < hi.
+    let (mut lo, mut hi) = (degree, n);
+    while hi - lo > 1 {
+        let mid = lo + (hi - lo) / 2;
+        if x < knots.get(mid)? {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    Some(lo)
+}
+
+/// The first span `i ≥ p` with `U[i] < U[i+1]`.
+pub(crate) fn first_nonempty_span<A: F64Array>(knots: &A, degree: usize, n: usize) -> Option<usize> {
+    (degree..n).find(|&i| matches!((knots.get(i), knots.get(i + 1)), (Some(a), Some(b)) if b > a))
+}
+
+/// The last span `i ≤ n − 1` with `U[i] < U[i+1]`.
+pub(crate) fn last_nonempty_span<A: F64Array>(knots: &A, degree: usize, n: usize) -> Option<usize> {
+    (degree..n)
+        .rev()
+        .find(|&i| matches!((knots.get(i), knots.get(i + 1)), (Some(a), Some(b)) if b > a))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn le_views_read_back() {
+        let vals = [1.5f64, -2.25, 1e300, 0.0];
+        let mut bytes = [0u8; 32];
+        for (c, v) in bytes.chunks_exact_mut(8).zip(vals) {
+            c.copy_from_slice(&v.to_le_bytes());
+        }
+        let a = LeF64::new(&bytes).unwrap();
+        assert_eq!(F64Array::len(&a), 4);
+        for (i, v) in vals.iter().enumerate() {
+            assert_eq!(F64Array::get(&a, i), Some(*v));
+        }
+        assert_eq!(F64Array::get(&a, 4), None);
+        assert_eq!(F64Array::get(&a, usize::MAX), None);
+        assert!(LeF64::new(&bytes[..7]).is_none());
+        let p = LePoint4::new(&bytes).unwrap();
+        assert_eq!(Point4Array::get(&p, 0), Some(vals));
+        assert_eq!(Point4Array::get(&p, 1), None);
+        let u = LeU32::new(&bytes[..8]).unwrap();
+        assert_eq!(u.len(), 2);
+        assert_eq!(
+            u.get(0),
+            Some(u32::from_le_bytes([bytes[0], bytes[1], bytes[2], bytes[3]]))
+        );
+        assert_eq!(u.get(2), None);
+    }
+
+    #[test]
+    fn find_span_matches_basis() {
+        let knots = [0.0, 0.0, 0.0, 0.0, 0.2, 0.2, 0.7, 1.0, 1.0, 1.0, 1.0];
+        let k: &[f64] = &knots;
+        for step in -5..=105 {
+            let x = step as f64 / 100.0;
+            let ours = find_span(&k, 3, x).unwrap();
+            let theirs = crate::basis::find_span(&knots, 3, x.clamp(0.0, 1.0)).unwrap();
+            assert_eq!(ours, theirs, "x={x}");
+        }
+    }
+}

@@ -1,0 +1,1217 @@
+//! The firmware table: what the host plans, in one validated binary blob.
+//!
+//! The host fills a [`TableParts`] and calls [`encode`]; the firmware calls
+//! [`Table::parse`], which checks *everything* (framing, CRC, directory,
+//! counts, finiteness, knot vectors, the s → u map against the NURBS knots)
+//! before any motion and then gives zero-copy accessors. [`encode`] runs the
+//! same validation on what it wrote, so encode either errs or produces bytes
+//! that parse.
+//!
+//! # Byte layout (format version 1)
+//!
+//! All integers and floats little-endian; offsets from the start of the table.
+//!
+//! Header, 16 bytes:
+//!
+//! ```text
+//! +--------+------+-----------------------------------------------+
+//! | offset | size | field                                         |
+//! +--------+------+-----------------------------------------------+
+//! |      0 |    4 | magic "FLPT"                                  |
+//! |      4 |    2 | format version u16 = 1 (`VERSION`)            |
+//! |      6 |    2 | header length u16 (≥ 16, multiple of 8)       |
+//! |      8 |    4 | total length u32, including the CRC           |
+//! |     12 |    2 | section count u16 (1 ..= `MAX_SECTIONS`)      |
+//! |     14 |    2 | reserved, 0                                   |
+//! +--------+------+-----------------------------------------------+
+//! ```
+//!
+//! Section directory at `header length`, one 16-byte entry per section:
+//!
+//! ```text
+//! +--------+------+-----------------------------------------------+
+//! |      0 |    2 | kind u16 (see below)                          |
+//! |      2 |    2 | reserved, 0                                   |
+//! |      4 |    4 | element count u32                             |
+//! |      8 |    4 | offset u32, a multiple of 8, after the dir.   |
+//! |     12 |    4 | byte length u32                               |
+//! +--------+------+-----------------------------------------------+
+//! ```
+//!
+//! Sections (any order, 8-byte aligned, non-overlapping, before the CRC):
+//!
+//! ```text
+//! +------+---------------+-------+------------------------------------------+
+//! | kind | name          | count | payload                                  |
+//! +------+---------------+-------+------------------------------------------+
+//! |    1 | limits        |    12 | f64 vbar, abar, jbar, v[3], a[3], j[3]   |
+//! |    2 | meta          |     1 | f64 L (mm), f64 T (s), u32 p, u32 order=4|
+//! |    3 | nurbs knots   | n+p+1 | f64 each, clamped                        |
+//! |    4 | nurbs points  |     n | f64 x, y, z (mm), w: 32 bytes each       |
+//! |    5 | su breaks     |   M+1 | f64, 0 = s_0 < … < s_M = L               |
+//! |    6 | su spans      |     M | u32 knot span of each segment            |
+//! |    7 | su coeffs     |     M | f64 × 6 (`SU_COEFFS`) per segment        |
+//! |    8 | q knots       |   N+4 | f64, clamped order 4, 0 … L              |
+//! |    9 | q ctrl        |     N | f64, (mm/s)², ≥ 0, first and last 0      |
+//! +------+---------------+-------+------------------------------------------+
+//! ```
+//!
+//! Kinds `0x8000 ..= 0xFFFF` ([`EXTENSION_BASE`]) are extensions a reader may
+//! skip: they are bounds-, alignment- and overlap-checked, then ignored.
+//! `0x8000 + k` ([`OVERRIDE_PROFILE_BASE`]) is reserved for feedrate-override
+//! profile k (§4 of the paper: alternative q control points on the q knots).
+//! Any other unknown kind (0, 10 ..= 0x7FFF) is refused: a change a reader
+//! must understand takes a new kind below the base or a new version.
+//!
+//! The last 4 bytes are the CRC-32 (ISO-HDLC, the zlib/PNG CRC) of every byte
+//! before them, u32.
+
+use core::fmt;
+
+use crate::array::{F64Array, LeF64, LePoint4, LeU32, Point4Array};
+use crate::basis::MAX_DEGREE;
+use crate::nurbs::NurbsView;
+use crate::qspline::QSpline;
+use crate::sumap::{horner, SegmentArray, SuMapView};
+
+/// Magic bytes at offset 0.
+pub const MAGIC: [u8; 4] = *b"FLPT";
+/// Format version written and accepted.
+pub const VERSION: u16 = 1;
+/// Header length written by [`encode`].
+pub const HEADER_LEN: usize = 16;
+/// Bytes per directory entry.
+pub const DIR_ENTRY_LEN: usize = 16;
+/// Most sections a table may have.
+pub const MAX_SECTIONS: usize = 32;
+/// Bytes of the trailing CRC.
+pub const CRC_LEN: usize = 4;
+/// First extension section kind: kinds at or above it are skipped by readers.
+pub const EXTENSION_BASE: u16 = 0x8000;
+/// Kind of feedrate-override profile k is `OVERRIDE_PROFILE_BASE + k` (reserved).
+pub const OVERRIDE_PROFILE_BASE: u16 = EXTENSION_BASE;
+/// Coefficients per s → u segment (a quintic in τ).
+pub const SU_COEFFS: usize = 6;
+/// Order of q(s) (cubic).
+pub const Q_ORDER: u32 = 4;
+/// Relative tolerance for values that must agree with L or with a knot
+/// (su segment ends, last q knot, last su break).
+pub const MATCH_TOL_REL: f64 = 1e-9;
+
+const CRC: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
+
+/// Kinematic limits: tangential (`vbar` mm/s, `abar` mm/s², `jbar` mm/s³,
+/// eqs. 11–13) and per axis x, y, z (`v`, `a`, `j`, eqs. 8–10).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct Limits {
+    /// Tangential velocity, mm/s.
+    pub vbar: f64,
+    /// Tangential acceleration, mm/s².
+    pub abar: f64,
+    /// Tangential jerk, mm/s³.
+    pub jbar: f64,
+    /// Axis velocities, mm/s.
+    pub v: [f64; 3],
+    /// Axis accelerations, mm/s².
+    pub a: [f64; 3],
+    /// Axis jerks, mm/s³.
+    pub j: [f64; 3],
+}
+
+impl Limits {
+    /// The 12 values in table order: vbar, abar, jbar, v, a, j.
+    pub fn to_array(&self) -> [f64; 12] {
+        let [v0, v1, v2] = self.v;
+        let [a0, a1, a2] = self.a;
+        let [j0, j1, j2] = self.j;
+        [
+            self.vbar, self.abar, self.jbar, v0, v1, v2, a0, a1, a2, j0, j1, j2,
+        ]
+    }
+    /// The inverse of [`Limits::to_array`].
+    pub fn from_array(x: [f64; 12]) -> Self {
+        let [vbar, abar, jbar, v0, v1, v2, a0, a1, a2, j0, j1, j2] = x;
+        Limits {
+            vbar,
+            abar,
+            jbar,
+            v: [v0, v1, v2],
+            a: [a0, a1, a2],
+            j: [j0, j1, j2],
+        }
+    }
+}
+
+/// One s → u segment: u(s) = Σ_k `coeffs[k]` τ^k, τ = (s − s_j)/(s_{j+1} − s_j)
+/// ∈ [0, 1]; the segment lies in NURBS knot span `span`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct SuSegment {
+    /// Knot span index i (U_i ≤ u ≤ U_{i+1}).
+    pub span: u32,
+    /// Power-form coefficients in τ, lowest first.
+    pub coeffs: [f64; SU_COEFFS],
+}
+
+/// Everything the host writes; borrowed, so encoding needs no allocation.
+#[derive(Clone, Copy, Debug)]
+pub struct TableParts<'a> {
+    /// Kinematic limits.
+    pub limits: Limits,
+    /// Path length L, mm.
+    pub path_length_mm: f64,
+    /// Predicted machining time ∫ ds/√q, s.
+    pub predicted_time_s: f64,
+    /// NURBS degree p, 1 ..= 5.
+    pub nurbs_degree: u32,
+    /// NURBS knots, n + p + 1, clamped.
+    pub nurbs_knots: &'a [f64],
+    /// Control points x, y, z (Cartesian, mm) and weight w.
+    pub nurbs_points: &'a [[f64; 4]],
+    /// 0 = s_0 < … < s_M = L, mm.
+    pub su_breaks: &'a [f64],
+    /// M segments.
+    pub su_segments: &'a [SuSegment],
+    /// q knots, order 4, clamped, first 0, last L, mm.
+    pub q_knots: &'a [f64],
+    /// q control points, (mm/s)², ≥ 0, first and last 0.
+    pub q_ctrl: &'a [f64],
+}
+
+/// A known section kind.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[repr(u16)]
+pub enum Section {
+    /// Kinematic limits (kind 1).
+    Limits = 1,
+    /// Path length, predicted time, degrees (kind 2).
+    Meta = 2,
+    /// NURBS knots (kind 3).
+    NurbsKnots = 3,
+    /// NURBS points (kind 4).
+    NurbsPoints = 4,
+    /// s → u breaks (kind 5).
+    SuBreaks = 5,
+    /// s → u knot spans (kind 6).
+    SuSpans = 6,
+    /// s → u coefficients (kind 7).
+    SuCoeffs = 7,
+    /// q knots (kind 8).
+    QKnots = 8,
+    /// q control points (kind 9).
+    QCtrl = 9,
+}
+
+impl Section {
+    /// Every known kind, in the order [`encode`] writes them.
+    pub const ALL: [Section; 9] = [
+        Section::Limits,
+        Section::Meta,
+        Section::NurbsKnots,
+        Section::NurbsPoints,
+        Section::SuBreaks,
+        Section::SuSpans,
+        Section::SuCoeffs,
+        Section::QKnots,
+        Section::QCtrl,
+    ];
+
+    /// The kind code in the directory.
+    pub fn code(self) -> u16 {
+        self as u16
+    }
+
+    /// The known kind with this code.
+    pub fn from_code(code: u16) -> Option<Section> {
+        Section::ALL.iter().copied().find(|s| s.code() == code)
+    }
+
+    /// Bytes per element.
+    pub fn element_len(self) -> usize {
+        match self {
+            Section::Limits => 8,
+            Section::Meta => META_LEN,
+            Section::NurbsPoints => 32,
+            Section::SuSpans => 4,
+            Section::SuCoeffs => 8 * SU_COEFFS,
+            Section::NurbsKnots | Section::SuBreaks | Section::QKnots | Section::QCtrl => 8,
+        }
+    }
+
+    fn slot(self) -> usize {
+        usize::from(self.code()).saturating_sub(1)
+    }
+}
+
+const META_LEN: usize = 24;
+const N_KNOWN: usize = Section::ALL.len();
+
+/// Why a byte string is not a valid table. Every variant names the problem
+/// and, where there is one, the section and element index.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum TableError {
+    /// Shorter than a header.
+    TooShort {
+        /// Bytes given.
+        len: usize,
+    },
+    /// The first 4 bytes are not [`MAGIC`].
+    BadMagic,
+    /// A format version this reader does not know.
+    UnsupportedVersion {
+        /// Version found.
+        found: u16,
+    },
+    /// Header length below 16 or not a multiple of 8, or header reserved ≠ 0.
+    BadHeader,
+    /// The header's total length differs from the bytes given (truncated or trailing bytes).
+    LengthMismatch {
+        /// Total length in the header.
+        header: u32,
+        /// Bytes given.
+        actual: usize,
+    },
+    /// Section count 0 or above [`MAX_SECTIONS`].
+    SectionCount {
+        /// Count found.
+        count: u16,
+    },
+    /// The CRC does not match: the bytes are corrupt.
+    Crc {
+        /// CRC stored in the table.
+        stored: u32,
+        /// CRC computed over the bytes.
+        computed: u32,
+    },
+    /// The directory does not fit before the CRC.
+    DirectoryOutOfBounds,
+    /// A directory entry's reserved field is not 0.
+    EntryReserved {
+        /// Directory index.
+        entry: usize,
+    },
+    /// A section kind below [`EXTENSION_BASE`] this reader does not know.
+    UnknownSection {
+        /// Kind code.
+        kind: u16,
+    },
+    /// A known section appears twice.
+    DuplicateSection {
+        /// The section.
+        section: Section,
+    },
+    /// A required section is missing.
+    MissingSection {
+        /// The section.
+        section: Section,
+    },
+    /// Section offset not a multiple of 8.
+    Misaligned {
+        /// Kind code.
+        kind: u16,
+        /// Offset found.
+        offset: u32,
+    },
+    /// Section not inside the area between the directory and the CRC.
+    OutOfBounds {
+        /// Kind code.
+        kind: u16,
+    },
+    /// Two sections overlap.
+    Overlap {
+        /// Kind code of one.
+        kind: u16,
+        /// Kind code of the other.
+        other: u16,
+    },
+    /// Byte length ≠ count × element size.
+    SectionLength {
+        /// The section.
+        section: Section,
+    },
+    /// An element count is wrong for the section or inconsistent with another.
+    Count {
+        /// The section.
+        section: Section,
+        /// Count expected.
+        expected: usize,
+        /// Count found.
+        found: usize,
+    },
+    /// A value is NaN or infinite.
+    NotFinite {
+        /// The section.
+        section: Section,
+        /// Index of the f64 in the section.
+        index: usize,
+    },
+    /// A limit is not > 0 (index in [`Limits::to_array`] order).
+    Limit {
+        /// Index 0 ..= 11.
+        index: usize,
+    },
+    /// Path length not > 0.
+    PathLength,
+    /// Predicted time < 0.
+    PredictedTime,
+    /// NURBS degree outside 1 ..= [`MAX_DEGREE`].
+    Degree {
+        /// Degree found.
+        degree: u32,
+    },
+    /// q order is not 4.
+    QOrder {
+        /// Order found.
+        order: u32,
+    },
+    /// Knot `index` is smaller than the one before it.
+    KnotDecreasing {
+        /// The section.
+        section: Section,
+        /// Knot index.
+        index: usize,
+    },
+    /// The first or last `degree + 1` knots are not equal (at knot `index`).
+    NotClamped {
+        /// The section.
+        section: Section,
+        /// Knot index.
+        index: usize,
+    },
+    /// An interior knot repeats more than `degree` times (ending at `index`):
+    /// the curve would break apart.
+    KnotMultiplicity {
+        /// The section.
+        section: Section,
+        /// Knot index.
+        index: usize,
+    },
+    /// The knot range is empty, or q knots do not run from 0 to L.
+    KnotRange {
+        /// The section.
+        section: Section,
+    },
+    /// A NURBS weight is not > 0.
+    Weight {
+        /// Control point index.
+        index: usize,
+    },
+    /// A q control point is negative.
+    QNegative {
+        /// Control point index.
+        index: usize,
+    },
+    /// The first or last q control point is not exactly 0 (rest to rest).
+    QEndNotZero {
+        /// Control point index.
+        index: usize,
+    },
+    /// q'(0) = 0 or q'(L) = 0 (second or second-to-last control point is 0):
+    /// the motion could never start or never reach L in finite time.
+    QFlatEnd {
+        /// Control point index.
+        index: usize,
+    },
+    /// su breaks not strictly increasing, or not from 0 to L (at break `index`).
+    SuBreak {
+        /// Break index.
+        index: usize,
+    },
+    /// A segment's knot span is out of range, empty, or before the previous one.
+    SuSpan {
+        /// Segment index.
+        segment: usize,
+        /// Span found.
+        span: u32,
+    },
+    /// A segment's u(τ = 0) or u(τ = 1) is outside its knot span, or u(1) < u(0).
+    SuOutsideSpan {
+        /// Segment index.
+        segment: usize,
+    },
+    /// u jumps between segment `segment − 1` and `segment`.
+    SuDiscontinuous {
+        /// Segment index.
+        segment: usize,
+    },
+    /// The first segment does not start at U[p] or the last does not end at
+    /// the last knot.
+    SuEnds {
+        /// Segment index.
+        segment: usize,
+    },
+}
+
+impl fmt::Display for TableError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        use TableError as E;
+        match *self {
+            E::TooShort { len } => write!(f, "table of {len} bytes is shorter than a header"),
+            E::BadMagic => f.write_str("not a feed table (bad magic)"),
+            E::UnsupportedVersion { found } => write!(f, "table format version {found} is not {VERSION}"),
+            E::BadHeader => f.write_str("bad header length or reserved field"),
+            E::LengthMismatch { header, actual } => {
+                write!(
+                    f,
+                    "header says {header} bytes, got {actual} (truncated or trailing bytes)"
+                )
+            }
+            E::SectionCount { count } => write!(f, "section count {count} not in 1..={MAX_SECTIONS}"),
+            E::Crc { stored, computed } => {
+                write!(
+                    f,
+                    "CRC mismatch: stored {stored:#010x}, computed {computed:#010x}"
+                )
+            }
+            E::DirectoryOutOfBounds => f.write_str("section directory runs past the data"),
+            E::EntryReserved { entry } => write!(f, "directory entry {entry}: reserved field not 0"),
+            E::UnknownSection { kind } => write!(f, "unknown section kind {kind}"),
+            E::DuplicateSection { section } => write!(f, "section {section:?} appears twice"),
+            E::MissingSection { section } => write!(f, "section {section:?} is missing"),
+            E::Misaligned { kind, offset } => {
+                write!(f, "section kind {kind} at offset {offset} not 8-aligned")
+            }
+            E::OutOfBounds { kind } => write!(f, "section kind {kind} out of bounds"),
+            E::Overlap { kind, other } => write!(f, "sections of kinds {kind} and {other} overlap"),
+            E::SectionLength { section } => {
+                write!(f, "section {section:?}: byte length ≠ count × element size")
+            }
+            E::Count {
+                section,
+                expected,
+                found,
+            } => {
+                write!(f, "section {section:?}: {found} elements, expected {expected}")
+            }
+            E::NotFinite { section, index } => write!(f, "section {section:?}[{index}] is not finite"),
+            E::Limit { index } => write!(f, "limit {index} is not > 0"),
+            E::PathLength => f.write_str("path length is not > 0"),
+            E::PredictedTime => f.write_str("predicted time is < 0"),
+            E::Degree { degree } => write!(f, "NURBS degree {degree} not in 1..={MAX_DEGREE}"),
+            E::QOrder { order } => write!(f, "q order {order} is not {Q_ORDER}"),
+            E::KnotDecreasing { section, index } => write!(f, "{section:?}[{index}] decreases"),
+            E::NotClamped { section, index } => write!(f, "{section:?} not clamped at knot {index}"),
+            E::KnotMultiplicity { section, index } => {
+                write!(
+                    f,
+                    "{section:?}: interior knot repeated more than degree times at {index}"
+                )
+            }
+            E::KnotRange { section } => write!(f, "{section:?}: empty or wrong knot range"),
+            E::Weight { index } => write!(f, "NURBS weight {index} is not > 0"),
+            E::QNegative { index } => write!(f, "q control point {index} is negative"),
+            E::QEndNotZero { index } => write!(f, "q control point {index} must be exactly 0"),
+            E::QFlatEnd { index } => write!(f, "q control point {index} is 0: q' vanishes at an end"),
+            E::SuBreak { index } => write!(f, "su break {index} not increasing from 0 to L"),
+            E::SuSpan { segment, span } => write!(f, "su segment {segment}: bad knot span {span}"),
+            E::SuOutsideSpan { segment } => write!(f, "su segment {segment}: u leaves its knot span"),
+            E::SuDiscontinuous { segment } => write!(f, "su segment {segment}: u jumps at its start"),
+            E::SuEnds { segment } => write!(f, "su segment {segment}: does not meet the curve's end"),
+        }
+    }
+}
+
+/// Why [`encode`] refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum EncodeError {
+    /// `out` is shorter than [`encoded_len`].
+    BufferTooSmall {
+        /// Bytes needed.
+        needed: usize,
+        /// Bytes available.
+        available: usize,
+    },
+    /// The table would exceed the u32 length/count fields.
+    TooLarge,
+    /// The parts do not make a valid table; the same error [`Table::parse`] gives.
+    Invalid(TableError),
+}
+
+impl fmt::Display for EncodeError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            EncodeError::BufferTooSmall { needed, available } => {
+                write!(f, "output buffer of {available} bytes, need {needed}")
+            }
+            EncodeError::TooLarge => f.write_str("table larger than 4 GiB"),
+            EncodeError::Invalid(e) => write!(f, "invalid table: {e}"),
+        }
+    }
+}
+
+// ---------------------------------------------------------------- byte helpers
+
+fn rd_u16(b: &[u8], off: usize) -> Option<u16> {
+    Some(u16::from_le_bytes(
+        b.get(off..off.checked_add(2)?)?.try_into().ok()?,
+    ))
+}
+
+fn rd_u32(b: &[u8], off: usize) -> Option<u32> {
+    Some(u32::from_le_bytes(
+        b.get(off..off.checked_add(4)?)?.try_into().ok()?,
+    ))
+}
+
+fn rd_f64(b: &[u8], off: usize) -> Option<f64> {
+    Some(f64::from_le_bytes(
+        b.get(off..off.checked_add(8)?)?.try_into().ok()?,
+    ))
+}
+
+fn wr(b: &mut [u8], off: usize, src: &[u8]) -> Result<(), EncodeError> {
+    let needed = off.saturating_add(src.len());
+    let available = b.len();
+    b.get_mut(off..needed)
+        .ok_or(EncodeError::BufferTooSmall { needed, available })?
+        .copy_from_slice(src);
+    Ok(())
+}
+
+fn wr_f64s<I: IntoIterator<Item = f64>>(b: &mut [u8], off: usize, vals: I) -> Result<usize, EncodeError> {
+    let mut at = off;
+    for v in vals {
+        wr(b, at, &v.to_le_bytes())?;
+        at = at.saturating_add(8);
+    }
+    Ok(at)
+}
+
+fn pad8(n: usize) -> usize {
+    n.saturating_add(7) & !7
+}
+
+// ---------------------------------------------------------------- encode
+
+/// Section sizes for `parts`: (kind, element count, byte length).
+fn section_sizes(parts: &TableParts) -> [(Section, usize, usize); N_KNOWN] {
+    let m = parts.su_segments.len();
+    let sz = |s: Section, count: usize| (s, count, count.saturating_mul(s.element_len()));
+    [
+        sz(Section::Limits, 12),
+        sz(Section::Meta, 1),
+        sz(Section::NurbsKnots, parts.nurbs_knots.len()),
+        sz(Section::NurbsPoints, parts.nurbs_points.len()),
+        sz(Section::SuBreaks, parts.su_breaks.len()),
+        sz(Section::SuSpans, m),
+        sz(Section::SuCoeffs, m),
+        sz(Section::QKnots, parts.q_knots.len()),
+        sz(Section::QCtrl, parts.q_ctrl.len()),
+    ]
+}
+
+fn data_start() -> usize {
+    HEADER_LEN + N_KNOWN * DIR_ENTRY_LEN
+}
+
+/// Bytes [`encode`] writes for `parts` (saturates at `usize::MAX`).
+pub fn encoded_len(parts: &TableParts) -> usize {
+    section_sizes(parts)
+        .iter()
+        .fold(data_start(), |acc, &(_, _, len)| acc.saturating_add(pad8(len)))
+        .saturating_add(CRC_LEN)
+}
+
+/// Write `parts` as a table into `out` and return its length. The result is
+/// parsed back before returning, so a table `encode` accepts is one
+/// [`Table::parse`] accepts; on error the contents of `out` are unspecified.
+pub fn encode(parts: &TableParts, out: &mut [u8]) -> Result<usize, EncodeError> {
+    let total = encoded_len(parts);
+    let total32 = u32::try_from(total).map_err(|_| EncodeError::TooLarge)?;
+    let available = out.len();
+    let buf = out.get_mut(..total).ok_or(EncodeError::BufferTooSmall {
+        needed: total,
+        available,
+    })?;
+    buf.fill(0);
+
+    wr(buf, 0, &MAGIC)?;
+    wr(buf, 4, &VERSION.to_le_bytes())?;
+    wr(buf, 6, &(HEADER_LEN as u16).to_le_bytes())?;
+    wr(buf, 8, &total32.to_le_bytes())?;
+    wr(buf, 12, &(N_KNOWN as u16).to_le_bytes())?;
+
+    let mut offset = data_start();
+    let mut offsets = [0usize; N_KNOWN];
+    for (idx, &(section, count, len)) in section_sizes(parts).iter().enumerate() {
+        let e = HEADER_LEN + idx * DIR_ENTRY_LEN;
+        let count32 = u32::try_from(count).map_err(|_| EncodeError::TooLarge)?;
+        let off32 = u32::try_from(offset).map_err(|_| EncodeError::TooLarge)?;
+        let len32 = u32::try_from(len).map_err(|_| EncodeError::TooLarge)?;
+        wr(buf, e, &section.code().to_le_bytes())?;
+        wr(buf, e + 4, &count32.to_le_bytes())?;
+        wr(buf, e + 8, &off32.to_le_bytes())?;
+        wr(buf, e + 12, &len32.to_le_bytes())?;
+        if let Some(slot) = offsets.get_mut(idx) {
+            *slot = offset;
+        }
+        offset = offset.saturating_add(pad8(len));
+    }
+    for (&(section, _, _), &off) in section_sizes(parts).iter().zip(offsets.iter()) {
+        match section {
+            Section::Limits => {
+                wr_f64s(buf, off, parts.limits.to_array())?;
+            }
+            Section::Meta => {
+                let at = wr_f64s(buf, off, [parts.path_length_mm, parts.predicted_time_s])?;
+                wr(buf, at, &parts.nurbs_degree.to_le_bytes())?;
+                wr(buf, at.saturating_add(4), &Q_ORDER.to_le_bytes())?;
+            }
+            Section::NurbsKnots => {
+                wr_f64s(buf, off, parts.nurbs_knots.iter().copied())?;
+            }
+            Section::NurbsPoints => {
+                wr_f64s(buf, off, parts.nurbs_points.iter().flatten().copied())?;
+            }
+            Section::SuBreaks => {
+                wr_f64s(buf, off, parts.su_breaks.iter().copied())?;
+            }
+            Section::SuSpans => {
+                for (j, seg) in parts.su_segments.iter().enumerate() {
+                    wr(
+                        buf,
+                        off.saturating_add(j.saturating_mul(4)),
+                        &seg.span.to_le_bytes(),
+                    )?;
+                }
+            }
+            Section::SuCoeffs => {
+                wr_f64s(buf, off, parts.su_segments.iter().flat_map(|s| s.coeffs))?;
+            }
+            Section::QKnots => {
+                wr_f64s(buf, off, parts.q_knots.iter().copied())?;
+            }
+            Section::QCtrl => {
+                wr_f64s(buf, off, parts.q_ctrl.iter().copied())?;
+            }
+        }
+    }
+    let body = total.saturating_sub(CRC_LEN);
+    let crc = CRC.checksum(buf.get(..body).unwrap_or(&[]));
+    wr(buf, body, &crc.to_le_bytes())?;
+    Table::parse(buf).map_err(EncodeError::Invalid)?;
+    Ok(total)
+}
+
+// ---------------------------------------------------------------- parse
+
+/// A validated table: zero-copy views into the bytes it was parsed from.
+#[derive(Clone, Copy, Debug)]
+pub struct Table<'a> {
+    bytes: &'a [u8],
+    limits: Limits,
+    path_length_mm: f64,
+    predicted_time_s: f64,
+    nurbs_degree: u32,
+    nurbs_knots: LeF64<'a>,
+    nurbs_points: LePoint4<'a>,
+    su_breaks: LeF64<'a>,
+    su_spans: LeU32<'a>,
+    su_coeffs: LeF64<'a>,
+    q_knots: LeF64<'a>,
+    q_ctrl: LeF64<'a>,
+}
+
+#[derive(Clone, Copy)]
+struct Entry {
+    kind: u16,
+    count: u32,
+    offset: u32,
+    len: u32,
+}
+
+impl Entry {
+    fn range(&self) -> (usize, usize) {
+        let start = self.offset as usize;
+        (start, start.saturating_add(self.len as usize))
+    }
+}
+
+fn read_entry(bytes: &[u8], header_len: usize, idx: usize) -> Result<Entry, TableError> {
+    let e = idx
+        .checked_mul(DIR_ENTRY_LEN)
+        .and_then(|x| x.checked_add(header_len))
+        .ok_or(TableError::DirectoryOutOfBounds)?;
+    let oob = TableError::DirectoryOutOfBounds;
+    let kind = rd_u16(bytes, e).ok_or(oob)?;
+    let reserved = rd_u16(bytes, e + 2).ok_or(oob)?;
+    if reserved != 0 {
+        return Err(TableError::EntryReserved { entry: idx });
+    }
+    Ok(Entry {
+        kind,
+        count: rd_u32(bytes, e + 4).ok_or(oob)?,
+        offset: rd_u32(bytes, e + 8).ok_or(oob)?,
+        len: rd_u32(bytes, e + 12).ok_or(oob)?,
+    })
+}
+
+/// Read the header's total length (for a table at the start of a larger
+/// region, e.g. flash): checks magic and version only.
+pub fn peek_total_len(bytes: &[u8]) -> Result<usize, TableError> {
+    if bytes.len() < HEADER_LEN {
+        return Err(TableError::TooShort { len: bytes.len() });
+    }
+    if bytes.get(..4) != Some(&MAGIC[..]) {
+        return Err(TableError::BadMagic);
+    }
+    let version = rd_u16(bytes, 4).ok_or(TableError::TooShort { len: bytes.len() })?;
+    if version != VERSION {
+        return Err(TableError::UnsupportedVersion { found: version });
+    }
+    Ok(rd_u32(bytes, 8).ok_or(TableError::TooShort { len: bytes.len() })? as usize)
+}
+
+impl<'a> Table<'a> {
+    /// Validate `bytes` (exactly one table) and return the view. Checks, in
+    /// order: header, length, CRC, directory, then every section's contents
+    /// and their consistency (see the module docs).
+    pub fn parse(bytes: &'a [u8]) -> Result<Table<'a>, TableError> {
+        let total = peek_total_len(bytes)?;
+        let short = TableError::TooShort { len: bytes.len() };
+        let header_len = usize::from(rd_u16(bytes, 6).ok_or(short)?);
+        let count = rd_u16(bytes, 12).ok_or(short)?;
+        if header_len < HEADER_LEN || header_len % 8 != 0 || rd_u16(bytes, 14) != Some(0) {
+            return Err(TableError::BadHeader);
+        }
+        if total != bytes.len() {
+            return Err(TableError::LengthMismatch {
+                header: total as u32,
+                actual: bytes.len(),
+            });
+        }
+        let body_len = total.checked_sub(CRC_LEN).ok_or(short)?;
+        let body = bytes.get(..body_len).ok_or(short)?;
+        let stored = rd_u32(bytes, body_len).ok_or(short)?;
+        let computed = CRC.checksum(body);
+        if stored != computed {
+            return Err(TableError::Crc { stored, computed });
+        }
+        let n_sec = usize::from(count);
+        if n_sec == 0 || n_sec > MAX_SECTIONS {
+            return Err(TableError::SectionCount { count });
+        }
+        let dir_end = header_len
+            .checked_add(n_sec * DIR_ENTRY_LEN)
+            .ok_or(TableError::DirectoryOutOfBounds)?;
+        if dir_end > body_len {
+            return Err(TableError::DirectoryOutOfBounds);
+        }
+
+        let mut found: [Option<Entry>; N_KNOWN] = [None; N_KNOWN];
+        for idx in 0..n_sec {
+            let e = read_entry(bytes, header_len, idx)?;
+            let known = Section::from_code(e.kind);
+            if known.is_none() && e.kind < EXTENSION_BASE {
+                return Err(TableError::UnknownSection { kind: e.kind });
+            }
+            if e.offset % 8 != 0 {
+                return Err(TableError::Misaligned {
+                    kind: e.kind,
+                    offset: e.offset,
+                });
+            }
+            let (start, end) = e.range();
+            if start < dir_end || end > body_len {
+                return Err(TableError::OutOfBounds { kind: e.kind });
+            }
+            for prev in 0..idx {
+                let p = read_entry(bytes, header_len, prev)?;
+                let (ps, pe) = p.range();
+                if start < pe && ps < end {
+                    return Err(TableError::Overlap {
+                        kind: e.kind,
+                        other: p.kind,
+                    });
+                }
+            }
+            if let Some(section) = known {
+                let slot = found
+                    .get_mut(section.slot())
+                    .ok_or(TableError::UnknownSection { kind: e.kind })?;
+                if slot.is_some() {
+                    return Err(TableError::DuplicateSection { section });
+                }
+                if (e.count as usize).checked_mul(section.element_len()) != Some(e.len as usize) {
+                    return Err(TableError::SectionLength { section });
+                }
+                *slot = Some(e);
+            }
+        }
+        let sec = |section: Section| -> Result<&'a [u8], TableError> {
+            let e = found
+                .get(section.slot())
+                .copied()
+                .flatten()
+                .ok_or(TableError::MissingSection { section })?;
+            let (start, end) = e.range();
+            bytes
+                .get(start..end)
+                .ok_or(TableError::OutOfBounds { kind: e.kind })
+        };
+        let f64s = |section: Section| -> Result<LeF64<'a>, TableError> {
+            let v = LeF64::new(sec(section)?).ok_or(TableError::SectionLength { section })?;
+            if let Some(index) = v.iter().position(|x| !x.is_finite()) {
+                return Err(TableError::NotFinite { section, index });
+            }
+            Ok(v)
+        };
+
+        // Limits.
+        let lim = f64s(Section::Limits)?;
+        expect_count(Section::Limits, 12, lim.len())?;
+        let mut la = [0.0; 12];
+        for (slot, v) in la.iter_mut().zip(lim.iter()) {
+            *slot = v;
+        }
+        if let Some(index) = la.iter().position(|&x| !(x > 0.0)) {
+            return Err(TableError::Limit { index });
+        }
+        let limits = Limits::from_array(la);
+
+        // Meta.
+        let meta = sec(Section::Meta)?;
+        expect_count(Section::Meta, META_LEN, meta.len())?;
+        let bad_meta = TableError::SectionLength {
+            section: Section::Meta,
+        };
+        let path_length_mm = rd_f64(meta, 0).ok_or(bad_meta)?;
+        let predicted_time_s = rd_f64(meta, 8).ok_or(bad_meta)?;
+        let nurbs_degree = rd_u32(meta, 16).ok_or(bad_meta)?;
+        let q_order = rd_u32(meta, 20).ok_or(bad_meta)?;
+        if !path_length_mm.is_finite() {
+            return Err(TableError::NotFinite {
+                section: Section::Meta,
+                index: 0,
+            });
+        }
+        if !predicted_time_s.is_finite() {
+            return Err(TableError::NotFinite {
+                section: Section::Meta,
+                index: 1,
+            });
+        }
+        if !(path_length_mm > 0.0) {
+            return Err(TableError::PathLength);
+        }
+        if !(predicted_time_s >= 0.0) {
+            return Err(TableError::PredictedTime);
+        }
+        if !(1..=MAX_DEGREE as u32).contains(&nurbs_degree) {
+            return Err(TableError::Degree { degree: nurbs_degree });
+        }
+        if q_order != Q_ORDER {
+            return Err(TableError::QOrder { order: q_order });
+        }
+        let p = nurbs_degree as usize;
+        let len_l = path_length_mm;
+
+        // NURBS.
+        let nurbs_knots = f64s(Section::NurbsKnots)?;
+        let pts_flat = f64s(Section::NurbsPoints)?;
+        let nurbs_points = LePoint4::new(pts_flat.as_bytes()).ok_or(TableError::SectionLength {
+            section: Section::NurbsPoints,
+        })?;
+        let n = nurbs_points.len();
+        if n < p + 1 {
+            return Err(TableError::Count {
+                section: Section::NurbsPoints,
+                expected: p + 1,
+                found: n,
+            });
+        }
+        expect_count(Section::NurbsKnots, n + p + 1, nurbs_knots.len())?;
+        check_knots(Section::NurbsKnots, &nurbs_knots, p)?;
+        for i in 0..n {
+            let w = nurbs_points.get(i).map(|pt| pt[3]).unwrap_or(0.0);
+            if !(w > 0.0) {
+                return Err(TableError::Weight { index: i });
+            }
+        }
+
+        // q.
+        let q_knots = f64s(Section::QKnots)?;
+        let q_ctrl = f64s(Section::QCtrl)?;
+        let nq = q_ctrl.len();
+        if nq < Q_ORDER as usize {
+            return Err(TableError::Count {
+                section: Section::QCtrl,
+                expected: Q_ORDER as usize,
+                found: nq,
+            });
+        }
+        expect_count(Section::QKnots, nq + Q_ORDER as usize, q_knots.len())?;
+        check_knots(Section::QKnots, &q_knots, Q_ORDER as usize - 1)?;
+        let q_first = q_knots.get(0).unwrap_or(f64::NAN);
+        let q_last = q_knots.last().unwrap_or(f64::NAN);
+        if q_first != 0.0 || !near(q_last, len_l, len_l) {
+            return Err(TableError::KnotRange {
+                section: Section::QKnots,
+            });
+        }
+        if let Some(index) = q_ctrl.iter().position(|a| a < 0.0) {
+            return Err(TableError::QNegative { index });
+        }
+        for index in [0, nq - 1] {
+            if q_ctrl.get(index) != Some(0.0) {
+                return Err(TableError::QEndNotZero { index });
+            }
+        }
+        for index in [1, nq - 2] {
+            if !(q_ctrl.get(index).unwrap_or(0.0) > 0.0) {
+                return Err(TableError::QFlatEnd { index });
+            }
+        }
+
+        // s → u map.
+        let su_breaks = f64s(Section::SuBreaks)?;
+        let su_coeffs = f64s(Section::SuCoeffs)?;
+        let su_spans = LeU32::new(sec(Section::SuSpans)?).ok_or(TableError::SectionLength {
+            section: Section::SuSpans,
+        })?;
+        let m = su_spans.len();
+        expect_count(Section::SuCoeffs, m * SU_COEFFS, su_coeffs.len())?;
+        if m == 0 {
+            return Err(TableError::Count {
+                section: Section::SuSpans,
+                expected: 1,
+                found: 0,
+            });
+        }
+        expect_count(Section::SuBreaks, m + 1, su_breaks.len())?;
+        let mut prev_s = f64::NAN;
+        for (j, s) in su_breaks.iter().enumerate() {
+            let ok = if j == 0 {
+                s == 0.0
+            } else if j == m {
+                s > prev_s && near(s, len_l, len_l)
+            } else {
+                s > prev_s
+            };
+            if !ok {
+                return Err(TableError::SuBreak { index: j });
+            }
+            prev_s = s;
+        }
+        let segs = LeSuSegments {
+            spans: su_spans,
+            coeffs: su_coeffs,
+        };
+        let u_lo = nurbs_knots.get(p).unwrap_or(f64::NAN);
+        let u_hi = nurbs_knots.last().unwrap_or(f64::NAN);
+        let u_scale = (u_hi - u_lo).max(u_lo.abs()).max(u_hi.abs());
+        let mut prev: Option<(u32, f64)> = None;
+        for j in 0..m {
+            let seg = segs.get(j).ok_or(TableError::Count {
+                section: Section::SuCoeffs,
+                expected: m,
+                found: j,
+            })?;
+            let span = seg.span;
+            let si = span as usize;
+            let (k0, k1) = match (nurbs_knots.get(si), nurbs_knots.get(si.saturating_add(1))) {
+                (Some(a), Some(b)) if si >= p && si < n && b > a => (a, b),
+                _ => return Err(TableError::SuSpan { segment: j, span }),
+            };
+            let u0 = horner(&seg.coeffs, 0.0);
+            let u1 = horner(&seg.coeffs, 1.0);
+            let inside = |u: f64| u >= k0 - MATCH_TOL_REL * u_scale && u <= k1 + MATCH_TOL_REL * u_scale;
+            if !(inside(u0) && inside(u1) && u1 >= u0) {
+                return Err(TableError::SuOutsideSpan { segment: j });
+            }
+            match prev {
+                None => {
+                    if !near(u0, u_lo, u_scale) {
+                        return Err(TableError::SuEnds { segment: j });
+                    }
+                }
+                Some((prev_span, prev_u1)) => {
+                    if span < prev_span {
+                        return Err(TableError::SuSpan { segment: j, span });
+                    }
+                    if !near(u0, prev_u1, u_scale) {
+                        return Err(TableError::SuDiscontinuous { segment: j });
+                    }
+                }
+            }
+            prev = Some((span, u1));
+        }
+        if let Some((_, last_u1)) = prev {
+            if !near(last_u1, u_hi, u_scale) {
+                return Err(TableError::SuEnds { segment: m - 1 });
+            }
+        }
+
+        Ok(Table {
+            bytes,
+            limits,
+            path_length_mm,
+            predicted_time_s,
+            nurbs_degree,
+            nurbs_knots,
+            nurbs_points,
+            su_breaks,
+            su_spans,
+            su_coeffs,
+            q_knots,
+            q_ctrl,
+        })
+    }
+
+    /// The whole table, as parsed (CRC included).
+    pub fn as_bytes(&self) -> &'a [u8] {
+        self.bytes
+    }
+    /// Kinematic limits.
+    pub fn limits(&self) -> Limits {
+        self.limits
+    }
+    /// Path length L, mm.
+    pub fn path_length_mm(&self) -> f64 {
+        self.path_length_mm
+    }
+    /// Predicted machining time ∫ ds/√q, s.
+    pub fn predicted_time_s(&self) -> f64 {
+        self.predicted_time_s
+    }
+    /// NURBS degree p.
+    pub fn nurbs_degree(&self) -> u32 {
+        self.nurbs_degree
+    }
+    /// NURBS knots.
+    pub fn nurbs_knots(&self) -> LeF64<'a> {
+        self.nurbs_knots
+    }
+    /// NURBS control points `[x, y, z, w]` (Cartesian, mm; weight).
+    pub fn nurbs_points(&self) -> LePoint4<'a> {
+        self.nurbs_points
+    }
+    /// s → u breaks, mm.
+    pub fn su_breaks(&self) -> LeF64<'a> {
+        self.su_breaks
+    }
+    /// s → u segments (span and coefficients).
+    pub fn su_segments(&self) -> LeSuSegments<'a> {
+        LeSuSegments {
+            spans: self.su_spans,
+            coeffs: self.su_coeffs,
+        }
+    }
+    /// q knots, mm.
+    pub fn q_knots(&self) -> LeF64<'a> {
+        self.q_knots
+    }
+    /// q control points, (mm/s)².
+    pub fn q_ctrl(&self) -> LeF64<'a> {
+        self.q_ctrl
+    }
+    /// q(s) over the table's knots and control points.
+    pub fn q_spline(&self) -> Option<QSpline<LeF64<'a>>> {
+        QSpline::new(self.q_knots, self.q_ctrl)
+    }
+    /// The toolpath r(u).
+    pub fn curve(&self) -> Option<NurbsView<LeF64<'a>, LePoint4<'a>>> {
+        NurbsView::new(self.nurbs_degree as usize, self.nurbs_knots, self.nurbs_points)
+    }
+    /// The s → u map.
+    pub fn su_map(&self) -> Option<SuMapView<LeF64<'a>, LeSuSegments<'a>>> {
+        SuMapView::new(self.su_breaks, self.su_segments())
+    }
+}
+
+/// The s → u segments of a table: spans and coefficients side by side.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LeSuSegments<'a> {
+    spans: LeU32<'a>,
+    coeffs: LeF64<'a>,
+}
+
+impl SegmentArray for LeSuSegments<'_> {
+    fn len(&self) -> usize {
+        self.spans.len()
+    }
+    fn get(&self, j: usize) -> Option<SuSegment> {
+        let span = self.spans.get(j)?;
+        let base = j.checked_mul(SU_COEFFS)?;
+        let mut coeffs = [0.0; SU_COEFFS];
+        for (k, c) in coeffs.iter_mut().enumerate() {
+            *c = self.coeffs.get(base.checked_add(k)?)?;
+        }
+        Some(SuSegment { span, coeffs })
+    }
+}
+
+fn near(a: f64, b: f64, scale: f64) -> bool {
+    (a - b).abs() <= MATCH_TOL_REL * scale.abs()
+}
+
+fn expect_count(section: Section, expected: usize, found: usize) -> Result<(), TableError> {
+    if expected == found {
+        Ok(())
+    } else {
+        Err(TableError::Count {
+            section,
+            expected,
+            found,
+        })
+    }
+}
+
+/// Non-decreasing, clamped (first and last `p + 1` equal), interior
+/// multiplicity ≤ p, non-empty range.
+fn check_knots<A: F64Array>(section: Section, k: &A, p: usize) -> Result<(), TableError> {
+    let len = k.len();
+    let first = k.get(0).ok_or(TableError::KnotRange { section })?;
+    let last = k.last().ok_or(TableError::KnotRange { section })?;
+    let mut prev = first;
+    let mut run = 1usize;
+    for i in 1..len {
+        let x = k.get(i).ok_or(TableError::KnotRange { section })?;
+        if x < prev {
+            return Err(TableError::KnotDecreasing { section, index: i });
+        }
+        if x == prev {
+            run += 1;
+        } else {
+            run = 1;
+        }
+        let interior = x != first && x != last;
+        if interior && run > p {
+            return Err(TableError::KnotMultiplicity { section, index: i });
+        }
+        prev = x;
+    }
+    if !(last > first) {
+        return Err(TableError::KnotRange { section });
+    }
+    for i in 1..=p {
+        if k.get(i) != Some(first) {
+            return Err(TableError::NotClamped { section, index: i });
+        }
+        let j = len.checked_sub(1 + i).ok_or(TableError::KnotRange { section })?;
+        if k.get(j) != Some(last) {
+            return Err(TableError::NotClamped { section, index: j });
+        }
+    }
+    // End values exactly p + 1 times.
+    if k.get(p + 1) == Some(first) {
+        return Err(TableError::KnotMultiplicity {
+            section,
+            index: p + 1,
+        });
+    }
+    if let Some(j) = len.checked_sub(p + 2) {
+        if k.get(j) == Some(last) {
+            return Err(TableError::KnotMultiplicity { section, index: j });
+        }
+    }
+    Ok(())
+}

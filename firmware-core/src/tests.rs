@@ -1,0 +1,849 @@
+//! Cross-module tests: table round trip and corruption, the interpolator on
+//! straight lines.
+
+use std::vec;
+use std::vec::Vec;
+
+use crate::array::{F64Array, Point4Array};
+use crate::interp::{Fault, Interpolator, RunError, Setpoint};
+use crate::output::FnSink;
+use crate::qspline::QSpline;
+use crate::sumap::SegmentArray;
+use crate::table::{
+    encode, encoded_len, EncodeError, Limits, Section, SuSegment, Table, TableError, TableParts, CRC_LEN,
+    DIR_ENTRY_LEN, HEADER_LEN,
+};
+
+const L: f64 = 100.0;
+const LIMITS: Limits = Limits {
+    vbar: 166.0,
+    abar: 1500.0,
+    jbar: 16000.0,
+    v: [166.0; 3],
+    a: [1500.0; 3],
+    j: [16000.0; 3],
+};
+
+/// An owned set of parts for a straight line (0,0,0) → (L,0,0), u = s/L.
+#[derive(Clone)]
+struct Owned {
+    limits: Limits,
+    length: f64,
+    time: f64,
+    degree: u32,
+    knots: Vec<f64>,
+    points: Vec<[f64; 4]>,
+    breaks: Vec<f64>,
+    segs: Vec<SuSegment>,
+    q_knots: Vec<f64>,
+    q_ctrl: Vec<f64>,
+}
+
+impl Owned {
+    fn parts(&self) -> TableParts<'_> {
+        TableParts {
+            limits: self.limits,
+            path_length_mm: self.length,
+            predicted_time_s: self.time,
+            nurbs_degree: self.degree,
+            nurbs_knots: &self.knots,
+            nurbs_points: &self.points,
+            su_breaks: &self.breaks,
+            su_segments: &self.segs,
+            q_knots: &self.q_knots,
+            q_ctrl: &self.q_ctrl,
+        }
+    }
+    fn encode(&self) -> Result<Vec<u8>, EncodeError> {
+        let parts = self.parts();
+        let mut out = vec![0u8; encoded_len(&parts)];
+        let n = encode(&parts, &mut out)?;
+        assert_eq!(n, out.len());
+        Ok(out)
+    }
+}
+
+/// Uniform clamped cubic knots on [0, len] for `n` control points.
+fn q_knots(n: usize, len: f64) -> Vec<f64> {
+    let inner = n - 3;
+    let mut k = vec![0.0; 4];
+    k.extend((1..inner).map(|i| len * i as f64 / inner as f64));
+    k.extend([len; 4]);
+    k
+}
+
+/// q control points [0, f², …, f², 0].
+fn plateau(n: usize, feed: f64) -> Vec<f64> {
+    let mut c = vec![feed * feed; n];
+    c[0] = 0.0;
+    c[n - 1] = 0.0;
+    c
+}
+
+fn line(degree: u32, q_ctrl: Vec<f64>) -> Owned {
+    let (knots, points, breaks, segs) = match degree {
+        1 => (
+            vec![0.0, 0.0, 1.0, 1.0],
+            vec![[0.0, 0.0, 0.0, 1.0], [L, 0.0, 0.0, 1.0]],
+            // four segments in the one span, u = s/L
+            vec![0.0, 0.25 * L, 0.5 * L, 0.75 * L, L],
+            (0..4)
+                .map(|j| SuSegment {
+                    span: 1,
+                    coeffs: [j as f64 / 4.0, 0.25, 0.0, 0.0, 0.0, 0.0],
+                })
+                .collect(),
+        ),
+        _ => (
+            // quadratic, points at the Greville abscissae: r(u) = L·u exactly
+            vec![0.0, 0.0, 0.0, 0.5, 1.0, 1.0, 1.0],
+            vec![
+                [0.0, 0.0, 0.0, 1.0],
+                [0.25 * L, 0.0, 0.0, 1.0],
+                [0.75 * L, 0.0, 0.0, 1.0],
+                [L, 0.0, 0.0, 1.0],
+            ],
+            vec![0.0, 0.5 * L, L],
+            vec![
+                SuSegment {
+                    span: 2,
+                    coeffs: [0.0, 0.5, 0.0, 0.0, 0.0, 0.0],
+                },
+                SuSegment {
+                    span: 3,
+                    coeffs: [0.5, 0.5, 0.0, 0.0, 0.0, 0.0],
+                },
+            ],
+        ),
+    };
+    let n = q_ctrl.len();
+    Owned {
+        limits: LIMITS,
+        length: L,
+        time: 2.5,
+        degree,
+        knots,
+        points,
+        breaks,
+        segs,
+        q_knots: q_knots(n, L),
+        q_ctrl,
+    }
+}
+
+fn good() -> Owned {
+    line(2, plateau(12, 50.0))
+}
+
+fn fix_crc(b: &mut [u8]) {
+    let n = b.len() - CRC_LEN;
+    let crc = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC).checksum(&b[..n]);
+    b[n..].copy_from_slice(&crc.to_le_bytes());
+}
+
+fn entry(idx: usize) -> usize {
+    HEADER_LEN + idx * DIR_ENTRY_LEN
+}
+
+// ------------------------------------------------------------------- table
+
+#[test]
+fn table_round_trip() {
+    let o = good();
+    let bytes = o.encode().unwrap();
+    let t = Table::parse(&bytes).unwrap();
+    assert_eq!(t.as_bytes(), &bytes[..]);
+    assert_eq!(t.limits(), o.limits);
+    assert_eq!(t.path_length_mm(), o.length);
+    assert_eq!(t.predicted_time_s(), o.time);
+    assert_eq!(t.nurbs_degree(), o.degree);
+    assert_eq!(t.nurbs_knots().iter().collect::<Vec<_>>(), o.knots);
+    let pts = t.nurbs_points();
+    assert_eq!(
+        (0..pts.len()).map(|i| pts.get(i).unwrap()).collect::<Vec<_>>(),
+        o.points
+    );
+    assert_eq!(t.su_breaks().iter().collect::<Vec<_>>(), o.breaks);
+    let segs = t.su_segments();
+    assert_eq!(
+        (0..segs.len()).map(|j| segs.get(j).unwrap()).collect::<Vec<_>>(),
+        o.segs
+    );
+    assert_eq!(t.q_knots().iter().collect::<Vec<_>>(), o.q_knots);
+    assert_eq!(t.q_ctrl().iter().collect::<Vec<_>>(), o.q_ctrl);
+    // the table is 8-aligned inside, and exactly the predicted size
+    assert_eq!(bytes.len(), encoded_len(&o.parts()));
+}
+
+#[test]
+fn every_bit_flip_is_refused() {
+    let bytes = good().encode().unwrap();
+    let mut b = bytes.clone();
+    for i in 0..b.len() {
+        for bit in 0..8 {
+            b[i] ^= 1 << bit;
+            assert!(Table::parse(&b).is_err(), "flip of byte {i} bit {bit} accepted");
+            b[i] ^= 1 << bit;
+        }
+    }
+    assert_eq!(b, bytes);
+}
+
+#[test]
+fn every_truncation_and_extension_is_refused() {
+    let bytes = good().encode().unwrap();
+    for n in 0..bytes.len() {
+        assert!(Table::parse(&bytes[..n]).is_err(), "truncation to {n} accepted");
+    }
+    let mut longer = bytes.clone();
+    longer.push(0);
+    assert!(matches!(
+        Table::parse(&longer),
+        Err(TableError::LengthMismatch { .. })
+    ));
+    assert_eq!(crate::table::peek_total_len(&longer), Ok(bytes.len()));
+    assert!(Table::parse(&longer[..bytes.len()]).is_ok());
+}
+
+#[test]
+fn header_and_directory_corruption_named() {
+    let bytes = good().encode().unwrap();
+    let bad = |f: &dyn Fn(&mut Vec<u8>)| {
+        let mut b = bytes.clone();
+        f(&mut b);
+        fix_crc(&mut b);
+        Table::parse(&b).unwrap_err()
+    };
+    assert_eq!(bad(&|b| b[0] = b'X'), TableError::BadMagic);
+    assert_eq!(bad(&|b| b[4] = 2), TableError::UnsupportedVersion { found: 2 });
+    assert_eq!(bad(&|b| b[6] = 12), TableError::BadHeader);
+    assert_eq!(bad(&|b| b[14] = 1), TableError::BadHeader);
+    assert_eq!(
+        bad(&|b| b[12..14].copy_from_slice(&0u16.to_le_bytes())),
+        TableError::SectionCount { count: 0 }
+    );
+    assert_eq!(
+        bad(&|b| b[12..14].copy_from_slice(&33u16.to_le_bytes())),
+        TableError::SectionCount { count: 33 }
+    );
+    // unknown kind below the extension base
+    assert_eq!(
+        bad(&|b| b[entry(0)..][..2].copy_from_slice(&0x42u16.to_le_bytes())),
+        TableError::UnknownSection { kind: 0x42 }
+    );
+    assert_eq!(
+        bad(&|b| b[entry(0)..][..2].copy_from_slice(&0u16.to_le_bytes())),
+        TableError::UnknownSection { kind: 0 }
+    );
+    // a required section relabelled as an extension: skipped, so missing
+    assert_eq!(
+        bad(&|b| b[entry(0)..][..2].copy_from_slice(&0x8001u16.to_le_bytes())),
+        TableError::MissingSection {
+            section: Section::Limits
+        }
+    );
+    // duplicate: the meta entry relabelled as limits
+    assert_eq!(
+        bad(&|b| b[entry(1)..][..2].copy_from_slice(&1u16.to_le_bytes())),
+        TableError::DuplicateSection {
+            section: Section::Limits
+        }
+    );
+    assert_eq!(
+        bad(&|b| b[entry(2) + 2] = 1),
+        TableError::EntryReserved { entry: 2 }
+    );
+    let off = |b: &Vec<u8>, i: usize| u32::from_le_bytes(b[entry(i) + 8..entry(i) + 12].try_into().unwrap());
+    let o2 = off(&bytes, 2);
+    assert_eq!(
+        bad(&|b| b[entry(2) + 8..][..4].copy_from_slice(&(o2 + 4).to_le_bytes())),
+        TableError::Misaligned {
+            kind: 3,
+            offset: o2 + 4
+        }
+    );
+    let o1 = off(&bytes, 1);
+    assert_eq!(
+        bad(&|b| b[entry(2) + 8..][..4].copy_from_slice(&o1.to_le_bytes())),
+        TableError::Overlap { kind: 3, other: 2 }
+    );
+    assert_eq!(
+        bad(&|b| b[entry(2) + 8..][..4].copy_from_slice(&0x7fff_fff8u32.to_le_bytes())),
+        TableError::OutOfBounds { kind: 3 }
+    );
+    assert_eq!(
+        bad(&|b| b[entry(2) + 8..][..4].copy_from_slice(&8u32.to_le_bytes())),
+        TableError::OutOfBounds { kind: 3 }
+    );
+    // count not matching the byte length
+    assert_eq!(
+        bad(&|b| {
+            let c = u32::from_le_bytes(b[entry(2) + 4..entry(2) + 8].try_into().unwrap());
+            b[entry(2) + 4..][..4].copy_from_slice(&(c + 1).to_le_bytes());
+        }),
+        TableError::SectionLength {
+            section: Section::NurbsKnots
+        }
+    );
+    // a NaN slipped into the q control points after encoding
+    assert_eq!(
+        bad(&|b| {
+            let o = off(b, 8) as usize;
+            b[o + 8..o + 16].copy_from_slice(&f64::NAN.to_le_bytes());
+        }),
+        TableError::NotFinite {
+            section: Section::QCtrl,
+            index: 1
+        }
+    );
+    // the stored CRC itself
+    let mut b = bytes.clone();
+    let n = b.len();
+    b[n - 1] ^= 0x80;
+    assert!(matches!(Table::parse(&b), Err(TableError::Crc { .. })));
+}
+
+/// A table with one extra section of kind `kind` spliced in before the CRC.
+fn with_extra_section(bytes: &[u8], kind: u16, payload: &[u8]) -> Vec<u8> {
+    let count = u16::from_le_bytes([bytes[12], bytes[13]]) as usize;
+    let dir_end = entry(count);
+    let body_end = bytes.len() - CRC_LEN;
+    let mut out = Vec::new();
+    out.extend_from_slice(&bytes[..dir_end]);
+    out.extend_from_slice(&[0u8; DIR_ENTRY_LEN]); // new entry
+    out.extend_from_slice(&bytes[dir_end..body_end]);
+    while out.len() % 8 != 0 {
+        out.push(0);
+    }
+    let ext_off = out.len();
+    out.extend_from_slice(payload);
+    out.extend_from_slice(&[0u8; CRC_LEN]);
+    // shift the old sections by one entry
+    for i in 0..count {
+        let o = u32::from_le_bytes(out[entry(i) + 8..entry(i) + 12].try_into().unwrap());
+        out[entry(i) + 8..entry(i) + 12].copy_from_slice(&(o + DIR_ENTRY_LEN as u32).to_le_bytes());
+    }
+    let e = entry(count);
+    out[e..e + 2].copy_from_slice(&kind.to_le_bytes());
+    out[e + 4..e + 8].copy_from_slice(&((payload.len() / 8) as u32).to_le_bytes());
+    out[e + 8..e + 12].copy_from_slice(&(ext_off as u32).to_le_bytes());
+    out[e + 12..e + 16].copy_from_slice(&(payload.len() as u32).to_le_bytes());
+    out[12..14].copy_from_slice(&((count + 1) as u16).to_le_bytes());
+    let total = out.len() as u32;
+    out[8..12].copy_from_slice(&total.to_le_bytes());
+    fix_crc(&mut out);
+    out
+}
+
+#[test]
+fn extension_sections_are_skipped_unknown_kinds_refused() {
+    let o = good();
+    let bytes = o.encode().unwrap();
+    let profile: Vec<u8> = o.q_ctrl.iter().flat_map(|v| (0.5 * v).to_le_bytes()).collect();
+    let ext = with_extra_section(&bytes, crate::table::OVERRIDE_PROFILE_BASE + 1, &profile);
+    let t = Table::parse(&ext).unwrap();
+    assert_eq!(t.q_ctrl().iter().collect::<Vec<_>>(), o.q_ctrl);
+    assert_eq!(t.su_segments().get(1), Some(o.segs[1]));
+    let unknown = with_extra_section(&bytes, 0x7fff, &profile);
+    assert_eq!(
+        Table::parse(&unknown).unwrap_err(),
+        TableError::UnknownSection { kind: 0x7fff }
+    );
+    // a known kind added twice
+    let dup = with_extra_section(&bytes, Section::QCtrl.code(), &profile);
+    assert_eq!(
+        Table::parse(&dup).unwrap_err(),
+        TableError::DuplicateSection {
+            section: Section::QCtrl
+        }
+    );
+}
+
+#[test]
+fn encode_refuses_invalid_parts() {
+    let check = |f: &dyn Fn(&mut Owned), want: TableError| {
+        let mut o = good();
+        f(&mut o);
+        assert_eq!(o.encode().unwrap_err(), EncodeError::Invalid(want));
+    };
+    use Section as S;
+    use TableError as E;
+    check(&|o| o.limits.abar = 0.0, E::Limit { index: 1 });
+    check(&|o| o.limits.j[2] = -1.0, E::Limit { index: 11 });
+    check(
+        &|o| o.limits.v[0] = f64::INFINITY,
+        E::NotFinite {
+            section: S::Limits,
+            index: 3,
+        },
+    );
+    check(&|o| o.length = 0.0, E::PathLength);
+    check(
+        &|o| o.length = f64::NAN,
+        E::NotFinite {
+            section: S::Meta,
+            index: 0,
+        },
+    );
+    check(&|o| o.time = -1.0, E::PredictedTime);
+    check(&|o| o.degree = 0, E::Degree { degree: 0 });
+    check(&|o| o.degree = 6, E::Degree { degree: 6 });
+    check(
+        &|o| o.degree = 3,
+        E::Count {
+            section: S::NurbsKnots,
+            expected: 8,
+            found: 7,
+        },
+    );
+    check(
+        &|o| o.knots[3] = 1.5,
+        E::KnotDecreasing {
+            section: S::NurbsKnots,
+            index: 4,
+        },
+    );
+    check(
+        &|o| o.knots[2] = 0.1,
+        E::NotClamped {
+            section: S::NurbsKnots,
+            index: 2,
+        },
+    );
+    check(
+        &|o| o.knots[3] = f64::NAN,
+        E::NotFinite {
+            section: S::NurbsKnots,
+            index: 3,
+        },
+    );
+    check(
+        &|o| {
+            o.knots = vec![0.0, 0.0, 0.0, 0.5, 0.5, 0.5, 1.0, 1.0, 1.0];
+            o.points.extend([[L, 0.0, 0.0, 1.0], [L, 0.0, 0.0, 1.0]]);
+        },
+        E::KnotMultiplicity {
+            section: S::NurbsKnots,
+            index: 5,
+        },
+    );
+    check(&|o| o.points[1][3] = -0.5, E::Weight { index: 1 });
+    check(&|o| o.points[2][3] = 0.0, E::Weight { index: 2 });
+    check(
+        &|o| o.points[2][1] = f64::NAN,
+        E::NotFinite {
+            section: S::NurbsPoints,
+            index: 9,
+        },
+    );
+    check(
+        &|o| o.points.truncate(2),
+        E::Count {
+            section: S::NurbsPoints,
+            expected: 3,
+            found: 2,
+        },
+    );
+    // q
+    check(
+        &|o| o.q_ctrl[3] = f64::NAN,
+        E::NotFinite {
+            section: S::QCtrl,
+            index: 3,
+        },
+    );
+    check(
+        &|o| {
+            o.q_ctrl.pop();
+        },
+        E::Count {
+            section: S::QKnots,
+            expected: 15,
+            found: 16,
+        },
+    );
+    check(
+        &|o| o.q_ctrl.truncate(3),
+        E::Count {
+            section: S::QCtrl,
+            expected: 4,
+            found: 3,
+        },
+    );
+    check(
+        &|o| o.q_knots.swap(5, 6),
+        E::KnotDecreasing {
+            section: S::QKnots,
+            index: 6,
+        },
+    );
+    check(
+        &|o| o.q_knots[0] = -1.0,
+        E::NotClamped {
+            section: S::QKnots,
+            index: 1,
+        },
+    );
+    check(
+        &|o| o.q_knots[4..8].copy_from_slice(&[20.0; 4]),
+        E::KnotMultiplicity {
+            section: S::QKnots,
+            index: 7,
+        },
+    );
+    check(
+        &|o| o.q_knots.iter_mut().for_each(|k| *k *= 0.5),
+        E::KnotRange { section: S::QKnots },
+    );
+    check(&|o| o.q_ctrl[4] = -1.0, E::QNegative { index: 4 });
+    check(&|o| o.q_ctrl[0] = 1.0, E::QEndNotZero { index: 0 });
+    check(&|o| o.q_ctrl[11] = 1e-300, E::QEndNotZero { index: 11 });
+    check(&|o| o.q_ctrl[1] = 0.0, E::QFlatEnd { index: 1 });
+    check(&|o| o.q_ctrl[10] = 0.0, E::QFlatEnd { index: 10 });
+    // s → u map
+    check(&|o| o.breaks[1] = 0.0, E::SuBreak { index: 1 });
+    check(&|o| o.breaks[0] = 1e-9, E::SuBreak { index: 0 });
+    check(&|o| o.breaks[2] = 99.0, E::SuBreak { index: 2 });
+    check(
+        &|o| o.breaks[1] = f64::NAN,
+        E::NotFinite {
+            section: S::SuBreaks,
+            index: 1,
+        },
+    );
+    check(
+        &|o| o.breaks.push(200.0),
+        E::Count {
+            section: S::SuBreaks,
+            expected: 3,
+            found: 4,
+        },
+    );
+    check(&|o| o.segs[0].span = 1, E::SuSpan { segment: 0, span: 1 });
+    check(&|o| o.segs[1].span = 4, E::SuSpan { segment: 1, span: 4 });
+    check(&|o| o.segs[0].span = 3, E::SuOutsideSpan { segment: 0 });
+    check(
+        &|o| {
+            o.segs[1].coeffs[0] = 0.5 + 1e-6;
+            o.segs[1].coeffs[1] = 0.5 - 1e-6;
+        },
+        E::SuDiscontinuous { segment: 1 },
+    );
+    check(
+        &|o| {
+            o.segs[0].coeffs[0] = 1e-6;
+            o.segs[0].coeffs[1] = 0.5 - 1e-6;
+        },
+        E::SuEnds { segment: 0 },
+    );
+    check(&|o| o.segs[1].coeffs[1] = 0.4, E::SuEnds { segment: 1 });
+    check(&|o| o.segs[1].coeffs[1] = 0.6, E::SuOutsideSpan { segment: 1 });
+    check(
+        &|o| o.segs[1].coeffs[5] = f64::INFINITY,
+        E::NotFinite {
+            section: S::SuCoeffs,
+            index: 11,
+        },
+    );
+    check(
+        &|o| {
+            o.segs.clear();
+            o.breaks.truncate(1);
+        },
+        E::Count {
+            section: S::SuSpans,
+            expected: 1,
+            found: 0,
+        },
+    );
+    // a last break or q knot within the tolerance of L is fine
+    let mut o = good();
+    o.breaks[2] = L * (1.0 - 1e-12);
+    let n = o.q_knots.len();
+    o.q_knots[n - 4..].copy_from_slice(&[L * (1.0 + 1e-12); 4]);
+    o.encode().unwrap();
+}
+
+#[test]
+fn encode_buffer_too_small() {
+    let o = good();
+    let parts = o.parts();
+    let n = encoded_len(&parts);
+    let mut out = vec![0u8; n - 1];
+    assert_eq!(
+        encode(&parts, &mut out),
+        Err(EncodeError::BufferTooSmall {
+            needed: n,
+            available: n - 1
+        })
+    );
+    let mut out = vec![0u8; n + 10];
+    assert_eq!(encode(&parts, &mut out), Ok(n));
+    assert!(Table::parse(&out[..n]).is_ok());
+}
+
+#[test]
+fn errors_display() {
+    use std::string::ToString;
+    let s = TableError::NotFinite {
+        section: Section::QCtrl,
+        index: 3,
+    }
+    .to_string();
+    assert!(s.contains("QCtrl") && s.contains('3'), "{s}");
+    let s = EncodeError::Invalid(TableError::BadMagic).to_string();
+    assert!(s.contains("magic"), "{s}");
+}
+
+// ------------------------------------------------------------------- interp
+
+/// ∫₀ᴸ ds/√q by Gauss–Legendre after s = σ² (and L − s = σ²) at the ends,
+/// which removes the 1/√ singularities of a simple zero.
+fn time_by_quadrature(knots: &[f64], ctrl: &[f64]) -> f64 {
+    let q = QSpline::new(knots, ctrl).unwrap();
+    let len = *knots.last().unwrap();
+    let half = 0.5 * len;
+    let (x, w) = (
+        [
+            -0.906_179_845_938_664,
+            -0.538_469_310_105_683,
+            0.0,
+            0.538_469_310_105_683,
+            0.906_179_845_938_664,
+        ],
+        [
+            0.236_926_885_056_189,
+            0.478_628_670_499_366,
+            0.568_888_888_888_889,
+            0.478_628_670_499_366,
+            0.236_926_885_056_189,
+        ],
+    );
+    let smax = half.sqrt();
+    let panels = 4000;
+    let h = smax / panels as f64;
+    let mut total = 0.0;
+    for side in [0, 1] {
+        for k in 0..panels {
+            let a = k as f64 * h;
+            for (xi, wi) in x.iter().zip(w.iter()) {
+                let sig = a + 0.5 * h * (1.0 + xi);
+                let s = if side == 0 { sig * sig } else { len - sig * sig };
+                let qv = q.eval(s).unwrap()[0].max(1e-300);
+                total += 0.5 * h * wi * 2.0 * sig / qv.sqrt();
+            }
+        }
+    }
+    total
+}
+
+fn run_all(ip: &mut Interpolator) -> Vec<Setpoint> {
+    let mut v = Vec::new();
+    let n = ip
+        .run(&mut FnSink(|sp: &Setpoint| -> Result<(), ()> {
+            v.push(*sp);
+            Ok(())
+        }))
+        .unwrap();
+    assert_eq!(n as usize, v.len());
+    v
+}
+
+fn check_line(o: &Owned, period: f64) {
+    let bytes = o.encode().unwrap();
+    let t = Table::parse(&bytes).unwrap();
+    let mut ip = Interpolator::new(t, period).unwrap();
+    let sps = run_all(&mut ip);
+    assert!(ip.is_done());
+    let first = sps[0];
+    assert_eq!(
+        first,
+        Setpoint {
+            t_s: 0.0,
+            s_mm: 0.0,
+            u: 0.0,
+            feed_mm_s: 0.0,
+            pos_mm: [0.0, 0.0, 0.0]
+        }
+    );
+    let last = *sps.last().unwrap();
+    assert_eq!(last.s_mm, L);
+    assert_eq!(last.pos_mm, [L, 0.0, 0.0]);
+    assert_eq!(last.u, 1.0);
+    assert_eq!(last.feed_mm_s, 0.0);
+    let q = QSpline::new(&o.q_knots[..], &o.q_ctrl[..]).unwrap();
+    let peak = o.q_ctrl.iter().cloned().fold(0.0, f64::max).sqrt();
+    let mut worst_mid = 0.0f64;
+    for (k, w) in sps.windows(2).enumerate() {
+        let (a, b) = (w[0], w[1]);
+        assert!(b.s_mm > a.s_mm, "s not increasing at tick {k}");
+        assert!((b.t_s - a.t_s - period).abs() < 1e-12);
+        // on the line, x = s and u = s/L
+        assert!(
+            (b.pos_mm[0] - b.s_mm).abs() < 1e-9 * L,
+            "tick {k}: x {} s {}",
+            b.pos_mm[0],
+            b.s_mm
+        );
+        assert!((b.u - b.s_mm / L).abs() < 1e-12);
+        assert_eq!(b.pos_mm[1], 0.0);
+        // (the end point reports feed 0 exactly; the power form there is ~1e-13 off)
+        let qb = if b.s_mm < L {
+            q.eval(b.s_mm).unwrap()[0].max(0.0)
+        } else {
+            0.0
+        };
+        assert!(
+            (b.feed_mm_s - qb.sqrt()).abs() < 1e-9 * peak,
+            "tick {k}: {b:?} vs {}",
+            qb.sqrt()
+        );
+        if a.s_mm > 0.1 * L && b.s_mm < 0.9 * L {
+            // mean speed over the step vs √q at its middle: O(T²) apart
+            let mid = q.eval(0.5 * (a.s_mm + b.s_mm)).unwrap()[0].sqrt();
+            worst_mid = worst_mid.max(((b.s_mm - a.s_mm) / period - mid).abs());
+        }
+    }
+    assert!(worst_mid < 1e-4 * peak, "mid-path |Δs/T − √q| up to {worst_mid}");
+    let t_int = time_by_quadrature(&o.q_knots, &o.q_ctrl);
+    let t_run = last.t_s;
+    let rel = (t_run - t_int).abs() / t_int;
+    std::eprintln!(
+        "degree {}: {} ticks, T_run {t_run:.6} s, ∫ds/√q {t_int:.6} s, rel {rel:.2e}, mid |Δs/T − √q| ≤ {worst_mid:.2e}",
+        o.degree,
+        sps.len()
+    );
+    assert!(rel < 1e-3, "time {t_run} vs ∫ds/√q {t_int}: {rel}");
+    // the clock and position hold after the end
+    let after = ip.tick().unwrap();
+    assert_eq!(after.pos_mm, last.pos_mm);
+    assert_eq!(after.s_mm, L);
+    assert!((after.t_s - last.t_s - period).abs() < 1e-12);
+    assert!(ip.is_done());
+    assert_eq!(
+        ip.run(&mut FnSink(|_: &Setpoint| -> Result<(), ()> { Err(()) })),
+        Ok(0)
+    );
+    // reset replays the same motion
+    ip.reset();
+    assert!(!ip.is_done());
+    assert_eq!(run_all(&mut ip), sps);
+}
+
+#[test]
+fn line_degree_1_plateau() {
+    check_line(&line(1, plateau(12, 50.0)), 250e-6);
+}
+
+#[test]
+fn line_degree_2_plateau() {
+    check_line(&line(2, plateau(12, 50.0)), 250e-6);
+}
+
+#[test]
+fn line_degree_2_uneven_q_and_coarse_period() {
+    // a lumpy q on uneven knots; 1 ms ticks
+    let mut o = line(
+        2,
+        vec![
+            0.0, 300.0, 2500.0, 900.0, 1600.0, 2500.0, 400.0, 3600.0, 100.0, 0.0,
+        ],
+    );
+    o.q_knots = vec![0.0, 0.0, 0.0, 0.0, 7.0, 20.0, 33.0, 50.0, 61.0, 90.0, L, L, L, L];
+    check_line(&o, 1e-3);
+}
+
+#[test]
+fn taylor_step_tracks_exact_solution_of_linear_q() {
+    // q = c·s on the first span (ctrl 0, a, 2a, 3a on knots 0,0,0,0,h,2h,3h…)
+    // gives s = c t²/4 exactly; the step is exact for that.
+    let mut o = good();
+    let (c, h) = (30.0, o.q_knots[4]);
+    // control points at c × the Greville abscissae 0, h/3, h, 2h on the first span
+    o.q_ctrl = vec![0.0, c * h / 3.0, c * h, 2.0 * c * h, 2.0 * c * h];
+    o.q_ctrl.extend([2.0 * c * h; 6]);
+    o.q_ctrl.push(0.0);
+    let bytes = o.encode().unwrap();
+    let mut ip = Interpolator::new(Table::parse(&bytes).unwrap(), 1e-3).unwrap();
+    let q = QSpline::new(&o.q_knots[..], &o.q_ctrl[..]).unwrap();
+    assert!((q.eval(0.0).unwrap()[1] - c).abs() < 1e-12 * c);
+    ip.tick().unwrap();
+    for _ in 0..20 {
+        let sp = ip.tick().unwrap();
+        let exact = c * sp.t_s * sp.t_s / 4.0;
+        assert!(sp.s_mm < o.q_knots[4]);
+        assert!(
+            (sp.s_mm - exact).abs() < 1e-12 * (1.0 + exact),
+            "{} vs {exact}",
+            sp.s_mm
+        );
+    }
+}
+
+#[test]
+fn interior_zero_of_q_is_a_stall_fault() {
+    let mut o = good();
+    o.q_ctrl = vec![
+        0.0, 2500.0, 2500.0, 2500.0, 0.0, 0.0, 0.0, 2500.0, 2500.0, 2500.0, 2500.0, 0.0,
+    ];
+    let bytes = o.encode().unwrap();
+    let mut ip = Interpolator::new(Table::parse(&bytes).unwrap(), 250e-6).unwrap();
+    let mut n = 0u64;
+    let err = ip.run(&mut FnSink(|_: &Setpoint| -> Result<(), ()> {
+        n += 1;
+        Ok(())
+    }));
+    let zero_at = o.q_knots[7];
+    match err {
+        Err(RunError::Fault(Fault::Stalled { s_mm, t_s })) => {
+            std::eprintln!("stalled at s = {s_mm} (q zero at {zero_at}), t = {t_s}");
+            assert!(
+                s_mm < zero_at && s_mm > zero_at - 0.1,
+                "stalled at {s_mm}, zero at {zero_at}"
+            );
+            assert!(t_s < 600.0, "took {t_s} s to notice");
+        }
+        other => panic!("expected a stall, got {other:?}"),
+    }
+    // sticky
+    assert!(matches!(ip.tick(), Err(Fault::Stalled { .. })));
+    assert!(!ip.is_done());
+    assert!(n > 0);
+}
+
+#[test]
+fn bad_period_refused() {
+    let bytes = good().encode().unwrap();
+    let t = Table::parse(&bytes).unwrap();
+    for p in [0.0, -1e-3, f64::NAN, f64::INFINITY] {
+        assert_eq!(
+            Interpolator::new(t, p).unwrap_err(),
+            crate::interp::InterpError::BadPeriod
+        );
+    }
+}
+
+#[test]
+fn run_into_fixed_buffer_reports_full() {
+    let bytes = good().encode().unwrap();
+    let mut ip = Interpolator::new(Table::parse(&bytes).unwrap(), 1e-3).unwrap();
+    let mut buf: heapless::Vec<Setpoint, 16> = heapless::Vec::new();
+    assert_eq!(ip.run(&mut buf), Err(RunError::Sink(crate::output::Full)));
+    assert_eq!(buf.len(), 16);
+    assert_eq!(buf[0].s_mm, 0.0);
+}
+
+#[test]
+fn table_views_feed_the_evaluators() {
+    // the same evaluators over table bytes and over host slices agree bit for bit
+    let o = line(1, plateau(12, 50.0));
+    let bytes = o.encode().unwrap();
+    let t = Table::parse(&bytes).unwrap();
+    let qa = QSpline::new(t.q_knots(), t.q_ctrl()).unwrap();
+    let qb = QSpline::new(&o.q_knots[..], &o.q_ctrl[..]).unwrap();
+    for k in 0..=100 {
+        let s = k as f64;
+        assert_eq!(qa.eval(s), qb.eval(s));
+    }
+    assert_eq!(F64Array::len(&t.q_ctrl()), 12);
+}

@@ -1,0 +1,462 @@
+//! The two linear programs of §2.1: the pseudo-jerk LP and the plan LP.
+//!
+//! The squared feedrate q(s) = ṡ² = Σ N_{i,4}(s) a_i is an order-4 B-spline
+//! over arc length on the knot vector (17) built from a sampling Γ. The
+//! constraints (8), (9), (11), (12) — and for the plan also (14), (15) — are
+//! evaluated at the Greville points (18) of that knot vector, one row pair per
+//! axis and limit, each row touching at most four control points, so the
+//! constraint matrix is banded and sparse. Both LPs are solved with Clarabel.
+//!
+//! Stage 1 (pseudo-jerk): maximise ∫q ds subject to (8)(9)(11)(12) → â.
+//! Stage 2 (plan): the same, plus the jerk rows (14)(15) linearised by
+//! √q̂(g) at each Greville point, plus a ≤ â (so q ≤ q̂ everywhere, since the
+//! basis is non-negative: this is what makes (14)(15) bound the true jerk
+//! (10)(13)). In both, q(0) = q(L) = 0 (a_1 = a_N = 0 are eliminated).
+
+use std::time::Instant;
+
+use clarabel::algebra::CscMatrix;
+use clarabel::solver::{
+    DefaultSettingsBuilder, DefaultSolver, IPSolver, NonnegativeConeT, SolverStatus,
+    SupportedConeT,
+};
+use firmware_core::basis::{ders_basis, find_span, window, BasisDerivs, MAX_DEGREE, MAX_DERIV};
+use firmware_core::table::Limits;
+
+use crate::arclength::PathDerivs;
+
+/// Order of q(s) (cubic B-spline), written d in the paper.
+pub const ORDER: usize = 4;
+const DEGREE: usize = ORDER - 1;
+
+/// Which LP a result or an error belongs to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Stage {
+    /// Stage 1: without jerk rows, gives the pseudo-jerk q̂.
+    PseudoJerk,
+    /// Stage 2: with jerk rows linearised by √q̂, gives the plan.
+    Plan,
+}
+
+impl std::fmt::Display for Stage {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Stage::PseudoJerk => "pseudo-jerk LP",
+            Stage::Plan => "plan LP",
+        })
+    }
+}
+
+/// Weights c of the objective c·a.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Objective {
+    /// c_i = ∫ N_i ds = (U_{i+4} − U_i)/4, so c·a = ∫ q ds exactly, eq. (7).
+    #[default]
+    Integral,
+    /// c_i = 1, the paper's "uniformly distributed weighting vector".
+    Uniform,
+}
+
+impl std::str::FromStr for Objective {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s.to_ascii_lowercase().as_str() {
+            "integral" => Ok(Objective::Integral),
+            "uniform" => Ok(Objective::Uniform),
+            _ => Err(format!("unknown objective `{s}`: expected integral or uniform")),
+        }
+    }
+}
+
+impl std::fmt::Display for Objective {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Objective::Integral => "integral",
+            Objective::Uniform => "uniform",
+        })
+    }
+}
+
+/// How stage 2 keeps q under the pseudo-jerk q̂, which is what makes the
+/// linearised jerk rows (14)(15) bound the true jerk (10)(13).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum QhatBound {
+    /// a ≤ â: q ≤ q̂ everywhere (the basis is non-negative).
+    #[default]
+    ControlPoints,
+    /// q(g) ≤ q̂(g) at the evaluation points only, where the jerk rows are.
+    EvalPoints,
+    /// No bound: the paper as printed.
+    None,
+}
+
+impl std::str::FromStr for QhatBound {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s.to_ascii_lowercase().as_str() {
+            "control" | "control-points" => Ok(QhatBound::ControlPoints),
+            "eval" | "eval-points" => Ok(QhatBound::EvalPoints),
+            "none" => Ok(QhatBound::None),
+            _ => Err(format!("unknown q-hat bound `{s}`: expected control, eval or none")),
+        }
+    }
+}
+
+impl std::fmt::Display for QhatBound {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            QhatBound::ControlPoints => "control",
+            QhatBound::EvalPoints => "eval",
+            QhatBound::None => "none",
+        })
+    }
+}
+
+/// An LP that did not end with an optimal point.
+#[derive(Debug, Clone, thiserror::Error)]
+#[error("{stage} failed: Clarabel status {status} after {iterations} iterations")]
+pub struct LpError {
+    /// Which LP failed.
+    pub stage: Stage,
+    /// Clarabel's termination status, e.g. `PrimalInfeasible`.
+    pub status: String,
+    /// Interior-point iterations spent.
+    pub iterations: u32,
+}
+
+/// Size and cost of one solved LP.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct LpStats {
+    /// Which LP.
+    pub stage: Stage,
+    /// Free control points (a_1 and a_N are fixed to 0).
+    pub variables: usize,
+    /// Inequality rows, bounds included.
+    pub rows: usize,
+    /// Non-zeros of the constraint matrix.
+    pub nonzeros: usize,
+    /// Interior-point iterations.
+    pub iterations: u32,
+    /// Clarabel's status (`Solved` or `AlmostSolved`).
+    pub status: String,
+    /// Wall time to build and solve, s.
+    pub solve_time_s: f64,
+}
+
+/// Knot vector (17): the sampling Γ = {0 = s_1, …, s_K = L} with its end
+/// knots repeated `ORDER` times.
+pub fn knot_vector(samples: &[f64]) -> Vec<f64> {
+    let (first, last) = match (samples.first(), samples.last()) {
+        (Some(&f), Some(&l)) => (f, l),
+        _ => return Vec::new(),
+    };
+    let mut u = Vec::with_capacity(samples.len() + 2 * ORDER - 2);
+    u.extend(std::iter::repeat_n(first, ORDER));
+    u.extend_from_slice(&samples[1..samples.len() - 1]);
+    u.extend(std::iter::repeat_n(last, ORDER));
+    u
+}
+
+/// Greville points (18), read as ERRATA.md says: one per control point,
+/// g_i = (U_{i+1} + U_{i+2} + U_{i+3})/3, so g_1 = 0 and g_N = L.
+pub fn greville(knots: &[f64]) -> Vec<f64> {
+    let n = knots.len().saturating_sub(ORDER);
+    (0..n)
+        .map(|i| knots[i + 1..i + ORDER].iter().sum::<f64>() / DEGREE as f64)
+        .collect()
+}
+
+/// q and its first two s-derivatives as sparse rows: the basis functions
+/// N_{first..first+4}(s) and their derivatives at one point.
+#[derive(Debug, Clone, Copy)]
+pub struct BasisRow {
+    /// Index of the first control point with a non-zero basis function.
+    pub first: usize,
+    /// `d[k][j]` = k-th derivative of N_{first+j} at the point.
+    pub d: [[f64; ORDER]; 3],
+}
+
+impl BasisRow {
+    /// Evaluate at `s` on `knots` (order 4). `None` if `s` has no span.
+    pub fn at(knots: &[f64], s: f64) -> Option<Self> {
+        let span = find_span(knots, DEGREE, s)?;
+        let mut ders: BasisDerivs = [[0.0; MAX_DEGREE + 1]; MAX_DERIV + 1];
+        if !ders_basis(window(knots, DEGREE, span)?, DEGREE, s, 2, &mut ders) {
+            return None;
+        }
+        let mut d = [[0.0; ORDER]; 3];
+        for (k, row) in d.iter_mut().enumerate() {
+            row.copy_from_slice(&ders[k][..ORDER]);
+        }
+        Some(BasisRow { first: span - DEGREE, d })
+    }
+
+    /// k-th derivative of q = Σ N_i a_i at the point.
+    pub fn apply(&self, k: usize, a: &[f64]) -> f64 {
+        (0..ORDER).map(|j| self.d[k][j] * a.get(self.first + j).copied().unwrap_or(0.0)).sum()
+    }
+}
+
+/// Everything the LPs need at one evaluation (Greville) point.
+#[derive(Debug, Clone, Copy)]
+pub struct EvalPoint {
+    /// Arc length of the point, mm.
+    pub s: f64,
+    /// r′, r″, r‴ with respect to arc length at the point.
+    pub geo: PathDerivs,
+    /// Basis functions of q at the point.
+    pub basis: BasisRow,
+}
+
+/// One LP: the knot vector of q, its evaluation points and the limits.
+#[derive(Debug, Clone)]
+pub struct FeedLp<'a> {
+    /// Knot vector (17) of q.
+    pub knots: &'a [f64],
+    /// Evaluation points, normally the Greville points (18).
+    pub points: &'a [EvalPoint],
+    /// Kinematic limits.
+    pub limits: Limits,
+    /// Objective weights.
+    pub objective: Objective,
+    /// How the plan is kept under the pseudo-jerk (stage 2 only).
+    pub qhat_bound: QhatBound,
+}
+
+/// A solved LP: the control points of q (a_1 = a_N = 0 included).
+#[derive(Debug, Clone)]
+pub struct LpSolution {
+    /// Control points a_1 … a_N of q, (mm/s)².
+    pub ctrl: Vec<f64>,
+    /// What it cost.
+    pub stats: LpStats,
+}
+
+/// Sparse row under construction: coefficients on control points (global index) and a right-hand side.
+struct Row {
+    idx: [usize; ORDER],
+    val: [f64; ORDER],
+    rhs: f64,
+}
+
+impl<'a> FeedLp<'a> {
+    /// Number of control points N of q.
+    pub fn n_ctrl(&self) -> usize {
+        self.knots.len().saturating_sub(ORDER)
+    }
+
+    /// Largest q allowed at a point by the velocity limits (8) and (11).
+    pub fn q_max(&self, geo: &PathDerivs) -> f64 {
+        let mut q = self.limits.vbar * self.limits.vbar;
+        for k in 0..3 {
+            let r1 = geo.d1[k].abs();
+            if r1 > 0.0 {
+                q = q.min((self.limits.v[k] / r1).powi(2));
+            }
+        }
+        q
+    }
+
+    /// Rows of one evaluation point: (8)(11) as one row, ±(9), ±(12), and when
+    /// `sqrt_qhat` is given, ±(14), ±(15) with that linearisation.
+    fn point_rows(&self, p: &EvalPoint, sqrt_qhat: Option<f64>, out: &mut Vec<Row>) {
+        let b = &p.basis;
+        let idx = core::array::from_fn(|j| b.first + j);
+        let lim = &self.limits;
+        let mut push = |coef: [f64; ORDER], rhs: f64, both: bool| {
+            out.push(Row { idx, val: coef, rhs });
+            if both {
+                out.push(Row { idx, val: coef.map(|c| -c), rhs });
+            }
+        };
+        // (8), (11): q ≤ q_max
+        push(b.d[0], self.q_max(&p.geo), false);
+        // (9): |r″ q + ½ r′ q′| ≤ A_k
+        for k in 0..3 {
+            let c = core::array::from_fn(|j| p.geo.d2[k] * b.d[0][j] + 0.5 * p.geo.d1[k] * b.d[1][j]);
+            push(c, lim.a[k], true);
+        }
+        // (12): |½ q′| ≤ Ā
+        push(b.d[1].map(|c| 0.5 * c), lim.abar, true);
+        if let Some(sq) = sqrt_qhat {
+            if sq > 0.0 {
+                // (14): |r‴ q + 3/2 r″ q′ + ½ r′ q″| ≤ J_k / √q̂
+                for k in 0..3 {
+                    let c = core::array::from_fn(|j| {
+                        p.geo.d3[k] * b.d[0][j] + 1.5 * p.geo.d2[k] * b.d[1][j] + 0.5 * p.geo.d1[k] * b.d[2][j]
+                    });
+                    push(c, lim.j[k] / sq, true);
+                }
+                // (15): |½ q″| ≤ J̄ / √q̂
+                push(b.d[2].map(|c| 0.5 * c), lim.jbar / sq, true);
+            }
+        }
+    }
+
+    /// Objective weights c_i for all N control points.
+    fn weights(&self) -> Vec<f64> {
+        let n = self.n_ctrl();
+        match self.objective {
+            Objective::Integral => {
+                (0..n).map(|i| (self.knots[i + ORDER] - self.knots[i]) / ORDER as f64).collect()
+            }
+            Objective::Uniform => vec![1.0; n],
+        }
+    }
+
+    /// Stage 1: the pseudo-jerk LP, rows (8)(9)(11)(12).
+    pub fn solve_pseudo_jerk(&self) -> Result<LpSolution, LpError> {
+        self.solve(Stage::PseudoJerk, None)
+    }
+
+    /// Stage 2: the plan LP, rows (8)(9)(11)(12)(14)(15) and a ≤ â, with the
+    /// jerk rows linearised by the pseudo-jerk control points `qhat`.
+    pub fn solve_plan(&self, qhat: &[f64]) -> Result<LpSolution, LpError> {
+        self.solve(Stage::Plan, Some(qhat))
+    }
+
+    fn solve(&self, stage: Stage, qhat: Option<&[f64]>) -> Result<LpSolution, LpError> {
+        let t0 = Instant::now();
+        let n = self.n_ctrl();
+        let fail = |status: &str, iterations| LpError { stage, status: status.to_string(), iterations };
+        if n < ORDER {
+            return Err(fail("TooFewControlPoints", 0));
+        }
+        // Variables: x_v = a_{v+1} / scale for v = 0 … n−3 (a_1 = a_N = 0 eliminated).
+        let nv = n - 2;
+        let scale = (self.limits.vbar * self.limits.vbar).max(f64::MIN_POSITIVE);
+        let mut rows = Vec::with_capacity(self.points.len() * 17);
+        for p in self.points {
+            let qh = qhat.map(|a| p.basis.apply(0, a).max(0.0));
+            self.point_rows(p, qh.map(f64::sqrt), &mut rows);
+            if let (Some(qh), QhatBound::EvalPoints) = (qh, self.qhat_bound) {
+                let idx = core::array::from_fn(|j| p.basis.first + j);
+                rows.push(Row { idx, val: p.basis.d[0], rhs: qh });
+            }
+        }
+        // Triplets (row, col, value), rows normalised so that rhs = 1 where rhs > 0.
+        let mut trip: Vec<(usize, usize, f64)> = Vec::with_capacity(rows.len() * ORDER + 2 * nv);
+        let mut b = Vec::with_capacity(rows.len() + 2 * nv);
+        for row in &rows {
+            let norm = if row.rhs > 0.0 { row.rhs } else { 1.0 };
+            let r = b.len();
+            let mut any = false;
+            for (&i, &v) in row.idx.iter().zip(&row.val) {
+                if i == 0 || i == n - 1 || v == 0.0 {
+                    continue; // fixed to zero
+                }
+                trip.push((r, i - 1, v * scale / norm));
+                any = true;
+            }
+            if any {
+                b.push(row.rhs / norm);
+            }
+        }
+        // Bounds: −x ≤ 0, and x ≤ â/scale for the plan.
+        for v in 0..nv {
+            trip.push((b.len(), v, -1.0));
+            b.push(0.0);
+        }
+        if let Some(a) = qhat.filter(|_| self.qhat_bound == QhatBound::ControlPoints) {
+            for v in 0..nv {
+                trip.push((b.len(), v, 1.0));
+                b.push(a.get(v + 1).copied().unwrap_or(0.0).max(0.0) / scale);
+            }
+        }
+        let m = b.len();
+        let a_mat = csc_from_triplets(m, nv, &mut trip);
+        let c = self.weights();
+        let cmax = c.iter().cloned().fold(0.0, f64::max).max(f64::MIN_POSITIVE);
+        let q: Vec<f64> = (0..nv).map(|v| -c[v + 1] / cmax).collect();
+        let p_mat = CscMatrix::<f64>::zeros((nv, nv));
+        let cones = [NonnegativeConeT(m)];
+        let settings = DefaultSettingsBuilder::default()
+            .verbose(false)
+            .max_iter(200)
+            .build()
+            .map_err(|_| fail("BadSettings", 0))?;
+        let nonzeros = a_mat.nnz();
+        let mut solver = DefaultSolver::new(&p_mat, &q, &a_mat, &b, &cones as &[SupportedConeT<f64>], settings)
+            .map_err(|e| fail(&format!("SetupError({e})"), 0))?;
+        solver.solve();
+        let sol = &solver.solution;
+        let status = format!("{:?}", sol.status);
+        if !matches!(sol.status, SolverStatus::Solved | SolverStatus::AlmostSolved) {
+            return Err(fail(&status, sol.iterations));
+        }
+        let mut ctrl = vec![0.0; n];
+        for v in 0..nv {
+            // interior-point solutions sit a hair inside the bounds: clip to them
+            let mut a = (sol.x[v] * scale).max(0.0);
+            if let Some(qh) = qhat {
+                if self.qhat_bound == QhatBound::ControlPoints {
+                    a = a.min(qh[v + 1]);
+                }
+            }
+            ctrl[v + 1] = a;
+        }
+        Ok(LpSolution {
+            ctrl,
+            stats: LpStats {
+                stage,
+                variables: nv,
+                rows: m,
+                nonzeros,
+                iterations: sol.iterations,
+                status,
+                solve_time_s: t0.elapsed().as_secs_f64(),
+            },
+        })
+    }
+}
+
+/// Compressed-sparse-column matrix from (row, col, value) triplets.
+fn csc_from_triplets(m: usize, n: usize, trip: &mut [(usize, usize, f64)]) -> CscMatrix<f64> {
+    trip.sort_unstable_by_key(|&(r, c, _)| (c, r));
+    let mut colptr = vec![0usize; n + 1];
+    let mut rowval = Vec::with_capacity(trip.len());
+    let mut nzval = Vec::with_capacity(trip.len());
+    for &(r, c, v) in trip.iter() {
+        colptr[c + 1] += 1;
+        rowval.push(r);
+        nzval.push(v);
+    }
+    for c in 0..n {
+        colptr[c + 1] += colptr[c];
+    }
+    CscMatrix::new(m, n, colptr, rowval, nzval)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn knots_and_greville_follow_17_and_18() {
+        let samples = [0.0, 1.0, 2.0, 3.0, 4.0];
+        let u = knot_vector(&samples);
+        assert_eq!(u, vec![0.0, 0.0, 0.0, 0.0, 1.0, 2.0, 3.0, 4.0, 4.0, 4.0, 4.0]);
+        let g = greville(&u);
+        assert_eq!(g.len(), u.len() - ORDER);
+        assert_eq!(g[0], 0.0);
+        assert_eq!(*g.last().unwrap(), 4.0);
+        assert!((g[1] - 1.0 / 3.0).abs() < 1e-15);
+        assert!(g.windows(2).all(|w| w[0] < w[1]));
+    }
+
+    #[test]
+    fn basis_row_reproduces_a_linear_function() {
+        // Control points at the Greville abscissae reproduce q(s) = s exactly.
+        let u = knot_vector(&[0.0, 0.7, 1.5, 2.0, 3.2, 4.0]);
+        let g = greville(&u);
+        for &s in &[0.0, 0.3, 1.0, 2.5, 4.0] {
+            let b = BasisRow::at(&u, s).unwrap();
+            assert!((b.apply(0, &g) - s).abs() < 1e-12);
+            assert!((b.apply(1, &g) - 1.0).abs() < 1e-12);
+            assert!(b.apply(2, &g).abs() < 1e-10);
+        }
+    }
+}

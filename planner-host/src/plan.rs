@@ -1,0 +1,407 @@
+//! The planning pipeline: curve → sampling Γ → knot vector (17) and Greville
+//! points (18) → pseudo-jerk LP → plan LP → s → u map → firmware table.
+
+use std::path::Path;
+use std::time::Instant;
+
+use firmware_core::table::{self, Limits, TableParts};
+
+use crate::arclength::{ArcLength, PathDerivs};
+use crate::curve::{CurveError, Nurbs};
+use crate::limits::{self, LimitsError, TABLE1};
+use crate::lp::{self, BasisRow, EvalPoint, FeedLp, LpError, LpStats, Objective, QhatBound};
+use crate::sampling::{self, Sampling};
+use crate::sumap::{self, SuMap};
+
+/// What to plan with.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct PlanConfig {
+    /// How the toolpath is sampled into Γ (§3).
+    #[serde(serialize_with = "display")]
+    pub sampling: Sampling,
+    /// Sampling density P, points per mm: m = round(P·L) points.
+    pub density_per_mm: f64,
+    /// Kinematic limits.
+    #[serde(serialize_with = "limits_json")]
+    pub limits: Limits,
+    /// Objective weights.
+    pub objective: Objective,
+    /// How the plan is kept under the pseudo-jerk.
+    pub qhat_bound: QhatBound,
+    /// Tolerance of the s → u map, mm: |s(u(s)) − s|.
+    pub su_tol_mm: f64,
+}
+
+fn display<S: serde::Serializer, T: std::fmt::Display>(v: &T, s: S) -> Result<S::Ok, S::Error> {
+    s.collect_str(v)
+}
+
+fn limits_json<S: serde::Serializer>(l: &Limits, s: S) -> Result<S::Ok, S::Error> {
+    use serde::ser::SerializeMap;
+    let mut m = s.serialize_map(Some(6))?;
+    m.serialize_entry("vbar", &l.vbar)?;
+    m.serialize_entry("abar", &l.abar)?;
+    m.serialize_entry("jbar", &l.jbar)?;
+    m.serialize_entry("v", &l.v)?;
+    m.serialize_entry("a", &l.a)?;
+    m.serialize_entry("j", &l.j)?;
+    m.end()
+}
+
+impl Default for PlanConfig {
+    fn default() -> Self {
+        PlanConfig {
+            sampling: Sampling::Len,
+            density_per_mm: 1.0,
+            limits: TABLE1,
+            objective: Objective::Integral,
+            qhat_bound: QhatBound::ControlPoints,
+            su_tol_mm: sumap::DEFAULT_TOL_MM,
+        }
+    }
+}
+
+/// Why a plan could not be made.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum PlanError {
+    /// The toolpath is not usable.
+    #[error("toolpath: {0}")]
+    Curve(#[from] CurveError),
+    /// The limits are not usable.
+    #[error(transparent)]
+    Limits(#[from] LimitsError),
+    /// An LP did not solve; names the stage and Clarabel's status.
+    #[error(transparent)]
+    Lp(#[from] LpError),
+    /// The sampling density gives too few points.
+    #[error("sampling density {density} points/mm gives {points} points on {length_mm:.3} mm; at least 2 are needed")]
+    TooFewPoints {
+        /// Requested density.
+        density: f64,
+        /// Resulting point count.
+        points: usize,
+        /// Path length.
+        length_mm: f64,
+    },
+    /// The plan forces q = 0 inside the path: the machine would stall there.
+    #[error("the plan stops the feed in mid-path at s = {s_mm:.4} mm of {length_mm:.3} mm (q = 0): the jerk rows are too tight for this sampling; use a finer sampling")]
+    Stall {
+        /// Where q vanishes.
+        s_mm: f64,
+        /// Path length.
+        length_mm: f64,
+    },
+    /// The table could not be encoded.
+    #[error("table encoding failed: {0:?}")]
+    Table(table::EncodeError),
+    /// Writing the table failed.
+    #[error("cannot write {path}: {source}")]
+    Io {
+        /// The file.
+        path: String,
+        /// Why.
+        source: std::io::Error,
+    },
+}
+
+/// A finished plan and what it cost.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct PlanOutput {
+    /// Toolpath name.
+    pub curve: String,
+    /// What it was planned with.
+    pub config: PlanConfig,
+    /// Path length L, mm.
+    pub path_length_mm: f64,
+    /// Sampling points m (= K, the knots of Γ).
+    pub sampling_points: usize,
+    /// Control points N of q.
+    pub control_points: usize,
+    /// Both LPs, in order.
+    pub lp: Vec<LpStats>,
+    /// Predicted machining time T = ∫ ds/√q, s.
+    pub predicted_time_s: f64,
+    /// Segments of the s → u map.
+    pub su_segments: usize,
+    /// Largest |s(u(s)) − s| measured on the s → u map, mm.
+    pub su_max_err_mm: f64,
+    /// Wall time of the geometry (arc length, s → u map, derivatives), s.
+    pub geometry_time_s: f64,
+    /// Wall time of the whole plan, s.
+    pub total_time_s: f64,
+    /// Table size, bytes.
+    pub table_bytes_len: usize,
+    /// Knot vector (17) of q, mm.
+    #[serde(skip)]
+    pub q_knots: Vec<f64>,
+    /// Control points of q, (mm/s)².
+    #[serde(skip)]
+    pub q_ctrl: Vec<f64>,
+    /// Control points of the pseudo-jerk q̂, (mm/s)².
+    #[serde(skip)]
+    pub qhat_ctrl: Vec<f64>,
+    /// The encoded firmware table.
+    #[serde(skip)]
+    pub table_bytes: Vec<u8>,
+}
+
+impl PlanOutput {
+    /// The human-readable summary, with the dense check when given.
+    pub fn summary(&self, check: Option<&crate::verify::DenseReport>) -> String {
+        use std::fmt::Write;
+        let mut o = String::new();
+        let _ = writeln!(
+            o,
+            "{}: L = {:.3} mm, {} sampling at {} points/mm -> {} points, {} control points of q",
+            self.curve,
+            self.path_length_mm,
+            self.config.sampling,
+            self.config.density_per_mm,
+            self.sampling_points,
+            self.control_points
+        );
+        for lp in &self.lp {
+            let _ = writeln!(
+                o,
+                "  {:<14} {:>6} variables {:>7} rows {:>8} nonzeros {:>4} iterations {:>9.2} ms  {}",
+                lp.stage.to_string(),
+                lp.variables,
+                lp.rows,
+                lp.nonzeros,
+                lp.iterations,
+                lp.solve_time_s * 1e3,
+                lp.status
+            );
+        }
+        let _ = writeln!(o, "  s->u map: {} segments, max |s(u(s)) - s| = {:.2e} mm", self.su_segments, self.su_max_err_mm);
+        let _ = writeln!(o, "  predicted machining time T = int ds/sqrt(q) = {:.4} s", self.predicted_time_s);
+        if let Some(c) = check {
+            let r = &c.ratios;
+            let _ = writeln!(
+                o,
+                "  dense check ({} points/span): largest ratio to limit: vel {:.3} acc {:.3} jerk {:.3} | feed {:.3} tacc {:.3} tjerk {:.3}",
+                c.per_span, r.vel, r.acc, r.jerk, r.feed, r.tacc, r.tjerk
+            );
+        }
+        let _ = writeln!(o, "  table {} bytes, planning time {:.1} ms", self.table_bytes_len, self.total_time_s * 1e3);
+        o
+    }
+}
+
+/// r, r′, r″, r‴ with respect to arc length at arc length `s`.
+pub fn path_derivs_at(curve: &Nurbs, arc: &ArcLength, s: f64) -> PathDerivs {
+    arc.derivs_s(curve, arc.u_of_s(s))
+}
+
+/// Plan a toolpath: both LPs of §2.1 on the sampling of `cfg`, then the table.
+pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanError> {
+    let t0 = Instant::now();
+    curve.validate()?;
+    limits::validate(&cfg.limits)?;
+    let arc = ArcLength::new(curve);
+    let length = arc.total();
+    let m = sampling::points_for_density(length, cfg.density_per_mm);
+    if m < 2 {
+        return Err(PlanError::TooFewPoints { density: cfg.density_per_mm, points: m, length_mm: length });
+    }
+    let samples = sampling::sample(curve, &arc, cfg.sampling, m)?;
+    let su = SuMap::fit(curve, &arc, cfg.su_tol_mm)?;
+    let knots = lp::knot_vector(&samples);
+    let points: Vec<EvalPoint> = lp::greville(&knots)
+        .into_iter()
+        .filter_map(|g| {
+            Some(EvalPoint { s: g, geo: path_derivs_at(curve, &arc, g), basis: BasisRow::at(&knots, g)? })
+        })
+        .collect();
+    let geometry_time_s = t0.elapsed().as_secs_f64();
+
+    let feed_lp = FeedLp {
+        knots: &knots,
+        points: &points,
+        limits: cfg.limits,
+        objective: cfg.objective,
+        qhat_bound: cfg.qhat_bound,
+    };
+    let pseudo = feed_lp.solve_pseudo_jerk()?;
+    let plan = feed_lp.solve_plan(&pseudo.ctrl)?;
+
+    if let Some(s_mm) = interior_stall(&knots, &plan.ctrl, cfg.limits.vbar) {
+        return Err(PlanError::Stall { s_mm, length_mm: length });
+    }
+    let predicted_time_s = machining_time(&knots, &plan.ctrl);
+
+    let homogeneous = curve.to_homogeneous_table();
+    let parts = TableParts {
+        limits: cfg.limits,
+        path_length_mm: length,
+        predicted_time_s,
+        nurbs_degree: curve.degree as u32,
+        nurbs_knots: &curve.knots,
+        nurbs_points: &homogeneous,
+        su_breaks: &su.breaks,
+        su_segments: &su.segments,
+        q_knots: &knots,
+        q_ctrl: &plan.ctrl,
+    };
+    let mut bytes = vec![0u8; table::encoded_len(&parts)];
+    let written = table::encode(&parts, &mut bytes).map_err(PlanError::Table)?;
+    bytes.truncate(written);
+
+    Ok(PlanOutput {
+        curve: curve.name.clone(),
+        config: cfg.clone(),
+        path_length_mm: length,
+        sampling_points: m,
+        control_points: plan.ctrl.len(),
+        lp: vec![pseudo.stats, plan.stats],
+        predicted_time_s,
+        su_segments: su.segments.len(),
+        su_max_err_mm: su.max_err_mm,
+        geometry_time_s,
+        total_time_s: t0.elapsed().as_secs_f64(),
+        table_bytes_len: bytes.len(),
+        q_knots: knots,
+        q_ctrl: plan.ctrl,
+        qhat_ctrl: pseudo.ctrl,
+        table_bytes: bytes,
+    })
+}
+
+/// First interior point (away from the two ends) where q vanishes, checked
+/// densely (16 points per knot span); `None` if the feed never stops inside.
+pub fn interior_stall(knots: &[f64], ctrl: &[f64], vbar: f64) -> Option<f64> {
+    let (first, last) = (*knots.first()?, *knots.last()?);
+    let floor = 1e-12 * vbar * vbar;
+    for w in knots.windows(2).filter(|w| w[1] > w[0]) {
+        for k in 0..16 {
+            let s = w[0] + (w[1] - w[0]) * k as f64 / 16.0;
+            if s <= first || s >= last {
+                continue;
+            }
+            if BasisRow::at(knots, s).map(|b| b.apply(0, ctrl)).unwrap_or(0.0) <= floor {
+                return Some(s);
+            }
+        }
+    }
+    None
+}
+
+/// Predicted machining time T = ∫₀ᴸ ds/√q(s), s.
+///
+/// Per knot span, 16-point Gauss–Legendre; on a span whose end has q = 0 (the
+/// start and the stop) the substitution s = end ± h·τ² removes the 1/√s
+/// singularity of a simple zero, so the rule stays exact to rounding.
+pub fn machining_time(knots: &[f64], ctrl: &[f64]) -> f64 {
+    let q = |s: f64| BasisRow::at(knots, s).map(|b| b.apply(0, ctrl)).unwrap_or(0.0).max(0.0);
+    let (x, w) = gauss_legendre_16();
+    let qmax = ctrl.iter().cloned().fold(0.0, f64::max);
+    let zero = 1e-12 * qmax.max(f64::MIN_POSITIVE);
+    let mut total = 0.0;
+    for win in knots.windows(2).filter(|w| w[1] > w[0]) {
+        let (a, b) = (win[0], win[1]);
+        let h = b - a;
+        let za = q(a) <= zero;
+        let zb = q(b) <= zero;
+        let piece = |lo: f64, hi: f64, from_lo: bool, from_hi: bool| {
+            let len = hi - lo;
+            let mut sum = 0.0;
+            for (&xi, &wi) in x.iter().zip(&w) {
+                let tau = 0.5 * (xi + 1.0);
+                let (s, jac) = if from_lo {
+                    (lo + len * tau * tau, 2.0 * len * tau)
+                } else if from_hi {
+                    (hi - len * tau * tau, 2.0 * len * tau)
+                } else {
+                    (lo + len * tau, len)
+                };
+                let qs = q(s);
+                if qs > 0.0 {
+                    sum += 0.5 * wi * jac / qs.sqrt();
+                }
+            }
+            sum
+        };
+        total += match (za, zb) {
+            (true, true) => piece(a, a + 0.5 * h, true, false) + piece(a + 0.5 * h, b, false, true),
+            (true, false) => piece(a, b, true, false),
+            (false, true) => piece(a, b, false, true),
+            (false, false) => piece(a, b, false, false),
+        };
+    }
+    total
+}
+
+/// Nodes and weights of the 16-point Gauss–Legendre rule on [−1, 1].
+pub fn gauss_legendre_16() -> ([f64; 16], [f64; 16]) {
+    const X: [f64; 8] = [
+        0.095_012_509_837_637_44,
+        0.281_603_550_779_258_9,
+        0.458_016_777_657_227_4,
+        0.617_876_244_402_643_7,
+        0.755_404_408_355_003,
+        0.865_631_202_387_831_8,
+        0.944_575_023_073_232_6,
+        0.989_400_934_991_649_9,
+    ];
+    const W: [f64; 8] = [
+        0.189_450_610_455_068_5,
+        0.182_603_415_044_923_6,
+        0.169_156_519_395_002_5,
+        0.149_595_988_816_576_7,
+        0.124_628_971_255_533_9,
+        0.095_158_511_682_492_78,
+        0.062_253_523_938_647_89,
+        0.027_152_459_411_754_095,
+    ];
+    let mut x = [0.0; 16];
+    let mut w = [0.0; 16];
+    for i in 0..8 {
+        x[i] = -X[7 - i];
+        w[i] = W[7 - i];
+        x[15 - i] = X[7 - i];
+        w[15 - i] = W[7 - i];
+    }
+    (x, w)
+}
+
+/// Write `bytes` to `path` atomically: a temporary file beside it, then a
+/// rename, so a reader never sees a half-written table.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), PlanError> {
+    let io = |source| PlanError::Io { path: path.display().to_string(), source };
+    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let tmp = dir.join(format!(".{name}.{}.tmp", std::process::id()));
+    let result = (|| {
+        use std::io::Write;
+        let mut f = std::fs::File::create(&tmp)?;
+        f.write_all(bytes)?;
+        f.sync_all()?;
+        std::fs::rename(&tmp, path)
+    })();
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result.map_err(io)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn machining_time_of_constant_acceleration_is_exact() {
+        // q(s) = 2·a·s (constant acceleration a from rest) is reproduced by a cubic
+        // B-spline with control points at the Greville abscissae; T = sqrt(2L/a).
+        let (a, len) = (750.0, 40.0);
+        let knots = lp::knot_vector(&[0.0, 7.0, 19.0, len]);
+        let up: Vec<f64> = lp::greville(&knots).iter().map(|g| 2.0 * a * g).collect();
+        let exact = (2.0 * len / a).sqrt();
+        let t = machining_time(&knots, &up);
+        assert!((t - exact).abs() < 1e-9 * exact, "{t} vs {exact}");
+        // and decelerating to rest at the end
+        let down: Vec<f64> = lp::greville(&knots).iter().map(|g| 2.0 * a * (len - g)).collect();
+        let t = machining_time(&knots, &down);
+        assert!((t - exact).abs() < 1e-9 * exact, "{t} vs {exact}");
+    }
+}

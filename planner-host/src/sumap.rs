@@ -1,0 +1,476 @@
+//! The s → u map the firmware evaluates at servo rate: piecewise quintic
+//! polynomials u(s), fitted to the exact inverse arc length.
+//!
+//! This is the feed-correction polynomial of the paper's ref. [5] (Heng &
+//! Erkorkmaz 2010; REFERENCES.md) in its C²-joined form: on each segment
+//! [s_j, s_{j+1}] the quintic is the Hermite interpolant of u, du/ds and
+//! d²u/ds² at both ends (exact values from the curve: u_s = 1/σ,
+//! u_ss = −(r_u·r_uu)/σ⁴), so consecutive segments join C² wherever the
+//! curve's parametrisation is C² — everywhere inside a knot span; at a knot
+//! each side takes the one-sided limits of its own span, exactly like the
+//! true u(s) (a degree-2 curve is only C¹ there). Segments never cross a
+//! knot: each lies in one knot span (`SuSegment::span`). Within a span the
+//! segments are laid out greedily from its start: each is the longest
+//! whose error |s(u_poly(s)) − s| at 31 interior test points (τ = k/32) is
+//! ≤ 0.97·`tol_mm`, its length predicted from the h⁶ law of the Hermite
+//! error and evened out over the rest of the span. The error is integrated
+//! along the polynomial (see `segment_error`); the tests measure it again,
+//! 200 points per segment, against [`ArcLength::s_of_u`].
+//!
+//! Coefficients are in the firmware's form ([`firmware_core::table::SuSegment`]):
+//! u(s) = Σₖ coeffs[k] τᵏ, τ = (s − s_j)/(s_{j+1} − s_j). Evaluated by
+//! Horner's rule (highest power first), τ = 0 gives the segment's start
+//! knot or split point bit-exactly and τ = 1 its end (the top coefficient
+//! is corrected for that), so u is continuous across breaks to the last bit,
+//! the first segment starts exactly at U[p] and the last ends exactly at the
+//! last knot. Knot spans of zero arc length (a curve that stands still) get
+//! no segment.
+
+use firmware_core::table::{SuSegment, SU_COEFFS};
+
+use crate::arclength::{speed_floor, ArcLength};
+use crate::curve::{dot, norm, CurveError, Nurbs};
+
+/// Default tolerance of the s → u map, mm.
+pub const DEFAULT_TOL_MM: f64 = 1e-6;
+
+/// Tolerance of the relative feed error |σ(u(s))·u′(s) − 1|: the slope of
+/// u(s) matters as much as its value, since the setpoints' path speed is
+/// ṡ·σ·u′ (ref. [5] fits its feed-correction polynomials for this reason).
+/// Near the Butterfly's two near-corners (κ ≈ 42 /mm) a fit to 1e-6 mm alone
+/// leaves 1.4e-4 of feed error.
+pub const FEED_TOL: f64 = 1e-5;
+
+/// Test points per segment: τ = k / `TEST_DIV`, k = 1 … `TEST_DIV` − 1.
+const TEST_DIV: usize = 32;
+/// Accept a segment when its error at the test points is ≤ ACCEPT·tol (a
+/// margin for the error between test points, measured below 0.5 %).
+const ACCEPT: f64 = 0.97;
+/// Aim the next segment length at TARGET·tol.
+const TARGET: f64 = 0.8;
+/// Failed attempts in a row before giving up.
+const MAX_TRIALS: usize = 60;
+
+/// Piecewise quintic u(s): `segments[j]` covers `[breaks[j], breaks[j+1]]`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SuMap {
+    /// 0 = s_0 < s_1 < … < s_M = L, mm.
+    pub breaks: Vec<f64>,
+    /// M segments.
+    pub segments: Vec<SuSegment>,
+    /// Largest |s(u_poly(s)) − s| at the test points, mm.
+    pub max_err_mm: f64,
+    /// Largest relative feed error |σ(u(s))·u′(s) − 1| at the test points:
+    /// the feedrate fluctuation the map alone causes.
+    pub max_feed_err: f64,
+}
+
+/// One end of a segment: s, u, du/ds, d²u/ds².
+#[derive(Debug, Clone, Copy)]
+struct Node {
+    s: f64,
+    u: f64,
+    us: f64,
+    uss: f64,
+}
+
+fn node(curve: &Nurbs, span: usize, s: f64, u: f64, floor: f64) -> Result<Node, CurveError> {
+    let d = curve.derivs_in_span(span, u, 2);
+    let sig = norm(d[1]);
+    if sig.is_nan() || sig <= floor || sig.is_infinite() {
+        return Err(CurveError::ZeroSpeed { u });
+    }
+    let us = 1.0 / sig;
+    Ok(Node {
+        s,
+        u,
+        us,
+        uss: -dot(d[1], d[2]) * us.powi(4),
+    })
+}
+
+/// Horner evaluation, highest power first.
+fn horner(c: &[f64; SU_COEFFS], t: f64) -> f64 {
+    c.iter().rev().fold(0.0, |acc, &ck| acc * t + ck)
+}
+
+/// Quintic Hermite coefficients in τ on [a, b].
+fn hermite(a: &Node, b: &Node) -> [f64; SU_COEFFS] {
+    let h = b.s - a.s;
+    let (u0, d0, a0) = (a.u, h * a.us, h * h * a.uss);
+    let (u1, d1, a1) = (b.u, h * b.us, h * h * b.uss);
+    let delta = u1 - u0 - d0 - 0.5 * a0;
+    let dd = d1 - d0 - a0;
+    let aa = a1 - a0;
+    let mut c = [
+        u0,
+        d0,
+        0.5 * a0,
+        10.0 * delta - 4.0 * dd + 0.5 * aa,
+        -15.0 * delta + 7.0 * dd - aa,
+        6.0 * delta - 3.0 * dd + 0.5 * aa,
+    ];
+    // make Horner at τ = 1 give u1 to the last bit
+    for _ in 0..8 {
+        let r = horner(&c, 1.0) - u1;
+        if r == 0.0 {
+            break;
+        }
+        c[5] -= r;
+    }
+    c
+}
+
+/// Largest |s(u_c(τ)) − s_a − τh| over τ = k/32 on a segment of length `h`
+/// whose polynomial `c` starts at the exact u(s_a): the error
+/// E(τ) = ∫₀^τ (σ(u_c(t))·u_c′(t) − h) dt (substitution u = u_c(t) in
+/// s(u) − s_a = ∫σ du), accumulated by 4-point Gauss–Legendre on each
+/// 1/32 — no cancellation against s, 124 speed evaluations. σ is span
+/// `span`'s piece (continued a hair past its ends if u_c overshoots).
+fn segment_error(curve: &Nurbs, span: usize, c: &[f64; SU_COEFFS], h: f64) -> (f64, f64) {
+    const X: [f64; 2] = [0.339_981_043_584_856_3, 0.861_136_311_594_052_6];
+    const W: [f64; 2] = [0.652_145_154_862_546_1, 0.347_854_845_137_453_9];
+    let dc = [c[1], 2.0 * c[2], 3.0 * c[3], 4.0 * c[4], 5.0 * c[5]];
+    let g = |t: f64| {
+        let u = horner(c, t);
+        let du = dc.iter().rev().fold(0.0, |acc, &d| acc * t + d);
+        curve.speed_in_span(span, u) * du - h
+    };
+    let half = 0.5 / TEST_DIV as f64;
+    let (mut e, mut worst, mut feed) = (0.0f64, 0.0f64, 0.0f64);
+    for k in 0..TEST_DIV - 1 {
+        let mid = (2 * k + 1) as f64 * half;
+        let mut sum = 0.0;
+        for i in 0..2 {
+            let (lo, hi) = (g(mid - half * X[i]), g(mid + half * X[i]));
+            feed = feed.max(lo.abs()).max(hi.abs());
+            sum += W[i] * (lo + hi);
+        }
+        e += sum * half;
+        worst = worst.max(e.abs());
+    }
+    let feed = feed / h;
+    if worst.is_nan() || feed.is_nan() {
+        (f64::INFINITY, f64::INFINITY)
+    } else {
+        (worst, feed)
+    }
+}
+
+impl SuMap {
+    /// Fit the map to `tol_mm` (> 0, mm): see the module docs. Errors: a bad
+    /// tolerance, a point where the curve stands still (`ZeroSpeed`: u(s)
+    /// has an infinite slope there), or 60 failed attempts in a row.
+    pub fn fit(curve: &Nurbs, arc: &ArcLength, tol_mm: f64) -> Result<SuMap, CurveError> {
+        if !(tol_mm > 0.0 && tol_mm.is_finite()) {
+            return Err(CurveError::Argument {
+                name: "tol_mm",
+                value: tol_mm,
+                rule: "must be positive and finite",
+            });
+        }
+        let len = arc.total();
+        let floor = speed_floor(curve, len);
+        let mut map = SuMap {
+            breaks: vec![0.0],
+            segments: Vec::new(),
+            max_err_mm: 0.0,
+            max_feed_err: 0.0,
+        };
+        for sp in arc.spans() {
+            if sp.s1 <= sp.s0 {
+                continue;
+            }
+            let mut a = node(curve, sp.span, sp.s0, sp.u0, floor)?;
+            let end = node(curve, sp.span, sp.s1, sp.u1, floor)?;
+            let mut h_try = sp.s1 - sp.s0;
+            let mut trials = 0;
+            // greedy march: the longest segment from `a` that meets the tolerance,
+            // its length predicted from the h⁶ law of the Hermite error and
+            // evened out over the rest of the span (no slivers)
+            while a.s < sp.s1 {
+                // the rest of the span in equal pieces no longer than h_try
+                let rest = sp.s1 - a.s;
+                let pieces = (rest / h_try).ceil();
+                let b = if pieces.is_nan() || pieces <= 1.0 {
+                    end
+                } else {
+                    let h_try = rest / pieces;
+                    let sb = a.s + h_try;
+                    node(curve, sp.span, sb, arc.u_of_s(sb).clamp(sp.u0, sp.u1), floor)?
+                };
+                let h = b.s - a.s;
+                let c = hermite(&a, &b);
+                let (err, feed_err) = segment_error(curve, sp.span, &c, h);
+                // both criteria as a fraction of their tolerance
+                let ratio = (err / tol_mm).max(feed_err / FEED_TOL);
+                let grow = if ratio > 0.0 {
+                    (TARGET / ratio).powf(1.0 / 6.0)
+                } else {
+                    2.0
+                };
+                if ratio <= ACCEPT {
+                    map.max_err_mm = map.max_err_mm.max(err);
+                    map.max_feed_err = map.max_feed_err.max(feed_err);
+                    map.breaks.push(b.s);
+                    map.segments.push(SuSegment {
+                        span: sp.span as u32,
+                        coeffs: c,
+                    });
+                    a = b;
+                    h_try = h * grow.clamp(0.5, 2.0);
+                    trials = 0;
+                    continue;
+                }
+                trials += 1;
+                h_try = h * if grow.is_finite() {
+                    grow.clamp(0.1, 0.95)
+                } else {
+                    0.5
+                };
+                if trials > MAX_TRIALS || a.s + h_try <= a.s || h_try.is_nan() || h_try <= 1e-12 * len {
+                    return Err(CurveError::FitFailed {
+                        span: sp.span,
+                        s_mm: a.s,
+                        err_mm: err,
+                        tol_mm,
+                        len_mm: h,
+                    });
+                }
+            }
+        }
+        // the last break is exactly L (it is the last span's s1 already)
+        if let Some(last) = map.breaks.last_mut() {
+            *last = len;
+        }
+        Ok(map)
+    }
+
+    /// Index of the segment holding `s` (clamped into [0, L]).
+    pub fn segment_of(&self, s: f64) -> usize {
+        self.breaks
+            .partition_point(|&b| b <= s)
+            .saturating_sub(1)
+            .min(self.segments.len().saturating_sub(1))
+    }
+
+    /// u(s) as the firmware computes it (Horner in τ); NaN for an empty map.
+    pub fn eval(&self, s: f64) -> f64 {
+        self.eval_derivs(s)[0]
+    }
+
+    /// `[u, du/ds, d²u/ds²]` at `s` (clamped into [0, L]).
+    pub fn eval_derivs(&self, s: f64) -> [f64; 3] {
+        let Some(&last) = self.breaks.last() else {
+            return [f64::NAN; 3];
+        };
+        if self.segments.is_empty() {
+            return [f64::NAN; 3];
+        }
+        let s = s.clamp(0.0, last);
+        let j = self.segment_of(s);
+        let (a, b) = (self.breaks[j], self.breaks[j + 1]);
+        let h = b - a;
+        let t = ((s - a) / h).clamp(0.0, 1.0);
+        let c = &self.segments[j].coeffs;
+        let mut d = [0.0; 3];
+        for k in (0..SU_COEFFS).rev() {
+            d[2] = d[2] * t + d[1];
+            d[1] = d[1] * t + d[0];
+            d[0] = d[0] * t + c[k];
+        }
+        [d[0], d[1] / h, 2.0 * d[2] / (h * h)]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::curve::tests::{butterfly, quintic_3d, shared_curves};
+
+    fn all_curves() -> Vec<Nurbs> {
+        let mut v = shared_curves();
+        v.push(Nurbs::circle([3.0, 4.0, 0.0], 25.0));
+        v.push(quintic_3d());
+        v.push(Nurbs::line([0.0; 3], [10.0, 0.0, 0.0]));
+        v
+    }
+
+    #[test]
+    fn map_meets_tolerance_densely_on_every_curve() {
+        for c in all_curves() {
+            let arc = ArcLength::new(&c);
+            let map = SuMap::fit(&c, &arc, DEFAULT_TOL_MM).unwrap_or_else(|e| panic!("{}: {e}", c.name));
+            let len = arc.total();
+            let (u0, u1) = c.u_range();
+            assert_eq!(map.breaks.len(), map.segments.len() + 1);
+            assert_eq!(map.breaks[0], 0.0);
+            assert_eq!(*map.breaks.last().unwrap(), len);
+            assert!(
+                map.breaks.windows(2).all(|w| w[1] > w[0]),
+                "{}: breaks not increasing",
+                c.name
+            );
+            // first and last exact, continuity of u at breaks to the last bit (Horner)
+            assert_eq!(map.segments[0].coeffs[0], u0);
+            assert_eq!(horner(&map.segments.last().unwrap().coeffs, 1.0), u1);
+            assert_eq!(map.eval(0.0), u0);
+            assert_eq!(map.eval(len), u1);
+            for j in 1..map.segments.len() {
+                let end = horner(&map.segments[j - 1].coeffs, 1.0);
+                assert_eq!(end, map.segments[j].coeffs[0], "{}: u jumps at break {j}", c.name);
+            }
+            // segments lie in their knot span and break at every knot
+            for (j, seg) in map.segments.iter().enumerate() {
+                let i = seg.span as usize;
+                let (a, b) = (c.knots[i], c.knots[i + 1]);
+                let (ua, ub) = (seg.coeffs[0], horner(&seg.coeffs, 1.0));
+                assert!(
+                    a <= ua && ub <= b && ua < ub,
+                    "{}: segment {j} not in span {i}",
+                    c.name
+                );
+            }
+            for sp in arc.spans() {
+                assert!(
+                    map.breaks.contains(&sp.s0) && map.breaks.contains(&sp.s1),
+                    "{}: knot not a break",
+                    c.name
+                );
+            }
+            // dense check: 200 points per segment, against the arc-length table
+            let mut worst: f64 = 0.0;
+            for j in 0..map.segments.len() {
+                let (a, b) = (map.breaks[j], map.breaks[j + 1]);
+                for k in 0..=200 {
+                    let s = a + (b - a) * k as f64 / 200.0;
+                    let u = horner(&map.segments[j].coeffs, k as f64 / 200.0);
+                    worst = worst.max((arc.s_of_u(u) - s).abs());
+                }
+            }
+            assert!(worst <= DEFAULT_TOL_MM, "{}: dense error {worst:e}", c.name);
+            assert!(
+                map.max_err_mm <= DEFAULT_TOL_MM && worst <= 1.05 * map.max_err_mm.max(1e-12),
+                "{}",
+                c.name
+            );
+            println!(
+                "{:<12} L = {:>10.4} mm  spans {:>3}  segments {:>4}  max err (fit) {:.2e} mm  (dense) {:.2e} mm",
+                c.name,
+                len,
+                arc.spans().len(),
+                map.segments.len(),
+                map.max_err_mm,
+                worst
+            );
+        }
+    }
+
+    #[test]
+    fn joins_are_c2_inside_spans_and_match_the_curve() {
+        for c in [butterfly(), quintic_3d()] {
+            let arc = ArcLength::new(&c);
+            let map = SuMap::fit(&c, &arc, 1e-9).unwrap();
+            let knot_s: Vec<f64> = arc.spans().iter().map(|s| s.s0).collect();
+            for j in 1..map.segments.len() {
+                let s = map.breaks[j];
+                let left = {
+                    let (a, b) = (map.breaks[j - 1], s);
+                    let h = b - a;
+                    let c = &map.segments[j - 1].coeffs;
+                    let d1: f64 = (1..6).map(|k| k as f64 * c[k]).sum::<f64>() / h;
+                    let d2: f64 = (2..6).map(|k| (k * (k - 1)) as f64 * c[k]).sum::<f64>() / (h * h);
+                    [d1, d2]
+                };
+                let right = map.eval_derivs(s);
+                assert!(
+                    (left[0] - right[1]).abs() <= 1e-9 * right[1].abs(),
+                    "{} du/ds at break {j}",
+                    c.name
+                );
+                // d²u/ds² is continuous across a knot too for these C²-parametrised curves
+                let scale = right[2].abs().max(right[1] * right[1] * 1e-3);
+                assert!(
+                    (left[1] - right[2]).abs() <= 1e-7 * scale,
+                    "{} d2u/ds2 at break {j} (knot: {})",
+                    c.name,
+                    knot_s.contains(&s)
+                );
+                // and the derivatives are the curve's: u_s = 1/|r_u|
+                let sig = c.speed_in_span(map.segments[j].span as usize, right[0]);
+                assert!((right[1] * sig - 1.0).abs() < 1e-12);
+            }
+            // u_poly(s) against u(s) by Newton
+            for k in 0..=1000 {
+                let s = arc.total() * k as f64 / 1000.0;
+                let (uu, um) = (arc.u_of_s(s), map.eval(s));
+                assert!(
+                    (uu - um).abs() * c.speed_in_span(c.span_of(uu), uu) < 2e-9,
+                    "{} s={s}",
+                    c.name
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn bad_tolerance_is_an_error() {
+        let c = Nurbs::line([0.0; 3], [1.0; 3]);
+        let arc = ArcLength::new(&c);
+        for t in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+            let e = SuMap::fit(&c, &arc, t).unwrap_err().to_string();
+            assert!(e.contains("tol_mm"), "{e}");
+        }
+    }
+
+    #[test]
+    fn cusp_is_a_typed_error() {
+        let c = Nurbs::new(
+            3,
+            vec![0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0],
+            vec![1.0; 4],
+            vec![[0.0; 3], [0.0; 3], [1.0, 1.0, 0.0], [2.0, 0.0, 0.0]],
+        )
+        .unwrap();
+        let arc = ArcLength::new(&c);
+        assert!(matches!(
+            SuMap::fit(&c, &arc, 1e-6),
+            Err(CurveError::ZeroSpeed { .. })
+        ));
+    }
+
+    #[test]
+    #[ignore = "timing; run with --release --ignored"]
+    fn butterfly_timing() {
+        let c = butterfly();
+        let t = std::time::Instant::now();
+        let arc = ArcLength::new(&c);
+        let t1 = t.elapsed();
+        let map = SuMap::fit(&c, &arc, DEFAULT_TOL_MM).unwrap();
+        println!(
+            "ArcLength::new {:?}, SuMap::fit {:?} ({} segments)",
+            t1,
+            t.elapsed() - t1,
+            map.segments.len()
+        );
+        let t = std::time::Instant::now();
+        let turning = crate::sampling::Turning::new(&c, &arc);
+        println!(
+            "Turning::new {:?}: K(L) = {} rad, {} pieces; arc pieces {}",
+            t.elapsed(),
+            turning.total(),
+            turning.pieces(),
+            arc.table().count() - 1
+        );
+        for m in [383, 3829] {
+            for method in [
+                crate::sampling::Sampling::Par,
+                crate::sampling::Sampling::ada_default(),
+            ] {
+                let t = std::time::Instant::now();
+                let s = crate::sampling::sample(&c, &arc, method, m).unwrap();
+                println!("sample {method} m={m}: {:?} ({} points)", t.elapsed(), s.len());
+            }
+        }
+    }
+}

@@ -1,0 +1,123 @@
+//! Dense re-evaluation of a plan against every limit.
+//!
+//! The LPs hold the limits at the Greville points only. Here the exact
+//! kinematics of §2.1 — v = r′ṡ, a = r″ṡ² + r′s̈, j = r‴ṡ³ + 3r″ṡs̈ + r′s⃛
+//! with ṡ = √q, s̈ = q′/2, s⃛ = ½q″√q (eqs. 1–6, with (5) read as ERRATA.md
+//! says) — are evaluated at many points per knot span of q, and each is
+//! divided by its limit.
+
+use crate::arclength::ArcLength;
+use crate::curve::Nurbs;
+use crate::lp::BasisRow;
+use crate::plan::path_derivs_at;
+use firmware_core::table::Limits;
+
+/// Largest ratio to each limit (1.0 = at the limit).
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
+pub struct Ratios {
+    /// Axial velocity, max over axes.
+    pub vel: f64,
+    /// Axial acceleration, max over axes.
+    pub acc: f64,
+    /// Axial jerk, max over axes.
+    pub jerk: f64,
+    /// Tangential velocity (feedrate).
+    pub feed: f64,
+    /// Tangential acceleration.
+    pub tacc: f64,
+    /// Tangential jerk.
+    pub tjerk: f64,
+}
+
+impl Ratios {
+    /// Element-wise maximum.
+    pub fn max(self, o: Ratios) -> Ratios {
+        Ratios {
+            vel: self.vel.max(o.vel),
+            acc: self.acc.max(o.acc),
+            jerk: self.jerk.max(o.jerk),
+            feed: self.feed.max(o.feed),
+            tacc: self.tacc.max(o.tacc),
+            tjerk: self.tjerk.max(o.tjerk),
+        }
+    }
+
+    /// The largest of all six.
+    pub fn worst(&self) -> f64 {
+        [self.vel, self.acc, self.jerk, self.feed, self.tacc, self.tjerk].into_iter().fold(0.0, f64::max)
+    }
+}
+
+/// Result of a dense check.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct DenseReport {
+    /// Points evaluated per knot span of q.
+    pub per_span: usize,
+    /// Points evaluated in all.
+    pub points: usize,
+    /// Largest ratio to each limit.
+    pub ratios: Ratios,
+    /// Arc length where each maximum occurs, mm (same fields as `ratios`).
+    pub argmax_s: Ratios,
+}
+
+/// Ratios to the limits at one arc length `s` of the plan (knots, ctrl).
+pub fn ratios_at(curve: &Nurbs, arc: &ArcLength, knots: &[f64], ctrl: &[f64], lim: &Limits, s: f64) -> Ratios {
+    let Some(b) = BasisRow::at(knots, s) else {
+        return Ratios::default();
+    };
+    let q = b.apply(0, ctrl).max(0.0);
+    let (q1, q2) = (b.apply(1, ctrl), b.apply(2, ctrl));
+    let sd = q.sqrt();
+    let (sdd, sddd) = (0.5 * q1, 0.5 * q2 * sd);
+    let g = path_derivs_at(curve, arc, s);
+    let mut r = Ratios { feed: sd / lim.vbar, tacc: sdd.abs() / lim.abar, tjerk: sddd.abs() / lim.jbar, ..Ratios::default() };
+    for k in 0..3 {
+        let v = g.d1[k] * sd;
+        let a = g.d2[k] * q + g.d1[k] * sdd;
+        let j = g.d3[k] * q * sd + 3.0 * g.d2[k] * sd * sdd + g.d1[k] * sddd;
+        r.vel = r.vel.max(v.abs() / lim.v[k]);
+        r.acc = r.acc.max(a.abs() / lim.a[k]);
+        r.jerk = r.jerk.max(j.abs() / lim.j[k]);
+    }
+    r
+}
+
+/// Evaluate the plan at `per_span` evenly spaced points in every non-empty
+/// knot span of q (both ends included once) and report the largest ratios.
+pub fn dense_check(
+    curve: &Nurbs,
+    arc: &ArcLength,
+    knots: &[f64],
+    ctrl: &[f64],
+    lim: &Limits,
+    per_span: usize,
+) -> DenseReport {
+    let per_span = per_span.max(1);
+    let mut ratios = Ratios::default();
+    let mut argmax_s = Ratios::default();
+    let mut points = 0;
+    let spans: Vec<(f64, f64)> = knots.windows(2).filter(|w| w[1] > w[0]).map(|w| (w[0], w[1])).collect();
+    let n_spans = spans.len();
+    for (i, (a, b)) in spans.into_iter().enumerate() {
+        let count = if i + 1 == n_spans { per_span + 1 } else { per_span };
+        for k in 0..count {
+            let s = a + (b - a) * k as f64 / per_span as f64;
+            let r = ratios_at(curve, arc, knots, ctrl, lim, s);
+            points += 1;
+            let upd = |best: &mut f64, at: &mut f64, x: f64| {
+                if x > *best {
+                    *best = x;
+                    *at = s;
+                }
+            };
+            upd(&mut ratios.vel, &mut argmax_s.vel, r.vel);
+            upd(&mut ratios.acc, &mut argmax_s.acc, r.acc);
+            upd(&mut ratios.jerk, &mut argmax_s.jerk, r.jerk);
+            upd(&mut ratios.feed, &mut argmax_s.feed, r.feed);
+            upd(&mut ratios.tacc, &mut argmax_s.tacc, r.tacc);
+            upd(&mut ratios.tjerk, &mut argmax_s.tjerk, r.tjerk);
+        }
+    }
+    DenseReport { per_span, points, ratios, argmax_s }
+}
