@@ -1,20 +1,24 @@
 #!/usr/bin/env python3
 """Count Thumb instructions executed in marked windows of an MCU image under QEMU.
 
-How: QEMU runs the ELF with one guest instruction per translation block
-(`-singlestep`) and logs every executed block (`-d exec,nochain`), so every log
-line is exactly one executed instruction. The log goes through a FIFO (it is
-~120 bytes per instruction; nothing is written to disk) and is scanned in large
-chunks for the entry addresses of `firmware_mcu::mark_begin` and
-`firmware_mcu::mark_end` (found with `nm`). A window is the instructions from
-an entry of mark_begin up to (not including) the next entry of mark_end.
+A window is the instructions executed from an entry of
+`firmware_mcu::mark_begin` up to (not including) the next entry of
+`firmware_mcu::mark_end` (addresses found with `nm`). Two ways to count:
+
+* `--method plugin` (default, fast: QEMU at near full speed): the TCG plugin
+  tools/insn_window.c, compiled here with `cc` into target/tools/.
+* `--method exec-log` (no C compiler, ~1000x slower, a cross-check): QEMU runs
+  with one guest instruction per translation block (`-singlestep`) and logs
+  every executed block (`-d exec,nochain`), so every log line is one executed
+  instruction. The log goes through a FIFO (~120 bytes per instruction; nothing
+  is written to disk) and is scanned in large chunks for the marker addresses.
 
 The firmware prints `BENCH-GROUP <label> <n>` lines in execution order; the
 windows are split into groups by them. The first group must be `empty`
 (back-to-back markers): its median is the marker overhead, subtracted from
 every other window. Nothing is hard-coded: all numbers come from the run.
 
-Usage: bench_insn.py ELF [--csv FILE] [--timeout S] [--qemu QEMU]
+Usage: bench_insn.py ELF [--method plugin|exec-log] [--csv FILE] [--timeout S]
 Exit code: the firmware's (semihosting) exit code, or 2 on a measurement error.
 """
 import argparse
@@ -81,18 +85,39 @@ def scan(fifo_path, begin, end, result):
     result["total"] = total
 
 
-def main():
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("elf")
-    ap.add_argument("--csv", help="write every window (group,index,insns) to this file")
-    ap.add_argument("--timeout", type=float, default=3600)
-    ap.add_argument("--qemu", default="qemu-system-arm")
-    ap.add_argument("--nm", default=shutil.which("arm-none-eabi-nm") or "nm")
-    a = ap.parse_args()
+def build_plugin(cc):
+    here = os.path.dirname(os.path.abspath(__file__))
+    src = os.path.join(here, "tools", "insn_window.c")
+    so = os.path.join(here, "target", "tools", "insn_window.so")
+    if not os.path.exists(so) or os.path.getmtime(so) < os.path.getmtime(src):
+        os.makedirs(os.path.dirname(so), exist_ok=True)
+        subprocess.run([cc, "-O2", "-shared", "-fPIC", "-fvisibility=hidden", "-Wall", "-Wextra",
+                        "-o", so, src], check=True)
+    return so
 
-    begin = symbol_addr(a.elf, a.nm, "firmware_mcu::mark_begin")
-    end = symbol_addr(a.elf, a.nm, "firmware_mcu::mark_end")
-    tmp = tempfile.mkdtemp(prefix="bench-insn-")
+
+def run_plugin(a, begin, end, tmp):
+    so = build_plugin(a.cc)
+    out = os.path.join(tmp, "windows.txt")
+    cmd = [a.qemu, *QEMU_ARGS, "-plugin", f"{so},begin=0x{begin:x},end=0x{end:x},out={out}",
+           "-kernel", a.elf]
+    try:
+        p = subprocess.run(cmd, capture_output=True, text=True, timeout=a.timeout)
+    except subprocess.TimeoutExpired:
+        return None, None
+    result = {"windows": [], "errors": [], "total": None}
+    with open(out) as f:
+        for line in f:
+            if line.startswith("total "):
+                result["total"] = int(line.split()[1])
+            else:
+                result["windows"].append(int(line))
+    if result["total"] is None:
+        result["errors"].append("plugin wrote no total line (atexit callback not run?)")
+    return p, result
+
+
+def run_exec_log(a, begin, end, tmp):
     fifo = os.path.join(tmp, "exec.fifo")
     os.mkfifo(fifo)
     result = {"windows": [], "errors": [], "total": 0}
@@ -106,10 +131,34 @@ def main():
         with open(fifo, "wb"):
             pass
         t.join()
-        shutil.rmtree(tmp)
-        sys.exit(f"bench_insn: QEMU timed out after {a.timeout} s")
+        return None, None
     t.join()
-    shutil.rmtree(tmp)
+    return p, result
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("elf")
+    ap.add_argument("--method", choices=["plugin", "exec-log"], default="plugin")
+    ap.add_argument("--cc", default=os.environ.get("CC", "cc"))
+    ap.add_argument("--csv", help="write every window (group,index,insns) to this file")
+    ap.add_argument("--timeout", type=float, default=3600)
+    ap.add_argument("--qemu", default="qemu-system-arm")
+    ap.add_argument("--nm", default=shutil.which("arm-none-eabi-nm") or "nm")
+    a = ap.parse_args()
+
+    begin = symbol_addr(a.elf, a.nm, "firmware_mcu::mark_begin")
+    end = symbol_addr(a.elf, a.nm, "firmware_mcu::mark_end")
+    tmp = tempfile.mkdtemp(prefix="bench-insn-")
+    try:
+        if a.method == "plugin":
+            p, result = run_plugin(a, begin, end, tmp)
+        else:
+            p, result = run_exec_log(a, begin, end, tmp)
+    finally:
+        shutil.rmtree(tmp)
+    if p is None:
+        sys.exit(f"bench_insn: QEMU timed out after {a.timeout} s")
     sys.stdout.write(p.stdout)
     sys.stderr.write(p.stderr)
     if p.returncode != 0:
@@ -126,7 +175,7 @@ def main():
         print(f"bench_insn: {len(w)} windows, groups {groups}, errors {result['errors'][:5]}",
               file=sys.stderr)
         return 2
-    print(f"== instructions executed: {result['total']} in total; {len(w)} windows "
+    print(f"== {a.method}: {result['total']} instructions executed in total; {len(w)} windows "
           f"(marker entries at 0x{begin:x}/0x{end:x})")
     i = 0
     base = None

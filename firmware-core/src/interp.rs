@@ -21,8 +21,8 @@
 //! point (feed 0) with the clock still advancing: the machine holds position.
 //!
 //! In mid-path, a step that cannot advance s, or a falling feed below
-//! [`STALL_FEED_REL`]` · vbar` while L is not within the linear stopping
-//! distance 2q/|q′|, returns [`Fault::Stalled`] instead of crawling towards
+//! [`STALL_FEED_REL`]` · vbar` while L is farther than twice the linear
+//! stopping distance q/|q′|, returns [`Fault::Stalled`] instead of crawling towards
 //! an interior zero of q forever; the fault is sticky until
 //! [`Interpolator::reset`].
 
@@ -281,8 +281,8 @@ impl<'a> Interpolator<'a> {
         if s_new >= len || (v_end <= 0.0 && within_a_step) {
             return Ok(self.finish(t_s));
         }
-        // Stopping distance if q fell linearly to 0: q/|q′|; inside it we are
-        // running into the end, not stalling.
+        // Twice the stopping distance if q fell linearly to 0 (q/|q′|): inside
+        // it a low feed is the run-out into L, not a stall.
         let to_zero = if dq < 0.0 { 2.0 * q / -dq } else { f64::INFINITY };
         let heading_to_end = remaining <= to_zero + MATCH_TOL_REL * len;
         let starved = q <= self.stall_q && dq <= 0.0 && !heading_to_end;

@@ -10,7 +10,7 @@
 //!
 //! - [`basis`]: B-spline basis functions and derivatives on a knot window
 //!   (Piegl & Tiller A2.2/A2.3), shared with the host.
-//! - [`array`]: [`array::F64Array`] and friends, read-only indexed sources:
+//! - [`array`](mod@array): [`array::F64Array`] and friends, read-only indexed sources:
 //!   host slices, or zero-copy little-endian views ([`array::LeF64`],
 //!   [`array::LeU32`], [`array::LePoint4`]) into table bytes.
 //! - [`table`]: the binary format, defined once: [`table::TableParts`] and

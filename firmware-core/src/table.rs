@@ -183,6 +183,7 @@ pub struct TableParts<'a> {
 
 /// A known section kind.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[non_exhaustive]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[repr(u16)]
 pub enum Section {
@@ -440,7 +441,7 @@ pub enum TableError {
         /// Segment index.
         segment: usize,
     },
-    /// The first segment does not start at U[p] or the last does not end at
+    /// The first segment does not start at `U[p]` or the last does not end at
     /// the last knot.
     SuEnds {
         /// Segment index.
@@ -928,7 +929,7 @@ impl<'a> Table<'a> {
                 found: n,
             });
         }
-        expect_count(Section::NurbsKnots, n + p + 1, nurbs_knots.len())?;
+        expect_count(Section::NurbsKnots, n.saturating_add(p + 1), nurbs_knots.len())?;
         check_knots(Section::NurbsKnots, &nurbs_knots, p)?;
         for i in 0..n {
             let w = nurbs_points.get(i).map(|pt| pt[3]).unwrap_or(0.0);
@@ -948,7 +949,11 @@ impl<'a> Table<'a> {
                 found: nq,
             });
         }
-        expect_count(Section::QKnots, nq + Q_ORDER as usize, q_knots.len())?;
+        expect_count(
+            Section::QKnots,
+            nq.saturating_add(Q_ORDER as usize),
+            q_knots.len(),
+        )?;
         check_knots(Section::QKnots, &q_knots, Q_ORDER as usize - 1)?;
         let q_first = q_knots.get(0).unwrap_or(f64::NAN);
         let q_last = q_knots.last().unwrap_or(f64::NAN);
@@ -978,7 +983,7 @@ impl<'a> Table<'a> {
             section: Section::SuSpans,
         })?;
         let m = su_spans.len();
-        expect_count(Section::SuCoeffs, m * SU_COEFFS, su_coeffs.len())?;
+        expect_count(Section::SuCoeffs, m.saturating_mul(SU_COEFFS), su_coeffs.len())?;
         if m == 0 {
             return Err(TableError::Count {
                 section: Section::SuSpans,
@@ -986,7 +991,7 @@ impl<'a> Table<'a> {
                 found: 0,
             });
         }
-        expect_count(Section::SuBreaks, m + 1, su_breaks.len())?;
+        expect_count(Section::SuBreaks, m.saturating_add(1), su_breaks.len())?;
         let mut prev_s = f64::NAN;
         for (j, s) in su_breaks.iter().enumerate() {
             let ok = if j == 0 {
@@ -1179,7 +1184,7 @@ fn check_knots<A: F64Array>(section: Section, k: &A, p: usize) -> Result<(), Tab
             return Err(TableError::KnotDecreasing { section, index: i });
         }
         if x == prev {
-            run += 1;
+            run = run.saturating_add(1);
         } else {
             run = 1;
         }

@@ -208,6 +208,67 @@ impl ServoConfig {
         Self::axes_from_json_str(&text, &shown)
     }
 
+    /// Spectral radius of the closed loop's one-period transition matrix
+    /// (linear model, force limit ignored), for a servo period `period_s`:
+    /// the loop is stable when it is below 1. The matrix is built by
+    /// stepping each unit state (x, v, F, I) through [`Axis::step`] with a
+    /// zero command; the radius is lim ‖Mᵏ‖^(1/k), by repeated squaring.
+    pub fn spectral_radius(&self, period_s: f64) -> Result<f64, ServoError> {
+        let cfg = ServoConfig {
+            max_force_n: f64::INFINITY,
+            ..*self
+        };
+        let mut ax = Axis::new(
+            ServoConfig {
+                max_force_n: 1.0,
+                ..cfg
+            },
+            period_s,
+            0.0,
+        )?;
+        ax.cfg = cfg;
+        let mut m = [[0.0f64; 4]; 4];
+        for col in 0..4 {
+            let mut e = [0.0; 4];
+            e[col] = 1.0;
+            ax.plant = PlantState {
+                pos_mm: e[0],
+                vel_mm_s: e[1],
+                force_n: e[2],
+            };
+            ax.integral_n = e[3];
+            ax.prev_cmd_mm = [0.0; 2];
+            ax.step(0.0);
+            let next = [
+                ax.plant.pos_mm,
+                ax.plant.vel_mm_s,
+                ax.plant.force_n,
+                ax.integral_n,
+            ];
+            for (row, v) in next.into_iter().enumerate() {
+                m[row][col] = v;
+            }
+        }
+        // ‖M^(2^n)‖ = exp(log_scale) after n normalised squarings
+        let mut log_scale = 0.0;
+        let squarings = 40;
+        for _ in 0..squarings {
+            let mut sq = [[0.0f64; 4]; 4];
+            for (i, row) in sq.iter_mut().enumerate() {
+                for (j, x) in row.iter_mut().enumerate() {
+                    *x = (0..4).map(|k| m[i][k] * m[k][j]).sum();
+                }
+            }
+            let norm = sq.iter().flatten().fold(0.0f64, |a, x| a.max(x.abs()));
+            if !(norm.is_finite() && norm > 0.0) {
+                return Ok(if norm == 0.0 { 0.0 } else { f64::INFINITY });
+            }
+            m = sq.map(|r| r.map(|x| x / norm));
+            log_scale = 2.0 * log_scale + norm.ln();
+        }
+        Ok((log_scale / 2f64.powi(squarings)).exp())
+    }
+
     /// Proportional gain of the velocity loop K_p, N per mm/s.
     pub fn vel_gain_n_per_mm_s(&self) -> f64 {
         self.mass_kg * 2.0 * std::f64::consts::PI * self.vel_bandwidth_hz / 1000.0
@@ -433,6 +494,26 @@ mod tests {
         // peak acceleration 5.77 d/dur² ≈ 1443 mm/s²: following error well below 10 µm
         assert!(max_err < 0.01, "{max_err}");
         assert!((ax.position_mm() - d).abs() < 1e-6);
+    }
+
+    #[test]
+    fn stability_by_spectral_radius() {
+        let c = ServoConfig::default();
+        let r = c.spectral_radius(T).unwrap();
+        // the slowest mode is the position loop: e^(−K_v T)
+        assert!(r < 1.0 && r > (-c.kv_per_s * T).exp() - 1e-3, "{r}");
+        assert!(c.spectral_radius(2e-3).unwrap() < 1.0);
+        assert!(
+            c.spectral_radius(4e-3).unwrap() > 1.0,
+            "150 Hz velocity loop sampled at 250 Hz"
+        );
+        // and the simulation agrees: at 4 ms the step response grows
+        let mut ax = Axis::new(c, 4e-3, 0.0).unwrap();
+        let mut x = 0.0;
+        for _ in 0..2000 {
+            x = ax.step(0.001);
+        }
+        assert!((x - 0.001).abs() > 0.001, "{x}");
     }
 
     #[test]

@@ -66,6 +66,16 @@ pub enum SimError {
     /// A servo parameter is unusable.
     #[error(transparent)]
     Servo(#[from] ServoError),
+    /// A servo loop is unstable at this period.
+    #[error("the {axis} axis servo loop is unstable at a {period_us} us period (spectral radius {radius:.4} >= 1): lower vel_bandwidth_hz or kv_per_s, or shorten the period")]
+    Unstable {
+        /// Axis name.
+        axis: &'static str,
+        /// Servo period, µs.
+        period_us: f64,
+        /// Spectral radius of the loop's transition matrix.
+        radius: f64,
+    },
     /// The motion did not finish within the tick budget.
     #[error("the motion did not finish within {max_ticks} ticks ({seconds:.1} s at the servo period); the table predicts {predicted_s:.3} s")]
     TooLong {
@@ -158,6 +168,9 @@ pub struct SimResult {
     /// Time after the last setpoint until every axis stays within
     /// `in_position_mm` of it, s (`None`: not within `settle_max_s`).
     pub settle_time_s: Option<f64>,
+    /// Spectral radius of each axis' closed servo loop at the period
+    /// (< 1: stable; the closer to 1, the slower the slowest mode).
+    pub servo_spectral_radius: [f64; 3],
     /// Why there is no contour error (the table's NURBS could not be
     /// rebuilt on the host), if so.
     pub geometry_note: Option<String>,
@@ -182,6 +195,8 @@ pub struct SimSummary<'a> {
     pub limits: LimitsJson,
     /// All measurements.
     pub metrics: &'a Metrics,
+    /// Spectral radius of each axis' closed servo loop.
+    pub servo_spectral_radius: [f64; 3],
     /// Why there is no contour error, if so.
     pub geometry_note: Option<&'a str>,
     /// The servo model.
@@ -229,6 +244,7 @@ impl SimResult {
             settle_time_s: self.settle_time_s,
             limits: self.limits.into(),
             metrics: &self.metrics,
+            servo_spectral_radius: self.servo_spectral_radius,
             geometry_note: self.geometry_note.as_deref(),
             servo: &self.config.servo,
         }
@@ -256,6 +272,11 @@ impl SimResult {
                 self.config.in_position_mm, self.config.settle_max_s
             )),
         }
+        let r = self.servo_spectral_radius;
+        o.push_str(&format!(
+            "  servo loops stable: spectral radius per period x {:.5} y {:.5} z {:.5}\n",
+            r[0], r[1], r[2]
+        ));
         if let Some(n) = &self.geometry_note {
             o.push_str(&format!("  no contour error: {n}\n"));
         }
@@ -315,6 +336,21 @@ pub fn run_table(bytes: &[u8], cfg: &SimConfig) -> Result<SimResult, SimError> {
         ),
     };
     let mut ip = Interpolator::new(table, cfg.period_s).map_err(SimError::Interp)?;
+    let mut servo_spectral_radius = [0.0; 3];
+    for ((name, c), r) in ["x", "y", "z"]
+        .into_iter()
+        .zip(&cfg.servo)
+        .zip(&mut servo_spectral_radius)
+    {
+        *r = c.spectral_radius(cfg.period_s)?;
+        if r.is_nan() || *r >= 1.0 {
+            return Err(SimError::Unstable {
+                axis: name,
+                period_us: cfg.period_s * 1e6,
+                radius: *r,
+            });
+        }
+    }
 
     let mut ticks: Vec<Tick> = Vec::with_capacity(
         ((predicted_time_s / cfg.period_s).max(0.0) as usize)
@@ -392,6 +428,7 @@ pub fn run_table(bytes: &[u8], cfg: &SimConfig) -> Result<SimResult, SimError> {
         predicted_time_s,
         planned_feed: planned,
         settle_time_s,
+        servo_spectral_radius,
         geometry_note,
         config: cfg.clone(),
     })

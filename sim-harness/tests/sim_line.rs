@@ -50,6 +50,7 @@ fn line_runs_and_measures() {
     );
     assert!(m.contour_err_act_mm.unwrap() <= m.following_err_mm + 1e-12);
     assert!(res.settle_time_s.is_some());
+    assert!(res.servo_spectral_radius.iter().all(|&r| r > 0.98 && r < 1.0));
     // inner feed fluctuation: commanded path speed agrees with √q
     assert!(m.feed_fluct_inner_max < 1e-3, "{}", m.feed_fluct_inner_max);
     // the plan's √q for plotting starts and ends at rest
