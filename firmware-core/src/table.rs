@@ -63,6 +63,12 @@
 //! Any other unknown kind (0, 10 ..= 0x7FFF) is refused: a change a reader
 //! must understand takes a new kind below the base or a new version.
 //!
+//! The s → u map must cover the curve: the first segment starts at `U[p]`,
+//! the last ends at the last knot, each stays in its knot span, and u is
+//! continuous between segments, except that it may jump over whole knot
+//! spans along which r(u) does not move (spans of zero arc length get no
+//! segment); r is checked to agree across such a jump.
+//!
 //! The last 4 bytes are the CRC-32 (ISO-HDLC, the zlib/PNG CRC) of every byte
 //! before them, u32.
 
@@ -436,13 +442,14 @@ pub enum TableError {
         /// Segment index.
         segment: usize,
     },
-    /// u jumps between segment `segment − 1` and `segment`.
+    /// u jumps between segment `segment − 1` and `segment` (other than over
+    /// knot spans where the curve stands still).
     SuDiscontinuous {
         /// Segment index.
         segment: usize,
     },
     /// The first segment does not start at `U[p]` or the last does not end at
-    /// the last knot.
+    /// the last knot (other than past knot spans where the curve stands still).
     SuEnds {
         /// Segment index.
         segment: usize,
@@ -931,11 +938,13 @@ impl<'a> Table<'a> {
         }
         expect_count(Section::NurbsKnots, n.saturating_add(p + 1), nurbs_knots.len())?;
         check_knots(Section::NurbsKnots, &nurbs_knots, p)?;
+        let mut pos_scale = 0.0f64;
         for i in 0..n {
-            let w = nurbs_points.get(i).map(|pt| pt[3]).unwrap_or(0.0);
+            let [x, y, z, w] = nurbs_points.get(i).unwrap_or([0.0; 4]);
             if !(w > 0.0) {
                 return Err(TableError::Weight { index: i });
             }
+            pos_scale = pos_scale.max(x.abs()).max(y.abs()).max(z.abs());
         }
 
         // q.
@@ -1013,7 +1022,24 @@ impl<'a> Table<'a> {
         let u_lo = nurbs_knots.get(p).unwrap_or(f64::NAN);
         let u_hi = nurbs_knots.last().unwrap_or(f64::NAN);
         let u_scale = (u_hi - u_lo).max(u_lo.abs()).max(u_hi.abs());
-        let mut prev: Option<(u32, f64)> = None;
+        // Spans of zero arc length (the curve stands still) get no segment, so
+        // u may jump over whole spans where r does not move: allowed if the
+        // jump is from a span end to a span start and r agrees at both.
+        let curve = NurbsView::new(p, nurbs_knots, nurbs_points).ok_or(TableError::KnotRange {
+            section: Section::NurbsKnots,
+        })?;
+        let pos_tol = MATCH_TOL_REL * pos_scale.max(1.0);
+        let same_point = |sa: u32, ua: f64, sb: u32, ub: f64| -> bool {
+            match (
+                curve.point_in_span(sa as usize, ua),
+                curve.point_in_span(sb as usize, ub),
+            ) {
+                (Some(a), Some(b)) => a.iter().zip(b.iter()).all(|(x, y)| (x - y).abs() <= pos_tol),
+                _ => false,
+            }
+        };
+        let mut prev: Option<(u32, f64, f64)> = None; // span, u(τ = 1), U[span + 1]
+        let mut last_span = 0u32;
         for j in 0..m {
             let seg = segs.get(j).ok_or(TableError::Count {
                 section: Section::SuCoeffs,
@@ -1034,23 +1060,40 @@ impl<'a> Table<'a> {
             }
             match prev {
                 None => {
-                    if !near(u0, u_lo, u_scale) {
+                    let skips_standstill = near(u0, k0, u_scale)
+                        && curve
+                            .point_in_span(si, u0)
+                            .zip(nurbs_points.get(0))
+                            .is_some_and(|(r, p0)| {
+                                r.iter().zip(p0.iter()).all(|(x, y)| (x - y).abs() <= pos_tol)
+                            });
+                    if !near(u0, u_lo, u_scale) && !skips_standstill {
                         return Err(TableError::SuEnds { segment: j });
                     }
                 }
-                Some((prev_span, prev_u1)) => {
+                Some((prev_span, prev_u1, prev_k1)) => {
                     if span < prev_span {
                         return Err(TableError::SuSpan { segment: j, span });
                     }
-                    if !near(u0, prev_u1, u_scale) {
+                    let skips_standstill = span > prev_span
+                        && near(prev_u1, prev_k1, u_scale)
+                        && near(u0, k0, u_scale)
+                        && same_point(prev_span, prev_u1, span, u0);
+                    if !near(u0, prev_u1, u_scale) && !skips_standstill {
                         return Err(TableError::SuDiscontinuous { segment: j });
                     }
                 }
             }
-            prev = Some((span, u1));
+            prev = Some((span, u1, k1));
+            last_span = span;
         }
-        if let Some((_, last_u1)) = prev {
-            if !near(last_u1, u_hi, u_scale) {
+        if let Some((_, last_u1, last_k1)) = prev {
+            let skips_standstill = near(last_u1, last_k1, u_scale)
+                && curve
+                    .point_in_span(last_span as usize, last_u1)
+                    .zip(nurbs_points.get(n.saturating_sub(1)))
+                    .is_some_and(|(r, pn)| r.iter().zip(pn.iter()).all(|(x, y)| (x - y).abs() <= pos_tol));
+            if !near(last_u1, u_hi, u_scale) && !skips_standstill {
                 return Err(TableError::SuEnds { segment: m - 1 });
             }
         }

@@ -847,3 +847,65 @@ fn table_views_feed_the_evaluators() {
     }
     assert_eq!(F64Array::len(&t.q_ctrl()), 12);
 }
+
+#[test]
+fn su_map_may_skip_standstill_spans_only() {
+    // degree 1 through (0), (50), (50), (100) on x: span 2 stands still
+    let mut o = line(1, plateau(12, 50.0));
+    o.knots = vec![0.0, 0.0, 0.25, 0.5, 1.0, 1.0];
+    o.points = vec![
+        [0.0, 0.0, 0.0, 1.0],
+        [50.0, 0.0, 0.0, 1.0],
+        [50.0, 0.0, 0.0, 1.0],
+        [L, 0.0, 0.0, 1.0],
+    ];
+    o.breaks = vec![0.0, 50.0, L];
+    o.segs = vec![
+        SuSegment {
+            span: 1,
+            coeffs: [0.0, 0.25, 0.0, 0.0, 0.0, 0.0],
+        },
+        SuSegment {
+            span: 3,
+            coeffs: [0.5, 0.5, 0.0, 0.0, 0.0, 0.0],
+        },
+    ];
+    let bytes = o.encode().unwrap();
+    let mut ip = Interpolator::new(Table::parse(&bytes).unwrap(), 1e-3).unwrap();
+    let sps = run_all(&mut ip);
+    for sp in &sps {
+        assert!((sp.pos_mm[0] - sp.s_mm).abs() < 1e-9 * L, "{sp:?}");
+    }
+    assert_eq!(sps.last().unwrap().pos_mm, [L, 0.0, 0.0]);
+    // a skipped span along which the curve moves is a jump in position
+    let mut bad = o.clone();
+    bad.points[2][1] = 1.0;
+    assert_eq!(
+        bad.encode().unwrap_err(),
+        EncodeError::Invalid(TableError::SuDiscontinuous { segment: 1 })
+    );
+    // a stand-still first span may be skipped too, a moving one may not
+    let mut first = o.clone();
+    first.points = vec![
+        [0.0, 0.0, 0.0, 1.0],
+        [0.0, 0.0, 0.0, 1.0],
+        [50.0, 0.0, 0.0, 1.0],
+        [L, 0.0, 0.0, 1.0],
+    ];
+    first.segs = vec![
+        SuSegment {
+            span: 2,
+            coeffs: [0.25, 0.25, 0.0, 0.0, 0.0, 0.0],
+        },
+        SuSegment {
+            span: 3,
+            coeffs: [0.5, 0.5, 0.0, 0.0, 0.0, 0.0],
+        },
+    ];
+    first.encode().unwrap();
+    first.points[1][2] = 1.0;
+    assert_eq!(
+        first.encode().unwrap_err(),
+        EncodeError::Invalid(TableError::SuEnds { segment: 0 })
+    );
+}

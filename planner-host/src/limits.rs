@@ -72,8 +72,10 @@ struct LimitsFile {
 
 /// Parse a limits JSON text over Table 1 and validate it.
 pub fn from_json_str(text: &str, path: &str) -> Result<Limits, LimitsError> {
-    let f: LimitsFile =
-        serde_json::from_str(text).map_err(|source| LimitsError::Json { path: path.to_string(), source })?;
+    let f: LimitsFile = serde_json::from_str(text).map_err(|source| LimitsError::Json {
+        path: path.to_string(),
+        source,
+    })?;
     let l = Limits {
         vbar: f.vbar.unwrap_or(TABLE1.vbar),
         abar: f.abar.unwrap_or(TABLE1.abar),
@@ -89,16 +91,24 @@ pub fn from_json_str(text: &str, path: &str) -> Result<Limits, LimitsError> {
 /// Read a limits file (see the module docs for its format).
 pub fn load(path: &Path) -> Result<Limits, LimitsError> {
     let p = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|source| LimitsError::Io { path: p.clone(), source })?;
+    let text = std::fs::read_to_string(path).map_err(|source| LimitsError::Io {
+        path: p.clone(),
+        source,
+    })?;
     from_json_str(&text, &p)
 }
 
 /// Every limit must be positive and finite.
 pub fn validate(l: &Limits) -> Result<(), LimitsError> {
     let named = [("vbar", l.vbar), ("abar", l.abar), ("jbar", l.jbar)];
-    let axes = ["v", "a", "j"].into_iter().zip([l.v, l.a, l.j]).flat_map(|(k, arr)| {
-        arr.into_iter().enumerate().map(move |(i, x)| (format!("{k}[{i}]"), x))
-    });
+    let axes = ["v", "a", "j"]
+        .into_iter()
+        .zip([l.v, l.a, l.j])
+        .flat_map(|(k, arr)| {
+            arr.into_iter()
+                .enumerate()
+                .map(move |(i, x)| (format!("{k}[{i}]"), x))
+        });
     for (field, value) in named.into_iter().map(|(k, x)| (k.to_string(), x)).chain(axes) {
         if !(value.is_finite() && value > 0.0) {
             return Err(LimitsError::NotPositive { field, value });

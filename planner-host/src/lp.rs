@@ -17,8 +17,7 @@ use std::time::Instant;
 
 use clarabel::algebra::CscMatrix;
 use clarabel::solver::{
-    DefaultSettingsBuilder, DefaultSolver, IPSolver, NonnegativeConeT, SolverStatus,
-    SupportedConeT,
+    DefaultSettingsBuilder, DefaultSolver, IPSolver, NonnegativeConeT, SolverStatus, SupportedConeT,
 };
 use firmware_core::basis::{ders_basis, find_span, window, BasisDerivs, MAX_DEGREE, MAX_DERIV};
 use firmware_core::table::Limits;
@@ -100,7 +99,9 @@ impl std::str::FromStr for QhatBound {
             "control" | "control-points" => Ok(QhatBound::ControlPoints),
             "eval" | "eval-points" => Ok(QhatBound::EvalPoints),
             "none" => Ok(QhatBound::None),
-            _ => Err(format!("unknown q-hat bound `{s}`: expected control, eval or none")),
+            _ => Err(format!(
+                "unknown q-hat bound `{s}`: expected control, eval or none"
+            )),
         }
     }
 }
@@ -191,12 +192,17 @@ impl BasisRow {
         for (k, row) in d.iter_mut().enumerate() {
             row.copy_from_slice(&ders[k][..ORDER]);
         }
-        Some(BasisRow { first: span - DEGREE, d })
+        Some(BasisRow {
+            first: span - DEGREE,
+            d,
+        })
     }
 
     /// k-th derivative of q = Σ N_i a_i at the point.
     pub fn apply(&self, k: usize, a: &[f64]) -> f64 {
-        (0..ORDER).map(|j| self.d[k][j] * a.get(self.first + j).copied().unwrap_or(0.0)).sum()
+        (0..ORDER)
+            .map(|j| self.d[k][j] * a.get(self.first + j).copied().unwrap_or(0.0))
+            .sum()
     }
 }
 
@@ -269,7 +275,11 @@ impl<'a> FeedLp<'a> {
         let mut push = |coef: [f64; ORDER], rhs: f64, both: bool| {
             out.push(Row { idx, val: coef, rhs });
             if both {
-                out.push(Row { idx, val: coef.map(|c| -c), rhs });
+                out.push(Row {
+                    idx,
+                    val: coef.map(|c| -c),
+                    rhs,
+                });
             }
         };
         // (8), (11): q ≤ q_max
@@ -286,7 +296,9 @@ impl<'a> FeedLp<'a> {
                 // (14): |r‴ q + 3/2 r″ q′ + ½ r′ q″| ≤ J_k / √q̂
                 for k in 0..3 {
                     let c = core::array::from_fn(|j| {
-                        p.geo.d3[k] * b.d[0][j] + 1.5 * p.geo.d2[k] * b.d[1][j] + 0.5 * p.geo.d1[k] * b.d[2][j]
+                        p.geo.d3[k] * b.d[0][j]
+                            + 1.5 * p.geo.d2[k] * b.d[1][j]
+                            + 0.5 * p.geo.d1[k] * b.d[2][j]
                     });
                     push(c, lim.j[k] / sq, true);
                 }
@@ -300,9 +312,9 @@ impl<'a> FeedLp<'a> {
     fn weights(&self) -> Vec<f64> {
         let n = self.n_ctrl();
         match self.objective {
-            Objective::Integral => {
-                (0..n).map(|i| (self.knots[i + ORDER] - self.knots[i]) / ORDER as f64).collect()
-            }
+            Objective::Integral => (0..n)
+                .map(|i| (self.knots[i + ORDER] - self.knots[i]) / ORDER as f64)
+                .collect(),
             Objective::Uniform => vec![1.0; n],
         }
     }
@@ -321,7 +333,11 @@ impl<'a> FeedLp<'a> {
     fn solve(&self, stage: Stage, qhat: Option<&[f64]>) -> Result<LpSolution, LpError> {
         let t0 = Instant::now();
         let n = self.n_ctrl();
-        let fail = |status: &str, iterations| LpError { stage, status: status.to_string(), iterations };
+        let fail = |status: &str, iterations| LpError {
+            stage,
+            status: status.to_string(),
+            iterations,
+        };
         if n < ORDER {
             return Err(fail("TooFewControlPoints", 0));
         }
@@ -334,7 +350,11 @@ impl<'a> FeedLp<'a> {
             self.point_rows(p, qh.map(f64::sqrt), &mut rows);
             if let (Some(qh), QhatBound::EvalPoints) = (qh, self.qhat_bound) {
                 let idx = core::array::from_fn(|j| p.basis.first + j);
-                rows.push(Row { idx, val: p.basis.d[0], rhs: qh });
+                rows.push(Row {
+                    idx,
+                    val: p.basis.d[0],
+                    rhs: qh,
+                });
             }
         }
         // Triplets (row, col, value), rows normalised so that rhs = 1 where rhs > 0.
@@ -379,8 +399,9 @@ impl<'a> FeedLp<'a> {
             .build()
             .map_err(|_| fail("BadSettings", 0))?;
         let nonzeros = a_mat.nnz();
-        let mut solver = DefaultSolver::new(&p_mat, &q, &a_mat, &b, &cones as &[SupportedConeT<f64>], settings)
-            .map_err(|e| fail(&format!("SetupError({e})"), 0))?;
+        let mut solver =
+            DefaultSolver::new(&p_mat, &q, &a_mat, &b, &cones as &[SupportedConeT<f64>], settings)
+                .map_err(|e| fail(&format!("SetupError({e})"), 0))?;
         solver.solve();
         let sol = &solver.solution;
         let status = format!("{:?}", sol.status);

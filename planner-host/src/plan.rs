@@ -174,8 +174,16 @@ impl PlanOutput {
                 lp.status
             );
         }
-        let _ = writeln!(o, "  s->u map: {} segments, max |s(u(s)) - s| = {:.2e} mm", self.su_segments, self.su_max_err_mm);
-        let _ = writeln!(o, "  predicted machining time T = int ds/sqrt(q) = {:.4} s", self.predicted_time_s);
+        let _ = writeln!(
+            o,
+            "  s->u map: {} segments, max |s(u(s)) - s| = {:.2e} mm",
+            self.su_segments, self.su_max_err_mm
+        );
+        let _ = writeln!(
+            o,
+            "  predicted machining time T = int ds/sqrt(q) = {:.4} s",
+            self.predicted_time_s
+        );
         if let Some(c) = check {
             let r = &c.ratios;
             let _ = writeln!(
@@ -184,7 +192,12 @@ impl PlanOutput {
                 c.per_span, r.vel, r.acc, r.jerk, r.feed, r.tacc, r.tjerk
             );
         }
-        let _ = writeln!(o, "  table {} bytes, planning time {:.1} ms", self.table_bytes_len, self.total_time_s * 1e3);
+        let _ = writeln!(
+            o,
+            "  table {} bytes, planning time {:.1} ms",
+            self.table_bytes_len,
+            self.total_time_s * 1e3
+        );
         o
     }
 }
@@ -203,7 +216,11 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
     let length = arc.total();
     let m = sampling::points_for_density(length, cfg.density_per_mm);
     if m < 2 {
-        return Err(PlanError::TooFewPoints { density: cfg.density_per_mm, points: m, length_mm: length });
+        return Err(PlanError::TooFewPoints {
+            density: cfg.density_per_mm,
+            points: m,
+            length_mm: length,
+        });
     }
     let samples = sampling::sample(curve, &arc, cfg.sampling, m)?;
     let su = SuMap::fit(curve, &arc, cfg.su_tol_mm)?;
@@ -211,7 +228,11 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
     let points: Vec<EvalPoint> = lp::greville(&knots)
         .into_iter()
         .filter_map(|g| {
-            Some(EvalPoint { s: g, geo: path_derivs_at(curve, &arc, g), basis: BasisRow::at(&knots, g)? })
+            Some(EvalPoint {
+                s: g,
+                geo: path_derivs_at(curve, &arc, g),
+                basis: BasisRow::at(&knots, g)?,
+            })
         })
         .collect();
     let geometry_time_s = t0.elapsed().as_secs_f64();
@@ -227,7 +248,10 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
     let plan = feed_lp.solve_plan(&pseudo.ctrl)?;
 
     if let Some(s_mm) = interior_stall(&knots, &plan.ctrl, cfg.limits.vbar) {
-        return Err(PlanError::Stall { s_mm, length_mm: length });
+        return Err(PlanError::Stall {
+            s_mm,
+            length_mm: length,
+        });
     }
     let predicted_time_s = machining_time(&knots, &plan.ctrl);
 
@@ -293,7 +317,12 @@ pub fn interior_stall(knots: &[f64], ctrl: &[f64], vbar: f64) -> Option<f64> {
 /// start and the stop) the substitution s = end ± h·τ² removes the 1/√s
 /// singularity of a simple zero, so the rule stays exact to rounding.
 pub fn machining_time(knots: &[f64], ctrl: &[f64]) -> f64 {
-    let q = |s: f64| BasisRow::at(knots, s).map(|b| b.apply(0, ctrl)).unwrap_or(0.0).max(0.0);
+    let q = |s: f64| {
+        BasisRow::at(knots, s)
+            .map(|b| b.apply(0, ctrl))
+            .unwrap_or(0.0)
+            .max(0.0)
+    };
     let (x, w) = gauss_legendre_16();
     let qmax = ctrl.iter().cloned().fold(0.0, f64::max);
     let zero = 1e-12 * qmax.max(f64::MIN_POSITIVE);
@@ -368,9 +397,18 @@ pub fn gauss_legendre_16() -> ([f64; 16], [f64; 16]) {
 /// Write `bytes` to `path` atomically: a temporary file beside it, then a
 /// rename, so a reader never sees a half-written table.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), PlanError> {
-    let io = |source| PlanError::Io { path: path.display().to_string(), source };
-    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let io = |source| PlanError::Io {
+        path: path.display().to_string(),
+        source,
+    };
+    let dir = path
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
     let tmp = dir.join(format!(".{name}.{}.tmp", std::process::id()));
     let result = (|| {
         use std::io::Write;

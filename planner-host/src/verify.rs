@@ -44,7 +44,9 @@ impl Ratios {
 
     /// The largest of all six.
     pub fn worst(&self) -> f64 {
-        [self.vel, self.acc, self.jerk, self.feed, self.tacc, self.tjerk].into_iter().fold(0.0, f64::max)
+        [self.vel, self.acc, self.jerk, self.feed, self.tacc, self.tjerk]
+            .into_iter()
+            .fold(0.0, f64::max)
     }
 }
 
@@ -62,7 +64,14 @@ pub struct DenseReport {
 }
 
 /// Ratios to the limits at one arc length `s` of the plan (knots, ctrl).
-pub fn ratios_at(curve: &Nurbs, arc: &ArcLength, knots: &[f64], ctrl: &[f64], lim: &Limits, s: f64) -> Ratios {
+pub fn ratios_at(
+    curve: &Nurbs,
+    arc: &ArcLength,
+    knots: &[f64],
+    ctrl: &[f64],
+    lim: &Limits,
+    s: f64,
+) -> Ratios {
     let Some(b) = BasisRow::at(knots, s) else {
         return Ratios::default();
     };
@@ -71,7 +80,12 @@ pub fn ratios_at(curve: &Nurbs, arc: &ArcLength, knots: &[f64], ctrl: &[f64], li
     let sd = q.sqrt();
     let (sdd, sddd) = (0.5 * q1, 0.5 * q2 * sd);
     let g = path_derivs_at(curve, arc, s);
-    let mut r = Ratios { feed: sd / lim.vbar, tacc: sdd.abs() / lim.abar, tjerk: sddd.abs() / lim.jbar, ..Ratios::default() };
+    let mut r = Ratios {
+        feed: sd / lim.vbar,
+        tacc: sdd.abs() / lim.abar,
+        tjerk: sddd.abs() / lim.jbar,
+        ..Ratios::default()
+    };
     for k in 0..3 {
         let v = g.d1[k] * sd;
         let a = g.d2[k] * q + g.d1[k] * sdd;
@@ -97,7 +111,11 @@ pub fn dense_check(
     let mut ratios = Ratios::default();
     let mut argmax_s = Ratios::default();
     let mut points = 0;
-    let spans: Vec<(f64, f64)> = knots.windows(2).filter(|w| w[1] > w[0]).map(|w| (w[0], w[1])).collect();
+    let spans: Vec<(f64, f64)> = knots
+        .windows(2)
+        .filter(|w| w[1] > w[0])
+        .map(|w| (w[0], w[1]))
+        .collect();
     let n_spans = spans.len();
     for (i, (a, b)) in spans.into_iter().enumerate() {
         let count = if i + 1 == n_spans { per_span + 1 } else { per_span };
@@ -119,5 +137,10 @@ pub fn dense_check(
             upd(&mut ratios.tjerk, &mut argmax_s.tjerk, r.tjerk);
         }
     }
-    DenseReport { per_span, points, ratios, argmax_s }
+    DenseReport {
+        per_span,
+        points,
+        ratios,
+        argmax_s,
+    }
 }

@@ -278,9 +278,10 @@ fn padded(x: &[f64], pad: usize) -> Vec<f64> {
 /// arc length (without it those fields are `None` and s comes from the
 /// setpoints).
 ///
-/// The feed fluctuation's path speed is a chord over 2h, so on a tight
-/// curve it reads low by about κ²(v·h)²/6 (κ curvature, v feed) even for
-/// an exact motion.
+/// The feed fluctuation's path speed is the arc length of the projections
+/// onto `path` by central differences; without a path it is a chord over
+/// 2h, which on a tight curve reads low by about κ²(v·h)²/6 (κ curvature,
+/// v feed) even for an exact motion.
 pub fn compute(ticks: &[Tick], period_s: f64, limits: &Limits, path: Option<&dyn Toolpath>) -> Metrics {
     let h = period_s;
     let n = ticks.len();
@@ -366,9 +367,15 @@ pub fn compute(ticks: &[Tick], period_s: f64, limits: &Limits, path: Option<&dyn
         }
     }
 
-    // feedrate fluctuation of the commanded path speed against √q(s)
-    let cmd: Vec<[f64; 3]> = ticks.iter().map(|t| t.cmd_mm).collect();
-    let speed = path_speed(&cmd, h);
+    // feedrate fluctuation of the commanded path speed against √q(s): with the
+    // toolpath, the speed is the arc length of the projections by central
+    // differences (exact on any curve); without it, a chord over 2h.
+    let speed = if path.is_some() {
+        s_track.windows(3).map(|w| (w[2] - w[0]) / (2.0 * h)).collect()
+    } else {
+        let cmd: Vec<[f64; 3]> = ticks.iter().map(|t| t.cmd_mm).collect();
+        path_speed(&cmd, h)
+    };
     let s_end = ticks[n - 1].s_mm;
     for (k, &v) in speed.iter().enumerate() {
         let tk = &ticks[k + 1];

@@ -121,7 +121,7 @@ fn draw(path: &Path, p: &FeedPlot) -> Result<(), String> {
         .map(|(_, v)| v)
         .fold(p.vbar_mm_s.unwrap_or(0.0), f64::max)
         .max(1e-9)
-        * 1.08;
+        * 1.3; // headroom for the legend above the curves
     let v_min = all().map(|(_, v)| v).fold(0.0, f64::min);
 
     let root = BitMapBackend::new(path, SIZE_PX).into_drawing_area();

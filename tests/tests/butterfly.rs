@@ -31,7 +31,10 @@ fn butterfly_executes_as_planned() {
     // The final setpoint is r(1), within 1e-6 mm.
     let (_, u1) = curve.u_range();
     let end = curve.point(u1);
-    let err = (0..3).map(|k| (last.pos_mm[k] - end[k]).powi(2)).sum::<f64>().sqrt();
+    let err = (0..3)
+        .map(|k| (last.pos_mm[k] - end[k]).powi(2))
+        .sum::<f64>()
+        .sqrt();
     eprintln!("final setpoint error {err:.3e} mm");
     assert!(err <= 1e-6);
     assert_eq!(last.s_mm, out.path_length_mm);
@@ -88,10 +91,12 @@ fn every_shared_curve_plans_and_runs() {
         }
         let t = last.unwrap().t_s;
         let rel = (t - out.predicted_time_s).abs() / out.predicted_time_s;
-        eprintln!("{}: T_sim {t:.4} s, T_plan {:.4} s ({rel:.1e})", curve.name, out.predicted_time_s);
+        eprintln!(
+            "{}: T_sim {t:.4} s, T_plan {:.4} s ({rel:.1e})",
+            curve.name, out.predicted_time_s
+        );
         assert!(rel <= 1e-3, "{}", curve.name);
         n += 1;
     }
     assert!(n >= 5, "found {n} curves");
 }
-

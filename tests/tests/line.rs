@@ -15,16 +15,19 @@
 //! model T_a + 2·A·(A/J)²/(24·v) (two jerk-rounded corners at the feed)
 //! predicts it within 0.2 %.
 
+use planner_host::arclength::ArcLength;
 use planner_host::curve::Nurbs;
 use planner_host::limits::TABLE1;
-use planner_host::arclength::ArcLength;
 use planner_host::lp;
 use planner_host::plan::{self, PlanConfig};
 use planner_host::verify;
 
 fn closed_forms(len: f64, v: f64, a: f64, j: f64) -> (f64, f64) {
     let t_a = 2.0 * v / a + (len - v * v / a) / v;
-    assert!(v >= a * a / j && len >= v * (v / a + a / j), "profile reaches the feed");
+    assert!(
+        v >= a * a / j && len >= v * (v / a + a / j),
+        "profile reaches the feed"
+    );
     let t_ramp = v / a + a / j;
     let t_j = 2.0 * t_ramp + (len - v * t_ramp) / v;
     (t_a, t_j)
@@ -36,7 +39,10 @@ fn line_plans_lie_between_the_closed_forms() {
     let line = Nurbs::line([0.0, 0.0, 0.0], [len, 0.0, 0.0]);
     let (t_a, t_j) = closed_forms(len, TABLE1.vbar, TABLE1.abar, TABLE1.jbar);
     for density in [1.0, 2.0, 4.0] {
-        let cfg = PlanConfig { density_per_mm: density, ..PlanConfig::default() };
+        let cfg = PlanConfig {
+            density_per_mm: density,
+            ..PlanConfig::default()
+        };
         let out = plan::plan_curve(&line, &cfg).unwrap();
         let t_hat = plan::machining_time(&out.q_knots, &out.qhat_ctrl);
         let t = out.predicted_time_s;
@@ -59,8 +65,14 @@ fn line_plans_lie_between_the_closed_forms() {
         assert!(jerk <= 1.01, "the plan holds ½q″√q ≤ J densely on a line");
         assert!(t < t_j);
         assert!((t - t_model).abs() <= 2e-3 * t_model, "{t} vs {t_model}");
-        assert!(t_hat >= t_a * (1.0 - 1e-6), "pseudo-jerk plan beats the acceleration bound");
-        assert!(t_hat <= t_a * 1.01, "pseudo-jerk plan within 1 % of the acceleration bound");
+        assert!(
+            t_hat >= t_a * (1.0 - 1e-6),
+            "pseudo-jerk plan beats the acceleration bound"
+        );
+        assert!(
+            t_hat <= t_a * 1.01,
+            "pseudo-jerk plan within 1 % of the acceleration bound"
+        );
         assert!(t >= t_hat * (1.0 - 1e-6), "jerk rows can only slow the plan");
         assert!(t <= t_j * 1.02, "plan within 2 % of the jerk-limited S-curve");
     }
@@ -80,13 +92,27 @@ fn diagonal_line_is_limited_per_axis() {
     let t_axis = plan::plan_curve(&axis, &cfg).unwrap().predicted_time_s;
     assert!((t_diag - t_axis).abs() < 1e-4 * t_axis, "{t_diag} vs {t_axis}");
     // With a slow x axis the diagonal is limited by it: feed ≤ √2 · v_x.
-    let slow = PlanConfig { limits: planner_host::limits::Limits { v: [50.0, 500.0, 500.0], ..TABLE1 }, ..cfg };
+    let slow = PlanConfig {
+        limits: planner_host::limits::Limits {
+            v: [50.0, 500.0, 500.0],
+            ..TABLE1
+        },
+        ..cfg
+    };
     let out = plan::plan_curve(&diag, &slow).unwrap();
     // the LP holds the limits at its evaluation points, the Greville points (18)
     let vmax = lp::greville(&out.q_knots)
         .into_iter()
-        .map(|g| lp::BasisRow::at(&out.q_knots, g).unwrap().apply(0, &out.q_ctrl).sqrt())
+        .map(|g| {
+            lp::BasisRow::at(&out.q_knots, g)
+                .unwrap()
+                .apply(0, &out.q_ctrl)
+                .sqrt()
+        })
         .fold(0.0, f64::max);
     assert!(vmax <= 50.0 * 2f64.sqrt() * (1.0 + 1e-6), "feed {vmax}");
-    assert!(vmax >= 50.0 * 2f64.sqrt() * 0.99, "feed {vmax} reaches the axial bound");
+    assert!(
+        vmax >= 50.0 * 2f64.sqrt() * 0.99,
+        "feed {vmax} reaches the axial bound"
+    );
 }

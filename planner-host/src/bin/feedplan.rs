@@ -10,14 +10,18 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 use planner_host::arclength::ArcLength;
 use planner_host::curve::Nurbs;
+use planner_host::limits;
+use planner_host::lp::{Objective, QhatBound};
 use planner_host::plan::{self, PlanConfig};
 use planner_host::sampling::Sampling;
 use planner_host::verify;
-use planner_host::limits;
-use planner_host::lp::{Objective, QhatBound};
 
 #[derive(Parser)]
-#[command(name = "feedplan", version, about = "Time-optimal jerk-limited feedrate planning on NURBS toolpaths (LP, Clarabel)")]
+#[command(
+    name = "feedplan",
+    version,
+    about = "Time-optimal jerk-limited feedrate planning on NURBS toolpaths (LP, Clarabel)"
+)]
 struct Cli {
     #[command(subcommand)]
     cmd: Cmd,
@@ -68,13 +72,30 @@ fn main() -> ExitCode {
 
 fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
     match cli.cmd {
-        Cmd::Plan { curve, sampling, density, limits: lim_path, output, json, dense, objective, qhat_bound } => {
+        Cmd::Plan {
+            curve,
+            sampling,
+            density,
+            limits: lim_path,
+            output,
+            json,
+            dense,
+            objective,
+            qhat_bound,
+        } => {
             let curve = Nurbs::load(&curve)?;
             let limits = match lim_path {
                 Some(p) => limits::load(&p)?,
                 None => limits::TABLE1,
             };
-            let cfg = PlanConfig { sampling, density_per_mm: density, limits, objective, qhat_bound, ..PlanConfig::default() };
+            let cfg = PlanConfig {
+                sampling,
+                density_per_mm: density,
+                limits,
+                objective,
+                qhat_bound,
+                ..PlanConfig::default()
+            };
             let out = plan::plan_curve(&curve, &cfg)?;
             let arc = ArcLength::new(&curve);
             let check = verify::dense_check(&curve, &arc, &out.q_knots, &out.q_ctrl, &cfg.limits, dense);
@@ -92,4 +113,3 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
         }
     }
 }
-
