@@ -99,7 +99,9 @@ def build_plugin(cc):
 def run_plugin(a, begin, end, tmp):
     so = build_plugin(a.cc)
     out = os.path.join(tmp, "windows.txt")
-    cmd = [a.qemu, *QEMU_ARGS, "-plugin", f"{so},begin=0x{begin:x},end=0x{end:x},out={out}",
+    prof = os.path.join(tmp, "prof.txt")
+    popt = f",prof={prof}" if a.profile else ""
+    cmd = [a.qemu, *QEMU_ARGS, "-plugin", f"{so},begin=0x{begin:x},end=0x{end:x},out={out}{popt}",
            "-kernel", a.elf]
     try:
         p = subprocess.run(cmd, capture_output=True, text=True, timeout=a.timeout)
@@ -114,7 +116,32 @@ def run_plugin(a, begin, end, tmp):
                 result["windows"].append(int(line))
     if result["total"] is None:
         result["errors"].append("plugin wrote no total line (atexit callback not run?)")
+    if a.profile:
+        with open(prof) as f:
+            result["prof"] = [(int(x, 16), int(n), int(c)) for x, n, c in (l.split() for l in f)]
     return p, result
+
+
+def print_profile(elf, nm, prof, top):
+    """Attributes each block's instructions to the function containing its start."""
+    import bisect
+    out = subprocess.run([nm, "-C", "-n", "-S", elf], check=True, capture_output=True, text=True).stdout
+    syms = []
+    for l in out.splitlines():
+        parts = l.split(None, 3)
+        if len(parts) == 4 and parts[2].lower() == "t":
+            syms.append((int(parts[0], 16) & ~1, int(parts[1], 16), parts[3]))
+    syms.sort()
+    starts = [s[0] for s in syms]
+    per = {}
+    for va, n, c in prof:
+        k = bisect.bisect_right(starts, va) - 1
+        name = syms[k][2] if k >= 0 and va < syms[k][0] + max(syms[k][1], 1) else f"?0x{va:x}"
+        per[name] = per.get(name, 0) + n * c
+    tot = sum(per.values())
+    print(f"== profile: instructions inside windows by function (block starts), {tot} in all")
+    for name, v in sorted(per.items(), key=lambda x: -x[1])[:top]:
+        print(f"{v:14d} {100.0 * v / tot:6.2f}%  {name}")
 
 
 def run_exec_log(a, begin, end, tmp):
@@ -141,6 +168,8 @@ def main():
     ap.add_argument("elf")
     ap.add_argument("--method", choices=["plugin", "exec-log"], default="plugin")
     ap.add_argument("--cc", default=os.environ.get("CC", "cc"))
+    ap.add_argument("--profile", type=int, metavar="N", default=0,
+                    help="plugin only: also print the N functions with the most instructions inside windows")
     ap.add_argument("--csv", help="write every window (group,index,insns) to this file")
     ap.add_argument("--timeout", type=float, default=3600)
     ap.add_argument("--qemu", default="qemu-system-arm")
@@ -180,7 +209,9 @@ def main():
     i = 0
     base = None
     rows = []
-    print(f"{'group':40} {'n':>7} {'mean':>10} {'median':>8} {'min':>7} {'max':>7}  (Thumb insns, marker overhead subtracted)")
+    nops = {}
+    print(f"{'group':40} {'n':>7} {'mean':>10} {'median':>8} {'min':>7} {'max':>7} {'mean-nop':>9}"
+          "  (Thumb insns, marker overhead subtracted)")
     for label, n in groups:
         vals = w[i:i + n]
         i += n
@@ -191,8 +222,15 @@ def main():
             continue
         v = [x - base for x in vals]
         rows += [(label, k, x) for k, x in enumerate(v)]
+        # "<prefix>.nop" is a call-overhead baseline for the later "<prefix>.*" groups
+        prefix = label.rsplit(".", 1)[0] if "." in label else None
+        if label.endswith(".nop"):
+            nops[prefix] = statistics.mean(v)
+        rel = f"{statistics.mean(v) - nops[prefix]:9.1f}" if prefix in nops and not label.endswith(".nop") else ""
         print(f"{label:40} {n:7d} {statistics.mean(v):10.1f} {statistics.median_low(v):8d} "
-              f"{min(v):7d} {max(v):7d}")
+              f"{min(v):7d} {max(v):7d} {rel}")
+    if a.profile and "prof" in result:
+        print_profile(a.elf, a.nm, result["prof"], a.profile)
     if a.csv:
         with open(a.csv, "w") as f:
             f.write("group,index,insns\n")

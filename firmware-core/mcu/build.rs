@@ -22,8 +22,7 @@ fn main() {
     } else {
         manifest.join("memory-mps2-an386.x")
     };
-    fs::copy(&layout, out.join("memory.x"))
-        .unwrap_or_else(|e| panic!("copying {}: {e}", layout.display()));
+    fs::copy(&layout, out.join("memory.x")).unwrap_or_else(|e| panic!("copying {}: {e}", layout.display()));
     println!("cargo:rustc-link-search={}", out.display());
     println!("cargo:rerun-if-changed={}", layout.display());
     println!("cargo:rerun-if-changed=build.rs");

@@ -56,6 +56,7 @@ extern crate std;
 
 pub mod array;
 pub mod basis;
+pub mod digest;
 pub mod interp;
 pub mod nurbs;
 pub mod output;

@@ -178,6 +178,20 @@ pub struct SimResult {
     pub config: SimConfig,
 }
 
+impl SimResult {
+    /// [`firmware_core::digest`] of the commanded setpoints, in tick order:
+    /// equal on the host and on the MCU when the setpoints are bit-identical.
+    pub fn setpoint_digest(&self) -> u64 {
+        let mut d = firmware_core::digest::Fnv1a64::new();
+        for t in &self.ticks {
+            for &c in &t.cmd_mm {
+                d.f64(c);
+            }
+        }
+        d.finish()
+    }
+}
+
 /// The serialisable summary of a run (`feedsim run --json`).
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct SimSummary<'a> {
@@ -201,6 +215,10 @@ pub struct SimSummary<'a> {
     pub geometry_note: Option<&'a str>,
     /// The servo model.
     pub servo: &'a [ServoConfig; 3],
+    /// Setpoints executed (ticks, the start and the end included).
+    pub setpoints: usize,
+    /// FNV-1a 64 digest of the setpoints' position bits (`firmware_core::digest`), hex.
+    pub setpoint_digest: String,
 }
 
 /// [`Limits`] in the limits-file JSON layout.
@@ -247,6 +265,8 @@ impl SimResult {
             servo_spectral_radius: self.servo_spectral_radius,
             geometry_note: self.geometry_note.as_deref(),
             servo: &self.config.servo,
+            setpoints: self.ticks.len(),
+            setpoint_digest: format!("{:016x}", self.setpoint_digest()),
         }
     }
 
@@ -261,6 +281,11 @@ impl SimResult {
             100.0 * (self.metrics.machining_time_s / self.predicted_time_s - 1.0)
         );
         o.push_str(&self.metrics.summary());
+        o.push_str(&format!(
+            "  setpoints {}, digest fnv1a64-pos-le={:016x}\n",
+            self.ticks.len(),
+            self.setpoint_digest()
+        ));
         match self.settle_time_s {
             Some(t) => o.push_str(&format!(
                 "  in position (every axis within {:.0e} mm of the end) {:.2} ms after the last setpoint\n",

@@ -30,7 +30,11 @@ use cortex_m_semihosting::{debug, hprintln};
 
 /// Ends the QEMU run with exit code 0 (`ok`) or 1 via semihosting.
 pub fn exit(ok: bool) -> ! {
-    debug::exit(if ok { debug::EXIT_SUCCESS } else { debug::EXIT_FAILURE });
+    debug::exit(if ok {
+        debug::EXIT_SUCCESS
+    } else {
+        debug::EXIT_FAILURE
+    });
     // Only reached when no semihosting host honours the exit (a debugger that
     // resumes). Never spin silently: keep asking.
     loop {
@@ -88,47 +92,8 @@ pub fn calibrate(n: u32) {
     }
 }
 
-/// FNV-1a 64 (see the module docs for the run digest built on it).
-#[derive(Clone, Copy, Debug)]
-pub struct Fnv1a64(pub u64);
-
-impl Default for Fnv1a64 {
-    fn default() -> Self {
-        Self::new()
-    }
-}
-
-impl Fnv1a64 {
-    pub const OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
-    pub const PRIME: u64 = 0x0000_0100_0000_01b3;
-
-    pub const fn new() -> Self {
-        Self(Self::OFFSET)
-    }
-
-    pub fn bytes(&mut self, bytes: &[u8]) {
-        for &b in bytes {
-            self.0 ^= u64::from(b);
-            self.0 = self.0.wrapping_mul(Self::PRIME);
-        }
-    }
-
-    /// Feeds `x.to_bits().to_le_bytes()`.
-    pub fn f64(&mut self, x: f64) {
-        self.bytes(&x.to_bits().to_le_bytes());
-    }
-
-    /// Feeds one setpoint position: x, y, z in that order.
-    pub fn pos(&mut self, pos_mm: &[f64; 3]) {
-        for &c in pos_mm {
-            self.f64(c);
-        }
-    }
-
-    pub fn finish(&self) -> u64 {
-        self.0
-    }
-}
+/// The run digest, shared with the host: see `firmware_core::digest`.
+pub use firmware_core::digest::Fnv1a64;
 
 /// 8-byte aligned wrapper for `include_bytes!` data (the table is read as
 /// little-endian f64 fields; alignment keeps the door open for a direct view).
@@ -143,4 +108,46 @@ pub fn fpu_enabled() -> (bool, u32) {
     let scb = unsafe { &*cortex_m::peripheral::SCB::PTR };
     let cpacr = scb.cpacr.read();
     ((cpacr >> 20) & 0xf == 0xf, cpacr)
+}
+
+extern "C" {
+    // cortex-m-rt linker symbols: start of the free RAM above .bss/.uninit,
+    // and the initial stack pointer (top of RAM).
+    static mut __sheap: u32;
+    static _stack_start: u32;
+}
+
+const PAINT: u32 = 0x5afe_c0de;
+
+fn free_ram() -> (usize, usize) {
+    let lo = core::ptr::addr_of!(__sheap) as usize;
+    let hi = core::ptr::addr_of!(_stack_start) as usize;
+    (lo, hi)
+}
+
+/// Fills the free RAM below the current stack pointer (minus a margin) with
+/// a pattern, for [`stack_high_water`]. Call early, from `main`.
+#[inline(never)]
+pub fn stack_paint() {
+    let (lo, _) = free_ram();
+    let sp = cortex_m::register::msp::read() as usize - 256;
+    let mut p = lo;
+    while p < sp {
+        // SAFETY: [__sheap, sp - 256) is RAM no one uses yet: above every
+        // static, below the live stack frames.
+        unsafe { core::ptr::write_volatile(p as *mut u32, PAINT) };
+        p += 4;
+    }
+}
+
+/// Deepest stack use since [`stack_paint`], bytes (top of RAM down to the
+/// lowest overwritten word).
+pub fn stack_high_water() -> usize {
+    let (lo, hi) = free_ram();
+    let mut p = lo;
+    // SAFETY: reads of RAM inside the linker-defined region.
+    while p < hi && unsafe { core::ptr::read_volatile(p as *const u32) } == PAINT {
+        p += 4;
+    }
+    hi - p
 }

@@ -1,83 +1,159 @@
 //! firmware-core on a Cortex-M4F under QEMU (mps2-an386), via semihosting.
 //!
-//! Embeds the table named at build time (see build.rs: `MCU_TABLE`, default
-//! `tables/butterfly.bin`). Until `table`/`interp` land in firmware-core this
-//! exercises `firmware_core::basis` (10 000 span searches + cubic basis
-//! derivative evaluations) and prints a digest of the results; exit code 0 on
-//! success, 1 on any failure (semihosting exit; panics and faults exit 1).
+//! Embeds the table named at build time (build.rs: `MCU_TABLE`, default
+//! `tables/butterfly.bin`), parses it, and runs the interpolator over the
+//! whole path at [`PERIOD_S`]. Prints the ticks executed, the final setpoint
+//! (decimal and the f64 bit patterns) and the run digest (FNV-1a 64 over every
+//! setpoint's `pos_mm`, see `firmware_mcu` docs). Exit code 0 when the path
+//! ran to its end; 1 on a table error, a fault, a panic or a hard fault.
+//!
+//! Each tick runs inside an instruction-count window (`BENCH-GROUP tick N`),
+//! for `bench-insn.sh`.
 #![no_std]
 #![no_main]
 
 use core::hint::black_box;
 use cortex_m_rt::entry;
 use cortex_m_semihosting::hprintln;
-use firmware_core::basis;
-use firmware_mcu::{calibrate, exit, fpu_enabled, group, mark_begin, mark_end, Aligned, Fnv1a64};
+use firmware_core::array::F64Array;
+use firmware_core::interp::{Fault, Interpolator, Setpoint};
+use firmware_core::sumap::SegmentArray;
+use firmware_core::table::Table;
+use firmware_mcu::{
+    calibrate, exit, fpu_enabled, group, mark_begin, mark_end, stack_high_water, stack_paint, Aligned,
+    Fnv1a64,
+};
+
+/// RAM size in the memory layout, KiB (both layouts: 128).
+const RAM_KIB: usize = 128;
+
+/// Servo period, s (4 kHz).
+pub const PERIOD_S: f64 = 250e-6;
 
 static TABLE: &Aligned<[u8]> = &Aligned(*include_bytes!(env!("MCU_TABLE_PATH")));
 
-const N_EVAL: u32 = 10_000;
-
 #[entry]
 fn main() -> ! {
+    stack_paint();
     let (fpu_on, cpacr) = fpu_enabled();
-    hprintln!("firmware-mcu: table {} ({} bytes)", env!("MCU_TABLE_PATH"), TABLE.0.len());
+    hprintln!(
+        "firmware-mcu: table {} ({} bytes)",
+        env!("MCU_TABLE_PATH"),
+        TABLE.0.len()
+    );
     hprintln!("fpu: CPACR=0x{:08x} enabled={}", cpacr, fpu_on);
     if !fpu_on {
         exit(false);
     }
     // f64 sanity: soft-float (the M4F FPU is single precision) must be IEEE-exact.
     let r = libm::sqrt(black_box(2.0f64));
-    let ok = r.to_bits() == 0x3ff6_a09e_667f_3bcd && black_box(0.1f64) + black_box(0.2f64) == 0.30000000000000004;
-    hprintln!("f64 check: sqrt(2)=0x{:016x} {}", r.to_bits(), if ok { "ok" } else { "WRONG" });
+    let ok =
+        r.to_bits() == 0x3ff6_a09e_667f_3bcd && black_box(0.1f64) + black_box(0.2f64) == 0.30000000000000004;
+    hprintln!(
+        "f64 check: sqrt(2)=0x{:016x} {}",
+        r.to_bits(),
+        if ok { "ok" } else { "WRONG" }
+    );
     if !ok {
         exit(false);
     }
-
     calibrate(64);
-    let ok = run_basis();
+    let ok = run();
+    hprintln!(
+        "stack: {} bytes used at most (of {} KiB RAM)",
+        stack_high_water(),
+        RAM_KIB
+    );
     exit(ok)
 }
 
-/// `N_EVAL` evaluations of span search + cubic basis functions with two
-/// derivatives on a clamped, non-uniform knot vector; checks the partition of
-/// unity and prints a digest of every result.
-fn run_basis() -> bool {
-    const P: usize = 3;
-    let knots: [f64; 13] = [0.0, 0.0, 0.0, 0.0, 0.1, 0.25, 0.4, 0.6, 0.8, 1.0, 1.0, 1.0, 1.0];
-    let mut h = Fnv1a64::new();
-    let mut max_pou_err = 0.0f64;
-    let mut ders: basis::BasisDerivs = [[0.0; basis::MAX_DEGREE + 1]; basis::MAX_DERIV + 1];
-    group("basis_span+ders_p3_n2", N_EVAL);
-    for i in 0..N_EVAL {
-        let x = f64::from(i) / f64::from(N_EVAL);
-        mark_begin();
-        let ok = basis_eval(&knots, P, x, &mut ders);
-        mark_end();
-        if !ok {
-            hprintln!("basis evaluation failed at x={}", x);
+fn run() -> bool {
+    let table = match Table::parse(&TABLE.0) {
+        Ok(t) => t,
+        Err(e) => {
+            hprintln!("table: REFUSED: {}", e);
             return false;
         }
-        let sum: f64 = ders[0][..=P].iter().sum();
-        max_pou_err = max_pou_err.max(libm::fabs(sum - 1.0));
-        for row in &ders[..3] {
-            for &v in &row[..=P] {
-                h.f64(v);
+    };
+    let (len, t_pred) = (table.path_length_mm(), table.predicted_time_s());
+    hprintln!(
+        "table: L={} mm, predicted {} s, NURBS degree {}, {} knots, {} q knots, {} s-u segments",
+        len,
+        t_pred,
+        table.nurbs_degree(),
+        table.nurbs_knots().len(),
+        table.q_knots().len(),
+        table.su_segments().len()
+    );
+    let mut ip = match Interpolator::new(table, PERIOD_S) {
+        Ok(ip) => ip,
+        Err(e) => {
+            hprintln!("interp: cannot start: {:?}", e);
+            return false;
+        }
+    };
+    // Guard against a run that never ends: twice the predicted tick count.
+    let max_ticks = (2.0 * t_pred / PERIOD_S) as u64 + 1000;
+    let mut digest = Fnv1a64::new();
+    let mut ticks: u64 = 0;
+    let mut last: Option<Setpoint> = None;
+    while !ip.is_done() {
+        mark_begin();
+        let r = servo_tick(black_box(&mut ip));
+        mark_end();
+        ticks += 1;
+        match r {
+            Ok(sp) => {
+                digest.setpoint(&sp);
+                last = Some(sp);
+            }
+            Err(f) => {
+                group("tick", ticks as u32);
+                hprintln!("interp: FAULT at tick {}: {:?}", ticks, f);
+                return false;
             }
         }
+        if ticks > max_ticks {
+            group("tick", ticks as u32);
+            hprintln!("interp: not done after {} ticks", ticks);
+            return false;
+        }
     }
+    group("tick", ticks as u32);
+    let Some(sp) = last else { return false };
     hprintln!(
-        "basis: evals={} max|sum N - 1|={:e} digest=fnv1a64:{:016x}",
-        N_EVAL,
-        max_pou_err,
-        h.finish()
+        "ticks: {} (period {} s; predicted {:.1})",
+        ticks,
+        PERIOD_S,
+        t_pred / PERIOD_S
     );
-    max_pou_err < 1e-12
+    hprintln!(
+        "final: t_s={:?} s_mm={:?} u={:?} feed_mm_s={:?} pos_mm=[{:?}, {:?}, {:?}]",
+        sp.t_s,
+        sp.s_mm,
+        sp.u,
+        sp.feed_mm_s,
+        sp.pos_mm[0],
+        sp.pos_mm[1],
+        sp.pos_mm[2]
+    );
+    hprintln!(
+        "final-bits: t_s={:016x} s_mm={:016x} u={:016x} feed_mm_s={:016x} pos_mm=[{:016x}, {:016x}, {:016x}]",
+        sp.t_s.to_bits(),
+        sp.s_mm.to_bits(),
+        sp.u.to_bits(),
+        sp.feed_mm_s.to_bits(),
+        sp.pos_mm[0].to_bits(),
+        sp.pos_mm[1].to_bits(),
+        sp.pos_mm[2].to_bits()
+    );
+    hprintln!("digest: fnv1a64-pos-le={:016x}", digest.finish());
+    true
 }
 
+/// One servo tick, out of line so that all of its work lies inside the
+/// instruction-count window around the call (as it would in a timer ISR).
 #[inline(never)]
-fn basis_eval(knots: &[f64], p: usize, x: f64, ders: &mut basis::BasisDerivs) -> bool {
-    let Some(span) = basis::find_span(black_box(knots), p, x) else { return false };
-    let Some(win) = basis::window(knots, p, span) else { return false };
-    basis::ders_basis(win, p, x, 2, ders)
+fn servo_tick(ip: &mut Interpolator<'_>) -> Result<Setpoint, Fault> {
+    ip.tick()
 }
