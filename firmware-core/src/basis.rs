@@ -35,17 +35,26 @@ pub fn find_span(knots: &[f64], degree: usize, x: f64) -> Option<usize> {
         }
         return Some(i);
     }
-    if x <= *knots.get(degree)? {
+    let lo_knot = *knots.get(degree)?;
+    if x <= lo_knot {
         let mut i = degree;
-        while i < n && knots.get(i + 1)? <= &knots[degree] {
+        while i < n && *knots.get(i + 1)? <= lo_knot {
             i += 1;
         }
         return Some(i);
     }
+    if x.is_nan() {
+        return None;
+    }
     let (mut lo, mut hi) = (degree, n + 1);
     let mut mid = (lo + hi) / 2;
-    while x < *knots.get(mid)? || x >= *knots.get(mid + 1)? {
-        if x < knots[mid] {
+    loop {
+        let (k0, k1) = (*knots.get(mid)?, *knots.get(mid + 1)?);
+        // `hi - lo <= 1` ends the search even on knots that are not sorted
+        if (x >= k0 && x < k1) || hi - lo <= 1 {
+            break;
+        }
+        if x < k0 {
             hi = mid;
         } else {
             lo = mid;
@@ -185,6 +194,20 @@ mod tests {
                     assert!(sk.abs() < 1e-9, "p={p} k={k} sum={sk}");
                 }
             }
+        }
+    }
+
+    #[test]
+    fn find_span_terminates_on_hostile_input() {
+        let knots = [0.0, 0.0, 0.0, 0.0, 0.5, 1.0, 1.0, 1.0, 1.0];
+        assert_eq!(find_span(&knots, 3, f64::NAN), None);
+        assert_eq!(find_span(&knots, 3, -1.0), Some(3));
+        assert_eq!(find_span(&knots, 3, 2.0), Some(4));
+        assert_eq!(find_span(&knots[..5], 3, 0.5), None);
+        // not sorted: any span, but an answer, without hanging
+        let bad = [0.0, 0.0, 0.0, 0.0, 0.9, 0.2, 0.7, 0.1, 1.0, 1.0, 1.0, 1.0];
+        for x in [0.05, 0.3, 0.5, 0.8, 0.95] {
+            assert!(find_span(&bad, 3, x).is_some());
         }
     }
 

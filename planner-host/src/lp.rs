@@ -456,6 +456,39 @@ mod tests {
     use super::*;
 
     #[test]
+    fn a_solver_failure_names_the_stage_and_status() {
+        // NaN geometry makes Clarabel refuse the problem; the error must say which LP
+        // and what Clarabel said, not panic.
+        let knots = knot_vector(&[0.0, 1.0, 2.0, 3.0]);
+        let nan = PathDerivs {
+            r: [0.0; 3],
+            d1: [f64::NAN; 3],
+            d2: [0.0; 3],
+            d3: [0.0; 3],
+        };
+        let points: Vec<EvalPoint> = greville(&knots)
+            .into_iter()
+            .map(|g| EvalPoint {
+                s: g,
+                geo: nan,
+                basis: BasisRow::at(&knots, g).unwrap(),
+            })
+            .collect();
+        let lp = FeedLp {
+            knots: &knots,
+            points: &points,
+            limits: crate::limits::TABLE1,
+            objective: Objective::Integral,
+            qhat_bound: QhatBound::ControlPoints,
+        };
+        let err = lp.solve_pseudo_jerk().unwrap_err();
+        assert_eq!(err.stage, Stage::PseudoJerk);
+        let msg = err.to_string();
+        assert!(msg.starts_with("pseudo-jerk LP failed: Clarabel status"), "{msg}");
+        assert!(!err.status.is_empty() && err.status != "Solved", "{msg}");
+    }
+
+    #[test]
     fn knots_and_greville_follow_17_and_18() {
         let samples = [0.0, 1.0, 2.0, 3.0, 4.0];
         let u = knot_vector(&samples);
