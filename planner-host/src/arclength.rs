@@ -19,7 +19,7 @@
 use crate::curve::{cross, dot, norm, CurveError, Nurbs};
 
 /// Nodes (on [−1, 1]) and weights of the 16-point Gauss–Legendre rule.
-pub(crate) const GL16: ([f64; 16], [f64; 16]) = {
+pub const GL16: ([f64; 16], [f64; 16]) = {
     const X: [f64; 8] = [
         0.095_012_509_837_637_44,
         0.281_603_550_779_258_9,

@@ -323,7 +323,7 @@ pub fn machining_time(knots: &[f64], ctrl: &[f64]) -> f64 {
             .unwrap_or(0.0)
             .max(0.0)
     };
-    let (x, w) = gauss_legendre_16();
+    let (x, w) = crate::arclength::GL16;
     let qmax = ctrl.iter().cloned().fold(0.0, f64::max);
     let zero = 1e-12 * qmax.max(f64::MIN_POSITIVE);
     let mut total = 0.0;
@@ -361,46 +361,17 @@ pub fn machining_time(knots: &[f64], ctrl: &[f64]) -> f64 {
     total
 }
 
-/// Nodes and weights of the 16-point Gauss–Legendre rule on [−1, 1].
-pub fn gauss_legendre_16() -> ([f64; 16], [f64; 16]) {
-    const X: [f64; 8] = [
-        0.095_012_509_837_637_44,
-        0.281_603_550_779_258_9,
-        0.458_016_777_657_227_4,
-        0.617_876_244_402_643_7,
-        0.755_404_408_355_003,
-        0.865_631_202_387_831_8,
-        0.944_575_023_073_232_6,
-        0.989_400_934_991_649_9,
-    ];
-    const W: [f64; 8] = [
-        0.189_450_610_455_068_5,
-        0.182_603_415_044_923_6,
-        0.169_156_519_395_002_5,
-        0.149_595_988_816_576_7,
-        0.124_628_971_255_533_9,
-        0.095_158_511_682_492_78,
-        0.062_253_523_938_647_89,
-        0.027_152_459_411_754_095,
-    ];
-    let mut x = [0.0; 16];
-    let mut w = [0.0; 16];
-    for i in 0..8 {
-        x[i] = -X[7 - i];
-        w[i] = W[7 - i];
-        x[15 - i] = X[7 - i];
-        w[15 - i] = W[7 - i];
-    }
-    (x, w)
-}
-
 /// Write `bytes` to `path` atomically: a temporary file beside it, then a
 /// rename, so a reader never sees a half-written table.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), PlanError> {
-    let io = |source| PlanError::Io {
+    write_file_atomic(path, bytes).map_err(|source| PlanError::Io {
         path: path.display().to_string(),
         source,
-    };
+    })
+}
+
+/// [`write_atomic`] with a plain I/O error, for other writers of result files.
+pub fn write_file_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     let dir = path
         .parent()
         .filter(|p| !p.as_os_str().is_empty())
@@ -420,7 +391,7 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), PlanError> {
     if result.is_err() {
         let _ = std::fs::remove_file(&tmp);
     }
-    result.map_err(io)
+    result
 }
 
 #[cfg(test)]

@@ -10,7 +10,6 @@
 //! `f64` (Rust's `Display`/`LowerExp`), so positions round-trip exactly.
 
 use std::fmt::Write as _;
-use std::io::Write as _;
 use std::path::Path;
 
 use crate::metrics::Tick;
@@ -83,29 +82,10 @@ pub fn to_csv_string(ticks: &[Tick]) -> String {
 /// Write `bytes` to `path` atomically: a temporary file in the same
 /// directory, flushed, then renamed over `path`.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), CsvError> {
-    let err = |source| CsvError::Io {
+    planner_host::plan::write_file_atomic(path, bytes).map_err(|source| CsvError::Io {
         path: path.display().to_string(),
         source,
-    };
-    let dir = path
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let tmp = dir.join(format!(".{name}.{}.tmp", std::process::id()));
-    let result = (|| {
-        let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(bytes)?;
-        f.sync_all()?;
-        std::fs::rename(&tmp, path)
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result.map_err(err)
+    })
 }
 
 /// Write the ticks as CSV to `path`, atomically.
