@@ -107,31 +107,8 @@ pub fn project(path: &dyn Toolpath, p: [f64; 3], seed: f64) -> Projection {
 }
 
 /// Largest ratio to each limit (1.0 = at the limit); the same keys as
-/// `check_traj.py`'s `ratios`.
-#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
-pub struct Ratios {
-    /// Axis velocity, max over axes.
-    pub vel: f64,
-    /// Axis acceleration, max over axes.
-    pub acc: f64,
-    /// Axis jerk, max over axes.
-    pub jerk: f64,
-    /// Tangential velocity (feedrate).
-    pub feed: f64,
-    /// Tangential acceleration.
-    pub tacc: f64,
-    /// Tangential jerk.
-    pub tjerk: f64,
-}
-
-impl Ratios {
-    /// The largest of the six.
-    pub fn worst(&self) -> f64 {
-        [self.vel, self.acc, self.jerk, self.feed, self.tacc, self.tjerk]
-            .into_iter()
-            .fold(0.0, f64::max)
-    }
-}
+/// `check_traj.py`'s `ratios`, and the same type as the planner's dense check.
+pub use planner_host::verify::Ratios;
 
 /// Everything measured on one run.
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
