@@ -22,7 +22,6 @@ pub struct PlanConfig {
     /// Sampling density P, points per mm: m = round(P·L) points.
     pub density_per_mm: f64,
     /// Kinematic limits.
-    #[serde(serialize_with = "limits_json")]
     pub limits: Limits,
     /// Objective weights.
     pub objective: Objective,
@@ -34,18 +33,6 @@ pub struct PlanConfig {
 
 fn display<S: serde::Serializer, T: std::fmt::Display>(v: &T, s: S) -> Result<S::Ok, S::Error> {
     s.collect_str(v)
-}
-
-fn limits_json<S: serde::Serializer>(l: &Limits, s: S) -> Result<S::Ok, S::Error> {
-    use serde::ser::SerializeMap;
-    let mut m = s.serialize_map(Some(6))?;
-    m.serialize_entry("vbar", &l.vbar)?;
-    m.serialize_entry("abar", &l.abar)?;
-    m.serialize_entry("jbar", &l.jbar)?;
-    m.serialize_entry("v", &l.v)?;
-    m.serialize_entry("a", &l.a)?;
-    m.serialize_entry("j", &l.j)?;
-    m.end()
 }
 
 impl Default for PlanConfig {

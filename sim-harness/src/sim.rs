@@ -206,7 +206,7 @@ pub struct SimSummary<'a> {
     /// Settling time after the last setpoint, s.
     pub settle_time_s: Option<f64>,
     /// The table's limits.
-    pub limits: LimitsJson,
+    pub limits: Limits,
     /// All measurements.
     pub metrics: &'a Metrics,
     /// Spectral radius of each axis' closed servo loop.
@@ -221,36 +221,6 @@ pub struct SimSummary<'a> {
     pub setpoint_digest: String,
 }
 
-/// [`Limits`] in the limits-file JSON layout.
-#[derive(Debug, Clone, Copy, serde::Serialize)]
-pub struct LimitsJson {
-    /// Tangential velocity, mm/s.
-    pub vbar: f64,
-    /// Tangential acceleration, mm/s².
-    pub abar: f64,
-    /// Tangential jerk, mm/s³.
-    pub jbar: f64,
-    /// Axis velocities, mm/s.
-    pub v: [f64; 3],
-    /// Axis accelerations, mm/s².
-    pub a: [f64; 3],
-    /// Axis jerks, mm/s³.
-    pub j: [f64; 3],
-}
-
-impl From<Limits> for LimitsJson {
-    fn from(l: Limits) -> Self {
-        LimitsJson {
-            vbar: l.vbar,
-            abar: l.abar,
-            jbar: l.jbar,
-            v: l.v,
-            a: l.a,
-            j: l.j,
-        }
-    }
-}
-
 impl SimResult {
     /// The serialisable summary.
     pub fn summary_json(&self) -> SimSummary<'_> {
@@ -260,7 +230,7 @@ impl SimResult {
             predicted_time_s: self.predicted_time_s,
             machining_time_s: self.metrics.machining_time_s,
             settle_time_s: self.settle_time_s,
-            limits: self.limits.into(),
+            limits: self.limits,
             metrics: &self.metrics,
             servo_spectral_radius: self.servo_spectral_radius,
             geometry_note: self.geometry_note.as_deref(),
