@@ -91,6 +91,60 @@ impl F64Array for LeF64<'_> {
     }
 }
 
+/// Zero-copy view of little-endian `f32`s (4 bytes each): the span-local
+/// single-precision sections of a table ([`crate::fast`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LeF32<'a> {
+    bytes: &'a [u8],
+}
+
+impl<'a> LeF32<'a> {
+    /// The view over `bytes`; `None` unless the length is a multiple of 4.
+    pub fn new(bytes: &'a [u8]) -> Option<Self> {
+        (bytes.len() % 4 == 0).then_some(LeF32 { bytes })
+    }
+    /// Number of elements.
+    pub fn len(&self) -> usize {
+        self.bytes.len() / 4
+    }
+    /// `true` if there are no elements.
+    pub fn is_empty(&self) -> bool {
+        self.bytes.is_empty()
+    }
+    /// Element `i`, `None` past the end.
+    #[inline]
+    pub fn get(&self, i: usize) -> Option<f32> {
+        let start = i.checked_mul(4)?;
+        let b: [u8; 4] = self.bytes.get(start..start.checked_add(4)?)?.try_into().ok()?;
+        Some(f32::from_le_bytes(b))
+    }
+    /// The underlying bytes.
+    pub fn as_bytes(&self) -> &'a [u8] {
+        self.bytes
+    }
+    /// `N` consecutive elements from `start`, `None` if any is past the end.
+    #[inline]
+    pub fn get_array<const N: usize>(&self, start: usize) -> Option<[f32; N]> {
+        let b0 = start.checked_mul(4)?;
+        let bytes = self.bytes.get(b0..b0.checked_add(N.checked_mul(4)?)?)?;
+        let mut out = [0.0f32; N];
+        for (o, c) in out.iter_mut().zip(bytes.chunks_exact(4)) {
+            let mut b = [0u8; 4];
+            b.copy_from_slice(c);
+            *o = f32::from_le_bytes(b);
+        }
+        Some(out)
+    }
+    /// The values, in order.
+    pub fn iter(&self) -> impl Iterator<Item = f32> + 'a {
+        self.bytes.chunks_exact(4).map(|c| {
+            let mut b = [0u8; 4];
+            b.copy_from_slice(c);
+            f32::from_le_bytes(b)
+        })
+    }
+}
+
 /// Zero-copy view of little-endian `u32`s (4 bytes each).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct LeU32<'a> {

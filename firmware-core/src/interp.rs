@@ -9,9 +9,23 @@
 //! ```
 //!
 //! At s = 0, q = 0 the s̈ term starts the motion (ṡ = √q alone never
-//! would; the table guarantees q′(0) > 0). Then u = u(s) ([`crate::sumap`])
-//! and the position r(u) ([`crate::nurbs`]) on the segment's knot span. All
-//! three cursors move span by span, so a tick is O(1) amortised.
+//! would; the table guarantees q′(0) > 0). Then u = u(s) and the position
+//! r(u) on the current *piece* (a part of an s → u segment, ≤ 4 mm).
+//!
+//! Numerics (issue 3, the Cortex-M4F has a single-precision FPU only): the
+//! tick runs the fast path of [`crate::fast`]. s and the clock are f64 (the
+//! accumulator: no drift); q, q′, q″, q‴, the Taylor step, Δu and the
+//! homogeneous NURBS point are f32 in span- and piece-local coordinates read
+//! straight from the table's local-form sections; the outputs are f64 (piece
+//! origin + f32 offset). Per tick: 6 f64 additions, 1 f64 multiplication
+//! (t = k·T), no f64 compare (bit-pattern compares), no libm square root in
+//! mid-path (two Newton steps from the predicted end speed). Entering a q
+//! span or a piece moves an index and costs one more f64 subtraction — no
+//! coefficient is recomputed, so no tick is much dearer than another. The
+//! f64 evaluators ([`crate::qspline`], [`crate::sumap`], [`crate::nurbs`])
+//! stay as the reference: [`crate::table::Table::parse`] checks the local
+//! forms against them. Host and MCU run this same code and IEEE f32/f64
+//! arithmetic without contraction, so their setpoints agree bit for bit.
 //!
 //! End: when a step would reach or pass L, or when the speed predicted for
 //! the end of the step, ṡ + s̈T + s⃛T²/2, is ≤ 0 within a step of L (q(L) = 0
@@ -26,14 +40,13 @@
 //! an interior zero of q forever; the fault is sticky until
 //! [`Interpolator::reset`].
 
-use libm::sqrt;
-
-use crate::array::{F64Array, LeF64, LePoint4, Point4Array};
-use crate::nurbs::{NurbsCursor, NurbsView};
+use crate::array::{F64Array, LeF32, LeF64, Point4Array};
+use crate::fast::{
+    feed_near, feed_of, offset_from_bytes, piece_f32_len, pos, PieceU, QLocal, PIECE_F64_LEN, PIECE_HEAD_LEN,
+    Q_LOCAL_LEN,
+};
 use crate::output::SetpointSink;
-use crate::qspline::{QCursor, QSpline};
-use crate::sumap::{SuCursor, SuMapView};
-use crate::table::{LeSuSegments, Table, MATCH_TOL_REL};
+use crate::table::{Table, MATCH_TOL_REL};
 
 /// A step shorter than `STALL_REL · L` counts as no progress.
 pub const STALL_REL: f64 = 1e-14;
@@ -112,27 +125,135 @@ enum Phase {
     Faulted(Fault),
 }
 
+/// The current q span: its index among the q spans (knot span 3 + idx) and
+/// its start U_i (the last span's local form is anchored at its end
+/// U_{i+1} instead, see [`crate::fast`]).
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+struct QCur {
+    idx: usize,
+    start: f64,
+}
+
+/// The current piece: index, start s_a, u_a and origin (f64).
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+struct PCur {
+    idx: usize,
+    start: f64,
+    u0: f64,
+    origin: [f64; 3],
+}
+
+/// The table data the fast path reads (zero-copy views). Coefficients are
+/// read from here every tick, never copied into RAM: a span or piece entry
+/// only moves an index and reads a few f64.
+#[derive(Clone, Copy, Debug)]
+struct Views<'a> {
+    q_knots: LeF64<'a>,
+    q_local: LeF32<'a>,
+    q_last: usize,
+    piece_breaks: LeF64<'a>,
+    piece_f64: LeF64<'a>,
+    piece_f32: LeF32<'a>,
+    p_last: usize,
+    /// f32 values per piece.
+    per: usize,
+}
+
+impl Views<'_> {
+    #[inline]
+    fn q(&self, idx: usize) -> Option<QCur> {
+        Some(QCur {
+            idx,
+            start: self.q_knots.get(idx.checked_add(3)?)?,
+        })
+    }
+
+    #[inline]
+    fn q_poly(&self, idx: usize) -> Option<QLocal> {
+        Some(QLocal::from_array(
+            self.q_local
+                .get_array::<Q_LOCAL_LEN>(idx.checked_mul(Q_LOCAL_LEN)?)?,
+        ))
+    }
+
+    #[inline]
+    fn piece(&self, idx: usize) -> Option<PCur> {
+        let b = idx.checked_mul(PIECE_F64_LEN)?;
+        Some(PCur {
+            idx,
+            start: self.piece_breaks.get(idx)?,
+            u0: self.piece_f64.get(b)?,
+            origin: [
+                self.piece_f64.get(b.checked_add(1)?)?,
+                self.piece_f64.get(b.checked_add(2)?)?,
+                self.piece_f64.get(b.checked_add(3)?)?,
+            ],
+        })
+    }
+
+    /// The s → u head of piece `idx` and the bytes of its NURBS form.
+    #[inline]
+    fn piece_forms(&self, idx: usize) -> Option<(PieceU, &[u8])> {
+        let base = idx.checked_mul(self.per)?;
+        let head = PieceU::from_array(self.piece_f32.get_array::<PIECE_HEAD_LEN>(base)?);
+        let from = base.checked_add(PIECE_HEAD_LEN)?.checked_mul(4)?;
+        let to = base.checked_add(self.per)?.checked_mul(4)?;
+        Some((head, self.piece_f32.as_bytes().get(from..to)?))
+    }
+}
+
+/// `a ≥ b` for non-negative, non-NaN doubles, on the bit patterns (IEEE
+/// order for +0 ..= +∞ is the integer order): 3 instructions instead of a
+/// soft-float compare. Callers guarantee a, b ≥ +0 (s > 0 in mid-path,
+/// breaks and knots ≥ 0).
+#[inline]
+fn ge_nonneg(a: f64, b: f64) -> bool {
+    a.to_bits() >= b.to_bits()
+}
+
+/// q-local t at s = 0 (the first span's start, or, if there is only one q
+/// span, −h from its end anchor).
+fn t0_q(v: &Views<'_>) -> Option<f32> {
+    if v.q_last == 0 {
+        Some(-(v.q_knots.get(4)?) as f32)
+    } else {
+        Some(0.0)
+    }
+}
+
 /// The servo-rate interpolator over one validated table.
+///
+/// The fast path of [`crate::fast`]: s accumulates in f64; q, the Taylor
+/// step, u(s) and r(u) are f32 in span-local coordinates; the position is the
+/// span origin (f64) plus the f32 offset.
 #[derive(Clone, Debug)]
 pub struct Interpolator<'a> {
     table: Table<'a>,
+    views: Views<'a>,
     period_s: f64,
+    /// The period in f32 for the Taylor step.
+    h: f32,
     length_mm: f64,
-    q: QSpline<LeF64<'a>>,
-    curve: NurbsView<LeF64<'a>, LePoint4<'a>>,
-    su: SuMapView<LeF64<'a>, LeSuSegments<'a>>,
-    q_cur: QCursor,
-    su_cur: SuCursor,
-    n_cur: NurbsCursor,
+    qc: QCur,
+    pc: PCur,
+    /// `(pc.start − qc.start)` in f32: the q-local t is the piece-local t
+    /// plus this (one f64 subtraction per span entry instead of per tick).
+    su_to_q: f32,
     first: Setpoint,
     last: Setpoint,
     /// Index of the next tick (its time is `k · T`).
     k: u64,
     s: f64,
     /// `[q, q′, q″, q‴]` at `s`.
-    qd: [f64; 4],
+    qd: [f32; 4],
+    /// √max(q, 0) at `s`.
+    v: f32,
     /// q below which a falling feed in mid-path is a stall, (mm/s)².
-    stall_q: f64,
+    stall_q: f32,
+    /// A step shorter than this (mm) is no progress.
+    stall_ds: f32,
+    /// `MATCH_TOL_REL · L`, mm.
+    end_tol: f32,
     phase: Phase,
 }
 
@@ -143,26 +264,35 @@ impl<'a> Interpolator<'a> {
             return Err(InterpError::BadPeriod);
         }
         let bad = InterpError::Inconsistent;
-        let q = table.q_spline().ok_or(bad)?;
         let p = table.nurbs_degree() as usize;
-        let curve = table.curve().ok_or(bad)?;
-        let su = table.su_map().ok_or(bad)?;
-        let mut q_cur = q.cursor().ok_or(bad)?;
-        let qd = q_cur.seek(&q, 0.0).ok_or(bad)?;
-        let su_cur = su.cursor().ok_or(bad)?;
-        let n_cur = curve.cursor().ok_or(bad)?;
-        let pts = table.nurbs_points();
         let knots = table.nurbs_knots();
+        let pts = table.nurbs_points();
+        let q_spans = table.q_local().len() / Q_LOCAL_LEN;
+        let per = piece_f32_len(p);
+        let views = Views {
+            q_knots: table.q_knots(),
+            q_local: table.q_local(),
+            q_last: q_spans.checked_sub(1).ok_or(bad)?,
+            piece_breaks: table.piece_breaks(),
+            piece_f64: table.piece_f64(),
+            piece_f32: table.piece_f32(),
+            p_last: table.piece_breaks().len().checked_sub(2).ok_or(bad)?,
+            per,
+        };
+        let qc = views.q(0).ok_or(bad)?;
+        let pc = views.piece(0).ok_or(bad)?;
+        let qd = views.q_poly(0).ok_or(bad)?.eval(t0_q(&views).ok_or(bad)?);
+        views.piece_forms(0).ok_or(bad)?;
+        let v = feed_of(qd[0]);
         let [x0, y0, z0, _] = pts.get(0).ok_or(bad)?;
         let [x1, y1, z1, _] = pts.get(pts.len().checked_sub(1).ok_or(bad)?).ok_or(bad)?;
         let length_mm = table.path_length_mm();
         let v_floor = STALL_FEED_REL * table.limits().vbar;
-        let stall_q = v_floor * v_floor;
         let first = Setpoint {
             t_s: 0.0,
             s_mm: 0.0,
             u: knots.get(p).ok_or(bad)?,
-            feed_mm_s: sqrt(qd[0].max(0.0)),
+            feed_mm_s: f64::from(v),
             pos_mm: [x0, y0, z0],
         };
         let last = Setpoint {
@@ -174,20 +304,22 @@ impl<'a> Interpolator<'a> {
         };
         Ok(Interpolator {
             table,
+            views,
             period_s,
+            h: period_s as f32,
             length_mm,
-            q,
-            curve,
-            su,
-            q_cur,
-            su_cur,
-            n_cur,
+            qc,
+            pc,
+            su_to_q: (pc.start - qc.start) as f32,
             first,
             last,
             k: 0,
             s: 0.0,
             qd,
-            stall_q,
+            v,
+            stall_q: (v_floor * v_floor) as f32,
+            stall_ds: (STALL_REL * length_mm) as f32,
+            end_tol: (MATCH_TOL_REL * length_mm) as f32,
             phase: Phase::Start,
         })
     }
@@ -221,16 +353,31 @@ impl<'a> Interpolator<'a> {
     pub fn reset(&mut self) {
         self.k = 0;
         self.s = 0.0;
-        // fresh cursors (the ones in use would walk back span by span)
-        if let (Some(qc), Some(sc), Some(nc)) = (self.q.cursor(), self.su.cursor(), self.curve.cursor()) {
-            (self.q_cur, self.su_cur, self.n_cur) = (qc, sc, nc);
+        if let (Some(qc), Some(pc)) = (self.views.q(0), self.views.piece(0)) {
+            (self.qc, self.pc) = (qc, pc);
+            self.su_to_q = (pc.start - qc.start) as f32;
         }
-        self.qd = self.q_cur.seek(&self.q, 0.0).unwrap_or([0.0; 4]);
+        self.qd = match (self.views.q_poly(0), t0_q(&self.views)) {
+            (Some(p), Some(t)) => p.eval(t),
+            _ => [0.0; 4],
+        };
+        self.v = feed_of(self.qd[0]);
         self.phase = Phase::Start;
     }
 
+    // Out of line: inlined, LLVM evaluates both branches' conversions
+    // speculatively (three soft-float calls instead of one).
+    #[inline(never)]
     fn now(&self) -> f64 {
-        self.k as f64 * self.period_s
+        // u32 → f64 is a cheaper soft-float conversion than u64 → f64; the
+        // two parts are exact (k < 2^53), so this is exactly `k as f64`.
+        let (hi, lo) = ((self.k >> 32) as u32, self.k as u32);
+        let kf = if hi == 0 {
+            f64::from(lo)
+        } else {
+            f64::from(hi) * 4294967296.0 + f64::from(lo)
+        };
+        kf * self.period_s
     }
 
     fn finish(&mut self, t_s: f64) -> Setpoint {
@@ -261,55 +408,100 @@ impl<'a> Interpolator<'a> {
             Phase::Run => {}
         }
         self.k = self.k.saturating_add(1);
-        let h = self.period_s;
-        let len = self.length_mm;
+        let h = self.h;
         let s = self.s;
         let [q_raw, dq, ddq, dddq] = self.qd;
-        let q = q_raw.max(0.0);
-        let v = sqrt(q); // (1)
+        let q = pos(q_raw);
+        let v = self.v; // (1)
         let a = 0.5 * dq; // (4)
         let j = 0.5 * ddq * v; // (5)
         let sn = 0.5 * dddq * q + 0.25 * ddq * dq; // d/dt of (5)
-        let ds = h * (v + h * (0.5 * a + h * (j / 6.0 + h * sn / 24.0)));
+        let ds = h * (v + h * (0.5 * a + h * (j * (1.0 / 6.0) + h * sn * (1.0 / 24.0))));
         if !ds.is_finite() {
             return self.fault(Fault::NonFinite { s_mm: s });
         }
-        let s_new = s + ds;
-        let remaining = len - s;
+        let s_new = s + f64::from(ds);
+        // s_new ≥ L on the bit patterns: exact for finite s_new and L > 0
+        // (a negative s_new has the sign bit, a negative i64), without the
+        // soft-float compare.
+        if (s_new.to_bits() as i64) >= (self.length_mm.to_bits() as i64) {
+            return Ok(self.finish(t_s));
+        }
+        // Near the end only (rare): the remaining length in f32.
         let v_end = v + h * (a + 0.5 * h * j);
-        let within_a_step = remaining <= 2.0 * h * (v + 0.5 * h * a.abs()) + MATCH_TOL_REL * len;
-        if s_new >= len || (v_end <= 0.0 && within_a_step) {
+        let low = q <= self.stall_q && dq < 0.0;
+        let remaining = if v_end <= 0.0 || low || !(ds > self.stall_ds) {
+            (self.length_mm - s) as f32
+        } else {
+            f32::INFINITY
+        };
+        let within_a_step = remaining <= 2.0 * h * (v + 0.5 * h * a.abs()) + self.end_tol;
+        if v_end <= 0.0 && within_a_step {
             return Ok(self.finish(t_s));
         }
         // Twice the stopping distance if q fell linearly to 0 (q/|q′|): inside
         // it a low feed is the run-out into L, not a stall.
-        let to_zero = if dq < 0.0 { 2.0 * q / -dq } else { f64::INFINITY };
-        let heading_to_end = remaining <= to_zero + MATCH_TOL_REL * len;
-        let starved = q <= self.stall_q && dq <= 0.0 && !heading_to_end;
-        if starved || !(ds > STALL_REL * len) || !(s_new > s) {
-            if remaining <= MATCH_TOL_REL * len {
+        let starved = low && remaining > 2.0 * q / -dq + self.end_tol;
+        // (ds > stall_ds = 1e-14 L also makes s_new > s: ulp(s) ≤ 2.3e-16 L.)
+        if starved || !(ds > self.stall_ds) {
+            if remaining <= self.end_tol {
                 return Ok(self.finish(t_s));
             }
             return self.fault(Fault::Stalled { s_mm: s, t_s });
         }
-        let Some(qd) = self.q_cur.seek(&self.q, s_new) else {
+        let Some((tp, tq, poly)) = self.seek(s_new) else {
             return self.fault(Fault::Eval { s_mm: s_new });
         };
-        let Some(su) = self.su_cur.seek(&self.su, s_new) else {
+        let Some((head, nurbs)) = self.views.piece_forms(self.pc.idx) else {
             return self.fault(Fault::Eval { s_mm: s_new });
         };
-        let Some(pos_mm) = self.n_cur.point(&self.curve, su.span as usize, su.u) else {
+        let dv = head.delta(tp);
+        let Some([dx, dy, dz]) = offset_from_bytes(nurbs, dv) else {
             return self.fault(Fault::Eval { s_mm: s_new });
         };
+        let qd = poly.eval(tq);
+        let feed = feed_near(qd[0], v_end);
+        let [ox, oy, oz] = self.pc.origin;
         self.s = s_new;
         self.qd = qd;
+        self.v = feed;
         Ok(Setpoint {
             t_s,
             s_mm: s_new,
-            u: su.u,
-            feed_mm_s: sqrt(qd[0].max(0.0)),
-            pos_mm,
+            u: self.pc.u0 + f64::from(dv * head.width),
+            feed_mm_s: f64::from(feed),
+            pos_mm: [ox + f64::from(dx), oy + f64::from(dy), oz + f64::from(dz)],
         })
+    }
+
+    /// Move both cursors forward to the piece and the q span containing s
+    /// (compared on the bit patterns, [`ge_nonneg`]); the piece-local t, the
+    /// q-local t and the q span's local form. One f64 subtraction per tick
+    /// (t in the piece), one more when a cursor moves (the piece-to-q
+    /// offset), one more per tick in the last q span (anchored at L, where
+    /// q → 0: t from s directly).
+    #[inline]
+    fn seek(&mut self, s: f64) -> Option<(f32, f32, QLocal)> {
+        let v = &self.views;
+        let mut moved = false;
+        while self.pc.idx < v.p_last && ge_nonneg(s, v.piece_breaks.get(self.pc.idx.checked_add(1)?)?) {
+            self.pc = v.piece(self.pc.idx.checked_add(1)?)?;
+            moved = true;
+        }
+        while self.qc.idx < v.q_last && ge_nonneg(s, v.q_knots.get(self.qc.idx.checked_add(4)?)?) {
+            self.qc = v.q(self.qc.idx.checked_add(1)?)?;
+            moved = true;
+        }
+        if moved {
+            self.su_to_q = (self.pc.start - self.qc.start) as f32;
+        }
+        let tp = (s - self.pc.start) as f32;
+        let tq = if self.qc.idx < v.q_last {
+            tp + self.su_to_q
+        } else {
+            (s - v.q_knots.get(self.qc.idx.checked_add(4)?)?) as f32
+        };
+        Some((tp, tq, v.q_poly(self.qc.idx)?))
     }
 
     /// Tick until done, handing every setpoint (the start and the end

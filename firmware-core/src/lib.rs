@@ -22,6 +22,10 @@
 //!   - [`sumap`]: u(s), quintics in a local τ per segment ([`sumap::SuCursor`]);
 //!   - [`nurbs`]: the rational curve r(u) in homogeneous coordinates on a
 //!     known knot span ([`nurbs::NurbsCursor`]).
+//! - [`fast`]: the servo-rate fast path — span- and piece-local f32 forms of
+//!   q, u(s) and r(u) (derived by [`table::encode`], checked by
+//!   [`table::Table::parse`]), evaluated with a fixed number of f32
+//!   operations.
 //! - [`interp`]: [`interp::Interpolator::tick`] — one order-4 Taylor step of
 //!   s(t) from q (eqs. 1, 4, 5), then u(s), then r(u): a [`interp::Setpoint`].
 //! - [`output`]: [`output::SetpointSink`], the trait setpoints leave through.
@@ -42,8 +46,10 @@
 //! }
 //! ```
 //!
-//! Units throughout: mm, s, mm/s, mm/s², mm/s³; q in (mm/s)². Numerics are
-//! f64 (software double on a Cortex-M4F; see issue 3).
+//! Units throughout: mm, s, mm/s, mm/s², mm/s³; q in (mm/s)². The table and
+//! the reference evaluators are f64; the tick accumulates s in f64 and
+//! evaluates everything else in f32 in local coordinates (see [`fast`] and
+//! [`interp`]; issue 3: ~1,350 Thumb instructions a tick on a Cortex-M4F).
 #![no_std]
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
@@ -57,6 +63,7 @@ extern crate std;
 pub mod array;
 pub mod basis;
 pub mod digest;
+pub mod fast;
 pub mod interp;
 pub mod nurbs;
 pub mod output;

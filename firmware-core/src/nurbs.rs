@@ -129,6 +129,12 @@ impl NurbsSpan {
         Some(a)
     }
 
+    /// A(u) = Σ N_j(u) Pʷ_j, the homogeneous point `(w·x, w·y, w·z, w)`.
+    pub fn homogeneous_point(&self, u: f64) -> Option<[f64; 4]> {
+        let [a, _] = self.homogeneous(u, 0)?;
+        Some(a)
+    }
+
     /// r(u), mm.
     pub fn point(&self, u: f64) -> Option<[f64; 3]> {
         let [a, _] = self.homogeneous(u, 0)?;

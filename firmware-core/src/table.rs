@@ -7,7 +7,7 @@
 //! same validation on what it wrote, so encode either errs or produces bytes
 //! that parse.
 //!
-//! # Byte layout (format version 1)
+//! # Byte layout (format version 2)
 //!
 //! All integers and floats little-endian; offsets from the start of the table.
 //!
@@ -18,7 +18,7 @@
 //! | offset | size | field                                         |
 //! +--------+------+-----------------------------------------------+
 //! |      0 |    4 | magic "FLPT"                                  |
-//! |      4 |    2 | format version u16 = 1 (`VERSION`)            |
+//! |      4 |    2 | format version u16 = 2 (`VERSION`)            |
 //! |      6 |    2 | header length u16 (≥ 16, multiple of 8)       |
 //! |      8 |    4 | total length u32, including the CRC           |
 //! |     12 |    2 | section count u16 (1 ..= `MAX_SECTIONS`)      |
@@ -53,8 +53,20 @@
 //! |    7 | su coeffs     |     M | f64 × 6 (`SU_COEFFS`) per segment        |
 //! |    8 | q knots       |   N+4 | f64, clamped order 4, 0 … L              |
 //! |    9 | q ctrl        |     N | f64, (mm/s)², ≥ 0, first and last 0      |
+//! |   10 | q local       | 5(N−3)| f32 c0..c3, h per q span (`fast`)        |
+//! |   11 | piece breaks  |   P+1 | f64 s at each piece start, then L        |
+//! |   12 | piece f64     |    4P | f64 u_a, origin x, y, z per piece        |
+//! |   13 | piece f32     |(11+4p)| f32 d1..d5, w, 1/len, a_k = [x, y, z, w] |
+//! |      |               |    ·P | k = 0..=p (k-major) per piece            |
 //! +------+---------------+-------+------------------------------------------+
 //! ```
+//!
+//! Sections 10–13 (new in version 2) are derived data: the span-local
+//! single-precision forms the servo-rate fast path evaluates
+//! ([`crate::fast`]). [`encode`] computes them from the f64 sections (the
+//! host never fills them in by hand); [`Table::parse`] checks every span of
+//! them against the f64 data at `fast::CHECK_POINTS` points with the
+//! tolerances stated in [`crate::fast`] (empty spans: all zeros).
 //!
 //! Kinds `0x8000 ..= 0xFFFF` ([`EXTENSION_BASE`]) are extensions a reader may
 //! skip: they are bounds-, alignment- and overlap-checked, then ignored.
@@ -74,8 +86,9 @@
 
 use core::fmt;
 
-use crate::array::{F64Array, LeF64, LePoint4, LeU32, Point4Array};
+use crate::array::{F64Array, LeF32, LeF64, LePoint4, LeU32, Point4Array};
 use crate::basis::MAX_DEGREE;
+use crate::fast::{self, PieceU, QLocal, PIECE_F64_LEN, PIECE_HEAD_LEN, Q_LOCAL_LEN};
 use crate::nurbs::NurbsView;
 use crate::qspline::QSpline;
 use crate::sumap::{horner, SegmentArray, SuMapView};
@@ -83,7 +96,7 @@ use crate::sumap::{horner, SegmentArray, SuMapView};
 /// Magic bytes at offset 0.
 pub const MAGIC: [u8; 4] = *b"FLPT";
 /// Format version written and accepted.
-pub const VERSION: u16 = 1;
+pub const VERSION: u16 = 2;
 /// Header length written by [`encode`].
 pub const HEADER_LEN: usize = 16;
 /// Bytes per directory entry.
@@ -211,11 +224,19 @@ pub enum Section {
     QKnots = 8,
     /// q control points (kind 9).
     QCtrl = 9,
+    /// q span-local f32 power forms (kind 10).
+    QLocal = 10,
+    /// Piece starts in s, then L (kind 11).
+    PieceBreaks = 11,
+    /// Per piece: u at its start and its origin, f64 (kind 12).
+    PieceF64 = 12,
+    /// Per piece: the f32 s → u and homogeneous NURBS forms (kind 13).
+    PieceF32 = 13,
 }
 
 impl Section {
     /// Every known kind, in the order [`encode`] writes them.
-    pub const ALL: [Section; 9] = [
+    pub const ALL: [Section; 13] = [
         Section::Limits,
         Section::Meta,
         Section::NurbsKnots,
@@ -225,6 +246,10 @@ impl Section {
         Section::SuCoeffs,
         Section::QKnots,
         Section::QCtrl,
+        Section::QLocal,
+        Section::PieceBreaks,
+        Section::PieceF64,
+        Section::PieceF32,
     ];
 
     /// The kind code in the directory.
@@ -245,7 +270,13 @@ impl Section {
             Section::NurbsPoints => 32,
             Section::SuSpans => 4,
             Section::SuCoeffs => 8 * SU_COEFFS,
-            Section::NurbsKnots | Section::SuBreaks | Section::QKnots | Section::QCtrl => 8,
+            Section::NurbsKnots
+            | Section::SuBreaks
+            | Section::QKnots
+            | Section::QCtrl
+            | Section::PieceBreaks
+            | Section::PieceF64 => 8,
+            Section::QLocal | Section::PieceF32 => 4,
         }
     }
 
@@ -448,6 +479,15 @@ pub enum TableError {
         /// Segment index.
         segment: usize,
     },
+    /// A span-local f32 section (10–13) disagrees with the f64 data beyond
+    /// the tolerances of [`crate::fast`] at span or segment `index`
+    /// (0-based among the section's spans).
+    FastMismatch {
+        /// The section.
+        section: Section,
+        /// Span or segment index (0-based within the section's spans).
+        index: usize,
+    },
     /// The first segment does not start at `U[p]` or the last does not end at
     /// the last knot (other than past knot spans where the curve stands still).
     SuEnds {
@@ -521,6 +561,12 @@ impl fmt::Display for TableError {
             E::SuOutsideSpan { segment } => write!(f, "su segment {segment}: u leaves its knot span"),
             E::SuDiscontinuous { segment } => write!(f, "su segment {segment}: u jumps at its start"),
             E::SuEnds { segment } => write!(f, "su segment {segment}: does not meet the curve's end"),
+            E::FastMismatch { section, index } => {
+                write!(
+                    f,
+                    "section {section:?}, span {index}: local f32 form disagrees with the f64 data"
+                )
+            }
         }
     }
 }
@@ -613,7 +659,70 @@ fn section_sizes(parts: &TableParts) -> [(Section, usize, usize); N_KNOWN] {
         sz(Section::SuCoeffs, m),
         sz(Section::QKnots, parts.q_knots.len()),
         sz(Section::QCtrl, parts.q_ctrl.len()),
+        sz(Section::QLocal, q_spans(parts).saturating_mul(Q_LOCAL_LEN)),
+        sz(Section::PieceBreaks, n_pieces(parts).saturating_add(1)),
+        sz(Section::PieceF64, n_pieces(parts).saturating_mul(PIECE_F64_LEN)),
+        sz(
+            Section::PieceF32,
+            n_pieces(parts).saturating_mul(fast::piece_f32_len(encode_degree(parts))),
+        ),
     ]
+}
+
+/// q knot spans 3 ..= N − 1 (N control points).
+fn q_spans(parts: &TableParts) -> usize {
+    parts.q_ctrl.len().saturating_sub(Q_ORDER as usize - 1)
+}
+
+/// The degree as used for sizes (0 if out of range; parse refuses that).
+fn encode_degree(parts: &TableParts) -> usize {
+    let p = parts.nurbs_degree as usize;
+    if (1..=MAX_DEGREE).contains(&p) {
+        p
+    } else {
+        0
+    }
+}
+
+/// The pieces of s → u segment `j` (see [`fast`]): from its start, each
+/// [`fast::piece_len`] long at the planned feed √q where it starts, the last
+/// one stretched to the segment's end (or cut there). Calls `f(sa, sb)`.
+fn seg_pieces<F: FnMut(f64, f64)>(parts: &TableParts, q: Option<&QSpline<&[f64]>>, j: usize, mut f: F) {
+    let (Some(&s0), Some(&s1)) = (parts.su_breaks.get(j), parts.su_breaks.get(j.saturating_add(1))) else {
+        return;
+    };
+    let mut sa = s0;
+    for _ in 0..100_000 {
+        let v = q
+            .and_then(|q| q.eval(sa))
+            .map_or(0.0, |d| libm::sqrt(d[0].max(0.0)));
+        let len = fast::piece_len(v);
+        let sb = if s1 - sa < 1.5 * len { s1 } else { sa + len };
+        f(sa, sb);
+        if sb >= s1 {
+            return;
+        }
+        sa = sb;
+    }
+}
+
+/// All pieces.
+fn n_pieces(parts: &TableParts) -> usize {
+    let q = QSpline::new(parts.q_knots, parts.q_ctrl);
+    let mut n = 0usize;
+    for j in 0..parts.su_segments.len() {
+        seg_pieces(parts, q.as_ref(), j, |_, _| n = n.saturating_add(1));
+    }
+    n
+}
+
+fn wr_f32s<I: IntoIterator<Item = f32>>(b: &mut [u8], off: usize, vals: I) -> Result<usize, EncodeError> {
+    let mut at = off;
+    for v in vals {
+        wr(b, at, &v.to_le_bytes())?;
+        at = at.saturating_add(4);
+    }
+    Ok(at)
 }
 
 fn data_start() -> usize {
@@ -700,6 +809,59 @@ pub fn encode(parts: &TableParts, out: &mut [u8]) -> Result<usize, EncodeError> 
             Section::QCtrl => {
                 wr_f64s(buf, off, parts.q_ctrl.iter().copied())?;
             }
+            Section::QLocal => {
+                if let Some(q) = QSpline::new(parts.q_knots, parts.q_ctrl) {
+                    let mut at = off;
+                    for i in 0..q_spans(parts) {
+                        let at_end = i + 1 == q_spans(parts);
+                        at = wr_f32s(buf, at, fast::q_local(&q, i + Q_ORDER as usize - 1, at_end))?;
+                    }
+                }
+            }
+            Section::PieceBreaks | Section::PieceF64 | Section::PieceF32 => {
+                let p = encode_degree(parts);
+                let per = fast::piece_f32_len(p);
+                let curve = NurbsView::new(p, parts.nurbs_knots, parts.nurbs_points);
+                let mut i = 0usize;
+                let q = QSpline::new(parts.q_knots, parts.q_ctrl);
+                for (j, seg) in parts.su_segments.iter().enumerate() {
+                    let (s0, s1) = match (parts.su_breaks.get(j), parts.su_breaks.get(j.saturating_add(1))) {
+                        (Some(&a), Some(&b)) => (a, b),
+                        _ => (0.0, 0.0),
+                    };
+                    let mut res = Ok(());
+                    seg_pieces(parts, q.as_ref(), j, |sa, sb| {
+                        let piece = curve
+                            .as_ref()
+                            .and_then(|c| fast::piece_local(c, seg, (s0, s1), (sa, sb)));
+                        if let (Some(pd), Ok(())) = (piece, res) {
+                            res = match section {
+                                Section::PieceBreaks => {
+                                    wr_f64s(buf, off.saturating_add(i.saturating_mul(8)), [pd.s_start])
+                                        .map(|_| ())
+                                }
+                                Section::PieceF64 => wr_f64s(
+                                    buf,
+                                    off.saturating_add(i.saturating_mul(8 * PIECE_F64_LEN)),
+                                    pd.f64s,
+                                )
+                                .map(|_| ()),
+                                _ => {
+                                    let at = off.saturating_add(i.saturating_mul(4 * per));
+                                    wr_f32s(buf, at, pd.f32s.iter().take(per).copied()).map(|_| ())
+                                }
+                            };
+                        }
+                        i = i.saturating_add(1);
+                    });
+                    res?;
+                }
+                if section == Section::PieceBreaks {
+                    if let Some(&l) = parts.su_breaks.last() {
+                        wr_f64s(buf, off.saturating_add(i.saturating_mul(8)), [l])?;
+                    }
+                }
+            }
         }
     }
     let body = total.saturating_sub(CRC_LEN);
@@ -726,6 +888,10 @@ pub struct Table<'a> {
     su_coeffs: LeF64<'a>,
     q_knots: LeF64<'a>,
     q_ctrl: LeF64<'a>,
+    q_local: LeF32<'a>,
+    piece_breaks: LeF64<'a>,
+    piece_f64: LeF64<'a>,
+    piece_f32: LeF32<'a>,
 }
 
 #[derive(Clone, Copy)]
@@ -1098,6 +1264,93 @@ impl<'a> Table<'a> {
             }
         }
 
+        // The span-local f32 forms (sections 10–13), against the f64 data.
+        let f32s = |section: Section| -> Result<LeF32<'a>, TableError> {
+            let v = LeF32::new(sec(section)?).ok_or(TableError::SectionLength { section })?;
+            if let Some(index) = v.iter().position(|x| !x.is_finite()) {
+                return Err(TableError::NotFinite { section, index });
+            }
+            Ok(v)
+        };
+        let mismatch = |section: Section, index: usize| TableError::FastMismatch { section, index };
+        let q_local = f32s(Section::QLocal)?;
+        let nq_spans = nq - (Q_ORDER as usize - 1);
+        expect_count(
+            Section::QLocal,
+            nq_spans.saturating_mul(Q_LOCAL_LEN),
+            q_local.len(),
+        )?;
+        let q = QSpline::new(q_knots, q_ctrl).ok_or(TableError::KnotRange {
+            section: Section::QKnots,
+        })?;
+        let q_scale = q_ctrl.iter().fold(0.0f64, f64::max);
+        for i in 0..nq_spans {
+            let local = q_local
+                .get_array::<Q_LOCAL_LEN>(i.saturating_mul(Q_LOCAL_LEN))
+                .map(QLocal::from_array)
+                .ok_or(mismatch(Section::QLocal, i))?;
+            if !fast::check_q(&q, i + Q_ORDER as usize - 1, &local, q_scale, i + 1 == nq_spans) {
+                return Err(mismatch(Section::QLocal, i));
+            }
+        }
+        let piece_breaks = f64s(Section::PieceBreaks)?;
+        let piece_f64 = f64s(Section::PieceF64)?;
+        let piece_f32 = f32s(Section::PieceF32)?;
+        let np = piece_breaks.len().checked_sub(1).ok_or(TableError::Count {
+            section: Section::PieceBreaks,
+            expected: 2,
+            found: 0,
+        })?;
+        let per = fast::piece_f32_len(p);
+        expect_count(
+            Section::PieceF64,
+            np.saturating_mul(PIECE_F64_LEN),
+            piece_f64.len(),
+        )?;
+        expect_count(Section::PieceF32, np.saturating_mul(per), piece_f32.len())?;
+        // Pieces tile the segments: start at 0, end at L, each inside one
+        // segment, every segment break a piece break.
+        let mut j = 0usize;
+        for i in 0..np {
+            let bad = mismatch(Section::PieceF32, i);
+            let (sa, sb) = (
+                piece_breaks.get(i).ok_or(bad)?,
+                piece_breaks.get(i + 1).ok_or(bad)?,
+            );
+            while j + 1 < m && sa >= su_breaks.get(j + 1).ok_or(bad)? {
+                j += 1;
+            }
+            let (s0, s1) = (su_breaks.get(j).ok_or(bad)?, su_breaks.get(j + 1).ok_or(bad)?);
+            let first_ok = i != 0 || sa == 0.0;
+            let last_ok = i + 1 != np || sb == s1 && j + 1 == m;
+            if !(sb > sa && sa >= s0 && sb <= s1 && first_ok && last_ok) {
+                return Err(mismatch(Section::PieceBreaks, i));
+            }
+            let seg = segs.get(j).ok_or(bad)?;
+            let fb = i.checked_mul(PIECE_F64_LEN).ok_or(bad)?;
+            let f64s4 = [
+                piece_f64.get(fb).ok_or(bad)?,
+                piece_f64.get(fb + 1).ok_or(bad)?,
+                piece_f64.get(fb + 2).ok_or(bad)?,
+                piece_f64.get(fb + 3).ok_or(bad)?,
+            ];
+            let base = i.checked_mul(per).ok_or(bad)?;
+            let head = piece_f32
+                .get_array::<PIECE_HEAD_LEN>(base)
+                .map(PieceU::from_array)
+                .ok_or(bad)?;
+            let nb = piece_f32
+                .as_bytes()
+                .get(4 * (base + PIECE_HEAD_LEN)..4 * (base + per))
+                .ok_or(bad)?;
+            if !fast::check_piece(&curve, &seg, (s0, s1), (sa, sb), f64s4, &head, nb) {
+                return Err(bad);
+            }
+        }
+        if j + 1 != m {
+            return Err(mismatch(Section::PieceBreaks, np));
+        }
+
         Ok(Table {
             bytes,
             limits,
@@ -1111,6 +1364,10 @@ impl<'a> Table<'a> {
             su_coeffs,
             q_knots,
             q_ctrl,
+            q_local,
+            piece_breaks,
+            piece_f64,
+            piece_f32,
         })
     }
 
@@ -1160,6 +1417,30 @@ impl<'a> Table<'a> {
     /// q control points, (mm/s)².
     pub fn q_ctrl(&self) -> LeF64<'a> {
         self.q_ctrl
+    }
+    /// The f64 s → u coefficients, [`SU_COEFFS`] per segment.
+    pub fn su_coeffs(&self) -> LeF64<'a> {
+        self.su_coeffs
+    }
+    /// The knot span of every s → u segment.
+    pub fn su_segments_spans(&self) -> LeU32<'a> {
+        self.su_spans
+    }
+    /// q span-local f32 forms, [`fast::Q_LOCAL_LEN`] values per q span 3 ..= N − 1.
+    pub fn q_local(&self) -> LeF32<'a> {
+        self.q_local
+    }
+    /// Piece starts in s (mm), then L: P + 1 values ([`crate::fast`]).
+    pub fn piece_breaks(&self) -> LeF64<'a> {
+        self.piece_breaks
+    }
+    /// Per piece `[u_a, o_x, o_y, o_z]`, f64.
+    pub fn piece_f64(&self) -> LeF64<'a> {
+        self.piece_f64
+    }
+    /// Per piece `fast::piece_f32_len(p)` f32 values.
+    pub fn piece_f32(&self) -> LeF32<'a> {
+        self.piece_f32
     }
     /// q(s) over the table's knots and control points.
     pub fn q_spline(&self) -> Option<QSpline<LeF64<'a>>> {

@@ -215,7 +215,7 @@ fn header_and_directory_corruption_named() {
         Table::parse(&b).unwrap_err()
     };
     assert_eq!(bad(&|b| b[0] = b'X'), TableError::BadMagic);
-    assert_eq!(bad(&|b| b[4] = 2), TableError::UnsupportedVersion { found: 2 });
+    assert_eq!(bad(&|b| b[4] = 1), TableError::UnsupportedVersion { found: 1 });
     assert_eq!(bad(&|b| b[6] = 12), TableError::BadHeader);
     assert_eq!(bad(&|b| b[14] = 1), TableError::BadHeader);
     assert_eq!(
@@ -678,14 +678,14 @@ fn check_line(o: &Owned, period: f64) {
         let (a, b) = (w[0], w[1]);
         assert!(b.s_mm > a.s_mm, "s not increasing at tick {k}");
         assert!((b.t_s - a.t_s - period).abs() < 1e-12);
-        // on the line, x = s and u = s/L
+        // on the line, x = s and u = s/L (f32 piece-local evaluation: ~1e-9 L)
         assert!(
-            (b.pos_mm[0] - b.s_mm).abs() < 1e-9 * L,
+            (b.pos_mm[0] - b.s_mm).abs() < 1e-8 * L,
             "tick {k}: x {} s {}",
             b.pos_mm[0],
             b.s_mm
         );
-        assert!((b.u - b.s_mm / L).abs() < 1e-12);
+        assert!((b.u - b.s_mm / L).abs() < 1e-7);
         assert_eq!(b.pos_mm[1], 0.0);
         // (the end point reports feed 0 exactly; the power form there is ~1e-13 off)
         let qb = if b.s_mm < L {
@@ -694,7 +694,7 @@ fn check_line(o: &Owned, period: f64) {
             0.0
         };
         assert!(
-            (b.feed_mm_s - qb.sqrt()).abs() < 1e-9 * peak,
+            (b.feed_mm_s - qb.sqrt()).abs() < 1e-5 * peak,
             "tick {k}: {b:?} vs {}",
             qb.sqrt()
         );
@@ -772,11 +772,7 @@ fn taylor_step_tracks_exact_solution_of_linear_q() {
         let sp = ip.tick().unwrap();
         let exact = c * sp.t_s * sp.t_s / 4.0;
         assert!(sp.s_mm < o.q_knots[4]);
-        assert!(
-            (sp.s_mm - exact).abs() < 1e-12 * (1.0 + exact),
-            "{} vs {exact}",
-            sp.s_mm
-        );
+        assert!((sp.s_mm - exact).abs() < 1e-6 * exact, "{} vs {exact}", sp.s_mm);
     }
 }
 
@@ -874,7 +870,7 @@ fn su_map_may_skip_standstill_spans_only() {
     let mut ip = Interpolator::new(Table::parse(&bytes).unwrap(), 1e-3).unwrap();
     let sps = run_all(&mut ip);
     for sp in &sps {
-        assert!((sp.pos_mm[0] - sp.s_mm).abs() < 1e-9 * L, "{sp:?}");
+        assert!((sp.pos_mm[0] - sp.s_mm).abs() < 1e-8 * L, "{sp:?}");
     }
     assert_eq!(sps.last().unwrap().pos_mm, [L, 0.0, 0.0]);
     // a skipped span along which the curve moves is a jump in position
@@ -907,5 +903,99 @@ fn su_map_may_skip_standstill_spans_only() {
     assert_eq!(
         first.encode().unwrap_err(),
         EncodeError::Invalid(TableError::SuEnds { segment: 0 })
+    );
+}
+
+// ------------------------------------------------------------------- fast path
+
+/// Byte offset of the section of `kind` (from the directory).
+fn section_offset(bytes: &[u8], kind: u16) -> usize {
+    let count = u16::from_le_bytes([bytes[12], bytes[13]]) as usize;
+    (0..count)
+        .map(entry)
+        .find(|&e| u16::from_le_bytes([bytes[e], bytes[e + 1]]) == kind)
+        .map(|e| u32::from_le_bytes(bytes[e + 8..e + 12].try_into().unwrap()) as usize)
+        .unwrap()
+}
+
+#[test]
+fn local_forms_are_checked_against_the_f64_data() {
+    use crate::table::Section;
+    let bytes = good().encode().unwrap();
+    let t = Table::parse(&bytes).unwrap();
+    // the good line: q spans and pieces as documented
+    assert_eq!(t.q_local().len(), 5 * (good().q_ctrl.len() - 3));
+    let pieces = t.piece_breaks().len() - 1;
+    assert!(pieces >= t.su_segments().len());
+    assert_eq!(t.piece_f64().len(), 4 * pieces);
+    assert_eq!(t.piece_f32().len(), crate::fast::piece_f32_len(2) * pieces);
+    assert_eq!(t.piece_breaks().get(0), Some(0.0));
+    assert_eq!(t.piece_breaks().last(), Some(L));
+    let corrupt = |kind: u16, at: usize, f: &dyn Fn(&mut [u8])| {
+        let mut b = bytes.clone();
+        let off = section_offset(&b, kind) + at;
+        f(&mut b[off..]);
+        fix_crc(&mut b);
+        Table::parse(&b).unwrap_err()
+    };
+    let scale_f32 = |k: f32| {
+        move |b: &mut [u8]| {
+            let x = f32::from_le_bytes(b[..4].try_into().unwrap());
+            b[..4].copy_from_slice(&(x * k + 1e-3).to_le_bytes());
+        }
+    };
+    // q: c1 of the first span
+    assert_eq!(
+        corrupt(10, 4, &scale_f32(1.001)),
+        TableError::FastMismatch {
+            section: Section::QLocal,
+            index: 0
+        }
+    );
+    // piece 0: d1 (the s → u slope)
+    assert_eq!(
+        corrupt(13, 0, &scale_f32(1.0001)),
+        TableError::FastMismatch {
+            section: Section::PieceF32,
+            index: 0
+        }
+    );
+    // piece 0: a_1.x (the NURBS form)
+    assert_eq!(
+        corrupt(13, 4 * 11, &scale_f32(1.0001)),
+        TableError::FastMismatch {
+            section: Section::PieceF32,
+            index: 0
+        }
+    );
+    // piece 0: origin x off by 0.1 µm
+    let shift = |b: &mut [u8]| {
+        let x = f64::from_le_bytes(b[..8].try_into().unwrap());
+        b[..8].copy_from_slice(&(x + 1e-4).to_le_bytes());
+    };
+    assert_eq!(
+        corrupt(12, 8, &shift),
+        TableError::FastMismatch {
+            section: Section::PieceF32,
+            index: 0
+        }
+    );
+    // a piece break moved: no longer the segments' tiling
+    let last_break = 8 * pieces;
+    assert_eq!(
+        corrupt(11, last_break, &shift),
+        TableError::FastMismatch {
+            section: Section::PieceBreaks,
+            index: pieces - 1
+        }
+    );
+    // non-finite f32
+    assert_eq!(
+        corrupt(10, 0, &|b: &mut [u8]| b[..4]
+            .copy_from_slice(&f32::NAN.to_le_bytes())),
+        TableError::NotFinite {
+            section: Section::QLocal,
+            index: 0
+        }
     );
 }

@@ -69,7 +69,10 @@ fn butterfly_executes_as_planned() {
             (0..3).map(|k| (r[k] - p.pos_mm[k]).powi(2)).sum::<f64>().sqrt()
         })
         .fold(0.0, f64::max);
-    assert!(worst_contour < 1e-9, "setpoint off r(u): {worst_contour}");
+    // The firmware evaluates r in f32 relative to an f64 origin per piece of at
+    // most 4 mm (issue 3): 2e-7 mm on the Butterfly (3e-14 in f64).
+    eprintln!("contour error of the setpoints: {worst_contour:.3e} mm");
+    assert!(worst_contour < 1e-6, "setpoint off r(u): {worst_contour}");
 }
 
 #[test]

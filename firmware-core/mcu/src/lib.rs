@@ -151,3 +151,28 @@ pub fn stack_high_water() -> usize {
     }
     hi - p
 }
+
+/// An f64 printed with 9 decimals through integer formatting only (core's
+/// float formatting, Grisu/Dragon, is ~12 KB of flash). For display; the
+/// exact values go out as bit patterns. Non-finite values and |x| ≥ 9.2e9
+/// print as their bits.
+pub struct Dec(pub f64);
+
+impl core::fmt::Display for Dec {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        let x = self.0;
+        if !(x.is_finite() && x.abs() < 9.2e9) {
+            return write!(f, "0x{:016x}", x.to_bits());
+        }
+        // nearest integer, half away from zero (no libm)
+        let y = x * 1e9;
+        let n = if y >= 0.0 {
+            (y + 0.5) as i64
+        } else {
+            (y - 0.5) as i64
+        };
+        let sign = if n < 0 { "-" } else { "" };
+        let a = n.unsigned_abs();
+        write!(f, "{}{}.{:09}", sign, a / 1_000_000_000, a % 1_000_000_000)
+    }
+}

@@ -20,7 +20,7 @@ use firmware_core::interp::{Fault, Interpolator, Setpoint};
 use firmware_core::sumap::SegmentArray;
 use firmware_core::table::Table;
 use firmware_mcu::{
-    calibrate, exit, fpu_enabled, group, mark_begin, mark_end, stack_high_water, stack_paint, Aligned,
+    calibrate, exit, fpu_enabled, group, mark_begin, mark_end, stack_high_water, stack_paint, Aligned, Dec,
     Fnv1a64,
 };
 
@@ -78,8 +78,8 @@ fn run() -> bool {
     let (len, t_pred) = (table.path_length_mm(), table.predicted_time_s());
     hprintln!(
         "table: L={} mm, predicted {} s, NURBS degree {}, {} knots, {} q knots, {} s-u segments",
-        len,
-        t_pred,
+        Dec(len),
+        Dec(t_pred),
         table.nurbs_degree(),
         table.nurbs_knots().len(),
         table.q_knots().len(),
@@ -92,6 +92,10 @@ fn run() -> bool {
             return false;
         }
     };
+    hprintln!(
+        "interp state: {} bytes of RAM (Interpolator, the table stays in flash)",
+        core::mem::size_of::<Interpolator<'_>>()
+    );
     // Guard against a run that never ends: twice the predicted tick count.
     let max_ticks = (2.0 * t_pred / PERIOD_S) as u64 + 1000;
     let mut digest = Fnv1a64::new();
@@ -109,7 +113,13 @@ fn run() -> bool {
             }
             Err(f) => {
                 group("tick", ticks as u32);
-                hprintln!("interp: FAULT at tick {}: {:?}", ticks, f);
+                let (what, s_mm) = match f {
+                    Fault::Stalled { s_mm, .. } => ("Stalled", s_mm),
+                    Fault::NonFinite { s_mm } => ("NonFinite", s_mm),
+                    Fault::Eval { s_mm } => ("Eval", s_mm),
+                    _ => ("other", f64::NAN),
+                };
+                hprintln!("interp: FAULT at tick {}: {} at s_mm={}", ticks, what, Dec(s_mm));
                 return false;
             }
         }
@@ -122,20 +132,20 @@ fn run() -> bool {
     group("tick", ticks as u32);
     let Some(sp) = last else { return false };
     hprintln!(
-        "ticks: {} (period {} s; predicted {:.1})",
+        "ticks: {} (period {} s; predicted {})",
         ticks,
-        PERIOD_S,
-        t_pred / PERIOD_S
+        Dec(PERIOD_S),
+        Dec(t_pred / PERIOD_S)
     );
     hprintln!(
-        "final: t_s={:?} s_mm={:?} u={:?} feed_mm_s={:?} pos_mm=[{:?}, {:?}, {:?}]",
-        sp.t_s,
-        sp.s_mm,
-        sp.u,
-        sp.feed_mm_s,
-        sp.pos_mm[0],
-        sp.pos_mm[1],
-        sp.pos_mm[2]
+        "final: t_s={} s_mm={} u={} feed_mm_s={} pos_mm=[{}, {}, {}]",
+        Dec(sp.t_s),
+        Dec(sp.s_mm),
+        Dec(sp.u),
+        Dec(sp.feed_mm_s),
+        Dec(sp.pos_mm[0]),
+        Dec(sp.pos_mm[1]),
+        Dec(sp.pos_mm[2])
     );
     hprintln!(
         "final-bits: t_s={:016x} s_mm={:016x} u={:016x} feed_mm_s={:016x} pos_mm=[{:016x}, {:016x}, {:016x}]",
