@@ -13,12 +13,14 @@
 //! - [`sim`]: [`sim::run_table`], table bytes → [`sim::SimResult`].
 //! - [`csv`]: one row per tick, full precision, written atomically.
 //! - [`plot`]: feedrate against arc length as PNG (font embedded).
+//! - [`report`]: the sampling study PAR/LEN/ADA as a Markdown report with figures.
 //!
 //! Units: mm, s, mm/s, mm/s², mm/s³; forces N, masses kg.
 
 pub mod csv;
 pub mod metrics;
 pub mod plot;
+pub mod report;
 pub mod servo;
 pub mod sim;
 

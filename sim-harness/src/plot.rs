@@ -41,7 +41,7 @@ pub enum PlotError {
 }
 
 /// Register the embedded font as plotters' `sans-serif` (once).
-fn register_font() -> Result<(), PlotError> {
+pub(crate) fn register_font() -> Result<(), PlotError> {
     static DONE: OnceLock<bool> = OnceLock::new();
     let ok =
         *DONE.get_or_init(|| plotters::style::register_font("sans-serif", FontStyle::Normal, FONT).is_ok());

@@ -4,6 +4,7 @@
 //! ```text
 //! feedsim run TABLE.bin [--period-us 250] [--csv OUT.csv] [--plot OUT.png] [--json] [--servo FILE]
 //! feedsim demo [--out DIR]
+//! feedsim report [CURVES...] [--densities 0.25,0.5,1,2] [--out DIR] [--formulations paper,default] [--qhat-bound B] [--objective O]
 //! ```
 
 use std::path::{Path, PathBuf};
@@ -57,6 +58,41 @@ enum Cmd {
         /// Output directory (created if missing).
         #[arg(long, default_value = "out")]
         out: PathBuf,
+    },
+    /// The sampling study: plan every curve at every density with PAR, LEN and ADA, simulate each,
+    /// and write DIR/README.md (Markdown tables) and PNG figures.
+    Report {
+        /// Curve JSON files (default: every *.json in ../shared/curves).
+        curves: Vec<PathBuf>,
+        /// Sampling densities, points per mm, comma-separated.
+        #[arg(long, value_delimiter = ',', default_value = "0.25,0.5,1,2")]
+        densities: Vec<f64>,
+        /// Output directory.
+        #[arg(long, default_value = "docs/sampling")]
+        out: PathBuf,
+        /// Formulations, comma-separated: paper (q-hat bound none, uniform weights), default
+        /// (control, integral) or BOUND/OBJECTIVE; the first is the solid line of the figures.
+        #[arg(long, value_delimiter = ',', default_value = "paper,default")]
+        formulations: Vec<sim_harness::report::Formulation>,
+        /// Replace the formulations by these q-hat bounds (control, eval, none; comma-separated),
+        /// combined with --objective (default integral).
+        #[arg(long, value_delimiter = ',')]
+        qhat_bound: Vec<planner_host::lp::QhatBound>,
+        /// Objective weights for --qhat-bound: integral or uniform.
+        #[arg(long)]
+        objective: Option<planner_host::lp::Objective>,
+        /// Limits file (JSON); default the paper's Table 1.
+        #[arg(long)]
+        limits: Option<PathBuf>,
+        /// Servo period, microseconds.
+        #[arg(long, default_value_t = 250.0)]
+        period_us: f64,
+        /// Skip the q-hat bound x objective analysis.
+        #[arg(long)]
+        no_decomposition: bool,
+        /// No progress bar.
+        #[arg(long)]
+        quiet: bool,
     },
 }
 
@@ -127,7 +163,97 @@ fn run(cli: Cli) -> Result<(), BoxError> {
             Ok(())
         }
         Cmd::Demo { out } => demo(&out),
+        Cmd::Report {
+            curves,
+            densities,
+            out,
+            formulations,
+            qhat_bound,
+            objective,
+            limits: limits_file,
+            period_us,
+            no_decomposition,
+            quiet,
+        } => {
+            use sim_harness::report::{self, Formulation, ReportConfig};
+            if !(period_us.is_finite() && period_us > 0.0) {
+                return Err(format!("--period-us must be a positive number, got {period_us}").into());
+            }
+            let curves = if curves.is_empty() {
+                default_curves()?
+            } else {
+                curves
+            };
+            let formulations = if qhat_bound.is_empty() {
+                if objective.is_some() {
+                    return Err(
+                        "--objective goes with --qhat-bound (or use --formulations BOUND/OBJECTIVE)".into(),
+                    );
+                }
+                formulations
+            } else {
+                qhat_bound
+                    .into_iter()
+                    .map(|b| Formulation {
+                        qhat_bound: b,
+                        objective: objective.unwrap_or_default(),
+                    })
+                    .collect()
+            };
+            let lim = match &limits_file {
+                Some(p) => limits::load(p)?,
+                None => limits::TABLE1,
+            };
+            let cfg = ReportConfig {
+                curves,
+                densities,
+                out: out.clone(),
+                formulations,
+                limits: lim,
+                sim: SimConfig {
+                    period_s: period_us * 1e-6,
+                    ..SimConfig::default()
+                },
+                decomposition: !no_decomposition,
+                progress: !quiet,
+                command: std::iter::once("cargo run --release -p sim-harness --bin feedsim --".to_string())
+                    .chain(std::env::args().skip(1))
+                    .collect::<Vec<_>>()
+                    .join(" "),
+                ..ReportConfig::default()
+            };
+            let rep = report::run_report(&cfg)?;
+            let failed = rep.rows.iter().filter(|r| r.outcome.is_err()).count();
+            println!(
+                "wrote {} ({} files) in {:.1} s: {} curves, {} cases, {} without a plan",
+                out.join("README.md").display(),
+                rep.files.len(),
+                rep.wall_s,
+                rep.curves.len(),
+                rep.rows.len(),
+                failed
+            );
+            for (p, e) in &rep.curve_errors {
+                eprintln!("feedsim: {p}: {e}");
+            }
+            Ok(())
+        }
     }
+}
+
+/// Every `*.json` in `../shared/curves` (relative to the working directory), sorted.
+fn default_curves() -> Result<Vec<PathBuf>, BoxError> {
+    let dir = Path::new("../shared/curves");
+    let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
+        .map_err(|e| format!("cannot list {}: {e} (name the curves instead)", dir.display()))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|x| x == "json"))
+        .collect();
+    v.sort();
+    if v.is_empty() {
+        return Err(format!("no *.json curves in {}", dir.display()).into());
+    }
+    Ok(v)
 }
 
 fn write_plot(path: &Path, res: &SimResult, name: &str) -> Result<(), BoxError> {
