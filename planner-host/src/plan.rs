@@ -71,11 +71,12 @@ pub enum PlanError {
         /// Path length.
         length_mm: f64,
     },
-    /// The plan forces q = 0 inside the path: the machine would stall there.
-    #[error("the plan stops the feed in mid-path at s = {s_mm:.4} mm of {length_mm:.3} mm (q = 0): the jerk rows are too tight for this sampling; use a finer sampling")]
+    /// The plan would stall the machine (q ≈ 0 where it must not be); no
+    /// table is written.
+    #[error("the plan would stall the machine on this {length_mm:.3} mm path: it {at}; the constraint rows are too tight for this sampling, try another density or sampling")]
     Stall {
-        /// Where q vanishes.
-        s_mm: f64,
+        /// Where and why.
+        at: StallAt,
         /// Path length.
         length_mm: f64,
     },
@@ -234,9 +235,9 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
     let pseudo = feed_lp.solve_pseudo_jerk()?;
     let plan = feed_lp.solve_plan(&pseudo.ctrl)?;
 
-    if let Some(s_mm) = interior_stall(&knots, &plan.ctrl, cfg.limits.vbar) {
+    if let Some(at) = find_stall(&knots, &plan.ctrl, &cfg.limits) {
         return Err(PlanError::Stall {
-            s_mm,
+            at,
             length_mm: length,
         });
     }
@@ -279,23 +280,127 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
     })
 }
 
-/// First interior point (away from the two ends) where q vanishes, checked
-/// densely (16 points per knot span); `None` if the feed never stops inside.
-pub fn interior_stall(knots: &[f64], ctrl: &[f64], vbar: f64) -> Option<f64> {
-    let (first, last) = (*knots.first()?, *knots.last()?);
-    let floor = 1e-12 * vbar * vbar;
-    for w in knots.windows(2).filter(|w| w[1] > w[0]) {
-        for k in 0..16 {
-            let s = w[0] + (w[1] - w[0]) * k as f64 / 16.0;
-            if s <= first || s >= last {
-                continue;
+/// Smallest mid-path feed a plan may command, relative to v̄: below it the
+/// machine crawls (and the firmware's single-precision q, accurate to
+/// ~1e-7·max q, can no longer tell it from a stop). q ≥ (1e-3·v̄)².
+pub const STALL_FEED_REL: f64 = 1e-3;
+
+/// Smallest start and stop acceleration |q′|/2 at s = 0 and s = L, relative
+/// to ā: q′(0) ≈ 0 makes q ∝ s² at the start, a feed ∝ s that never gets
+/// going (∫ds/√q diverges).
+pub const STALL_ACC_REL: f64 = 1e-3;
+
+/// Where and why a plan would stall the machine (see [`find_stall`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum StallAt {
+    /// q′(0)/2 < [`STALL_ACC_REL`]·ā: the motion cannot start.
+    Start {
+        /// The start acceleration q′(0)/2, mm/s².
+        acc_mm_s2: f64,
+    },
+    /// −q′(L)/2 < [`STALL_ACC_REL`]·ā: the feed dies out before L.
+    End {
+        /// The stop deceleration −q′(L)/2, mm/s².
+        acc_mm_s2: f64,
+    },
+    /// √q < [`STALL_FEED_REL`]·v̄ in mid-path.
+    Interior {
+        /// Where the feed is lowest, mm.
+        s_mm: f64,
+        /// The feed there, mm/s.
+        feed_mm_s: f64,
+    },
+}
+
+impl core::fmt::Display for StallAt {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match *self {
+            StallAt::Start { acc_mm_s2 } => {
+                write!(
+                    f,
+                    "cannot start: the start acceleration q'(0)/2 is {acc_mm_s2:.3e} mm/s^2"
+                )
             }
-            if BasisRow::at(knots, s).map(|b| b.apply(0, ctrl)).unwrap_or(0.0) <= floor {
-                return Some(s);
+            StallAt::End { acc_mm_s2 } => {
+                write!(
+                    f,
+                    "dies out before the end: the stop deceleration -q'(L)/2 is {acc_mm_s2:.3e} mm/s^2"
+                )
+            }
+            StallAt::Interior { s_mm, feed_mm_s } => {
+                write!(
+                    f,
+                    "stops the feed in mid-path at s = {s_mm:.4} mm (feed {feed_mm_s:.3e} mm/s)"
+                )
             }
         }
     }
-    None
+}
+
+/// Checks a plan q (knots, control points) for a stall: a start or stop
+/// slope too flat to move ([`StallAt::Start`], [`StallAt::End`]), or a mid-path
+/// minimum of q below (STALL_FEED_REL·v̄)² ([`StallAt::Interior`]). The
+/// interior minimum is exact: per knot span q is a cubic, so its minimum is
+/// at an end of the span or at a root of q′. Near s = 0 and s = L, where q
+/// must vanish, the check starts once a ramp with the end slope would have
+/// reached twice the floor.
+pub fn find_stall(knots: &[f64], ctrl: &[f64], limits: &Limits) -> Option<StallAt> {
+    let (first, last) = (*knots.first()?, *knots.last()?);
+    let at = |s: f64, k: usize| BasisRow::at(knots, s).map(|b| b.apply(k, ctrl));
+    let acc_floor = STALL_ACC_REL * limits.abar;
+    let start_acc = 0.5 * at(first, 1).unwrap_or(0.0);
+    if start_acc.is_nan() || start_acc < acc_floor {
+        return Some(StallAt::Start { acc_mm_s2: start_acc });
+    }
+    let stop_acc = -0.5 * at(last, 1).unwrap_or(0.0);
+    if stop_acc.is_nan() || stop_acc < acc_floor {
+        return Some(StallAt::End { acc_mm_s2: stop_acc });
+    }
+    let q_floor = (STALL_FEED_REL * limits.vbar).powi(2);
+    // q ≈ 2·acc·s near the ends: skip where that ramp is below 2·floor.
+    let (lo, hi) = (first + q_floor / start_acc, last - q_floor / stop_acc);
+    let mut worst: Option<(f64, f64)> = None;
+    for w in knots.windows(2).filter(|w| w[1] > w[0] && w[1] > lo && w[0] < hi) {
+        let (a, b) = (w[0].max(lo), w[1].min(hi));
+        // q′(a + t) = d1 + d2·t + d3·t²/2 on this span
+        // q‴ is constant on the span: the slope of the (linear) q″.
+        let (h, mid) = (w[1] - w[0], 0.5 * (w[0] + w[1]));
+        let row = BasisRow::at(knots, mid)?;
+        let (d1, d2) = (row.apply(1, ctrl), row.apply(2, ctrl));
+        let d3 = (at(mid + 0.25 * h, 2)? - at(mid - 0.25 * h, 2)?) / (0.5 * h);
+        let (d1, d2) = (
+            d1 - d2 * (mid - a) + 0.5 * d3 * (mid - a).powi(2),
+            d2 - d3 * (mid - a),
+        );
+        let mut cands = vec![a, b];
+        let roots: Vec<f64> = if d3.abs() > 1e-300 {
+            let disc = d2 * d2 - 2.0 * d3 * d1;
+            if disc >= 0.0 {
+                let r = disc.sqrt();
+                vec![(-d2 + r) / d3, (-d2 - r) / d3]
+            } else {
+                vec![]
+            }
+        } else if d2.abs() > 1e-300 {
+            vec![-d1 / d2]
+        } else {
+            vec![]
+        };
+        cands.extend(roots.into_iter().map(|t| a + t).filter(|&s| s > a && s < b));
+        for s in cands {
+            let q = at(s, 0).unwrap_or(f64::NEG_INFINITY);
+            if worst.is_none_or(|(_, qw)| q < qw) {
+                worst = Some((s, q));
+            }
+        }
+    }
+    match worst {
+        Some((s_mm, q)) if q.is_nan() || q < q_floor => Some(StallAt::Interior {
+            s_mm,
+            feed_mm_s: q.max(0.0).sqrt(),
+        }),
+        _ => None,
+    }
 }
 
 /// Predicted machining time T = ∫₀ᴸ ds/√q(s), s.
@@ -384,6 +489,79 @@ pub fn write_file_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// q on 10 mm with knots every mm: 0 at the ends, `mid` elsewhere, with
+    /// the given second and second-to-last control points.
+    fn q_plan(c1: f64, mid: f64) -> (Vec<f64>, Vec<f64>) {
+        let samples: Vec<f64> = (0..=10).map(f64::from).collect();
+        let knots = lp::knot_vector(&samples);
+        let n = knots.len() - 4;
+        let mut ctrl = vec![mid; n];
+        (ctrl[0], ctrl[n - 1], ctrl[1], ctrl[n - 2]) = (0.0, 0.0, c1, c1);
+        (knots, ctrl)
+    }
+
+    #[test]
+    fn find_stall_accepts_a_plan_that_moves() {
+        let (knots, ctrl) = q_plan(5000.0, 10000.0);
+        assert_eq!(find_stall(&knots, &ctrl, &TABLE1), None);
+    }
+
+    #[test]
+    fn find_stall_flags_a_flat_start_and_stop() {
+        // q′(0) = 3·c1/h: a start acceleration of 1.5e-6 mm/s² ≪ 1e-3·ā.
+        let (knots, mut ctrl) = q_plan(1e-6, 10000.0);
+        match find_stall(&knots, &ctrl, &TABLE1) {
+            Some(StallAt::Start { acc_mm_s2 }) => assert!((acc_mm_s2 - 1.5e-6).abs() < 1e-12, "{acc_mm_s2}"),
+            other => panic!("{other:?}"),
+        }
+        ctrl[1] = 5000.0;
+        assert!(matches!(
+            find_stall(&knots, &ctrl, &TABLE1),
+            Some(StallAt::End { .. })
+        ));
+    }
+
+    #[test]
+    fn find_stall_finds_the_exact_interior_minimum() {
+        // Asymmetric dips: the minimum lies inside a knot span, not at a knot.
+        // find_stall's verdict and place agree with a fine scan, on both sides
+        // of the floor q = (1e-3·v̄)² ≈ 0.0278 (mm/s)².
+        let floor = (STALL_FEED_REL * TABLE1.vbar).powi(2);
+        let mut verdicts = [0; 2];
+        for dip in [-50.0, -1.2, -0.99, -0.97, -0.95, -0.9, -0.5, 0.0] {
+            let (knots, mut ctrl) = q_plan(5000.0, 10000.0);
+            ctrl[5..8].copy_from_slice(&[3.0, dip, 1.0]);
+            let (s_scan, q_scan) = scan_min(&knots, &ctrl);
+            let stalls = q_scan < floor;
+            verdicts[usize::from(stalls)] += 1;
+            match find_stall(&knots, &ctrl, &TABLE1) {
+                Some(StallAt::Interior { s_mm, feed_mm_s }) if stalls => {
+                    assert!((s_mm - s_scan).abs() < 1e-3, "{s_mm} vs {s_scan}");
+                    // exact: at or below the scan's minimum (the scan steps 1e-4 mm)
+                    let q = feed_mm_s.powi(2);
+                    assert!(
+                        q <= q_scan.max(0.0) + 1e-12 && q >= q_scan - 1e-5,
+                        "{q} vs {q_scan}"
+                    );
+                    assert!(knots.iter().all(|k| (k - s_mm).abs() > 1e-3), "minimum at a knot");
+                }
+                None if !stalls => {}
+                other => panic!("dip {dip}: {other:?}, scan min {q_scan} at {s_scan}"),
+            }
+        }
+        assert!(
+            verdicts[0] >= 2 && verdicts[1] >= 2,
+            "both sides of the floor: {verdicts:?}"
+        );
+    }
+
+    fn scan_min(knots: &[f64], ctrl: &[f64]) -> (f64, f64) {
+        (1..100_000)
+            .map(|k| 10.0 * f64::from(k) / 1e5)
+            .map(|s| (s, BasisRow::at(knots, s).unwrap().apply(0, ctrl)))
+            .fold((0.0, f64::INFINITY), |m, (s, q)| if q < m.1 { (s, q) } else { m })
+    }
 
     #[test]
     fn machining_time_of_constant_acceleration_is_exact() {

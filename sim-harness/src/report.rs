@@ -507,16 +507,23 @@ fn pct(t: f64, ada: f64) -> String {
 }
 
 fn short_err(e: &str) -> String {
-    if e.contains("stops the feed in mid-path") {
-        let at = e
-            .split("at s = ")
-            .nth(1)
-            .and_then(|r| r.split(" mm").next())
-            .unwrap_or("?");
-        format!("**stall** (q = 0 at s = {at} mm; no table)")
+    if let Some(why) = stall_reason(e) {
+        format!("**stall**: {why} (no table)")
     } else {
         format!("**error**: {}", e.replace('|', "/"))
     }
+}
+
+/// The reason of a [`PlanError::Stall`] message ("cannot start: …", "stops
+/// the feed in mid-path at …"), `None` for other errors.
+fn stall_reason(e: &str) -> Option<String> {
+    let rest = e.split("would stall the machine").nth(1)?;
+    let why = rest
+        .split(": it ")
+        .nth(1)?
+        .split("; the constraint rows")
+        .next()?;
+    Some(why.replace('|', "/"))
 }
 
 fn short_sim_err(e: &str) -> String {
@@ -698,7 +705,7 @@ fn markdown(rep: &Report, cfg: &ReportConfig) -> String {
             cfg.formulations[r.formulation].name()
         );
         match &r.outcome {
-            Err(e) if e.contains("stops the feed in mid-path") => planner_stalls.push(what),
+            Err(e) if stall_reason(e).is_some() => planner_stalls.push(what),
             Ok(c) if c.sim.as_ref().is_err_and(|e| e.contains("stalled (q = 0)")) => sim_stalls.push(what),
             _ => {}
         }
@@ -710,7 +717,9 @@ fn markdown(rep: &Report, cfg: &ReportConfig) -> String {
     );
     let _ = writeln!(
         o,
-        "Coarse sampling can force q = 0 in mid-path. The planner detects it (`PlanError::Stall`) and writes no table: {} case(s){}{}.\n",
+        "Coarse sampling can force q ≈ 0 where the machine must move: in mid-path (a feed below 1e-3·v̄), or at the start or \
+         the stop (a slope |q′|/2 below 1e-3·ā, so the motion never gets going). The planner detects it \
+         (`plan::find_stall`, `PlanError::Stall`) and writes no table: {} case(s){}{}.\n",
         planner_stalls.len(),
         if planner_stalls.is_empty() { "" } else { ": " },
         planner_stalls.join(", ")
@@ -720,7 +729,7 @@ fn markdown(rep: &Report, cfg: &ReportConfig) -> String {
             o,
             "**Not caught by the planner** — these tables passed its stall check but the firmware interpolator stalls on them \
              (q = 0 with q′ = 0 at the start, or a q so small inside that the motion does not advance): {}. \
-             The planner's check (`plan::interior_stall`) skips the ends and only flags q ≤ 1e-12·v̄²; it must be widened.\n",
+             This is a bug in `plan::find_stall`.\n",
             sim_stalls.join(", ")
         );
     }
