@@ -65,6 +65,7 @@ pub mod basis;
 pub mod digest;
 pub mod fast;
 pub mod interp;
+mod log;
 pub mod nurbs;
 pub mod output;
 pub mod qspline;
