@@ -280,6 +280,15 @@ impl<S: SetpointSink, P: OutputPin> SetpointSink for StrobeSink<S, P> {
     }
 }
 
+// With defmt: the errors are `defmt::Format` for embedded-hal's own error kinds.
+#[cfg(feature = "defmt")]
+const _: fn() = || {
+    fn format<T: defmt::Format>() {}
+    format::<Frame>();
+    format::<SpiSinkError<embedded_hal::spi::ErrorKind>>();
+    format::<StrobeError<SpiSinkError<embedded_hal::spi::ErrorKind>, embedded_hal::digital::ErrorKind>>();
+};
+
 #[cfg(test)]
 pub(crate) mod tests {
     use std::vec;
