@@ -45,6 +45,7 @@ use crate::fast::{
     feed_near, feed_of, offset_from_bytes, piece_f32_len, pos, PieceU, QLocal, PIECE_F64_LEN, PIECE_HEAD_LEN,
     Q_LOCAL_LEN,
 };
+use crate::log;
 use crate::output::SetpointSink;
 use crate::table::{Table, MATCH_TOL_REL};
 
@@ -260,6 +261,26 @@ pub struct Interpolator<'a> {
 impl<'a> Interpolator<'a> {
     /// An interpolator at the start of `table`, ticking every `period_s` seconds.
     pub fn new(table: Table<'a>, period_s: f64) -> Result<Self, InterpError> {
+        let ip = Self::build(table, period_s);
+        match &ip {
+            Ok(ip) => log::info!(
+                "interpolator: L={=f64} mm, predicted {=f64} s, T={=f64} s; {=usize} q spans, \
+                 {=usize} pieces, degree {=u32}, {=usize} control points, table {=usize} bytes",
+                ip.length_mm,
+                ip.table.predicted_time_s(),
+                ip.period_s,
+                ip.views.q_last.saturating_add(1),
+                ip.views.p_last.saturating_add(1),
+                ip.table.nurbs_degree(),
+                ip.table.nurbs_points().len(),
+                ip.table.as_bytes().len(),
+            ),
+            Err(e) => log::warn!("interpolator refused: {} (T={=f64} s)", e, period_s),
+        }
+        ip
+    }
+
+    fn build(table: Table<'a>, period_s: f64) -> Result<Self, InterpError> {
         if !(period_s.is_finite() && period_s > 0.0) {
             return Err(InterpError::BadPeriod);
         }
@@ -380,14 +401,25 @@ impl<'a> Interpolator<'a> {
         kf * self.period_s
     }
 
+    // With defmt: out of line, so the log call is not copied into every
+    // caller on the tick path.
+    #[cfg_attr(feature = "defmt", inline(never))]
     fn finish(&mut self, t_s: f64) -> Setpoint {
         self.s = self.length_mm;
         self.phase = Phase::Done;
+        log::info!(
+            "path done: {=u64} ticks, t={=f64} s, L={=f64} mm",
+            self.k,
+            t_s,
+            self.length_mm
+        );
         Setpoint { t_s, ..self.last }
     }
 
+    #[cfg_attr(feature = "defmt", inline(never))]
     fn fault(&mut self, f: Fault) -> Result<Setpoint, Fault> {
         self.phase = Phase::Faulted(f);
+        log::error!("fault: {} on tick {=u64} (sticky until reset)", f, self.k);
         Err(f)
     }
 
@@ -511,7 +543,10 @@ impl<'a> Interpolator<'a> {
         let mut n = 0u64;
         while !self.is_done() {
             let sp = self.tick().map_err(RunError::Fault)?;
-            sink.put(&sp).map_err(RunError::Sink)?;
+            if let Err(e) = sink.put(&sp) {
+                log::warn!("sink refused setpoint {=u64} (t={=f64} s)", n, sp.t_s);
+                return Err(RunError::Sink(e));
+            }
             n = n.saturating_add(1);
         }
         Ok(n)

@@ -28,7 +28,9 @@
 //!   operations.
 //! - [`interp`]: [`interp::Interpolator::tick`] — one order-4 Taylor step of
 //!   s(t) from q (eqs. 1, 4, 5), then u(s), then r(u): a [`interp::Setpoint`].
-//! - [`output`]: [`output::SetpointSink`], the trait setpoints leave through.
+//! - [`output`]: [`output::SetpointSink`], the trait setpoints leave through;
+//!   with the `embedded-hal` feature, `output::hal`: an SPI frame sink and a
+//!   sync-strobe sink on embedded-hal 1.0 traits (examples).
 //!
 //! # Example
 //!
@@ -45,6 +47,21 @@
 //!     }
 //! }
 //! ```
+//!
+//! # Features
+//!
+//! - `defmt`: `defmt::Format` on the public data and error types, and a few
+//!   log points (internal `log` module): table refused (the
+//!   [`table::TableError`]), interpolator created (L, predicted time, period,
+//!   sizes) or refused, fault (the [`interp::Fault`] and the tick), path
+//!   done (ticks), sink refused a setpoint. Nothing is logged per tick on the
+//!   normal path. A binary needs a defmt global logger; without the feature
+//!   the log points compile to nothing.
+//! - `serde`: Serialize/Deserialize for [`table::Limits`] and
+//!   [`table::SuSegment`].
+//! - `embedded-hal`: `output::hal`, example sinks on embedded-hal 1.0 — each
+//!   setpoint as a 20-byte CRC-16 frame (u16 sequence, i32 nm, u32 µm/s) to
+//!   an `SpiDevice`, and a strobe `OutputPin` toggled per setpoint.
 //!
 //! Units throughout: mm, s, mm/s, mm/s², mm/s³; q in (mm/s)². The table and
 //! the reference evaluators are f64; the tick accumulates s in f64 and
@@ -65,6 +82,7 @@ pub mod basis;
 pub mod digest;
 pub mod fast;
 pub mod interp;
+mod log;
 pub mod nurbs;
 pub mod output;
 pub mod qspline;

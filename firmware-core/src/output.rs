@@ -1,7 +1,15 @@
 //! Where setpoints go: [`SetpointSink`], implemented by the caller (a servo
 //! command queue, a DMA buffer, a host-side recorder).
+//!
+//! Implementations here: `&mut S`, [`FnSink`] (a closure),
+//! `heapless::Vec` (a recorder, [`Full`] when full) and, with the
+//! `embedded-hal` feature, the examples of `output::hal`: setpoints as CRC-checked
+//! SPI frames to servo drives, and a sync strobe pin.
 
 use crate::interp::Setpoint;
+
+#[cfg(feature = "embedded-hal")]
+pub mod hal;
 
 /// Receives setpoints from [`crate::interp::Interpolator::run`], one per tick.
 pub trait SetpointSink {

@@ -89,6 +89,7 @@ use core::fmt;
 use crate::array::{F64Array, LeF32, LeF64, LePoint4, LeU32, Point4Array};
 use crate::basis::MAX_DEGREE;
 use crate::fast::{self, PieceU, QLocal, PIECE_F64_LEN, PIECE_HEAD_LEN, Q_LOCAL_LEN};
+use crate::log;
 use crate::nurbs::NurbsView;
 use crate::qspline::QSpline;
 use crate::sumap::{horner, SegmentArray, SuMapView};
@@ -949,6 +950,10 @@ impl<'a> Table<'a> {
     /// order: header, length, CRC, directory, then every section's contents
     /// and their consistency (see the module docs).
     pub fn parse(bytes: &'a [u8]) -> Result<Table<'a>, TableError> {
+        Self::check(bytes).inspect_err(|e| log::warn!("table refused: {} ({=usize} bytes)", e, bytes.len()))
+    }
+
+    fn check(bytes: &'a [u8]) -> Result<Table<'a>, TableError> {
         let total = peek_total_len(bytes)?;
         let short = TableError::TooShort { len: bytes.len() };
         let header_len = usize::from(rd_u16(bytes, 6).ok_or(short)?);
