@@ -67,7 +67,9 @@ pub(crate) fn gl16(a: f64, b: f64, mut f: impl FnMut(f64) -> f64) -> f64 {
 /// Adaptive Gauss–Legendre on [a, b]: pushes accepted pieces `(lo, hi,
 /// integral)` in increasing order. A piece is accepted when the 16-point
 /// rule on it agrees with the sum over its halves within
-/// `tol·(width/(b−a)) + 1e-15·|value|` (the halves are kept), or at depth 40.
+/// `tol·(width/(b−a)) + 1e-15·|value|` (the halves are kept), at depth 40,
+/// or once [`MAX_PIECES`] pieces are out (so rounding noise above `tol`
+/// costs at most that many evaluations, never an exponential recursion).
 pub(crate) fn adaptive_gl(a: f64, b: f64, tol: f64, f: &impl Fn(f64) -> f64, out: &mut Vec<(f64, f64, f64)>) {
     fn rec(
         lo: f64,
@@ -83,6 +85,7 @@ pub(crate) fn adaptive_gl(a: f64, b: f64, tol: f64, f: &impl Fn(f64) -> f64, out
         let err = (l + r - whole).abs();
         if err <= tol_per_width * (hi - lo) + 1e-15 * (l.abs() + r.abs())
             || depth >= 40
+            || out.len() >= MAX_PIECES
             || !(m > lo && hi > m)
         {
             out.push((lo, m, l));
@@ -97,8 +100,21 @@ pub(crate) fn adaptive_gl(a: f64, b: f64, tol: f64, f: &impl Fn(f64) -> f64, out
     }
 }
 
-/// Tolerance of the arc-length quadrature per knot span, mm.
+/// Tolerance of the arc-length quadrature per knot span, mm (raised to the
+/// rounding floor of far-off coordinates, see [`span_tol_mm`]).
 pub const SPAN_TOL_MM: f64 = 1e-12;
+
+/// Most pieces one adaptive quadrature may produce.
+pub const MAX_PIECES: usize = 1 << 16;
+
+/// The arc-length tolerance per knot span for this curve: [`SPAN_TOL_MM`],
+/// or the rounding floor of |C′| when the control points lie far from the
+/// origin (the derivative is a difference of coordinates of size `scale`,
+/// so its integral is noisy at ~eps·scale; asking for less never converges).
+pub fn span_tol_mm(curve: &Nurbs) -> f64 {
+    let scale = curve.points.iter().flatten().fold(0.0_f64, |m, &x| m.max(x.abs()));
+    SPAN_TOL_MM.max(1e3 * f64::EPSILON * scale)
+}
 
 /// One non-empty knot span and its arc-length interval.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -194,9 +210,10 @@ impl ArcLength {
         let mut spans = Vec::new();
         let mut pieces = Vec::new();
         let mut acc = 0.0;
+        let tol = span_tol_mm(curve);
         for (i, a, b) in curve.spans() {
             pieces.clear();
-            adaptive_gl(a, b, SPAN_TOL_MM, &|x| curve.speed_in_span(i, x), &mut pieces);
+            adaptive_gl(a, b, tol, &|x| curve.speed_in_span(i, x), &mut pieces);
             let s0 = acc;
             for &(lo, _, v) in &pieces {
                 u.push(lo);
@@ -420,6 +437,20 @@ pub(crate) fn curvature_of(d: &[[f64; 3]; 4], floor: f64) -> f64 {
 mod tests {
     use super::*;
     use crate::curve::tests::{butterfly, quintic_3d, shared_curves};
+
+    #[test]
+    fn far_from_the_origin_the_length_is_the_same() {
+        // 1e6 mm off the origin the derivative's rounding noise (~eps·1e6)
+        // is above SPAN_TOL_MM: the quadrature used to recurse exponentially
+        // (a hang). The tolerance now follows the coordinates' scale.
+        for &r in &[5.0, 50.0] {
+            let near = Nurbs::circle([0.0, 0.0, 0.0], r);
+            let far = Nurbs::circle([1e6, -1e6, 2e5], r);
+            let (a, b) = (ArcLength::new(&near), ArcLength::new(&far));
+            assert!((a.total() - b.total()).abs() <= 1e-9 * a.total(), "{} vs {}", a.total(), b.total());
+            assert!(span_tol_mm(&far) > SPAN_TOL_MM);
+        }
+    }
 
     #[test]
     fn circle_length_curvature_and_frame() {
