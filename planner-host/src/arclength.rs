@@ -112,7 +112,11 @@ pub const MAX_PIECES: usize = 1 << 16;
 /// origin (the derivative is a difference of coordinates of size `scale`,
 /// so its integral is noisy at ~eps·scale; asking for less never converges).
 pub fn span_tol_mm(curve: &Nurbs) -> f64 {
-    let scale = curve.points.iter().flatten().fold(0.0_f64, |m, &x| m.max(x.abs()));
+    let scale = curve
+        .points
+        .iter()
+        .flatten()
+        .fold(0.0_f64, |m, &x| m.max(x.abs()));
     SPAN_TOL_MM.max(1e3 * f64::EPSILON * scale)
 }
 
@@ -447,7 +451,12 @@ mod tests {
             let near = Nurbs::circle([0.0, 0.0, 0.0], r);
             let far = Nurbs::circle([1e6, -1e6, 2e5], r);
             let (a, b) = (ArcLength::new(&near), ArcLength::new(&far));
-            assert!((a.total() - b.total()).abs() <= 1e-9 * a.total(), "{} vs {}", a.total(), b.total());
+            assert!(
+                (a.total() - b.total()).abs() <= 1e-9 * a.total(),
+                "{} vs {}",
+                a.total(),
+                b.total()
+            );
             assert!(span_tol_mm(&far) > SPAN_TOL_MM);
         }
     }

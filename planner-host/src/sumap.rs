@@ -229,6 +229,14 @@ impl SuMap {
                     0.5
                 };
                 if trials > MAX_TRIALS || a.s + h_try <= a.s || h_try.is_nan() || h_try <= 1e-12 * len {
+                    // Stuck on a point where |C′| → 0 between nodes (a cusp):
+                    // name it as such rather than as a fit failure.
+                    let (ua, ub) = curve.u_range();
+                    let mean_speed = len / (ub - ua).max(f64::MIN_POSITIVE);
+                    let sig = norm(curve.derivs_in_span(sp.span, a.u, 1)[1]);
+                    if sig.is_nan() || sig < 1e-3 * mean_speed {
+                        return Err(CurveError::ZeroSpeed { u: a.u });
+                    }
                     return Err(CurveError::FitFailed {
                         span: sp.span,
                         s_mm: a.s,

@@ -1,0 +1,101 @@
+//! Degenerate and hostile toolpaths (issue 7), kept as fixtures in
+//! `tests/fixtures/hostile/`: each gets a clear, typed error naming the
+//! problem, or a plan. What the plans must also do — hold every limit — is
+//! issue 5's part; the figures are printed here with `--nocapture`.
+
+use std::path::PathBuf;
+
+use planner_host::curve::{CurveError, Nurbs};
+use planner_host::plan::{self, PlanConfig, PlanError};
+
+fn fixture(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("fixtures/hostile")
+        .join(name)
+}
+
+fn plan(name: &str) -> Result<plan::PlanOutput, PlanError> {
+    plan_at(name, PlanConfig::default().density_per_mm)
+}
+
+fn plan_at(name: &str, density_per_mm: f64) -> Result<plan::PlanOutput, PlanError> {
+    let curve = Nurbs::load(&fixture(name))?;
+    plan::plan_curve(
+        &curve,
+        &PlanConfig {
+            density_per_mm,
+            ..PlanConfig::default()
+        },
+    )
+}
+
+#[test]
+fn a_curve_that_stands_still_is_refused_and_named() {
+    // all control points equal; a repeated interior point; a true cusp at u = 0.5
+    for (name, near_u) in [
+        ("zero_length.json", 0.0),
+        ("repeated_pts.json", 0.5),
+        ("cusp.json", 0.5),
+    ] {
+        match plan(name) {
+            Err(PlanError::Curve(CurveError::ZeroSpeed { u })) => {
+                assert!((u - near_u).abs() < 1e-3, "{name}: u = {u}")
+            }
+            other => panic!(
+                "{name}: expected ZeroSpeed, got {:?}",
+                other.map(|p| p.predicted_time_s)
+            ),
+        }
+    }
+}
+
+#[test]
+fn unsupported_degrees_are_refused_and_named() {
+    for (name, degree) in [("degree1_line.json", 1), ("degree7.json", 7)] {
+        match Nurbs::load(&fixture(name)) {
+            Err(e @ CurveError::InFile { .. }) if matches!(&e, CurveError::InFile { source, .. } if matches!(**source, CurveError::Degree { .. })) =>
+            {
+                let msg = e.to_string();
+                assert!(msg.contains(&format!("degree = {degree}")), "{name}: {msg}");
+            }
+            other => panic!("{name}: expected a degree error, got {other:?}"),
+        }
+    }
+}
+
+#[test]
+fn far_from_the_origin_plans_like_near_it() {
+    // The same curve 1e6 mm off the origin: this used to hang the arc-length
+    // quadrature (rounding noise above its absolute tolerance).
+    let near = plan("near_origin.json").expect("near");
+    let far = plan("far_offset.json").expect("far");
+    let rel = (far.predicted_time_s - near.predicted_time_s).abs() / near.predicted_time_s;
+    println!(
+        "near {} s, far {} s, relative difference {rel:e}",
+        near.predicted_time_s, far.predicted_time_s
+    );
+    assert!(rel < 1e-6, "{rel}");
+    assert!((far.path_length_mm - near.path_length_mm).abs() < 1e-9 * near.path_length_mm);
+}
+
+#[test]
+fn tiny_huge_and_cornered_curves_plan() {
+    // huge.json is 318 m long: 0.005 points/mm keeps its LP at ~1,600 points.
+    for (name, density) in [
+        ("tiny.json", 1.0),
+        ("huge.json", 0.005),
+        ("corner_c0_deg3.json", 1.0),
+        ("corner_c1_deg3.json", 1.0),
+        ("weights_extreme.json", 1.0),
+    ] {
+        let p = plan_at(name, density).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert!(
+            p.predicted_time_s.is_finite() && p.predicted_time_s > 0.0,
+            "{name}"
+        );
+        println!(
+            "{name}: L = {:.6} mm, T = {:.4} s",
+            p.path_length_mm, p.predicted_time_s
+        );
+    }
+}
