@@ -13,6 +13,8 @@
 //! - [`plan`]: the pipeline, from a curve to a firmware table
 //!   ([`firmware_core::table`]), with the predicted machining time.
 //! - [`verify`]: dense re-evaluation of a plan against every limit.
+//! - [`transition`]: ArcLen (Appendix C), the length of a jerk-limited
+//!   feed transition, for the override (§4).
 //! - [`limits`]: Table 1 and the limits file; [`builtin`]: built-in curves.
 
 pub mod arclength;
@@ -23,4 +25,5 @@ pub mod lp;
 pub mod plan;
 pub mod sampling;
 pub mod sumap;
+pub mod transition;
 pub mod verify;
