@@ -17,6 +17,7 @@
 
 pub mod arclength;
 pub mod builtin;
+pub mod certified;
 pub mod curve;
 pub mod limits;
 pub mod lp;
