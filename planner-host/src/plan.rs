@@ -270,9 +270,40 @@ pub fn refine_turning(samples: &[f64], max_turn: f64, turn: impl Fn(f64, f64) ->
     out
 }
 
+/// The toolpath's own knots (as arc lengths) merged into the sampling Γ:
+/// r‴ of a cubic NURBS jumps at its knots, so the jerk (10) has a jump there
+/// and both one-sided values must be checked; with a knot of q at each
+/// break, every span of q sees smooth geometry. A break within 5 % of a
+/// span's length of a sample moves that sample onto it instead.
+pub fn with_breaks(samples: &[f64], arc: &ArcLength) -> Vec<f64> {
+    let mut v = samples.to_vec();
+    let n = v.len();
+    if n < 2 {
+        return v;
+    }
+    for sp in arc.spans().iter().skip(1) {
+        let b = sp.s0;
+        let i = v.partition_point(|&x| x < b);
+        if i == 0 || i >= v.len() {
+            continue;
+        }
+        let (lo, hi) = (v[i - 1], v[i]);
+        let tol = 0.05 * (hi - lo);
+        if hi - b <= tol && i < v.len() - 1 {
+            v[i] = b;
+        } else if b - lo <= tol && i > 1 {
+            v[i - 1] = b;
+        } else if b > lo && b < hi {
+            v.insert(i, b);
+        }
+    }
+    v
+}
+
 /// Check points of the certified formulation: `per_span` evenly spaced
 /// points in every non-empty knot span of q, the span's left knot first, and
-/// the last knot; each with whether it is a knot.
+/// the last knot, and one a hair before each span's end (the left-hand limit
+/// where r‴ of the toolpath jumps); each with whether it is a knot.
 pub fn check_points(knots: &[f64], per_span: usize) -> Vec<(f64, bool)> {
     let per_span = per_span.max(1);
     let mut v = Vec::new();
@@ -280,6 +311,8 @@ pub fn check_points(knots: &[f64], per_span: usize) -> Vec<(f64, bool)> {
         for k in 0..per_span {
             v.push((w[0] + (w[1] - w[0]) * k as f64 / per_span as f64, k == 0));
         }
+        // the left-hand limit at the span's end (the geometry may break there)
+        v.push((w[1] - 1e-9 * (w[1] - w[0]), false));
     }
     if let Some(&l) = knots.last() {
         v.push((l, true));
@@ -311,7 +344,7 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
     let su = SuMap::fit(curve, &arc, cfg.su_tol_mm)?;
     let samples = match cfg.formulation {
         Formulation::Paper => samples,
-        Formulation::Certified => refine_turning(&samples, cfg.certified.max_turn_rad, |a, b| {
+        Formulation::Certified => refine_turning(&with_breaks(&samples, &arc), cfg.certified.max_turn_rad, |a, b| {
             let (x, w) = crate::arclength::GL16;
             let (m, h) = (0.5 * (a + b), 0.5 * (b - a));
             (0..16)
