@@ -96,13 +96,13 @@ pub struct CertifiedConfig {
 impl Default for CertifiedConfig {
     fn default() -> Self {
         CertifiedConfig {
-            checks_per_span: 8,
+            checks_per_span: 6,
             max_turn_rad: 0.25,
             max_lps: 8,
             rho0: 0.5,
             rho_shrink: 0.5,
             rho_min: 0.02,
-            activity: 0.8,
+            activity: 0.9,
             tol: 1e-3,
             stop_rel: 2e-3,
             objective: SlpObjective::Time,

@@ -291,6 +291,9 @@ pub struct SolverSettings {
     pub tol_feas: f64,
     /// Ruiz equilibration on or off.
     pub equilibrate: bool,
+    /// Use the banded interior-point solver ([`crate::ipm`]) instead of
+    /// Clarabel (which stays the fallback if it fails).
+    pub banded: bool,
 }
 
 impl Default for SolverSettings {
@@ -301,6 +304,7 @@ impl Default for SolverSettings {
             tol_gap: 1e-8,
             tol_feas: 1e-8,
             equilibrate: true,
+            banded: false,
         }
     }
 }
@@ -490,30 +494,49 @@ impl<'a> FeedLp<'a> {
             }
         }
         let m = b.len();
-        let a_mat = csc_from_triplets(m, nv, &mut trip);
+        let c = c.to_vec();
         let cmax = c.iter().cloned().fold(0.0, f64::max).max(f64::MIN_POSITIVE);
         let q: Vec<f64> = (0..nv).map(|v| -c[v + 1] / cmax).collect();
-        let p_mat = CscMatrix::<f64>::zeros((nv, nv));
-        let cones = [NonnegativeConeT(m)];
-        let settings = self
-            .settings
-            .builder()
-            .build()
-            .map_err(|_| fail("BadSettings", 0))?;
-        let nonzeros = a_mat.nnz();
-        let mut solver =
-            DefaultSolver::new(&p_mat, &q, &a_mat, &b, &cones as &[SupportedConeT<f64>], settings)
-                .map_err(|e| fail(&format!("SetupError({e})"), 0))?;
-        solver.solve();
-        let sol = &solver.solution;
-        let status = format!("{:?}", sol.status);
-        if !matches!(sol.status, SolverStatus::Solved | SolverStatus::AlmostSolved) {
-            return Err(fail(&status, sol.iterations));
+        let mut banded = None;
+        if self.settings.banded {
+            banded = Some(band_rows(&trip, m, nv)).and_then(|rows| {
+                let r = crate::ipm::solve(nv, &rows, &b, &q, self.settings.max_iter, self.settings.tol_gap);
+                if std::env::var_os("FEEDLP_SLP_DEBUG").is_some() {
+                    if let Err(e) = &r {
+                        eprintln!("banded IPM failed: {e:?}");
+                    }
+                }
+                r.ok()
+            });
         }
+        let (x, iterations, status) = match banded {
+            Some((x, it)) => (x, it, "Solved".to_string()),
+            None => {
+                let a_mat = csc_from_triplets(m, nv, &mut trip);
+                let p_mat = CscMatrix::<f64>::zeros((nv, nv));
+                let cones = [NonnegativeConeT(m)];
+                let settings = self
+                    .settings
+                    .builder()
+                    .build()
+                    .map_err(|_| fail("BadSettings", 0))?;
+                let mut solver =
+                    DefaultSolver::new(&p_mat, &q, &a_mat, &b, &cones as &[SupportedConeT<f64>], settings)
+                        .map_err(|e| fail(&format!("SetupError({e})"), 0))?;
+                solver.solve();
+                let sol = &solver.solution;
+                let status = format!("{:?}", sol.status);
+                if !matches!(sol.status, SolverStatus::Solved | SolverStatus::AlmostSolved) {
+                    return Err(fail(&status, sol.iterations));
+                }
+                (sol.x.clone(), sol.iterations, status)
+            }
+        };
+        let nonzeros = trip.len();
         let mut ctrl = vec![0.0; n];
         for v in 0..nv {
             // interior-point solutions sit a hair inside the bounds: clip to them
-            let mut a = (sol.x[v] * scale).max(0.0);
+            let mut a = (x[v] * scale).max(0.0);
             if let Some(u) = upper {
                 a = a.min(u[v + 1]);
             }
@@ -526,12 +549,34 @@ impl<'a> FeedLp<'a> {
                 variables: nv,
                 rows: m,
                 nonzeros,
-                iterations: sol.iterations,
+                iterations,
                 status,
                 solve_time_s: t0.elapsed().as_secs_f64(),
             },
         })
     }
+}
+
+/// Rows of ≤ 4 consecutive columns for [`crate::ipm`], from (row, col, value) triplets.
+fn band_rows(trip: &[(usize, usize, f64)], m: usize, nv: usize) -> Vec<crate::ipm::BandRow> {
+    let mut rows = vec![
+        crate::ipm::BandRow {
+            first: usize::MAX,
+            val: [0.0; 4],
+        };
+        m
+    ];
+    for &(r, c, _) in trip {
+        rows[r].first = rows[r].first.min(c);
+    }
+    for r in rows.iter_mut() {
+        r.first = r.first.min(nv.saturating_sub(1));
+    }
+    for &(r, c, v) in trip {
+        let f = rows[r].first;
+        rows[r].val[c - f] += v;
+    }
+    rows
 }
 
 /// Compressed-sparse-column matrix from (row, col, value) triplets.

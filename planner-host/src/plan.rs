@@ -59,7 +59,7 @@ pub struct PlanConfig {
     pub formulation: Formulation,
     /// Settings of the certified sequence.
     pub certified: CertifiedConfig,
-    /// Interior-point settings of every LP.
+    /// Interior-point settings of every LP (the paper formulation always uses Clarabel).
     #[serde(skip)]
     pub solver: SolverSettings,
     /// How the toolpath is sampled into Γ (§3).
@@ -86,7 +86,10 @@ impl Default for PlanConfig {
         PlanConfig {
             formulation: Formulation::Certified,
             certified: CertifiedConfig::default(),
-            solver: SolverSettings::default(),
+            solver: SolverSettings {
+                banded: true,
+                ..SolverSettings::default()
+            },
             sampling: Sampling::Len,
             density_per_mm: 1.0,
             limits: TABLE1,
@@ -378,7 +381,14 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
         limits: cfg.limits,
         objective: cfg.objective,
         qhat_bound: cfg.qhat_bound,
-        settings: cfg.solver,
+        // the paper formulation is reproduced with Clarabel, as it always was
+        settings: match cfg.formulation {
+            Formulation::Paper => SolverSettings {
+                banded: false,
+                ..cfg.solver
+            },
+            Formulation::Certified => cfg.solver,
+        },
     };
     let (ctrl, qhat_ctrl, lp_stats, check) = match cfg.formulation {
         Formulation::Paper => {
