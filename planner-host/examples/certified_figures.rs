@@ -22,10 +22,20 @@ fn main() {
         match a.as_str() {
             "--formulation" => formulation = args.next().unwrap().parse().unwrap(),
             "--densities" => {
-                densities = args.next().unwrap().split(',').map(|x| x.parse().unwrap()).collect()
+                densities = args
+                    .next()
+                    .unwrap()
+                    .split(',')
+                    .map(|x| x.parse().unwrap())
+                    .collect()
             }
             "--samplings" => {
-                samplings = args.next().unwrap().split(',').map(|x| x.parse().unwrap()).collect()
+                samplings = args
+                    .next()
+                    .unwrap()
+                    .split(',')
+                    .map(|x| x.parse().unwrap())
+                    .collect()
             }
             "-v" => verbose = true,
             _ => curves.push(a),
@@ -62,7 +72,8 @@ fn main() {
                 match plan::plan_curve(&curve, &cfg) {
                     Ok(out) => {
                         let d = verify::dense_check(&curve, &arc, &out.q_knots, &out.q_ctrl, &cfg.limits, 20);
-                        let f = verify::dense_check(&curve, &arc, &out.q_knots, &out.q_ctrl, &cfg.limits, 200);
+                        let f =
+                            verify::dense_check(&curve, &arc, &out.q_knots, &out.q_ctrl, &cfg.limits, 200);
                         let r = d.ratios;
                         let its: u32 = out.lp.iter().map(|l| l.iterations).sum();
                         println!(

@@ -290,7 +290,10 @@ pub fn solve(lp: &FeedLp, is_knot: &[bool], cfg: &CertifiedConfig) -> Result<Cer
                 lps[lps.len() - 1].solve_time_s * 1e3,
                 crate::plan::machining_time(lp.knots, &sol.ctrl),
                 ratios,
-                q_now[1..q_now.len() - 1].iter().cloned().fold(f64::INFINITY, f64::min)
+                q_now[1..q_now.len() - 1]
+                    .iter()
+                    .cloned()
+                    .fold(f64::INFINITY, f64::min)
             );
         }
         let mut done = false;

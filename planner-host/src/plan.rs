@@ -7,13 +7,13 @@ use std::time::Instant;
 use firmware_core::table::{self, Limits, TableParts};
 
 use crate::arclength::{ArcLength, PathDerivs};
+use crate::certified::{self, CertifiedConfig};
 use crate::curve::{CurveError, Nurbs};
 use crate::limits::{self, LimitsError, TABLE1};
-use crate::certified::{self, CertifiedConfig};
 use crate::lp::{self, BasisRow, EvalPoint, FeedLp, LpError, LpStats, Objective, QhatBound, SolverSettings};
-use crate::verify::Ratios;
 use crate::sampling::{self, Sampling};
 use crate::sumap::{self, SuMap};
+use crate::verify::Ratios;
 
 /// Which LP formulation plans the feed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
@@ -251,7 +251,15 @@ impl PlanOutput {
 /// shorter than the span; without this, holding the jerk at the check points
 /// would force q ≈ 0 over such a span (the LEN sampling of the Butterfly).
 pub fn refine_turning(samples: &[f64], max_turn: f64, turn: impl Fn(f64, f64) -> f64) -> Vec<f64> {
-    fn split(a: f64, b: f64, t: f64, depth: u32, max_turn: f64, turn: &dyn Fn(f64, f64) -> f64, out: &mut Vec<f64>) {
+    fn split(
+        a: f64,
+        b: f64,
+        t: f64,
+        depth: u32,
+        max_turn: f64,
+        turn: &dyn Fn(f64, f64) -> f64,
+        out: &mut Vec<f64>,
+    ) {
         if t > max_turn && depth < 12 {
             let m = 0.5 * (a + b);
             split(a, m, turn(a, m), depth + 1, max_turn, turn, out);
@@ -347,13 +355,17 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
     let su = SuMap::fit(curve, &arc, cfg.su_tol_mm)?;
     let samples = match cfg.formulation {
         Formulation::Paper => samples,
-        Formulation::Certified => refine_turning(&with_breaks(&samples, &arc), cfg.certified.max_turn_rad, |a, b| {
-            let (x, w) = crate::arclength::GL16;
-            let (m, h) = (0.5 * (a + b), 0.5 * (b - a));
-            (0..16)
-                .map(|i| w[i] * h * path_derivs_at(curve, &arc, m + h * x[i]).curvature())
-                .sum()
-        }),
+        Formulation::Certified => refine_turning(
+            &with_breaks(&samples, &arc),
+            cfg.certified.max_turn_rad,
+            |a, b| {
+                let (x, w) = crate::arclength::GL16;
+                let (m, h) = (0.5 * (a + b), 0.5 * (b - a));
+                (0..16)
+                    .map(|i| w[i] * h * path_derivs_at(curve, &arc, m + h * x[i]).curvature())
+                    .sum()
+            },
+        ),
     };
     let knots = lp::knot_vector(&samples);
     let eval = |s: f64| {
