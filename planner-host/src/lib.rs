@@ -19,7 +19,9 @@
 
 pub mod arclength;
 pub mod builtin;
+pub mod certified;
 pub mod curve;
+mod ipm;
 pub mod limits;
 pub mod lp;
 pub mod plan;

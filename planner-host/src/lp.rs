@@ -36,6 +36,8 @@ pub enum Stage {
     PseudoJerk,
     /// Stage 2: with jerk rows linearised by √q̂, gives the plan.
     Plan,
+    /// One LP of the certified formulation's sequence ([`crate::certified`]).
+    Linearised,
 }
 
 impl std::fmt::Display for Stage {
@@ -43,6 +45,7 @@ impl std::fmt::Display for Stage {
         f.write_str(match self {
             Stage::PseudoJerk => "pseudo-jerk LP",
             Stage::Plan => "plan LP",
+            Stage::Linearised => "certified LP",
         })
     }
 }
@@ -230,6 +233,8 @@ pub struct FeedLp<'a> {
     pub objective: Objective,
     /// How the plan is kept under the pseudo-jerk (stage 2 only).
     pub qhat_bound: QhatBound,
+    /// Interior-point settings.
+    pub settings: SolverSettings,
 }
 
 /// A solved LP: the control points of q (a_1 = a_N = 0 included).
@@ -241,11 +246,80 @@ pub struct LpSolution {
     pub stats: LpStats,
 }
 
-/// Sparse row under construction: coefficients on control points (global index) and a right-hand side.
-struct Row {
-    idx: [usize; ORDER],
-    val: [f64; ORDER],
-    rhs: f64,
+/// Sparse row under construction: Σ_j val_j·a_{idx_j} ≤ rhs, on control
+/// points by global index. Extra rows (e.g. start/stop conditions) are built
+/// as `Row`s and passed to [`FeedLp::solve_rows`].
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Row {
+    pub(crate) idx: [usize; ORDER],
+    pub(crate) val: [f64; ORDER],
+    pub(crate) rhs: f64,
+}
+
+impl Row {
+    /// q(s) ≤ rhs at the point of `b`.
+    pub(crate) fn q_at(b: &BasisRow, rhs: f64) -> Row {
+        Row {
+            idx: core::array::from_fn(|j| b.first + j),
+            val: b.d[0],
+            rhs,
+        }
+    }
+}
+
+/// One kind of linear limit row at a point (one sign; the caller negates).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum RowKind {
+    /// Axial acceleration (9) on axis k.
+    Acc(usize),
+    /// Tangential acceleration (12).
+    TAcc,
+    /// Axial jerk (14) on axis k.
+    Jerk(usize),
+    /// Tangential jerk (15).
+    TJerk,
+}
+
+/// Clarabel's interior-point settings used by every LP.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SolverSettings {
+    /// Iteration limit.
+    pub max_iter: u32,
+    /// Absolute and relative duality-gap tolerance.
+    pub tol_gap: f64,
+    /// Feasibility tolerance.
+    pub tol_feas: f64,
+    /// Ruiz equilibration on or off.
+    pub equilibrate: bool,
+    /// Use the banded interior-point solver ([`crate::ipm`]) instead of
+    /// Clarabel (which stays the fallback if it fails).
+    pub banded: bool,
+}
+
+impl Default for SolverSettings {
+    /// Clarabel's own defaults (tolerances 1e-8), as the paper formulation has always used.
+    fn default() -> Self {
+        SolverSettings {
+            max_iter: 200,
+            tol_gap: 1e-8,
+            tol_feas: 1e-8,
+            equilibrate: true,
+            banded: false,
+        }
+    }
+}
+
+impl SolverSettings {
+    fn builder(&self) -> DefaultSettingsBuilder<f64> {
+        let mut b = DefaultSettingsBuilder::default();
+        b.verbose(false)
+            .max_iter(self.max_iter)
+            .tol_gap_abs(self.tol_gap)
+            .tol_gap_rel(self.tol_gap)
+            .tol_feas(self.tol_feas)
+            .equilibrate_enable(self.equilibrate);
+        b
+    }
 }
 
 impl<'a> FeedLp<'a> {
@@ -309,7 +383,7 @@ impl<'a> FeedLp<'a> {
     }
 
     /// Objective weights c_i for all N control points.
-    fn weights(&self) -> Vec<f64> {
+    pub(crate) fn weights(&self) -> Vec<f64> {
         let n = self.n_ctrl();
         match self.objective {
             Objective::Integral => (0..n)
@@ -332,6 +406,52 @@ impl<'a> FeedLp<'a> {
 
     fn solve(&self, stage: Stage, qhat: Option<&[f64]>) -> Result<LpSolution, LpError> {
         let t0 = Instant::now();
+        let mut rows = Vec::with_capacity(self.points.len() * 17);
+        for p in self.points {
+            let qh = qhat.map(|a| p.basis.apply(0, a).max(0.0));
+            self.point_rows(p, qh.map(f64::sqrt), &mut rows);
+            if let (Some(qh), QhatBound::EvalPoints) = (qh, self.qhat_bound) {
+                rows.push(Row::q_at(&p.basis, qh));
+            }
+        }
+        let upper = qhat.filter(|_| self.qhat_bound == QhatBound::ControlPoints);
+        self.solve_rows(stage, &rows, upper, &self.weights(), t0)
+    }
+
+    /// Rows of one kind of limit at one evaluation point, for the certified
+    /// formulation ([`crate::certified`]): `sqrt_qbar` is √q̄ of the
+    /// linearisation (14)(15), valid where the row `q ≤ q̄` is present too.
+    pub(crate) fn kind_rows(&self, p: &EvalPoint, kind: RowKind, sqrt_qbar: f64, out: &mut Vec<Row>) {
+        let b = &p.basis;
+        let idx = core::array::from_fn(|j| b.first + j);
+        let lim = &self.limits;
+        let (coef, rhs): ([f64; ORDER], f64) = match kind {
+            RowKind::Acc(k) => (
+                core::array::from_fn(|j| p.geo.d2[k] * b.d[0][j] + 0.5 * p.geo.d1[k] * b.d[1][j]),
+                lim.a[k],
+            ),
+            RowKind::TAcc => (b.d[1].map(|c| 0.5 * c), lim.abar),
+            RowKind::Jerk(k) => (
+                core::array::from_fn(|j| {
+                    p.geo.d3[k] * b.d[0][j] + 1.5 * p.geo.d2[k] * b.d[1][j] + 0.5 * p.geo.d1[k] * b.d[2][j]
+                }),
+                lim.j[k] / sqrt_qbar,
+            ),
+            RowKind::TJerk => (b.d[2].map(|c| 0.5 * c), lim.jbar / sqrt_qbar),
+        };
+        out.push(Row { idx, val: coef, rhs });
+    }
+
+    /// Solve max c·a subject to `rows`, a ≥ 0 and, when given, a ≤ `upper`
+    /// (a_1 = a_N = 0 are eliminated). The one place every LP goes through.
+    pub(crate) fn solve_rows(
+        &self,
+        stage: Stage,
+        rows: &[Row],
+        upper: Option<&[f64]>,
+        c: &[f64],
+        t0: Instant,
+    ) -> Result<LpSolution, LpError> {
         let n = self.n_ctrl();
         let fail = |status: &str, iterations| LpError {
             stage,
@@ -344,23 +464,10 @@ impl<'a> FeedLp<'a> {
         // Variables: x_v = a_{v+1} / scale for v = 0 … n−3 (a_1 = a_N = 0 eliminated).
         let nv = n - 2;
         let scale = (self.limits.vbar * self.limits.vbar).max(f64::MIN_POSITIVE);
-        let mut rows = Vec::with_capacity(self.points.len() * 17);
-        for p in self.points {
-            let qh = qhat.map(|a| p.basis.apply(0, a).max(0.0));
-            self.point_rows(p, qh.map(f64::sqrt), &mut rows);
-            if let (Some(qh), QhatBound::EvalPoints) = (qh, self.qhat_bound) {
-                let idx = core::array::from_fn(|j| p.basis.first + j);
-                rows.push(Row {
-                    idx,
-                    val: p.basis.d[0],
-                    rhs: qh,
-                });
-            }
-        }
         // Triplets (row, col, value), rows normalised so that rhs = 1 where rhs > 0.
         let mut trip: Vec<(usize, usize, f64)> = Vec::with_capacity(rows.len() * ORDER + 2 * nv);
         let mut b = Vec::with_capacity(rows.len() + 2 * nv);
-        for row in &rows {
+        for row in rows {
             let norm = if row.rhs > 0.0 { row.rhs } else { 1.0 };
             let r = b.len();
             let mut any = false;
@@ -375,47 +482,63 @@ impl<'a> FeedLp<'a> {
                 b.push(row.rhs / norm);
             }
         }
-        // Bounds: −x ≤ 0, and x ≤ â/scale for the plan.
+        // Bounds: −x ≤ 0, and x ≤ upper/scale when given.
         for v in 0..nv {
             trip.push((b.len(), v, -1.0));
             b.push(0.0);
         }
-        if let Some(a) = qhat.filter(|_| self.qhat_bound == QhatBound::ControlPoints) {
+        if let Some(a) = upper {
             for v in 0..nv {
                 trip.push((b.len(), v, 1.0));
                 b.push(a.get(v + 1).copied().unwrap_or(0.0).max(0.0) / scale);
             }
         }
         let m = b.len();
-        let a_mat = csc_from_triplets(m, nv, &mut trip);
-        let c = self.weights();
+        let c = c.to_vec();
         let cmax = c.iter().cloned().fold(0.0, f64::max).max(f64::MIN_POSITIVE);
         let q: Vec<f64> = (0..nv).map(|v| -c[v + 1] / cmax).collect();
-        let p_mat = CscMatrix::<f64>::zeros((nv, nv));
-        let cones = [NonnegativeConeT(m)];
-        let settings = DefaultSettingsBuilder::default()
-            .verbose(false)
-            .max_iter(200)
-            .build()
-            .map_err(|_| fail("BadSettings", 0))?;
-        let nonzeros = a_mat.nnz();
-        let mut solver =
-            DefaultSolver::new(&p_mat, &q, &a_mat, &b, &cones as &[SupportedConeT<f64>], settings)
-                .map_err(|e| fail(&format!("SetupError({e})"), 0))?;
-        solver.solve();
-        let sol = &solver.solution;
-        let status = format!("{:?}", sol.status);
-        if !matches!(sol.status, SolverStatus::Solved | SolverStatus::AlmostSolved) {
-            return Err(fail(&status, sol.iterations));
+        let mut banded = None;
+        if self.settings.banded {
+            banded = Some(band_rows(&trip, m, nv)).and_then(|rows| {
+                let r = crate::ipm::solve(nv, &rows, &b, &q, self.settings.max_iter, self.settings.tol_gap);
+                if std::env::var_os("FEEDLP_SLP_DEBUG").is_some() {
+                    if let Err(e) = &r {
+                        eprintln!("banded IPM failed: {e:?}");
+                    }
+                }
+                r.ok()
+            });
         }
+        let (x, iterations, status) = match banded {
+            Some((x, it)) => (x, it, "Solved".to_string()),
+            None => {
+                let a_mat = csc_from_triplets(m, nv, &mut trip);
+                let p_mat = CscMatrix::<f64>::zeros((nv, nv));
+                let cones = [NonnegativeConeT(m)];
+                let settings = self
+                    .settings
+                    .builder()
+                    .build()
+                    .map_err(|_| fail("BadSettings", 0))?;
+                let mut solver =
+                    DefaultSolver::new(&p_mat, &q, &a_mat, &b, &cones as &[SupportedConeT<f64>], settings)
+                        .map_err(|e| fail(&format!("SetupError({e})"), 0))?;
+                solver.solve();
+                let sol = &solver.solution;
+                let status = format!("{:?}", sol.status);
+                if !matches!(sol.status, SolverStatus::Solved | SolverStatus::AlmostSolved) {
+                    return Err(fail(&status, sol.iterations));
+                }
+                (sol.x.clone(), sol.iterations, status)
+            }
+        };
+        let nonzeros = trip.len();
         let mut ctrl = vec![0.0; n];
         for v in 0..nv {
             // interior-point solutions sit a hair inside the bounds: clip to them
-            let mut a = (sol.x[v] * scale).max(0.0);
-            if let Some(qh) = qhat {
-                if self.qhat_bound == QhatBound::ControlPoints {
-                    a = a.min(qh[v + 1]);
-                }
+            let mut a = (x[v] * scale).max(0.0);
+            if let Some(u) = upper {
+                a = a.min(u[v + 1]);
             }
             ctrl[v + 1] = a;
         }
@@ -426,12 +549,34 @@ impl<'a> FeedLp<'a> {
                 variables: nv,
                 rows: m,
                 nonzeros,
-                iterations: sol.iterations,
+                iterations,
                 status,
                 solve_time_s: t0.elapsed().as_secs_f64(),
             },
         })
     }
+}
+
+/// Rows of ≤ 4 consecutive columns for [`crate::ipm`], from (row, col, value) triplets.
+fn band_rows(trip: &[(usize, usize, f64)], m: usize, nv: usize) -> Vec<crate::ipm::BandRow> {
+    let mut rows = vec![
+        crate::ipm::BandRow {
+            first: usize::MAX,
+            val: [0.0; 4],
+        };
+        m
+    ];
+    for &(r, c, _) in trip {
+        rows[r].first = rows[r].first.min(c);
+    }
+    for r in rows.iter_mut() {
+        r.first = r.first.min(nv.saturating_sub(1));
+    }
+    for &(r, c, v) in trip {
+        let f = rows[r].first;
+        rows[r].val[c - f] += v;
+    }
+    rows
 }
 
 /// Compressed-sparse-column matrix from (row, col, value) triplets.
@@ -480,6 +625,7 @@ mod tests {
             limits: crate::limits::TABLE1,
             objective: Objective::Integral,
             qhat_bound: QhatBound::ControlPoints,
+            settings: SolverSettings::default(),
         };
         let err = lp.solve_pseudo_jerk().unwrap_err();
         assert_eq!(err.stage, Stage::PseudoJerk);

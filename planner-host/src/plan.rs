@@ -7,15 +7,61 @@ use std::time::Instant;
 use firmware_core::table::{self, Limits, TableParts};
 
 use crate::arclength::{ArcLength, PathDerivs};
+use crate::certified::{self, CertifiedConfig};
 use crate::curve::{CurveError, Nurbs};
 use crate::limits::{self, LimitsError, TABLE1};
-use crate::lp::{self, BasisRow, EvalPoint, FeedLp, LpError, LpStats, Objective, QhatBound};
+use crate::lp::{self, BasisRow, EvalPoint, FeedLp, LpError, LpStats, Objective, QhatBound, SolverSettings};
 use crate::sampling::{self, Sampling};
 use crate::sumap::{self, SuMap};
+use crate::verify::Ratios;
+
+/// Which LP formulation plans the feed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Formulation {
+    /// §2.1: the pseudo-jerk LP, then the plan LP with the jerk rows (14)(15)
+    /// linearised by √q̂, rows at the Greville points (18) only. Posed by
+    /// [`PlanConfig::qhat_bound`] and [`PlanConfig::objective`]; the paper as
+    /// printed is `QhatBound::None` with `Objective::Uniform`.
+    Paper,
+    /// [`crate::certified`]: check points in every knot span, jerk rows
+    /// re-linearised inside a trust region with q ≤ q̄, an exact check of every
+    /// limit at every check point. The default.
+    #[default]
+    Certified,
+}
+
+impl std::str::FromStr for Formulation {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s.to_ascii_lowercase().as_str() {
+            "paper" => Ok(Formulation::Paper),
+            "certified" => Ok(Formulation::Certified),
+            _ => Err(format!("unknown formulation `{s}`: expected paper or certified")),
+        }
+    }
+}
+
+impl std::fmt::Display for Formulation {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Formulation::Paper => "paper",
+            Formulation::Certified => "certified",
+        })
+    }
+}
 
 /// What to plan with.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct PlanConfig {
+    /// Which formulation; `objective` and `qhat_bound` apply to
+    /// [`Formulation::Paper`] only, `certified` to [`Formulation::Certified`] only.
+    pub formulation: Formulation,
+    /// Settings of the certified sequence.
+    pub certified: CertifiedConfig,
+    /// Interior-point settings of every LP (the paper formulation always uses Clarabel).
+    #[serde(skip)]
+    pub solver: SolverSettings,
     /// How the toolpath is sampled into Γ (§3).
     #[serde(serialize_with = "display")]
     pub sampling: Sampling,
@@ -38,6 +84,12 @@ fn display<S: serde::Serializer, T: std::fmt::Display>(v: &T, s: S) -> Result<S:
 impl Default for PlanConfig {
     fn default() -> Self {
         PlanConfig {
+            formulation: Formulation::Certified,
+            certified: CertifiedConfig::default(),
+            solver: SolverSettings {
+                banded: true,
+                ..SolverSettings::default()
+            },
             sampling: Sampling::Len,
             density_per_mm: 1.0,
             limits: TABLE1,
@@ -106,8 +158,10 @@ pub struct PlanOutput {
     pub sampling_points: usize,
     /// Control points N of q.
     pub control_points: usize,
-    /// Both LPs, in order.
+    /// Every LP, in order.
     pub lp: Vec<LpStats>,
+    /// Certified formulation: largest exact ratio to each limit over its check points.
+    pub check: Option<Ratios>,
     /// Predicted machining time T = ∫ ds/√q, s.
     pub predicted_time_s: f64,
     /// Segments of the s → u map.
@@ -190,6 +244,93 @@ impl PlanOutput {
     }
 }
 
+/// Knot refinement of the certified formulation: every span [a, b] of the
+/// sampling Γ whose turning angle ∫ₐᵇ |κ| ds (from `turn`) exceeds `max_turn`
+/// is bisected in s, recursively (at most 12 levels). A cubic q on a span
+/// cannot follow a feed profile that must change within a sharp corner much
+/// shorter than the span; without this, holding the jerk at the check points
+/// would force q ≈ 0 over such a span (the LEN sampling of the Butterfly).
+pub fn refine_turning(samples: &[f64], max_turn: f64, turn: impl Fn(f64, f64) -> f64) -> Vec<f64> {
+    fn split(
+        a: f64,
+        b: f64,
+        t: f64,
+        depth: u32,
+        max_turn: f64,
+        turn: &dyn Fn(f64, f64) -> f64,
+        out: &mut Vec<f64>,
+    ) {
+        if t > max_turn && depth < 12 {
+            let m = 0.5 * (a + b);
+            split(a, m, turn(a, m), depth + 1, max_turn, turn, out);
+            out.push(m);
+            split(m, b, turn(m, b), depth + 1, max_turn, turn, out);
+        }
+    }
+    if !(max_turn > 0.0 && max_turn.is_finite()) {
+        return samples.to_vec();
+    }
+    let mut out = Vec::with_capacity(samples.len());
+    for (i, w) in samples.windows(2).enumerate() {
+        if i == 0 {
+            out.push(w[0]);
+        }
+        split(w[0], w[1], turn(w[0], w[1]), 0, max_turn, &turn, &mut out);
+        out.push(w[1]);
+    }
+    out
+}
+
+/// The toolpath's own knots (as arc lengths) merged into the sampling Γ:
+/// r‴ of a cubic NURBS jumps at its knots, so the jerk (10) has a jump there
+/// and both one-sided values must be checked; with a knot of q at each
+/// break, every span of q sees smooth geometry. A break within 5 % of a
+/// span's length of a sample moves that sample onto it instead.
+pub fn with_breaks(samples: &[f64], arc: &ArcLength) -> Vec<f64> {
+    let mut v = samples.to_vec();
+    let n = v.len();
+    if n < 2 {
+        return v;
+    }
+    for sp in arc.spans().iter().skip(1) {
+        let b = sp.s0;
+        let i = v.partition_point(|&x| x < b);
+        if i == 0 || i >= v.len() {
+            continue;
+        }
+        let (lo, hi) = (v[i - 1], v[i]);
+        let tol = 0.05 * (hi - lo);
+        if hi - b <= tol && i < v.len() - 1 {
+            v[i] = b;
+        } else if b - lo <= tol && i > 1 {
+            v[i - 1] = b;
+        } else if b > lo && b < hi {
+            v.insert(i, b);
+        }
+    }
+    v
+}
+
+/// Check points of the certified formulation: `per_span` evenly spaced
+/// points in every non-empty knot span of q, the span's left knot first, and
+/// the last knot, and one a hair before each span's end (the left-hand limit
+/// where r‴ of the toolpath jumps); each with whether it is a knot.
+pub fn check_points(knots: &[f64], per_span: usize) -> Vec<(f64, bool)> {
+    let per_span = per_span.max(1);
+    let mut v = Vec::new();
+    for w in knots.windows(2).filter(|w| w[1] > w[0]) {
+        for k in 0..per_span {
+            v.push((w[0] + (w[1] - w[0]) * k as f64 / per_span as f64, k == 0));
+        }
+        // the left-hand limit at the span's end (the geometry may break there)
+        v.push((w[1] - 1e-9 * (w[1] - w[0]), false));
+    }
+    if let Some(&l) = knots.last() {
+        v.push((l, true));
+    }
+    v
+}
+
 /// r, r′, r″, r‴ with respect to arc length at arc length `s`.
 pub fn path_derivs_at(curve: &Nurbs, arc: &ArcLength, s: f64) -> PathDerivs {
     arc.derivs_s(curve, arc.u_of_s(s))
@@ -212,17 +353,38 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
     }
     let samples = sampling::sample(curve, &arc, cfg.sampling, m)?;
     let su = SuMap::fit(curve, &arc, cfg.su_tol_mm)?;
+    let samples = match cfg.formulation {
+        Formulation::Paper => samples,
+        Formulation::Certified => refine_turning(
+            &with_breaks(&samples, &arc),
+            cfg.certified.max_turn_rad,
+            |a, b| {
+                let (x, w) = crate::arclength::GL16;
+                let (m, h) = (0.5 * (a + b), 0.5 * (b - a));
+                (0..16)
+                    .map(|i| w[i] * h * path_derivs_at(curve, &arc, m + h * x[i]).curvature())
+                    .sum()
+            },
+        ),
+    };
     let knots = lp::knot_vector(&samples);
-    let points: Vec<EvalPoint> = lp::greville(&knots)
-        .into_iter()
-        .filter_map(|g| {
-            Some(EvalPoint {
-                s: g,
-                geo: path_derivs_at(curve, &arc, g),
-                basis: BasisRow::at(&knots, g)?,
-            })
+    let eval = |s: f64| {
+        Some(EvalPoint {
+            s,
+            geo: path_derivs_at(curve, &arc, s),
+            basis: BasisRow::at(&knots, s)?,
         })
-        .collect();
+    };
+    let (points, is_knot): (Vec<EvalPoint>, Vec<bool>) = match cfg.formulation {
+        Formulation::Paper => lp::greville(&knots)
+            .into_iter()
+            .filter_map(|g| Some((eval(g)?, false)))
+            .unzip(),
+        Formulation::Certified => check_points(&knots, cfg.certified.checks_per_span)
+            .into_iter()
+            .filter_map(|(s, k)| Some((eval(s)?, k)))
+            .unzip(),
+    };
     let geometry_time_s = t0.elapsed().as_secs_f64();
 
     let feed_lp = FeedLp {
@@ -231,17 +393,33 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
         limits: cfg.limits,
         objective: cfg.objective,
         qhat_bound: cfg.qhat_bound,
+        // the paper formulation is reproduced with Clarabel, as it always was
+        settings: match cfg.formulation {
+            Formulation::Paper => SolverSettings {
+                banded: false,
+                ..cfg.solver
+            },
+            Formulation::Certified => cfg.solver,
+        },
     };
-    let pseudo = feed_lp.solve_pseudo_jerk()?;
-    let plan = feed_lp.solve_plan(&pseudo.ctrl)?;
-
-    if let Some(at) = find_stall(&knots, &plan.ctrl, &cfg.limits) {
+    let (ctrl, qhat_ctrl, lp_stats, check) = match cfg.formulation {
+        Formulation::Paper => {
+            let pseudo = feed_lp.solve_pseudo_jerk()?;
+            let plan = feed_lp.solve_plan(&pseudo.ctrl)?;
+            (plan.ctrl, pseudo.ctrl, vec![pseudo.stats, plan.stats], None)
+        }
+        Formulation::Certified => {
+            let c = certified::solve(&feed_lp, &is_knot, &cfg.certified)?;
+            (c.ctrl, Vec::new(), c.lps, Some(c.check))
+        }
+    };
+    if let Some(at) = find_stall(&knots, &ctrl, &cfg.limits) {
         return Err(PlanError::Stall {
             at,
             length_mm: length,
         });
     }
-    let predicted_time_s = machining_time(&knots, &plan.ctrl);
+    let predicted_time_s = machining_time(&knots, &ctrl);
 
     let homogeneous = curve.to_homogeneous_table();
     let parts = TableParts {
@@ -254,7 +432,7 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
         su_breaks: &su.breaks,
         su_segments: &su.segments,
         q_knots: &knots,
-        q_ctrl: &plan.ctrl,
+        q_ctrl: &ctrl,
     };
     let mut bytes = vec![0u8; table::encoded_len(&parts)];
     let written = table::encode(&parts, &mut bytes).map_err(PlanError::Table)?;
@@ -265,8 +443,9 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
         config: cfg.clone(),
         path_length_mm: length,
         sampling_points: m,
-        control_points: plan.ctrl.len(),
-        lp: vec![pseudo.stats, plan.stats],
+        control_points: ctrl.len(),
+        lp: lp_stats,
+        check,
         predicted_time_s,
         su_segments: su.segments.len(),
         su_max_err_mm: su.max_err_mm,
@@ -274,8 +453,8 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
         total_time_s: t0.elapsed().as_secs_f64(),
         table_bytes_len: bytes.len(),
         q_knots: knots,
-        q_ctrl: plan.ctrl,
-        qhat_ctrl: pseudo.ctrl,
+        q_ctrl: ctrl,
+        qhat_ctrl,
         table_bytes: bytes,
     })
 }

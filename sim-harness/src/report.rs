@@ -275,6 +275,7 @@ fn plan_one(
         sampling: method,
         density_per_mm: density,
         limits: cfg.limits,
+        formulation: plan::Formulation::Paper,
         objective: f.objective,
         qhat_bound: f.qhat_bound,
         ..PlanConfig::default()

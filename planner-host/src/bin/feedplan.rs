@@ -2,6 +2,7 @@
 //!
 //! ```text
 //! feedplan plan CURVE.json [--sampling len] [--density P] [--limits FILE] -o TABLE.bin [--json]
+//!               [--formulation certified|paper [--objective O] [--qhat-bound B]]
 //! ```
 
 use std::path::PathBuf;
@@ -12,7 +13,7 @@ use planner_host::arclength::ArcLength;
 use planner_host::curve::Nurbs;
 use planner_host::limits;
 use planner_host::lp::{Objective, QhatBound};
-use planner_host::plan::{self, PlanConfig};
+use planner_host::plan::{self, Formulation, PlanConfig};
 use planner_host::sampling::Sampling;
 use planner_host::verify;
 
@@ -48,12 +49,22 @@ enum Cmd {
         /// Print the summary as one JSON object.
         #[arg(long)]
         json: bool,
-        /// Objective weights: integral (c·a = ∫q ds, eq. 7) or uniform (c = 1).
-        #[arg(long, default_value = "integral")]
-        objective: Objective,
-        /// How the plan stays under the pseudo-jerk: control (a ≤ â), eval (q ≤ q̂ at the evaluation points) or none.
-        #[arg(long, default_value = "control")]
-        qhat_bound: QhatBound,
+        /// Formulation: certified (the default: limits held at check points in every span,
+        /// jerk rows re-linearised in a trust region) or paper (§2.1: pseudo-jerk LP then
+        /// plan LP at the Greville points; as printed unless --objective/--qhat-bound say otherwise).
+        #[arg(long, default_value = "certified")]
+        formulation: Formulation,
+        /// Paper formulation: objective weights integral (c·a = ∫q ds, eq. 7) or uniform
+        /// (c = 1, the default: the paper as printed).
+        #[arg(long)]
+        objective: Option<Objective>,
+        /// Paper formulation: how the plan stays under the pseudo-jerk: control (a ≤ â),
+        /// eval (q ≤ q̂ at the evaluation points) or none (the default: the paper as printed).
+        #[arg(long)]
+        qhat_bound: Option<QhatBound>,
+        /// Certified formulation: check points per knot span of q.
+        #[arg(long)]
+        checks_per_span: Option<usize>,
         /// Points per knot span of q in the dense re-evaluation of the plan.
         #[arg(long, default_value_t = 20)]
         dense: usize,
@@ -80,22 +91,31 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             output,
             json,
             dense,
+            formulation,
             objective,
             qhat_bound,
+            checks_per_span,
         } => {
+            if formulation != Formulation::Paper && (objective.is_some() || qhat_bound.is_some()) {
+                return Err("--objective and --qhat-bound go with --formulation paper".into());
+            }
             let curve = Nurbs::load(&curve)?;
             let limits = match lim_path {
                 Some(p) => limits::load(&p)?,
                 None => limits::TABLE1,
             };
-            let cfg = PlanConfig {
+            let mut cfg = PlanConfig {
+                formulation,
                 sampling,
                 density_per_mm: density,
                 limits,
-                objective,
-                qhat_bound,
+                objective: objective.unwrap_or(Objective::Uniform),
+                qhat_bound: qhat_bound.unwrap_or(QhatBound::None),
                 ..PlanConfig::default()
             };
+            if let Some(c) = checks_per_span {
+                cfg.certified.checks_per_span = c;
+            }
             let out = plan::plan_curve(&curve, &cfg)?;
             let arc = ArcLength::new(&curve);
             let check = verify::dense_check(&curve, &arc, &out.q_knots, &out.q_ctrl, &cfg.limits, dense);

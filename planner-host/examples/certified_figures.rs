@@ -1,0 +1,104 @@
+//! Issue 5 figures: every curve × PAR/LEN/ADA × density, planned with the
+//! default (certified) formulation, or `--formulation paper`: predicted time,
+//! the largest dense ratio to each limit (20 and 200 points per knot span),
+//! LPs and planning time.
+//!
+//!     cargo run --release -p planner-host --example certified_figures -- [--formulation F] [--densities 0.5,1,2] [CURVE.json ...]
+
+use planner_host::arclength::ArcLength;
+use planner_host::curve::Nurbs;
+use planner_host::plan::{self, Formulation, PlanConfig};
+use planner_host::sampling::Sampling;
+use planner_host::verify;
+
+fn main() {
+    let mut args = std::env::args().skip(1);
+    let mut curves = Vec::new();
+    let mut formulation = Formulation::Certified;
+    let mut densities = vec![0.5, 1.0, 2.0];
+    let mut samplings = vec![Sampling::Par, Sampling::Len, Sampling::ada_default()];
+    let mut verbose = false;
+    while let Some(a) = args.next() {
+        match a.as_str() {
+            "--formulation" => formulation = args.next().unwrap().parse().unwrap(),
+            "--densities" => {
+                densities = args
+                    .next()
+                    .unwrap()
+                    .split(',')
+                    .map(|x| x.parse().unwrap())
+                    .collect()
+            }
+            "--samplings" => {
+                samplings = args
+                    .next()
+                    .unwrap()
+                    .split(',')
+                    .map(|x| x.parse().unwrap())
+                    .collect()
+            }
+            "-v" => verbose = true,
+            _ => curves.push(a),
+        }
+    }
+    if curves.is_empty() {
+        let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/curves");
+        let mut v: Vec<String> = std::fs::read_dir(dir)
+            .unwrap()
+            .filter_map(|e| e.ok().map(|e| e.path().display().to_string()))
+            .filter(|p| p.ends_with(".json"))
+            .collect();
+        v.sort();
+        curves = v;
+    }
+    println!(
+        "| curve | sampling | pts/mm | T (s) | vel | acc | jerk | feed | tacc | tjerk | jerk@200 | tjerk@200 | LPs | IPM its | plan ms |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    for path in &curves {
+        let curve = Nurbs::load(std::path::Path::new(path)).unwrap();
+        let arc = ArcLength::new(&curve);
+        for &sampling in &samplings {
+            for &density in &densities {
+                let cfg = PlanConfig {
+                    formulation,
+                    sampling,
+                    density_per_mm: density,
+                    objective: planner_host::lp::Objective::Uniform,
+                    qhat_bound: planner_host::lp::QhatBound::None,
+                    ..PlanConfig::default()
+                };
+                let name = curve.name.clone();
+                match plan::plan_curve(&curve, &cfg) {
+                    Ok(out) => {
+                        let d = verify::dense_check(&curve, &arc, &out.q_knots, &out.q_ctrl, &cfg.limits, 20);
+                        let f =
+                            verify::dense_check(&curve, &arc, &out.q_knots, &out.q_ctrl, &cfg.limits, 200);
+                        let r = d.ratios;
+                        let its: u32 = out.lp.iter().map(|l| l.iterations).sum();
+                        println!(
+                            "| {name} | {sampling} | {density} | {:.4} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {} | {} | {:.1} |",
+                            out.predicted_time_s,
+                            r.vel,
+                            r.acc,
+                            r.jerk,
+                            r.feed,
+                            r.tacc,
+                            r.tjerk,
+                            f.ratios.jerk,
+                            f.ratios.tjerk,
+                            out.lp.len(),
+                            its,
+                            out.total_time_s * 1e3
+                        );
+                        if verbose {
+                            eprint!("{}", out.summary(Some(&d)));
+                            eprintln!("  check {:?}  argmax {:?}", out.check, d.argmax_s);
+                        }
+                    }
+                    Err(e) => println!("| {name} | {sampling} | {density} | error: {e} |"),
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,333 @@
+//! The certified formulation: a short sequence of LPs whose plan holds every
+//! limit of §2.1 at a dense set of check points, with the jerk rows
+//! re-linearised around the last plan inside a trust region.
+//!
+//! **Why the paper's plan breaks the jerk limit.** Eqs. (10) and (13) are
+//! |L(q)|·√q ≤ J with L(q) = r‴q + 3/2 r″q′ + ½ r′q″ (axial) or ½q″
+//! (tangential), linear in the control points a. The paper replaces √q by
+//! √q̂ of the pseudo-jerk LP, eqs. (14)(15), and enforces them at the Greville
+//! points (18) only. Two things then go wrong: (i) nothing keeps q ≤ q̂, so
+//! where q > q̂ the linearised rows under-estimate the jerk; (ii) between the
+//! points the rows say nothing, and the jerk (a cubic in q, q′, q″ times a
+//! geometry that can vary fast) is free to exceed J.
+//!
+//! **The linearisation here.** Let q̄(p) > 0 be a number at a check point p.
+//! If both rows
+//!
+//! ```text
+//!   q(p) ≤ q̄(p)                                  (trust region, with (8)(11): q̄ ≤ q_max)
+//!   ±L(q)(p) ≤ J / √q̄(p)                         (14)/(15) with q̂ := q̄
+//! ```
+//!
+//! hold, then |L(q)(p)|·√q(p) ≤ |L(q)(p)|·√q̄(p) ≤ J: the true jerk (10)/(13)
+//! holds at p, whatever the sign of L. (√ is increasing; this is the
+//! condition that makes the paper's argument below (16) true, imposed
+//! point-wise instead of through "q̂ is larger than any feasible q".) The
+//! rows (8), (9), (11), (12) are linear in a and exact.
+//!
+//! **The sequence (SLP with a trust region).** LP₀ linearises at the static
+//! caps q̄₀ = min(q_max, A_k/|r″_k|, (J_k/|r‴_k|)^{2/3}) — the largest q at
+//! which the curvature terms of (9) and (10) alone stay under the limits.
+//! After LP_k gives q_k, the next linearisation is
+//! q̄_{k+1} = min(q_max, max((1+ρ_k)·q_k, q_k + δ_k)): where the jerk binds,
+//! √q̄ is within √(1+ρ) of the true √q, so the rows lose little; elsewhere q
+//! may grow by the factor 1+ρ_k per LP. ρ shrinks geometrically. Every LP is
+//! feasible (q = 0 satisfies all rows), and every iterate satisfies the true
+//! limits at every check point that carries rows.
+//!
+//! **Check points and an active set.** Each knot span of q carries
+//! `checks_per_span` evenly spaced check points (knots included), with the
+//! geometry r′, r″, r‴ evaluated once. Only rows that matter go into the LP:
+//! all rows at the knots (these also bound every control point), and at any
+//! other check point the rows whose exact value at the last iterate exceeded
+//! `activity` × limit (a row, once in, stays in). After each LP the exact
+//! kinematics (eqs. 1–6 as in [`crate::verify`]) are evaluated at every check
+//! point; the best iterate with every exact ratio ≤ 1 + `tol` is the plan.
+//! This keeps the LPs at a few thousand banded rows (≤ 4 non-zeros each).
+//!
+//! **Objective.** Either ∫q ds (eq. 7, `c_i = ∫N_i`) or the linearised
+//! machining time: T = ∫ q^{-1/2} ds has gradient −½∫N_i q_k^{-3/2} ds, so
+//! the LP maximises Σ_i a_i ∫ N_i q_k^{-3/2} ds (q_k floored at
+//! (`FLOOR_FEED_REL`·v̄)² near the rest points): slow stretches, where the
+//! time is spent, weigh more.
+
+use std::time::Instant;
+
+use crate::lp::{EvalPoint, FeedLp, LpError, LpStats, Row, RowKind, Stage, ORDER};
+use crate::verify::Ratios;
+
+/// Objective of each LP of the sequence.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum SlpObjective {
+    /// c·a = ∫ q ds, eq. (7).
+    Integral,
+    /// The machining time linearised at the last plan.
+    Time,
+}
+
+/// Settings of the certified sequence.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct CertifiedConfig {
+    /// Check points per knot span of q (knots included).
+    pub checks_per_span: usize,
+    /// Knot refinement: largest turning angle ∫|κ| ds of a knot span, rad
+    /// ([`crate::plan::refine_turning`]); 0 or ∞ turns it off.
+    pub max_turn_rad: f64,
+    /// Largest number of LPs.
+    pub max_lps: usize,
+    /// First trust-region factor ρ₀: q may grow to (1+ρ)·q_k.
+    pub rho0: f64,
+    /// ρ is multiplied by this after each LP.
+    pub rho_shrink: f64,
+    /// Smallest ρ.
+    pub rho_min: f64,
+    /// A row enters the LP at a check point when its exact value at the last
+    /// iterate exceeds this fraction of its limit.
+    pub activity: f64,
+    /// A plan is accepted when every exact ratio at every check point is ≤ 1 + tol.
+    pub tol: f64,
+    /// Stop when an accepted plan improves the best time by less than this (relative).
+    pub stop_rel: f64,
+    /// Objective.
+    pub objective: SlpObjective,
+}
+
+impl Default for CertifiedConfig {
+    fn default() -> Self {
+        CertifiedConfig {
+            checks_per_span: 6,
+            max_turn_rad: 0.25,
+            max_lps: 8,
+            rho0: 0.5,
+            rho_shrink: 0.5,
+            rho_min: 0.02,
+            activity: 0.9,
+            tol: 1e-3,
+            stop_rel: 2e-3,
+            objective: SlpObjective::Time,
+        }
+    }
+}
+
+/// Feed below which the time weights stop growing, relative to v̄.
+pub const FLOOR_FEED_REL: f64 = 0.02;
+
+/// The result of the sequence.
+#[derive(Debug, Clone)]
+pub struct CertifiedPlan {
+    /// Control points of q, (mm/s)².
+    pub ctrl: Vec<f64>,
+    /// Every LP solved, in order.
+    pub lps: Vec<LpStats>,
+    /// Largest exact ratio to each limit over the check points, for `ctrl`.
+    pub check: Ratios,
+    /// Which LP (0-based) gave `ctrl`.
+    pub chosen: usize,
+}
+
+/// Signed values of every limit at a check point, each divided by its limit:
+/// [q/q_max, acc x,y,z, tacc, jerk x,y,z, tjerk]. Exact kinematics (eqs. 1–6).
+fn values(lp: &FeedLp, p: &EvalPoint, qmax: f64, ctrl: &[f64]) -> [f64; 9] {
+    let b = &p.basis;
+    let q = b.apply(0, ctrl).max(0.0);
+    let (q1, q2) = (b.apply(1, ctrl), b.apply(2, ctrl));
+    let sq = q.sqrt();
+    let lim = &lp.limits;
+    let g = &p.geo;
+    let mut v = [0.0; 9];
+    v[0] = q / qmax;
+    for k in 0..3 {
+        v[1 + k] = (g.d2[k] * q + 0.5 * g.d1[k] * q1) / lim.a[k];
+        v[5 + k] = (g.d3[k] * q + 1.5 * g.d2[k] * q1 + 0.5 * g.d1[k] * q2) * sq / lim.j[k];
+    }
+    v[4] = 0.5 * q1 / lim.abar;
+    v[8] = 0.5 * q2 * sq / lim.jbar;
+    v
+}
+
+const Q_ROW: u32 = 1 << 16;
+const ALL_ROWS: u32 = 0x1_ffff;
+
+const KINDS: [RowKind; 8] = [
+    RowKind::Acc(0),
+    RowKind::Acc(1),
+    RowKind::Acc(2),
+    RowKind::TAcc,
+    RowKind::Jerk(0),
+    RowKind::Jerk(1),
+    RowKind::Jerk(2),
+    RowKind::TJerk,
+];
+
+/// Static caps q̄₀ at a point: velocity (8)(11), then the curvature terms of
+/// (9) and (10) alone: |r″_k| q ≤ A_k, |r‴_k| q^{3/2} ≤ J_k.
+fn static_cap(lp: &FeedLp, p: &EvalPoint) -> f64 {
+    let mut c = lp.q_max(&p.geo);
+    for k in 0..3 {
+        let (r2, r3) = (p.geo.d2[k].abs(), p.geo.d3[k].abs());
+        if r2 > 0.0 {
+            c = c.min(lp.limits.a[k] / r2);
+        }
+        if r3 > 0.0 {
+            c = c.min((lp.limits.j[k] / r3).powf(2.0 / 3.0));
+        }
+    }
+    c
+}
+
+/// Run the certified sequence on `lp`, whose `points` are the check points
+/// (sorted by s; `is_knot[i]` marks those on a knot of q, which always carry rows).
+pub fn solve(lp: &FeedLp, is_knot: &[bool], cfg: &CertifiedConfig) -> Result<CertifiedPlan, LpError> {
+    let pts = lp.points;
+    let n = lp.n_ctrl();
+    let lim = lp.limits;
+    let qmax: Vec<f64> = pts.iter().map(|p| lp.q_max(&p.geo)).collect();
+    let mut qbar: Vec<f64> = pts.iter().map(|p| static_cap(lp, p)).collect();
+    // Row masks: bit 2k = +row of KINDS[k], bit 2k+1 = −row, bit 16 = the q ≤ q̄ row.
+    let mut mask: Vec<u32> = is_knot.iter().map(|&k| if k { ALL_ROWS } else { 0 }).collect();
+    // the control-point bound a_i ≤ v̄² makes the feed (11) hold everywhere (convex hull)
+    let upper = vec![lim.vbar * lim.vbar; n];
+    let floor = (FLOOR_FEED_REL * lim.vbar).powi(2);
+    let ds: Vec<f64> = {
+        // quadrature weight of each check point (trapezoid over the sorted points)
+        let mut w = vec![0.0; pts.len()];
+        for i in 0..pts.len().saturating_sub(1) {
+            let h = pts[i + 1].s - pts[i].s;
+            w[i] += 0.5 * h;
+            w[i + 1] += 0.5 * h;
+        }
+        w
+    };
+    let mut lps = Vec::new();
+    let mut best: Option<(f64, Vec<f64>, Ratios, usize)> = None;
+    let mut rho = cfg.rho0;
+    let mut qk: Option<Vec<f64>> = None;
+    let mut rows: Vec<Row> = Vec::new();
+    for it in 0..cfg.max_lps {
+        let t0 = Instant::now();
+        rows.clear();
+        for (i, p) in pts.iter().enumerate() {
+            if mask[i] == 0 {
+                continue;
+            }
+            rows.push(Row::q_at(&p.basis, qbar[i]));
+            let sq = qbar[i].sqrt();
+            for (k, &kind) in KINDS.iter().enumerate() {
+                let m = (mask[i] >> (2 * k)) & 3;
+                if m == 0 || (matches!(kind, RowKind::Jerk(_) | RowKind::TJerk) && sq <= 0.0) {
+                    continue;
+                }
+                let start = rows.len();
+                lp.kind_rows(p, kind, sq.max(f64::MIN_POSITIVE), &mut rows);
+                let r = rows[start];
+                rows.truncate(start);
+                if m & 1 != 0 {
+                    rows.push(r);
+                }
+                if m & 2 != 0 {
+                    rows.push(Row {
+                        val: r.val.map(|c| -c),
+                        ..r
+                    });
+                }
+            }
+        }
+        let weights = match (cfg.objective, &qk) {
+            (SlpObjective::Integral, _) => lp.weights(),
+            (SlpObjective::Time, q) => {
+                let mut c = vec![0.0; n];
+                for (i, p) in pts.iter().enumerate() {
+                    let qi = match q {
+                        Some(q) => q[i],
+                        None => qbar[i],
+                    };
+                    let w = ds[i] * qi.max(floor).powf(-1.5);
+                    for j in 0..ORDER {
+                        if let Some(c) = c.get_mut(p.basis.first + j) {
+                            *c += w * p.basis.d[0][j];
+                        }
+                    }
+                }
+                c
+            }
+        };
+        let sol = lp.solve_rows(Stage::Linearised, &rows, Some(&upper), &weights, t0)?;
+        lps.push(sol.stats);
+        // exact check at every check point; rows near activity join the LP
+        let mut ratios = Ratios::default();
+        let mut q_now = vec![0.0; pts.len()];
+        for (i, p) in pts.iter().enumerate() {
+            let v = values(lp, p, qmax[i], &sol.ctrl);
+            q_now[i] = v[0] * qmax[i];
+            for (k, x) in v[1..].iter().enumerate() {
+                if *x > cfg.activity {
+                    mask[i] |= 1 << (2 * k);
+                } else if -*x > cfg.activity {
+                    mask[i] |= 2 << (2 * k);
+                }
+            }
+            if v[0] > cfg.activity * cfg.activity {
+                mask[i] |= Q_ROW;
+            }
+            let sq = q_now[i].sqrt();
+            let r = Ratios {
+                vel: (0..3).fold(0.0, |m: f64, k| m.max((p.geo.d1[k] * sq).abs() / lim.v[k])),
+                feed: sq / lim.vbar,
+                acc: v[1..4].iter().fold(0.0, |m: f64, x| m.max(x.abs())),
+                tacc: v[4].abs(),
+                jerk: v[5..8].iter().fold(0.0, |m: f64, x| m.max(x.abs())),
+                tjerk: v[8].abs(),
+            };
+            ratios = ratios.max(r);
+        }
+        let feasible = ratios.worst() <= 1.0 + cfg.tol;
+        if std::env::var_os("FEEDLP_SLP_DEBUG").is_some() {
+            eprintln!(
+                "LP {it}: rho {rho:.3} rows {} its {} {:.1} ms T {:.4} check {:?} min q {:.3e}",
+                rows.len(),
+                lps[lps.len() - 1].iterations,
+                lps[lps.len() - 1].solve_time_s * 1e3,
+                crate::plan::machining_time(lp.knots, &sol.ctrl),
+                ratios,
+                q_now[1..q_now.len() - 1]
+                    .iter()
+                    .cloned()
+                    .fold(f64::INFINITY, f64::min)
+            );
+        }
+        let mut done = false;
+        if feasible {
+            let t = crate::plan::machining_time(lp.knots, &sol.ctrl);
+            let better = best.as_ref().is_none_or(|b| t < b.0);
+            let gain = best.as_ref().map_or(f64::INFINITY, |b| (b.0 - t) / b.0);
+            if better {
+                best = Some((t, sol.ctrl.clone(), ratios, it));
+            }
+            done = gain < cfg.stop_rel && rho <= cfg.rho_min * 1.0001;
+        }
+        if done {
+            break;
+        }
+        // next linearisation point: trust region around q_k
+        let delta = rho * 0.05;
+        for i in 0..pts.len() {
+            qbar[i] = qmax[i].min((q_now[i] * (1.0 + rho)).max(q_now[i] + delta * qmax[i]));
+        }
+        qk = Some(q_now);
+        rho = (rho * cfg.rho_shrink).max(cfg.rho_min);
+    }
+    match best {
+        Some((_, ctrl, check, chosen)) => Ok(CertifiedPlan {
+            ctrl,
+            lps,
+            check,
+            chosen,
+        }),
+        None => Err(LpError {
+            stage: Stage::Linearised,
+            status: "NoIterateHeldTheLimits".into(),
+            iterations: lps.iter().map(|s| s.iterations).sum(),
+        }),
+    }
+}
