@@ -12,12 +12,14 @@
 //! - [`sumap`]: the s → u polynomials the firmware evaluates at servo rate.
 //! - [`plan`]: the pipeline, from a curve to a firmware table
 //!   ([`firmware_core::table`]), with the predicted machining time.
+//! - [`ends`]: jerk-limited start and stop segments joined C² to q.
 //! - [`verify`]: dense re-evaluation of a plan against every limit.
 //! - [`limits`]: Table 1 and the limits file; [`builtin`]: built-in curves.
 
 pub mod arclength;
 pub mod builtin;
 pub mod curve;
+pub mod ends;
 pub mod limits;
 pub mod lp;
 pub mod plan;

@@ -17,12 +17,13 @@ use std::time::Instant;
 
 use clarabel::algebra::CscMatrix;
 use clarabel::solver::{
-    DefaultSettingsBuilder, DefaultSolver, IPSolver, NonnegativeConeT, SolverStatus, SupportedConeT,
+    DefaultSettingsBuilder, DefaultSolver, IPSolver, NonnegativeConeT, SolverStatus, SupportedConeT, ZeroConeT,
 };
 use firmware_core::basis::{ders_basis, find_span, window, BasisDerivs, MAX_DEGREE, MAX_DERIV};
 use firmware_core::table::Limits;
 
 use crate::arclength::PathDerivs;
+use crate::ends::EndRows;
 
 /// Order of q(s) (cubic B-spline), written d in the paper.
 pub const ORDER: usize = 4;
@@ -230,6 +231,9 @@ pub struct FeedLp<'a> {
     pub objective: Objective,
     /// How the plan is kept under the pseudo-jerk (stage 2 only).
     pub qhat_bound: QhatBound,
+    /// Jerk-limited start and stop segments ([`crate::ends`]): their join
+    /// rows are added to both LPs; `None`: q(0) = q(L) = 0 with a step.
+    pub ends: Option<&'a EndRows>,
 }
 
 /// A solved LP: the control points of q (a_1 = a_N = 0 included).
@@ -357,9 +361,27 @@ impl<'a> FeedLp<'a> {
                 });
             }
         }
+        // End segments: equality rows first (the zero cone), then q(s) ≤ Q_max.
+        let to_row = |r: crate::ends::EndRow| Row {
+            idx: core::array::from_fn(|j| r.first + j),
+            val: r.val,
+            rhs: r.rhs,
+        };
+        let eq_rows: Vec<Row> = self.ends.map_or(Vec::new(), |e| e.eq_rows().into_iter().map(to_row).collect());
+        rows.extend(self.ends.map_or(Vec::new(), |e| e.ineq_rows()).into_iter().map(to_row));
         // Triplets (row, col, value), rows normalised so that rhs = 1 where rhs > 0.
         let mut trip: Vec<(usize, usize, f64)> = Vec::with_capacity(rows.len() * ORDER + 2 * nv);
         let mut b = Vec::with_capacity(rows.len() + 2 * nv);
+        for row in &eq_rows {
+            let r = b.len();
+            for (&i, &v) in row.idx.iter().zip(&row.val) {
+                if i != 0 && i < n - 1 && v != 0.0 {
+                    trip.push((r, i - 1, v * scale));
+                }
+            }
+            b.push(0.0);
+        }
+        let meq = b.len();
         for row in &rows {
             let norm = if row.rhs > 0.0 { row.rhs } else { 1.0 };
             let r = b.len();
@@ -392,7 +414,11 @@ impl<'a> FeedLp<'a> {
         let cmax = c.iter().cloned().fold(0.0, f64::max).max(f64::MIN_POSITIVE);
         let q: Vec<f64> = (0..nv).map(|v| -c[v + 1] / cmax).collect();
         let p_mat = CscMatrix::<f64>::zeros((nv, nv));
-        let cones = [NonnegativeConeT(m)];
+        let cones: Vec<SupportedConeT<f64>> = if meq > 0 {
+            vec![ZeroConeT(meq), NonnegativeConeT(m - meq)]
+        } else {
+            vec![NonnegativeConeT(m)]
+        };
         let settings = DefaultSettingsBuilder::default()
             .verbose(false)
             .max_iter(200)
@@ -400,7 +426,7 @@ impl<'a> FeedLp<'a> {
             .map_err(|_| fail("BadSettings", 0))?;
         let nonzeros = a_mat.nnz();
         let mut solver =
-            DefaultSolver::new(&p_mat, &q, &a_mat, &b, &cones as &[SupportedConeT<f64>], settings)
+            DefaultSolver::new(&p_mat, &q, &a_mat, &b, &cones, settings)
                 .map_err(|e| fail(&format!("SetupError({e})"), 0))?;
         solver.solve();
         let sol = &solver.solution;
@@ -418,6 +444,9 @@ impl<'a> FeedLp<'a> {
                 }
             }
             ctrl[v + 1] = a;
+        }
+        if let Some(e) = self.ends {
+            e.enforce(&mut ctrl);
         }
         Ok(LpSolution {
             ctrl,
@@ -480,6 +509,7 @@ mod tests {
             limits: crate::limits::TABLE1,
             objective: Objective::Integral,
             qhat_bound: QhatBound::ControlPoints,
+            ends: None,
         };
         let err = lp.solve_pseudo_jerk().unwrap_err();
         assert_eq!(err.stage, Stage::PseudoJerk);

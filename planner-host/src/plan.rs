@@ -4,10 +4,11 @@
 use std::path::Path;
 use std::time::Instant;
 
-use firmware_core::table::{self, Limits, TableParts};
+use firmware_core::table::{self, EndSegments, Limits, TableParts};
 
 use crate::arclength::{ArcLength, PathDerivs};
 use crate::curve::{CurveError, Nurbs};
+use crate::ends::{EndMode, EndRows};
 use crate::limits::{self, LimitsError, TABLE1};
 use crate::lp::{self, BasisRow, EvalPoint, FeedLp, LpError, LpStats, Objective, QhatBound};
 use crate::sampling::{self, Sampling};
@@ -29,6 +30,8 @@ pub struct PlanConfig {
     pub qhat_bound: QhatBound,
     /// Tolerance of the s → u map, mm: |s(u(s)) − s|.
     pub su_tol_mm: f64,
+    /// How the plan starts and stops: jerk-limited segments or steps.
+    pub ends: EndMode,
 }
 
 fn display<S: serde::Serializer, T: std::fmt::Display>(v: &T, s: S) -> Result<S::Ok, S::Error> {
@@ -44,6 +47,7 @@ impl Default for PlanConfig {
             objective: Objective::Integral,
             qhat_bound: QhatBound::ControlPoints,
             su_tol_mm: sumap::DEFAULT_TOL_MM,
+            ends: EndMode::Jerk,
         }
     }
 }
@@ -108,8 +112,12 @@ pub struct PlanOutput {
     pub control_points: usize,
     /// Both LPs, in order.
     pub lp: Vec<LpStats>,
-    /// Predicted machining time T = ∫ ds/√q, s.
+    /// Predicted machining time, s: T = ∫ ds/√q, or with end segments
+    /// t₁ + ∫_{s₁}^{s₂} ds/√q + t₂.
     pub predicted_time_s: f64,
+    /// The jerk-limited start and stop segments (None: acceleration steps,
+    /// by choice or because the path is too short for them).
+    pub ends: Option<EndSegments>,
     /// Segments of the s → u map.
     pub su_segments: usize,
     /// Largest |s(u(s)) − s| measured on the s → u map, mm.
@@ -167,11 +175,27 @@ impl PlanOutput {
             "  s->u map: {} segments, max |s(u(s)) - s| = {:.2e} mm",
             self.su_segments, self.su_max_err_mm
         );
-        let _ = writeln!(
-            o,
-            "  predicted machining time T = int ds/sqrt(q) = {:.4} s",
-            self.predicted_time_s
-        );
+        match &self.ends {
+            Some(e) => {
+                let _ = writeln!(
+                    o,
+                    "  end segments: start to s1 = {:.3} mm in t1 = {:.4} s at jerk {:.0} mm/s^3, stop from s2 = {:.3} mm in t2 = {:.4} s at jerk {:.0} mm/s^3",
+                    e.s_start, e.t_start, e.jerk_start, e.s_stop, e.t_stop, e.jerk_stop
+                );
+                let _ = writeln!(
+                    o,
+                    "  predicted machining time T = t1 + int_s1^s2 ds/sqrt(q) + t2 = {:.4} s",
+                    self.predicted_time_s
+                );
+            }
+            None => {
+                let _ = writeln!(
+                    o,
+                    "  predicted machining time T = int ds/sqrt(q) = {:.4} s",
+                    self.predicted_time_s
+                );
+            }
+        }
         if let Some(c) = check {
             let r = &c.ratios;
             let _ = writeln!(
@@ -225,23 +249,40 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
         .collect();
     let geometry_time_s = t0.elapsed().as_secs_f64();
 
+    let end_rows = match cfg.ends {
+        EndMode::Jerk => EndRows::new(&knots, &cfg.limits, &|s| path_derivs_at(curve, &arc, s)),
+        EndMode::Step => None,
+    };
     let feed_lp = FeedLp {
         knots: &knots,
         points: &points,
         limits: cfg.limits,
         objective: cfg.objective,
         qhat_bound: cfg.qhat_bound,
+        ends: end_rows.as_ref(),
     };
     let pseudo = feed_lp.solve_pseudo_jerk()?;
     let plan = feed_lp.solve_plan(&pseudo.ctrl)?;
 
-    if let Some(at) = find_stall(&knots, &plan.ctrl, &cfg.limits) {
+    let ends = end_rows.as_ref().and_then(|e| e.segments(&plan.ctrl));
+    let stall = match (&end_rows, ends) {
+        (None, _) => find_stall(&knots, &plan.ctrl, &cfg.limits),
+        (Some(_), Some(e)) => find_stall_between(&knots, &plan.ctrl, &cfg.limits, e.s_start, e.s_stop),
+        (Some(e), None) => Some(StallAt::Interior {
+            s_mm: e.start.s,
+            feed_mm_s: 0.0,
+        }),
+    };
+    if let Some(at) = stall {
         return Err(PlanError::Stall {
             at,
             length_mm: length,
         });
     }
-    let predicted_time_s = machining_time(&knots, &plan.ctrl);
+    let predicted_time_s = match ends {
+        Some(e) => e.t_start + machining_time_between(&knots, &plan.ctrl, e.s_start, e.s_stop) + e.t_stop,
+        None => machining_time(&knots, &plan.ctrl),
+    };
 
     let homogeneous = curve.to_homogeneous_table();
     let parts = TableParts {
@@ -255,6 +296,7 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
         su_segments: &su.segments,
         q_knots: &knots,
         q_ctrl: &plan.ctrl,
+        ends,
     };
     let mut bytes = vec![0u8; table::encoded_len(&parts)];
     let written = table::encode(&parts, &mut bytes).map_err(PlanError::Table)?;
@@ -268,6 +310,7 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
         control_points: plan.ctrl.len(),
         lp: vec![pseudo.stats, plan.stats],
         predicted_time_s,
+        ends,
         su_segments: su.segments.len(),
         su_max_err_mm: su.max_err_mm,
         geometry_time_s,
@@ -358,7 +401,21 @@ pub fn find_stall(knots: &[f64], ctrl: &[f64], limits: &Limits) -> Option<StallA
     }
     let q_floor = (STALL_FEED_REL * limits.vbar).powi(2);
     // q ≈ 2·acc·s near the ends: skip where that ramp is below 2·floor.
-    let (lo, hi) = (first + q_floor / start_acc, last - q_floor / stop_acc);
+    find_stall_between(
+        knots,
+        ctrl,
+        limits,
+        first + q_floor / start_acc,
+        last - q_floor / stop_acc,
+    )
+}
+
+/// The interior part of [`find_stall`]: the exact minimum of q on [lo, hi]
+/// against (STALL_FEED_REL·v̄)². With end segments, [lo, hi] = [s₁, s₂]:
+/// the segments start and stop the motion, q must not vanish in between.
+pub fn find_stall_between(knots: &[f64], ctrl: &[f64], limits: &Limits, lo: f64, hi: f64) -> Option<StallAt> {
+    let at = |s: f64, k: usize| BasisRow::at(knots, s).map(|b| b.apply(k, ctrl));
+    let q_floor = (STALL_FEED_REL * limits.vbar).powi(2);
     let mut worst: Option<(f64, f64)> = None;
     for w in knots.windows(2).filter(|w| w[1] > w[0] && w[1] > lo && w[0] < hi) {
         let (a, b) = (w[0].max(lo), w[1].min(hi));
@@ -409,6 +466,14 @@ pub fn find_stall(knots: &[f64], ctrl: &[f64], limits: &Limits) -> Option<StallA
 /// start and the stop) the substitution s = end ± h·τ² removes the 1/√s
 /// singularity of a simple zero, so the rule stays exact to rounding.
 pub fn machining_time(knots: &[f64], ctrl: &[f64]) -> f64 {
+    match (knots.first(), knots.last()) {
+        (Some(&a), Some(&b)) => machining_time_between(knots, ctrl, a, b),
+        _ => 0.0,
+    }
+}
+
+/// ∫ ds/√q over the knot spans of q inside [lo, hi] (lo, hi knots), s.
+pub fn machining_time_between(knots: &[f64], ctrl: &[f64], lo: f64, hi: f64) -> f64 {
     let q = |s: f64| {
         BasisRow::at(knots, s)
             .map(|b| b.apply(0, ctrl))
@@ -419,7 +484,7 @@ pub fn machining_time(knots: &[f64], ctrl: &[f64]) -> f64 {
     let qmax = ctrl.iter().cloned().fold(0.0, f64::max);
     let zero = 1e-12 * qmax.max(f64::MIN_POSITIVE);
     let mut total = 0.0;
-    for win in knots.windows(2).filter(|w| w[1] > w[0]) {
+    for win in knots.windows(2).filter(|w| w[1] > w[0] && w[0] >= lo && w[1] <= hi) {
         let (a, b) = (win[0], win[1]);
         let h = b - a;
         let za = q(a) <= zero;

@@ -277,6 +277,8 @@ fn plan_one(
         limits: cfg.limits,
         objective: f.objective,
         qhat_bound: f.qhat_bound,
+        // the paper's plans: q(0) = q(L) = 0, acceleration steps at the ends
+        ends: planner_host::ends::EndMode::Step,
         ..PlanConfig::default()
     };
     plan::plan_curve(curve, &pc)

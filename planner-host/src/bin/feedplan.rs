@@ -10,6 +10,7 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 use planner_host::arclength::ArcLength;
 use planner_host::curve::Nurbs;
+use planner_host::ends::EndMode;
 use planner_host::limits;
 use planner_host::lp::{Objective, QhatBound};
 use planner_host::plan::{self, PlanConfig};
@@ -54,6 +55,11 @@ enum Cmd {
         /// How the plan stays under the pseudo-jerk: control (a ≤ â), eval (q ≤ q̂ at the evaluation points) or none.
         #[arg(long, default_value = "control")]
         qhat_bound: QhatBound,
+        /// Start and stop: jerk (time-domain constant-jerk segments joined C² to q, at rest
+        /// with zero acceleration at both ends) or step (q(0) = q(L) = 0, the paper: an
+        /// acceleration step at both ends).
+        #[arg(long, default_value = "jerk")]
+        ends: EndMode,
         /// Points per knot span of q in the dense re-evaluation of the plan.
         #[arg(long, default_value_t = 20)]
         dense: usize,
@@ -82,6 +88,7 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             dense,
             objective,
             qhat_bound,
+            ends,
         } => {
             let curve = Nurbs::load(&curve)?;
             let limits = match lim_path {
@@ -94,11 +101,20 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                 limits,
                 objective,
                 qhat_bound,
+                ends,
                 ..PlanConfig::default()
             };
             let out = plan::plan_curve(&curve, &cfg)?;
             let arc = ArcLength::new(&curve);
-            let check = verify::dense_check(&curve, &arc, &out.q_knots, &out.q_ctrl, &cfg.limits, dense);
+            let check = verify::dense_check_ends(
+                &curve,
+                &arc,
+                &out.q_knots,
+                &out.q_ctrl,
+                out.ends.as_ref(),
+                &cfg.limits,
+                dense,
+            );
             plan::write_atomic(&output, &out.table_bytes)?;
             if json {
                 let mut v = serde_json::to_value(&out)?;
