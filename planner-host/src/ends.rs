@@ -20,24 +20,29 @@
 //! s̈(t₁) = 2Q/(3s₁). The stop is the mirror image with d = L − s₂:
 //! q′(s₂) = −(4/3)·Q/d, q″(s₂) = (4/9)·Q/d².
 //!
-//! On a segment ṡ, s̈ and s⃛ are ≥ 0 and non-decreasing towards the join
-//! (s⃛ = J is constant), and every limit is a sum of such terms times path
-//! derivatives, so each is bounded by its value at the join with the path
-//! derivatives replaced by their largest magnitudes over the segment. Every
-//! term scales with Q, Q^{1/2} or Q^{3/2}, so each limit becomes one upper
-//! bound on Q = q(s₁): a single linear row `q(s₁) ≤ Q_max`.
+//! Limits on a segment: in the normalised time τ = t/t₁ ∈ [0, 1] of a start
+//! segment of length d ending at q = Q,
 //!
 //! ```text
-//! feed, axial velocity:  Q ≤ v̄²,  Q ≤ (V_k / max|r′_k|)²
-//! tangential acc.:       2Q/(3d) ≤ Ā
-//! tangential jerk:       2Q^{3/2}/(9d²) ≤ J̄
-//! axial acc.:            Q·(2 max|r′_k|/(3d) + max|r″_k|) ≤ A_k
-//! axial jerk:            Q^{3/2}·(2 max|r′_k|/(9d²) + 2 max|r″_k|/d + max|r‴_k|) ≤ J_k
+//! s = d·τ³,  ṡ = √Q·τ²,  s̈ = (2Q/(3d))·τ,  s⃛ = J = 2Q^{3/2}/(9d²)
 //! ```
 //!
-//! (the axial jerk r′s⃛ + 3r″ṡs̈ + r‴ṡ³ with s⃛ = J, ṡs̈ ≤ √Q·2Q/(3d), ṡ³ ≤ Q^{3/2}).
-//! The maxima of |r′|, |r″|, |r‴| are taken on [`GEO_SAMPLES`] points of the
-//! segment and raised by [`GEO_MARGIN`].
+//! so where the segment is (s(τ)) does not depend on Q, and each limit is Q,
+//! Q^{1/2} or Q^{3/2} times a function of τ alone (the stop: s = L − dτ³, s̈
+//! negated):
+//!
+//! ```text
+//! v_k = √Q·r′_k τ²                                     ≤ V_k,  ṡ ≤ v̄
+//! a_k = Q·(r′_k·2τ/(3d) + r″_k τ⁴)                      ≤ A_k,  s̈ ≤ Ā: 2Q/(3d) ≤ Ā
+//! j_k = Q^{3/2}·(r′_k·2/(9d²) + r″_k·2τ³/d + r‴_k τ⁶)    ≤ J_k,  J ≤ J̄
+//! ```
+//!
+//! (j = r′s⃛ + 3r″ṡs̈ + r‴ṡ³, a = r′s̈ + r″ṡ², r′, r″, r‴ at s(τ)). The largest
+//! magnitude of each bracket over [`GEO_SAMPLES`] values of τ, raised by
+//! [`GEO_MARGIN`] for what lies between them, turns every limit into one
+//! upper bound on Q = q(s₁): a single linear row `q(s₁) ≤ Q_max`. The dense
+//! check ([`crate::verify::dense_check_ends`]) re-evaluates the segments in
+//! time.
 //!
 //! Where the joins go: s₁ is a knot of q (then q on [0, s₁] — not executed —
 //! is the LP's own, non-negative filler; on the first knot span it is fixed
@@ -57,10 +62,10 @@ use serde::Serialize;
 use crate::arclength::PathDerivs;
 use crate::lp::{BasisRow, ORDER};
 
-/// Points per segment at which the path derivatives are maximised.
-pub const GEO_SAMPLES: usize = 65;
-/// Relative margin on those maxima (the sampling's blind spots).
-pub const GEO_MARGIN: f64 = 0.02;
+/// Values of τ per segment at which the limit brackets are maximised.
+pub const GEO_SAMPLES: usize = 257;
+/// Relative margin on those maxima (what lies between the samples).
+pub const GEO_MARGIN: f64 = 0.01;
 /// Relative margin on `Q_max` (the solver's tolerance).
 pub const Q_MARGIN: f64 = 1e-4;
 
@@ -160,40 +165,41 @@ pub struct EndRows {
     pub length: f64,
 }
 
-/// Largest Q a segment of length `d` allows, given the largest |r′|, |r″|,
-/// |r‴| per axis on it (see the module docs).
-pub fn q_max(lim: &Limits, d: f64, r1: [f64; 3], r2: [f64; 3], r3: [f64; 3]) -> f64 {
+/// Largest Q = q(s_join) a segment of length `d` allows (see the module
+/// docs); the stop segment if `stop`, from L = `length`.
+pub fn q_max(lim: &Limits, d: f64, stop: bool, length: f64, geo: &dyn Fn(f64) -> PathDerivs) -> f64 {
+    // largest |bracket| of v, a, j per axis over τ
+    let mut m = [[0.0f64; 3]; 3];
+    let sign = if stop { -1.0 } else { 1.0 };
+    for i in 0..GEO_SAMPLES {
+        let tau = i as f64 / (GEO_SAMPLES - 1) as f64;
+        let (t2, t3) = (tau * tau, tau * tau * tau);
+        let g = geo(if stop { length - d * t3 } else { d * t3 });
+        for k in 0..3 {
+            let v = g.d1[k] * t2;
+            let a = sign * g.d1[k] * 2.0 * tau / (3.0 * d) + g.d2[k] * t2 * t2;
+            let j = g.d1[k] * 2.0 / (9.0 * d * d) + sign * g.d2[k] * 2.0 * t3 / d + g.d3[k] * t3 * t3;
+            m[0][k] = m[0][k].max(v.abs());
+            m[1][k] = m[1][k].max(a.abs());
+            m[2][k] = m[2][k].max(j.abs());
+        }
+    }
+    let [cv, ca, cj] = m.map(|r| r.map(|x| x * (1.0 + GEO_MARGIN)));
     let mut q = (lim.vbar * lim.vbar)
         .min(1.5 * lim.abar * d)
         .min((4.5 * lim.jbar * d * d).powf(2.0 / 3.0));
     for k in 0..3 {
-        if r1[k] > 0.0 {
-            q = q.min((lim.v[k] / r1[k]).powi(2));
+        if cv[k] > 0.0 {
+            q = q.min((lim.v[k] / cv[k]).powi(2));
         }
-        let ca = 2.0 * r1[k] / (3.0 * d) + r2[k];
-        if ca > 0.0 {
-            q = q.min(lim.a[k] / ca);
+        if ca[k] > 0.0 {
+            q = q.min(lim.a[k] / ca[k]);
         }
-        let cj = 2.0 * r1[k] / (9.0 * d * d) + 2.0 * r2[k] / d + r3[k];
-        if cj > 0.0 {
-            q = q.min((lim.j[k] / cj).powf(2.0 / 3.0));
+        if cj[k] > 0.0 {
+            q = q.min((lim.j[k] / cj[k]).powf(2.0 / 3.0));
         }
     }
     q * (1.0 - Q_MARGIN)
-}
-
-/// Largest |r′|, |r″|, |r‴| per axis on [a, b], raised by [`GEO_MARGIN`].
-fn geo_max(geo: &dyn Fn(f64) -> PathDerivs, a: f64, b: f64) -> [[f64; 3]; 3] {
-    let mut m = [[0.0f64; 3]; 3];
-    for i in 0..GEO_SAMPLES {
-        let g = geo(a + (b - a) * i as f64 / (GEO_SAMPLES - 1) as f64);
-        for k in 0..3 {
-            m[0][k] = m[0][k].max(g.d1[k].abs());
-            m[1][k] = m[1][k].max(g.d2[k].abs());
-            m[2][k] = m[2][k].max(g.d3[k].abs());
-        }
-    }
-    m.map(|r| r.map(|x| x * (1.0 + GEO_MARGIN)))
 }
 
 /// Where a jerk-limited start would reach the acceleration limit along the
@@ -217,34 +223,52 @@ impl EndRows {
         let length = *knots.last()?;
         let mut inner: Vec<f64> = knots.iter().copied().filter(|&k| k > 0.0 && k < length).collect();
         inner.dedup();
-        let pick = |target: f64, from_end: bool| -> Option<f64> {
-            let dist = |k: f64| if from_end { length - k } else { k };
+        // Candidates: knots up to 1.25× the jerk-phase length (at least the
+        // first), at most L/3 from the end. Each is rated by ρ = J/J̄ of its
+        // fastest segment, the fraction of a straight-line jerk-limited start
+        // it achieves (1 on a line up to the jerk-phase length): the longest
+        // with ρ ≥ 0.9·max ρ wins (curvature can make short segments better).
+        let pick = |stop: bool| -> Option<(f64, f64)> {
+            let dist = |k: f64| if stop { length - k } else { k };
+            let target = jerk_phase_len(limits, geo(if stop { length } else { 0.0 }).d1);
             let mut ks: Vec<f64> = inner.clone();
             ks.sort_by(|a, b| dist(*a).total_cmp(&dist(*b)));
             let first = *ks.first()?;
-            let best = ks.iter().copied().rev().find(|&k| dist(k) <= 1.25 * target);
-            let k = best.unwrap_or(first);
-            (dist(k) <= length / 3.0).then_some(k)
+            let rated: Vec<(f64, f64, f64)> = ks
+                .iter()
+                .copied()
+                .filter(|&k| k == first || dist(k) <= 1.25 * target)
+                .filter(|&k| dist(k) <= length / 3.0)
+                .map(|k| {
+                    let d = dist(k);
+                    let q = q_max(limits, d, stop, length, geo);
+                    (k, q, 2.0 * q.powf(1.5) / (9.0 * d * d) / limits.jbar)
+                })
+                .collect();
+            let best = rated.iter().fold(0.0f64, |m, r| m.max(r.2));
+            rated
+                .iter()
+                .rev()
+                .find(|r| r.2 >= 0.9 * best && r.1 > 0.0)
+                .map(|r| (r.0, r.1))
         };
-        let s1 = pick(jerk_phase_len(limits, geo(0.0).d1), false)?;
-        let s2 = pick(jerk_phase_len(limits, geo(length).d1), true)?;
+        let (s1, q1) = pick(false)?;
+        let (s2, q2) = pick(true)?;
         if !(s1 < s2) {
             return None;
         }
-        let join = |s: f64, a: f64, b: f64, stop: bool| -> Option<Join> {
-            let [r1, r2, r3] = geo_max(geo, a, b);
-            let d = b - a;
+        let join = |s: f64, d: f64, stop: bool, q_max: f64| -> Option<Join> {
             Some(Join {
                 s,
                 d,
                 stop,
-                q_max: q_max(limits, d, r1, r2, r3),
+                q_max,
                 basis: BasisRow::at(knots, s)?,
             })
         };
         Some(EndRows {
-            start: join(s1, 0.0, s1, false)?,
-            stop: join(s2, s2, length, true)?,
+            start: join(s1, s1, false, q1)?,
+            stop: join(s2, length - s2, true, q2)?,
             length,
         })
     }
@@ -339,7 +363,13 @@ mod tests {
         // On an x line at the jerk-phase length Ā³/(6J̄²) both the acceleration
         // and the jerk bound are active together (the S-curve's corner).
         let d = TABLE1.abar.powi(3) / (6.0 * TABLE1.jbar.powi(2));
-        let q = q_max(&TABLE1, d, [1.0, 0.0, 0.0], [0.0; 3], [0.0; 3]) / (1.0 - Q_MARGIN);
+        let line = |s: f64| PathDerivs {
+            r: [s, 0.0, 0.0],
+            d1: [1.0, 0.0, 0.0],
+            d2: [0.0; 3],
+            d3: [0.0; 3],
+        };
+        let q = q_max(&TABLE1, d, false, 100.0, &line) / (1.0 - Q_MARGIN);
         let e = EndSegments::from_q(d, q, 50.0, q, 100.0);
         assert!((e.jerk_start - TABLE1.jbar).abs() < 1e-9 * TABLE1.jbar, "{e:?}");
         assert!((e.jerk_start * e.t_start - TABLE1.abar).abs() < 1e-9 * TABLE1.abar);
