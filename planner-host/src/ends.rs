@@ -273,6 +273,11 @@ impl EndRows {
         })
     }
 
+    /// `true` if q is executed at `s` (s₁ ≤ s ≤ s₂), `false` inside a segment.
+    pub fn executes(&self, s: f64) -> bool {
+        s >= self.start.s && s <= self.stop.s
+    }
+
     /// The equality rows (two per join).
     pub fn eq_rows(&self) -> Vec<EndRow> {
         let mut v = self.start.eq_rows().to_vec();

@@ -351,7 +351,9 @@ impl<'a> FeedLp<'a> {
         let mut rows = Vec::with_capacity(self.points.len() * 17);
         for p in self.points {
             let qh = qhat.map(|a| p.basis.apply(0, a).max(0.0));
-            self.point_rows(p, qh.map(f64::sqrt), &mut rows);
+            // Inside an end segment q is not executed: no jerk rows there.
+            let executed = self.ends.is_none_or(|e| e.executes(p.s));
+            self.point_rows(p, qh.filter(|_| executed).map(f64::sqrt), &mut rows);
             if let (Some(qh), QhatBound::EvalPoints) = (qh, self.qhat_bound) {
                 let idx = core::array::from_fn(|j| p.basis.first + j);
                 rows.push(Row {
