@@ -47,7 +47,7 @@ use crate::fast::{
 };
 use crate::log;
 use crate::output::SetpointSink;
-use crate::table::{Table, MATCH_TOL_REL};
+use crate::table::{EndSegments, Table, MATCH_TOL_REL};
 
 /// A step shorter than `STALL_REL · L` counts as no progress.
 pub const STALL_REL: f64 = 1e-14;
@@ -121,7 +121,11 @@ pub enum RunError<E> {
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum Phase {
     Start,
+    /// In the time-domain start segment (table section 14).
+    StartSeg,
     Run,
+    /// In the time-domain stop segment.
+    StopSeg,
     Done,
     Faulted(Fault),
 }
@@ -222,6 +226,21 @@ fn t0_q(v: &Views<'_>) -> Option<f32> {
     }
 }
 
+/// `[q, q′, q″, q‴]` at s from the f32 local forms, as the tick evaluates
+/// them (a scan over the spans: for [`Interpolator::new`] only).
+fn q_at(v: &Views<'_>, s: f64) -> Option<[f32; 4]> {
+    let mut idx = 0;
+    while idx < v.q_last && s >= v.q_knots.get(idx.checked_add(4)?)? {
+        idx += 1;
+    }
+    let anchor = if idx < v.q_last {
+        v.q_knots.get(idx.checked_add(3)?)?
+    } else {
+        v.q_knots.get(idx.checked_add(4)?)?
+    };
+    Some(v.q_poly(idx)?.eval((s - anchor) as f32))
+}
+
 /// The servo-rate interpolator over one validated table.
 ///
 /// The fast path of [`crate::fast`]: s accumulates in f64; q, the Taylor
@@ -255,6 +274,17 @@ pub struct Interpolator<'a> {
     stall_ds: f32,
     /// `MATCH_TOL_REL · L`, mm.
     end_tol: f32,
+    /// The time-domain start and stop segments, if the table has them.
+    ends: Option<EndSegments>,
+    /// Where the Taylor steps hand over to the stop: s₂ with segments, else L.
+    stop_at: f64,
+    /// Last tick time still in the start segment, t₁ + 1e-6·T, s.
+    t_switch: f64,
+    /// `[q, q′, q″, q‴]` and √q at s₁ (the join), for the first Taylor step.
+    join_qd: [f32; 4],
+    join_v: f32,
+    /// When the stop segment reaches L (set on entering it), s.
+    t_end: f64,
     phase: Phase,
 }
 
@@ -323,7 +353,22 @@ impl<'a> Interpolator<'a> {
             feed_mm_s: 0.0,
             pos_mm: [x1, y1, z1],
         };
+        let ends = table.ends();
+        let (stop_at, t_switch, join_qd) = match ends {
+            Some(e) => (
+                e.s_stop,
+                e.t_start + 1e-6 * period_s,
+                q_at(&views, e.s_start).ok_or(bad)?,
+            ),
+            None => (length_mm, 0.0, [0.0; 4]),
+        };
         Ok(Interpolator {
+            ends,
+            stop_at,
+            t_switch,
+            join_qd,
+            join_v: feed_of(join_qd[0]),
+            t_end: 0.0,
             table,
             views,
             period_s,
@@ -428,9 +473,21 @@ impl<'a> Interpolator<'a> {
         let t_s = self.now();
         match self.phase {
             Phase::Start => {
-                self.phase = Phase::Run;
+                self.phase = if self.ends.is_some() {
+                    Phase::StartSeg
+                } else {
+                    Phase::Run
+                };
                 self.k = 1;
                 return Ok(self.first);
+            }
+            Phase::StartSeg => {
+                self.k = self.k.saturating_add(1);
+                return self.start_tick(t_s);
+            }
+            Phase::StopSeg => {
+                self.k = self.k.saturating_add(1);
+                return self.stop_tick(t_s);
             }
             Phase::Done => {
                 self.k = self.k.saturating_add(1);
@@ -440,7 +497,12 @@ impl<'a> Interpolator<'a> {
             Phase::Run => {}
         }
         self.k = self.k.saturating_add(1);
-        let h = self.h;
+        self.step(t_s, self.h)
+    }
+
+    /// One Taylor step of `h` seconds from (s, q) (see the module docs).
+    #[inline(always)]
+    fn step(&mut self, t_s: f64, h: f32) -> Result<Setpoint, Fault> {
         let s = self.s;
         let [q_raw, dq, ddq, dddq] = self.qd;
         let q = pos(q_raw);
@@ -453,10 +515,13 @@ impl<'a> Interpolator<'a> {
             return self.fault(Fault::NonFinite { s_mm: s });
         }
         let s_new = s + f64::from(ds);
-        // s_new ≥ L on the bit patterns: exact for finite s_new and L > 0
-        // (a negative s_new has the sign bit, a negative i64), without the
-        // soft-float compare.
-        if (s_new.to_bits() as i64) >= (self.length_mm.to_bits() as i64) {
+        // s_new ≥ stop_at (L, or s₂ with a stop segment) on the bit
+        // patterns: exact for finite s_new and stop_at > 0 (a negative s_new
+        // has the sign bit, a negative i64), without the soft-float compare.
+        if (s_new.to_bits() as i64) >= (self.stop_at.to_bits() as i64) {
+            if self.ends.is_some() {
+                return self.enter_stop(t_s, s_new);
+            }
             return Ok(self.finish(t_s));
         }
         // Near the end only (rare): the remaining length in f32.
@@ -500,6 +565,82 @@ impl<'a> Interpolator<'a> {
         Ok(Setpoint {
             t_s,
             s_mm: s_new,
+            u: self.pc.u0 + f64::from(dv * head.width),
+            feed_mm_s: f64::from(feed),
+            pos_mm: [ox + f64::from(dx), oy + f64::from(dy), oz + f64::from(dz)],
+        })
+    }
+
+    /// A tick in the start segment: s = J₁t³/6 exactly (f64) while t ≤ t₁
+    /// (+1e-6·T), then, on the first tick past t₁, a Taylor step of t − t₁
+    /// from the join s₁, where q continues the segment C².
+    #[inline(never)]
+    fn start_tick(&mut self, t_s: f64) -> Result<Setpoint, Fault> {
+        let Some(e) = self.ends else {
+            return self.fault(Fault::Eval { s_mm: self.s });
+        };
+        if t_s <= self.t_switch {
+            let [s, v, _, _] = e.start_at(t_s);
+            return self.place(t_s, s, v as f32);
+        }
+        self.phase = Phase::Run;
+        self.s = e.s_start;
+        self.qd = self.join_qd;
+        self.v = self.join_v;
+        self.step(t_s, (t_s - e.t_start) as f32)
+    }
+
+    /// The Taylor step reached s₂ at `s_new`: the stop segment takes over,
+    /// s = L − J₂τ³/6 with τ = ∛(6(L − s_new)/J₂) now, counting down with the
+    /// clock to 0, where the motion ends at L at rest.
+    #[inline(never)]
+    fn enter_stop(&mut self, t_s: f64, s_new: f64) -> Result<Setpoint, Fault> {
+        let Some(e) = self.ends else {
+            return Ok(self.finish(t_s));
+        };
+        let rest = self.length_mm - s_new;
+        if !(rest > 0.0) {
+            return Ok(self.finish(t_s));
+        }
+        let tau = libm::cbrt(6.0 * rest / e.jerk_stop);
+        if !tau.is_finite() {
+            return self.fault(Fault::NonFinite { s_mm: s_new });
+        }
+        self.t_end = t_s + tau;
+        self.phase = Phase::StopSeg;
+        self.place(t_s, s_new, (0.5 * e.jerk_stop * tau * tau) as f32)
+    }
+
+    /// A tick in the stop segment: τ = t_end − t; at τ ≤ 0 the end point.
+    #[inline(never)]
+    fn stop_tick(&mut self, t_s: f64) -> Result<Setpoint, Fault> {
+        let tau = self.t_end - t_s;
+        let Some(e) = self.ends.filter(|_| tau > 0.0) else {
+            return Ok(self.finish(t_s));
+        };
+        let [s, v, _, _] = e.stop_at(self.length_mm, tau);
+        self.place(t_s, s, v as f32)
+    }
+
+    /// The setpoint at arc length `s` (0 ≤ s < L, not behind the cursors)
+    /// with the feed `feed`; moves the cursors and `self.s`.
+    #[inline(never)]
+    fn place(&mut self, t_s: f64, s: f64, feed: f32) -> Result<Setpoint, Fault> {
+        let Some((tp, _, _)) = self.seek(s) else {
+            return self.fault(Fault::Eval { s_mm: s });
+        };
+        let Some((head, nurbs)) = self.views.piece_forms(self.pc.idx) else {
+            return self.fault(Fault::Eval { s_mm: s });
+        };
+        let dv = head.delta(tp);
+        let Some([dx, dy, dz]) = offset_from_bytes(nurbs, dv) else {
+            return self.fault(Fault::Eval { s_mm: s });
+        };
+        let [ox, oy, oz] = self.pc.origin;
+        self.s = s;
+        Ok(Setpoint {
+            t_s,
+            s_mm: s,
             u: self.pc.u0 + f64::from(dv * head.width),
             feed_mm_s: f64::from(feed),
             pos_mm: [ox + f64::from(dx), oy + f64::from(dy), oz + f64::from(dz)],

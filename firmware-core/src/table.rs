@@ -58,8 +58,17 @@
 //! |   12 | piece f64     |    4P | f64 u_a, origin x, y, z per piece        |
 //! |   13 | piece f32     |(11+4p)| f32 d1..d5, w, 1/len, a_k = [x, y, z, w] |
 //! |      |               |    ·P | k = 0..=p (k-major) per piece            |
+//! |   14 | end segments  | 0 or 6| f64 s₁, J₁, t₁, s₂, J₂, t₂ (optional)    |
 //! +------+---------------+-------+------------------------------------------+
 //! ```
+//!
+//! Section 14 (optional; missing or empty: the plan starts and stops with
+//! an acceleration step, q′(0) > 0 and q′(L) < 0) holds the time-domain
+//! jerk-limited start and stop segments ([`EndSegments`]): s(t) = J₁t³/6 for
+//! 0 ≤ t ≤ t₁ up to s₁, and s = L − J₂τ³/6 for τ from t₂ down to 0 from s₂.
+//! Parse checks 0 < s₁ < s₂ < L, J > 0, s₁ = J₁t₁³/6 and L − s₂ = J₂t₂³/6,
+//! and that q joins them C² (q, q′, q″ at s₁ and s₂ within
+//! [`END_TOL_REL`]); q on [0, s₁] and [s₂, L] is then not executed.
 //!
 //! Sections 10–13 (new in version 2) are derived data: the span-local
 //! single-precision forms the servo-rate fast path evaluates
@@ -117,6 +126,10 @@ pub const Q_ORDER: u32 = 4;
 /// Relative tolerance for values that must agree with L or with a knot
 /// (su segment ends, last q knot, last su break).
 pub const MATCH_TOL_REL: f64 = 1e-9;
+/// Relative tolerance of the end segments' consistency checks (section 14).
+pub const END_TOL_REL: f64 = 1e-6;
+/// f64 values in the end-segment section when present.
+pub const END_LEN: usize = 6;
 
 const CRC: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
 
@@ -176,6 +189,123 @@ pub struct SuSegment {
     pub coeffs: [f64; SU_COEFFS],
 }
 
+/// Time-domain jerk-limited start and stop segments (section 14).
+///
+/// Start: s(t) = J₁t³/6, ṡ = J₁t²/2, s̈ = J₁t, s⃛ = J₁ for 0 ≤ t ≤ t₁, so
+/// q = ṡ² = (6^{4/3}/4)·J₁^{2/3}·s^{4/3}; it ends at s₁ = J₁t₁³/6 where q joins
+/// it C² (q(s₁) = Q₁, q′(s₁) = 4Q₁/(3s₁), q″(s₁) = 4Q₁/(9s₁²)). Stop, the
+/// mirror image: s = L − J₂τ³/6 with τ from t₂ down to 0, from s₂ to L.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct EndSegments {
+    /// End of the start segment s₁, mm.
+    pub s_start: f64,
+    /// Jerk of the start segment J₁, mm/s³.
+    pub jerk_start: f64,
+    /// Duration of the start segment t₁, s.
+    pub t_start: f64,
+    /// Start of the stop segment s₂, mm.
+    pub s_stop: f64,
+    /// Jerk of the stop segment J₂ (s⃛ = +J₂ while decelerating), mm/s³.
+    pub jerk_stop: f64,
+    /// Duration of the stop segment t₂, s.
+    pub t_stop: f64,
+}
+
+impl EndSegments {
+    /// The segments that join q with q(s₁) = `q_start` and q(s₂) = `q_stop`
+    /// (both > 0) on a path of length `length`: J = 2Q^{3/2}/(9d²) and
+    /// t = 3d/√Q with d = s₁ resp. L − s₂.
+    pub fn from_q(s_start: f64, q_start: f64, s_stop: f64, q_stop: f64, length: f64) -> Self {
+        let seg = |d: f64, q: f64| {
+            let v = libm::sqrt(q);
+            (2.0 * q * v / (9.0 * d * d), 3.0 * d / v)
+        };
+        let (jerk_start, t_start) = seg(s_start, q_start);
+        let (jerk_stop, t_stop) = seg(length - s_stop, q_stop);
+        EndSegments {
+            s_start,
+            jerk_start,
+            t_start,
+            s_stop,
+            jerk_stop,
+            t_stop,
+        }
+    }
+
+    /// The six values in table order.
+    pub fn to_array(&self) -> [f64; END_LEN] {
+        [
+            self.s_start,
+            self.jerk_start,
+            self.t_start,
+            self.s_stop,
+            self.jerk_stop,
+            self.t_stop,
+        ]
+    }
+
+    /// The inverse of [`EndSegments::to_array`].
+    pub fn from_array(x: [f64; END_LEN]) -> Self {
+        let [s_start, jerk_start, t_start, s_stop, jerk_stop, t_stop] = x;
+        EndSegments {
+            s_start,
+            jerk_start,
+            t_start,
+            s_stop,
+            jerk_stop,
+            t_stop,
+        }
+    }
+
+    /// `[s, ṡ, s̈, s⃛]` at time `t` of the start segment (0 ≤ t ≤ t₁).
+    pub fn start_at(&self, t: f64) -> [f64; 4] {
+        let j = self.jerk_start;
+        [j * t * t * t / 6.0, 0.5 * j * t * t, j * t, j]
+    }
+
+    /// `[s, ṡ, s̈, s⃛]` of the stop segment `tau` before the end (0 ≤ τ ≤ t₂)
+    /// on a path of length `length`.
+    pub fn stop_at(&self, length: f64, tau: f64) -> [f64; 4] {
+        let j = self.jerk_stop;
+        [
+            length - j * tau * tau * tau / 6.0,
+            0.5 * j * tau * tau,
+            -j * tau,
+            j,
+        ]
+    }
+
+    /// The feed ṡ (mm/s) at arc length `s` inside a segment (from
+    /// s = J t³/6: ṡ = ½ J (6s/J)^{2/3}, the stop mirrored from `length`);
+    /// `None` on [s₁, s₂], where q is executed.
+    pub fn feed_at(&self, s: f64, length: f64) -> Option<f64> {
+        let v = |d: f64, j: f64| {
+            let t = libm::cbrt(6.0 * d.max(0.0) / j);
+            0.5 * j * t * t
+        };
+        if s < self.s_start {
+            Some(v(s, self.jerk_start))
+        } else if s > self.s_stop {
+            Some(v(length - s, self.jerk_stop))
+        } else {
+            None
+        }
+    }
+
+    /// `[q, q′, q″]` the segments impose at s₁ (`stop` false) or s₂ (true):
+    /// q = ṡ², q′ = 2s̈, q″ = 2s⃛/ṡ.
+    pub fn q_join(&self, length: f64, stop: bool) -> [f64; 3] {
+        let [_, v, a, j] = if stop {
+            self.stop_at(length, self.t_stop)
+        } else {
+            self.start_at(self.t_start)
+        };
+        [v * v, 2.0 * a, 2.0 * j / v]
+    }
+}
+
 /// Everything the host writes; borrowed, so encoding needs no allocation.
 #[derive(Clone, Copy, Debug)]
 pub struct TableParts<'a> {
@@ -199,6 +329,8 @@ pub struct TableParts<'a> {
     pub q_knots: &'a [f64],
     /// q control points, (mm/s)², ≥ 0, first and last 0.
     pub q_ctrl: &'a [f64],
+    /// Jerk-limited start and stop segments; `None`: acceleration steps.
+    pub ends: Option<EndSegments>,
 }
 
 /// A known section kind.
@@ -233,11 +365,13 @@ pub enum Section {
     PieceF64 = 12,
     /// Per piece: the f32 s → u and homogeneous NURBS forms (kind 13).
     PieceF32 = 13,
+    /// Start and stop segments, 0 or 6 f64 (kind 14, optional).
+    Ends = 14,
 }
 
 impl Section {
     /// Every known kind, in the order [`encode`] writes them.
-    pub const ALL: [Section; 13] = [
+    pub const ALL: [Section; 14] = [
         Section::Limits,
         Section::Meta,
         Section::NurbsKnots,
@@ -251,6 +385,7 @@ impl Section {
         Section::PieceBreaks,
         Section::PieceF64,
         Section::PieceF32,
+        Section::Ends,
     ];
 
     /// The kind code in the directory.
@@ -276,7 +411,8 @@ impl Section {
             | Section::QKnots
             | Section::QCtrl
             | Section::PieceBreaks
-            | Section::PieceF64 => 8,
+            | Section::PieceF64
+            | Section::Ends => 8,
             Section::QLocal | Section::PieceF32 => 4,
         }
     }
@@ -480,6 +616,13 @@ pub enum TableError {
         /// Segment index.
         segment: usize,
     },
+    /// The end segments (section 14) are not 0 < s₁ < s₂ < L with J, t > 0
+    /// and s = Jt³/6, or q does not join them C² within [`END_TOL_REL`]
+    /// (`stop`: at s₂, else at s₁).
+    EndSegment {
+        /// Which segment.
+        stop: bool,
+    },
     /// A span-local f32 section (10–13) disagrees with the f64 data beyond
     /// the tolerances of [`crate::fast`] at span or segment `index`
     /// (0-based among the section's spans).
@@ -562,6 +705,11 @@ impl fmt::Display for TableError {
             E::SuOutsideSpan { segment } => write!(f, "su segment {segment}: u leaves its knot span"),
             E::SuDiscontinuous { segment } => write!(f, "su segment {segment}: u jumps at its start"),
             E::SuEnds { segment } => write!(f, "su segment {segment}: does not meet the curve's end"),
+            E::EndSegment { stop } => write!(
+                f,
+                "{} segment does not fit the path or does not join q",
+                if stop { "stop" } else { "start" }
+            ),
             E::FastMismatch { section, index } => {
                 write!(
                     f,
@@ -667,6 +815,7 @@ fn section_sizes(parts: &TableParts) -> [(Section, usize, usize); N_KNOWN] {
             Section::PieceF32,
             n_pieces(parts).saturating_mul(fast::piece_f32_len(encode_degree(parts))),
         ),
+        sz(Section::Ends, if parts.ends.is_some() { END_LEN } else { 0 }),
     ]
 }
 
@@ -810,6 +959,11 @@ pub fn encode(parts: &TableParts, out: &mut [u8]) -> Result<usize, EncodeError> 
             Section::QCtrl => {
                 wr_f64s(buf, off, parts.q_ctrl.iter().copied())?;
             }
+            Section::Ends => {
+                if let Some(e) = parts.ends {
+                    wr_f64s(buf, off, e.to_array())?;
+                }
+            }
             Section::QLocal => {
                 if let Some(q) = QSpline::new(parts.q_knots, parts.q_ctrl) {
                     let mut at = off;
@@ -893,6 +1047,7 @@ pub struct Table<'a> {
     piece_breaks: LeF64<'a>,
     piece_f64: LeF64<'a>,
     piece_f32: LeF32<'a>,
+    ends: Option<EndSegments>,
 }
 
 #[derive(Clone, Copy)]
@@ -1150,11 +1305,32 @@ impl<'a> Table<'a> {
                 return Err(TableError::QEndNotZero { index });
             }
         }
-        for index in [1, nq - 2] {
-            if !(q_ctrl.get(index).unwrap_or(0.0) > 0.0) {
-                return Err(TableError::QFlatEnd { index });
+        // End segments (optional): present, they start and stop the motion;
+        // absent, q′(0) > 0 and q′(L) < 0 must.
+        let ends = match found.get(Section::Ends.slot()).copied().flatten() {
+            Some(e) if e.count != 0 => {
+                let v = f64s(Section::Ends)?;
+                expect_count(Section::Ends, END_LEN, v.len())?;
+                let mut x = [0.0; END_LEN];
+                for (slot, val) in x.iter_mut().zip(v.iter()) {
+                    *slot = val;
+                }
+                let ends = EndSegments::from_array(x);
+                let q = QSpline::new(q_knots, q_ctrl).ok_or(TableError::KnotRange {
+                    section: Section::QKnots,
+                })?;
+                check_ends(&ends, &q, len_l)?;
+                Some(ends)
             }
-        }
+            _ => {
+                for index in [1, nq - 2] {
+                    if !(q_ctrl.get(index).unwrap_or(0.0) > 0.0) {
+                        return Err(TableError::QFlatEnd { index });
+                    }
+                }
+                None
+            }
+        };
 
         // s → u map.
         let su_breaks = f64s(Section::SuBreaks)?;
@@ -1373,7 +1549,13 @@ impl<'a> Table<'a> {
             piece_breaks,
             piece_f64,
             piece_f32,
+            ends,
         })
+    }
+
+    /// The jerk-limited start and stop segments, if the plan has them.
+    pub fn ends(&self) -> Option<EndSegments> {
+        self.ends
     }
 
     /// The whole table, as parsed (CRC included).
@@ -1481,6 +1663,31 @@ impl SegmentArray for LeSuSegments<'_> {
         }
         Some(SuSegment { span, coeffs })
     }
+}
+
+/// Section 14 against the path length and q (see [`EndSegments`]).
+fn check_ends<A: F64Array>(e: &EndSegments, q: &QSpline<A>, len_l: f64) -> Result<(), TableError> {
+    let close = |a: f64, b: f64| (a - b).abs() <= END_TOL_REL * b.abs();
+    for stop in [false, true] {
+        let bad = TableError::EndSegment { stop };
+        let (s, j, t, d) = if stop {
+            (e.s_stop, e.jerk_stop, e.t_stop, len_l - e.s_stop)
+        } else {
+            (e.s_start, e.jerk_start, e.t_start, e.s_start)
+        };
+        let fits = 0.0 < e.s_start && e.s_start < e.s_stop && e.s_stop < len_l;
+        if !(fits && j > 0.0 && t > 0.0 && close(j * t * t * t / 6.0, d)) {
+            return Err(bad);
+        }
+        let [q0, q1, q2] = e.q_join(len_l, stop);
+        let Some([p0, p1, p2, _]) = q.eval(s) else {
+            return Err(bad);
+        };
+        if !(close(p0, q0) && close(p1, q1) && close(p2, q2)) {
+            return Err(bad);
+        }
+    }
+    Ok(())
 }
 
 fn near(a: f64, b: f64, scale: f64) -> bool {

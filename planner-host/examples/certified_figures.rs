@@ -9,7 +9,6 @@ use planner_host::arclength::ArcLength;
 use planner_host::curve::Nurbs;
 use planner_host::plan::{self, Formulation, PlanConfig};
 use planner_host::sampling::Sampling;
-use planner_host::verify;
 
 fn main() {
     let mut args = std::env::args().skip(1);
@@ -71,9 +70,8 @@ fn main() {
                 let name = curve.name.clone();
                 match plan::plan_curve(&curve, &cfg) {
                     Ok(out) => {
-                        let d = verify::dense_check(&curve, &arc, &out.q_knots, &out.q_ctrl, &cfg.limits, 20);
-                        let f =
-                            verify::dense_check(&curve, &arc, &out.q_knots, &out.q_ctrl, &cfg.limits, 200);
+                        let d = out.dense_check(&curve, &arc, 20);
+                        let f = out.dense_check(&curve, &arc, 200);
                         let r = d.ratios;
                         let its: u32 = out.lp.iter().map(|l| l.iterations).sum();
                         println!(

@@ -57,6 +57,7 @@ fn main() {
                 objective: Objective::Integral,
                 qhat_bound: qb,
                 settings: Default::default(),
+                ends: None,
             };
             let pseudo = mk(QhatBound::ControlPoints).solve_pseudo_jerk().unwrap();
             let plan = mk(QhatBound::ControlPoints).solve_plan(&pseudo.ctrl).unwrap();

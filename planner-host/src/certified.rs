@@ -189,10 +189,17 @@ pub fn solve(lp: &FeedLp, is_knot: &[bool], cfg: &CertifiedConfig) -> Result<Cer
     // the control-point bound a_i ≤ v̄² makes the feed (11) hold everywhere (convex hull)
     let upper = vec![lim.vbar * lim.vbar; n];
     let floor = (FLOOR_FEED_REL * lim.vbar).powi(2);
+    // Inside the end segments ([`crate::ends`]) q is not executed: no rows,
+    // no check, no time there.
+    let executed: Vec<bool> = pts.iter().map(|p| lp.executes(p.s)).collect();
     let ds: Vec<f64> = {
-        // quadrature weight of each check point (trapezoid over the sorted points)
+        // quadrature weight of each check point (trapezoid over the sorted
+        // executed points)
         let mut w = vec![0.0; pts.len()];
         for i in 0..pts.len().saturating_sub(1) {
+            if !(executed[i] && executed[i + 1]) {
+                continue;
+            }
             let h = pts[i + 1].s - pts[i].s;
             w[i] += 0.5 * h;
             w[i + 1] += 0.5 * h;
@@ -204,10 +211,19 @@ pub fn solve(lp: &FeedLp, is_knot: &[bool], cfg: &CertifiedConfig) -> Result<Cer
     let mut rho = cfg.rho0;
     let mut qk: Option<Vec<f64>> = None;
     let mut rows: Vec<Row> = Vec::new();
+    let mut last_ctrl: Vec<f64> = Vec::new();
     for it in 0..cfg.max_lps {
         let t0 = Instant::now();
         rows.clear();
         for (i, p) in pts.iter().enumerate() {
+            if !executed[i] {
+                // q inside an end segment is not executed, but it is in the
+                // table: keep it under the feed limit at the knots
+                if is_knot[i] {
+                    rows.push(Row::q_at(&p.basis, qmax[i]));
+                }
+                continue;
+            }
             if mask[i] == 0 {
                 continue;
             }
@@ -249,15 +265,37 @@ pub fn solve(lp: &FeedLp, is_knot: &[bool], cfg: &CertifiedConfig) -> Result<Cer
                         }
                     }
                 }
+                // a segment of length d ending at q = Q takes t = 3d/√Q:
+                // −∂t/∂a = (3/2)·d·Q^{−3/2}·N(s_join)
+                if let Some(e) = lp.ends {
+                    let prev = &last_ctrl;
+                    for join in [&e.start, &e.stop] {
+                        let qj = if prev.is_empty() {
+                            join.q_max
+                        } else {
+                            join.basis.apply(0, prev)
+                        };
+                        let w = 1.5 * join.d * qj.max(floor).powf(-1.5);
+                        for j in 0..ORDER {
+                            if let Some(c) = c.get_mut(join.basis.first + j) {
+                                *c += w * join.basis.d[0][j];
+                            }
+                        }
+                    }
+                }
                 c
             }
         };
         let sol = lp.solve_rows(Stage::Linearised, &rows, Some(&upper), &weights, t0)?;
         lps.push(sol.stats);
+        last_ctrl.clone_from(&sol.ctrl);
         // exact check at every check point; rows near activity join the LP
         let mut ratios = Ratios::default();
         let mut q_now = vec![0.0; pts.len()];
         for (i, p) in pts.iter().enumerate() {
+            if !executed[i] {
+                continue;
+            }
             let v = values(lp, p, qmax[i], &sol.ctrl);
             q_now[i] = v[0] * qmax[i];
             for (k, x) in v[1..].iter().enumerate() {
@@ -288,7 +326,7 @@ pub fn solve(lp: &FeedLp, is_knot: &[bool], cfg: &CertifiedConfig) -> Result<Cer
                 rows.len(),
                 lps[lps.len() - 1].iterations,
                 lps[lps.len() - 1].solve_time_s * 1e3,
-                crate::plan::machining_time(lp.knots, &sol.ctrl),
+                crate::plan::plan_time(lp.knots, &sol.ctrl, lp.ends),
                 ratios,
                 q_now[1..q_now.len() - 1]
                     .iter()
@@ -298,7 +336,7 @@ pub fn solve(lp: &FeedLp, is_knot: &[bool], cfg: &CertifiedConfig) -> Result<Cer
         }
         let mut done = false;
         if feasible {
-            let t = crate::plan::machining_time(lp.knots, &sol.ctrl);
+            let t = crate::plan::plan_time(lp.knots, &sol.ctrl, lp.ends);
             let better = best.as_ref().is_none_or(|b| t < b.0);
             let gain = best.as_ref().map_or(f64::INFINITY, |b| (b.0 - t) / b.0);
             if better {

@@ -12,6 +12,7 @@
 //! - [`sumap`]: the s → u polynomials the firmware evaluates at servo rate.
 //! - [`plan`]: the pipeline, from a curve to a firmware table
 //!   ([`firmware_core::table`]), with the predicted machining time.
+//! - [`ends`]: jerk-limited start and stop segments joined C² to q.
 //! - [`verify`]: dense re-evaluation of a plan against every limit.
 //! - [`transition`]: ArcLen (Appendix C), the length of a jerk-limited
 //!   feed transition, for the override (§4).
@@ -21,6 +22,7 @@ pub mod arclength;
 pub mod builtin;
 pub mod certified;
 pub mod curve;
+pub mod ends;
 mod ipm;
 pub mod limits;
 pub mod lp;

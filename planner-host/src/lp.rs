@@ -23,6 +23,7 @@ use firmware_core::basis::{ders_basis, find_span, window, BasisDerivs, MAX_DEGRE
 use firmware_core::table::Limits;
 
 use crate::arclength::PathDerivs;
+use crate::ends::EndRows;
 
 /// Order of q(s) (cubic B-spline), written d in the paper.
 pub const ORDER: usize = 4;
@@ -235,6 +236,9 @@ pub struct FeedLp<'a> {
     pub qhat_bound: QhatBound,
     /// Interior-point settings.
     pub settings: SolverSettings,
+    /// Jerk-limited start and stop segments ([`crate::ends`]): their join
+    /// rows are added to both LPs; `None`: q(0) = q(L) = 0 with a step.
+    pub ends: Option<&'a EndRows>,
 }
 
 /// A solved LP: the control points of q (a_1 = a_N = 0 included).
@@ -409,7 +413,8 @@ impl<'a> FeedLp<'a> {
         let mut rows = Vec::with_capacity(self.points.len() * 17);
         for p in self.points {
             let qh = qhat.map(|a| p.basis.apply(0, a).max(0.0));
-            self.point_rows(p, qh.map(f64::sqrt), &mut rows);
+            // Inside an end segment q is not executed: no jerk rows there.
+            self.point_rows(p, qh.filter(|_| self.executes(p.s)).map(f64::sqrt), &mut rows);
             if let (Some(qh), QhatBound::EvalPoints) = (qh, self.qhat_bound) {
                 rows.push(Row::q_at(&p.basis, qh));
             }
@@ -442,8 +447,19 @@ impl<'a> FeedLp<'a> {
         out.push(Row { idx, val: coef, rhs });
     }
 
+    /// `true` where q is executed: everywhere without end segments, on
+    /// [s₁, s₂] with them ([`crate::ends`]).
+    pub fn executes(&self, s: f64) -> bool {
+        self.ends.is_none_or(|e| e.executes(s))
+    }
+
     /// Solve max c·a subject to `rows`, a ≥ 0 and, when given, a ≤ `upper`
-    /// (a_1 = a_N = 0 are eliminated). The one place every LP goes through.
+    /// (a_1 = a_N = 0 are eliminated). With end segments ([`Self::ends`])
+    /// their rows q(s₁) ≤ Q₁, q(s₂) ≤ Q₂ are added and their join equalities
+    /// are eliminated: at a knot they involve three control points, the
+    /// outer two become fixed multiples of the middle one (the LP keeps its
+    /// band of width 4 for [`crate::ipm`]). The one place every LP goes
+    /// through.
     pub(crate) fn solve_rows(
         &self,
         stage: Stage,
@@ -464,10 +480,25 @@ impl<'a> FeedLp<'a> {
         // Variables: x_v = a_{v+1} / scale for v = 0 … n−3 (a_1 = a_N = 0 eliminated).
         let nv = n - 2;
         let scale = (self.limits.vbar * self.limits.vbar).max(f64::MIN_POSITIVE);
+        // Join equalities: variable v_e = f · v_keep (None: not eliminated).
+        let subst = match self.ends {
+            Some(e) => join_substitution(e, n).ok_or_else(|| fail("EndJoinSingular", 0))?,
+            None => vec![None; nv],
+        };
+        let end_rows: Vec<Row> = self.ends.map_or(Vec::new(), |e| {
+            e.ineq_rows()
+                .into_iter()
+                .map(|r| Row {
+                    idx: core::array::from_fn(|j| r.first + j),
+                    val: r.val,
+                    rhs: r.rhs,
+                })
+                .collect()
+        });
         // Triplets (row, col, value), rows normalised so that rhs = 1 where rhs > 0.
         let mut trip: Vec<(usize, usize, f64)> = Vec::with_capacity(rows.len() * ORDER + 2 * nv);
         let mut b = Vec::with_capacity(rows.len() + 2 * nv);
-        for row in rows {
+        for row in rows.iter().chain(&end_rows) {
             let norm = if row.rhs > 0.0 { row.rhs } else { 1.0 };
             let r = b.len();
             let mut any = false;
@@ -494,9 +525,45 @@ impl<'a> FeedLp<'a> {
             }
         }
         let m = b.len();
-        let c = c.to_vec();
+        let mut c = c.to_vec();
+        // eliminate: move the eliminated columns onto their kept ones, renumber
+        let mut col_new = vec![usize::MAX; nv];
+        let mut kept = 0usize;
+        for (v, sub) in subst.iter().enumerate() {
+            if sub.is_none() {
+                col_new[v] = kept;
+                kept += 1;
+            }
+        }
+        for (v, sub) in subst.iter().enumerate() {
+            if let Some((k, f)) = *sub {
+                let cv = c.get(v + 1).copied().unwrap_or(0.0);
+                if let Some(ck) = c.get_mut(k + 1) {
+                    *ck += f * cv;
+                }
+            }
+        }
+        for t in trip.iter_mut() {
+            if let Some((k, f)) = subst[t.1] {
+                *t = (t.0, k, t.2 * f);
+            }
+            t.1 = col_new[t.1];
+        }
+        trip.sort_unstable_by_key(|&(r, c, _)| (r, c));
+        trip.dedup_by(|later, first| {
+            let same = later.0 == first.0 && later.1 == first.1;
+            if same {
+                first.2 += later.2;
+            }
+            same
+        });
+        let full_nv = nv;
+        let nv = kept;
         let cmax = c.iter().cloned().fold(0.0, f64::max).max(f64::MIN_POSITIVE);
-        let q: Vec<f64> = (0..nv).map(|v| -c[v + 1] / cmax).collect();
+        let q: Vec<f64> = (0..full_nv)
+            .filter(|&v| subst[v].is_none())
+            .map(|v| -c[v + 1] / cmax)
+            .collect();
         let mut banded = None;
         if self.settings.banded {
             banded = Some(band_rows(&trip, m, nv)).and_then(|rows| {
@@ -534,13 +601,24 @@ impl<'a> FeedLp<'a> {
         };
         let nonzeros = trip.len();
         let mut ctrl = vec![0.0; n];
-        for v in 0..nv {
+        for v in 0..full_nv {
+            if subst[v].is_some() {
+                continue;
+            }
             // interior-point solutions sit a hair inside the bounds: clip to them
-            let mut a = (x[v] * scale).max(0.0);
+            let mut a = (x[col_new[v]] * scale).max(0.0);
             if let Some(u) = upper {
                 a = a.min(u[v + 1]);
             }
             ctrl[v + 1] = a;
+        }
+        for v in 0..full_nv {
+            if let Some((k, f)) = subst[v] {
+                ctrl[v + 1] = f * ctrl[k + 1];
+            }
+        }
+        if let Some(e) = self.ends {
+            e.enforce(&mut ctrl);
         }
         Ok(LpSolution {
             ctrl,
@@ -555,6 +633,42 @@ impl<'a> FeedLp<'a> {
             },
         })
     }
+}
+
+/// The join equalities of `ends` as substitutions on the LP variables
+/// v = i − 1 (control point i, `n` in all): per join, the two rows q′ = k₁q,
+/// q″ = k₂q at a knot involve three consecutive control points; the outer
+/// two are solved for in terms of the middle one. `None` if a join does not
+/// have that shape or its 2×2 system is singular.
+fn join_substitution(ends: &EndRows, n: usize) -> Option<Vec<Option<(usize, f64)>>> {
+    let nv = n.checked_sub(2)?;
+    let mut subst = vec![None; nv];
+    for pair in ends.eq_rows().chunks(2) {
+        let [r0, r1] = [pair.first()?, pair.get(1)?];
+        let big = r0.val.iter().chain(&r1.val).fold(0.0f64, |m, v| m.max(v.abs()));
+        let nz: Vec<usize> = (0..ORDER)
+            .filter(|&j| r0.val[j].abs() > 1e-12 * big || r1.val[j].abs() > 1e-12 * big)
+            .collect();
+        let [j0, jm, j2] = <[usize; 3]>::try_from(nz).ok()?;
+        // r·a = 0: [r_j0 r_j2] [a_j0 a_j2]ᵀ = −r_jm a_jm
+        let det = r0.val[j0] * r1.val[j2] - r0.val[j2] * r1.val[j0];
+        if det.is_nan() || det.abs() <= 1e-12 * big * big {
+            return None;
+        }
+        let (b0, b1) = (-r0.val[jm], -r1.val[jm]);
+        let f0 = (b0 * r1.val[j2] - r0.val[j2] * b1) / det;
+        let f2 = (r0.val[j0] * b1 - b0 * r1.val[j0]) / det;
+        let var = |j: usize| (r0.first + j).checked_sub(1).filter(|&v| v < nv);
+        let keep = var(jm)?;
+        for (j, f) in [(j0, f0), (j2, f2)] {
+            let v = var(j)?;
+            if subst[v].is_some() || subst[keep].is_some() {
+                return None; // the joins overlap
+            }
+            subst[v] = Some((keep, f));
+        }
+    }
+    Some(subst)
 }
 
 /// Rows of ≤ 4 consecutive columns for [`crate::ipm`], from (row, col, value) triplets.
@@ -626,6 +740,7 @@ mod tests {
             objective: Objective::Integral,
             qhat_bound: QhatBound::ControlPoints,
             settings: SolverSettings::default(),
+            ends: None,
         };
         let err = lp.solve_pseudo_jerk().unwrap_err();
         assert_eq!(err.stage, Stage::PseudoJerk);

@@ -4,11 +4,12 @@
 use std::path::Path;
 use std::time::Instant;
 
-use firmware_core::table::{self, Limits, TableParts};
+use firmware_core::table::{self, EndSegments, Limits, TableParts};
 
 use crate::arclength::{ArcLength, PathDerivs};
 use crate::certified::{self, CertifiedConfig};
 use crate::curve::{CurveError, Nurbs};
+use crate::ends::{EndMode, EndRows};
 use crate::limits::{self, LimitsError, TABLE1};
 use crate::lp::{self, BasisRow, EvalPoint, FeedLp, LpError, LpStats, Objective, QhatBound, SolverSettings};
 use crate::sampling::{self, Sampling};
@@ -75,6 +76,8 @@ pub struct PlanConfig {
     pub qhat_bound: QhatBound,
     /// Tolerance of the s → u map, mm: |s(u(s)) − s|.
     pub su_tol_mm: f64,
+    /// How the plan starts and stops: jerk-limited segments or steps.
+    pub ends: EndMode,
 }
 
 fn display<S: serde::Serializer, T: std::fmt::Display>(v: &T, s: S) -> Result<S::Ok, S::Error> {
@@ -96,6 +99,7 @@ impl Default for PlanConfig {
             objective: Objective::Integral,
             qhat_bound: QhatBound::ControlPoints,
             su_tol_mm: sumap::DEFAULT_TOL_MM,
+            ends: EndMode::Jerk,
         }
     }
 }
@@ -162,8 +166,12 @@ pub struct PlanOutput {
     pub lp: Vec<LpStats>,
     /// Certified formulation: largest exact ratio to each limit over its check points.
     pub check: Option<Ratios>,
-    /// Predicted machining time T = ∫ ds/√q, s.
+    /// Predicted machining time, s: T = ∫ ds/√q, or with end segments
+    /// t₁ + ∫_{s₁}^{s₂} ds/√q + t₂.
     pub predicted_time_s: f64,
+    /// The jerk-limited start and stop segments (None: acceleration steps,
+    /// by choice or because the path is too short for them).
+    pub ends: Option<EndSegments>,
     /// Segments of the s → u map.
     pub su_segments: usize,
     /// Largest |s(u(s)) − s| measured on the s → u map, mm.
@@ -189,6 +197,20 @@ pub struct PlanOutput {
 }
 
 impl PlanOutput {
+    /// The dense re-evaluation of this plan ([`crate::verify::dense_check_ends`]),
+    /// end segments included.
+    pub fn dense_check(&self, curve: &Nurbs, arc: &ArcLength, per_span: usize) -> crate::verify::DenseReport {
+        crate::verify::dense_check_ends(
+            curve,
+            arc,
+            &self.q_knots,
+            &self.q_ctrl,
+            self.ends.as_ref(),
+            &self.config.limits,
+            per_span,
+        )
+    }
+
     /// The human-readable summary, with the dense check when given.
     pub fn summary(&self, check: Option<&crate::verify::DenseReport>) -> String {
         use std::fmt::Write;
@@ -221,11 +243,27 @@ impl PlanOutput {
             "  s->u map: {} segments, max |s(u(s)) - s| = {:.2e} mm",
             self.su_segments, self.su_max_err_mm
         );
-        let _ = writeln!(
-            o,
-            "  predicted machining time T = int ds/sqrt(q) = {:.4} s",
-            self.predicted_time_s
-        );
+        match &self.ends {
+            Some(e) => {
+                let _ = writeln!(
+                    o,
+                    "  end segments: start to s1 = {:.3} mm in t1 = {:.4} s at jerk {:.0} mm/s^3, stop from s2 = {:.3} mm in t2 = {:.4} s at jerk {:.0} mm/s^3",
+                    e.s_start, e.t_start, e.jerk_start, e.s_stop, e.t_stop, e.jerk_stop
+                );
+                let _ = writeln!(
+                    o,
+                    "  predicted machining time T = t1 + int_s1^s2 ds/sqrt(q) + t2 = {:.4} s",
+                    self.predicted_time_s
+                );
+            }
+            None => {
+                let _ = writeln!(
+                    o,
+                    "  predicted machining time T = int ds/sqrt(q) = {:.4} s",
+                    self.predicted_time_s
+                );
+            }
+        }
         if let Some(c) = check {
             let r = &c.ratios;
             let _ = writeln!(
@@ -387,6 +425,10 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
     };
     let geometry_time_s = t0.elapsed().as_secs_f64();
 
+    let end_rows = match cfg.ends {
+        EndMode::Jerk => EndRows::new(&knots, &cfg.limits, &|s| path_derivs_at(curve, &arc, s)),
+        EndMode::Step => None,
+    };
     let feed_lp = FeedLp {
         knots: &knots,
         points: &points,
@@ -401,6 +443,7 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
             },
             Formulation::Certified => cfg.solver,
         },
+        ends: end_rows.as_ref(),
     };
     let (ctrl, qhat_ctrl, lp_stats, check) = match cfg.formulation {
         Formulation::Paper => {
@@ -413,13 +456,25 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
             (c.ctrl, Vec::new(), c.lps, Some(c.check))
         }
     };
-    if let Some(at) = find_stall(&knots, &ctrl, &cfg.limits) {
+    let ends = end_rows.as_ref().and_then(|e| e.segments(&ctrl));
+    let stall = match (&end_rows, ends) {
+        (None, _) => find_stall(&knots, &ctrl, &cfg.limits),
+        (Some(_), Some(e)) => find_stall_between(&knots, &ctrl, &cfg.limits, e.s_start, e.s_stop),
+        (Some(e), None) => Some(StallAt::Interior {
+            s_mm: e.start.s,
+            feed_mm_s: 0.0,
+        }),
+    };
+    if let Some(at) = stall {
         return Err(PlanError::Stall {
             at,
             length_mm: length,
         });
     }
-    let predicted_time_s = machining_time(&knots, &ctrl);
+    let predicted_time_s = match ends {
+        Some(e) => e.t_start + machining_time_between(&knots, &ctrl, e.s_start, e.s_stop) + e.t_stop,
+        None => machining_time(&knots, &ctrl),
+    };
 
     let homogeneous = curve.to_homogeneous_table();
     let parts = TableParts {
@@ -433,6 +488,7 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
         su_segments: &su.segments,
         q_knots: &knots,
         q_ctrl: &ctrl,
+        ends,
     };
     let mut bytes = vec![0u8; table::encoded_len(&parts)];
     let written = table::encode(&parts, &mut bytes).map_err(PlanError::Table)?;
@@ -447,6 +503,7 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
         lp: lp_stats,
         check,
         predicted_time_s,
+        ends,
         su_segments: su.segments.len(),
         su_max_err_mm: su.max_err_mm,
         geometry_time_s,
@@ -526,7 +583,7 @@ impl core::fmt::Display for StallAt {
 pub fn find_stall(knots: &[f64], ctrl: &[f64], limits: &Limits) -> Option<StallAt> {
     let (first, last) = (*knots.first()?, *knots.last()?);
     let at = |s: f64, k: usize| BasisRow::at(knots, s).map(|b| b.apply(k, ctrl));
-    let acc_floor = STALL_ACC_REL * limits.abar;
+    let (acc_floor, q_floor) = stall_floors(limits, last - first);
     let start_acc = 0.5 * at(first, 1).unwrap_or(0.0);
     if start_acc.is_nan() || start_acc < acc_floor {
         return Some(StallAt::Start { acc_mm_s2: start_acc });
@@ -535,9 +592,35 @@ pub fn find_stall(knots: &[f64], ctrl: &[f64], limits: &Limits) -> Option<StallA
     if stop_acc.is_nan() || stop_acc < acc_floor {
         return Some(StallAt::End { acc_mm_s2: stop_acc });
     }
-    let q_floor = (STALL_FEED_REL * limits.vbar).powi(2);
     // q ≈ 2·acc·s near the ends: skip where that ramp is below 2·floor.
-    let (lo, hi) = (first + q_floor / start_acc, last - q_floor / stop_acc);
+    find_stall_between(
+        knots,
+        ctrl,
+        limits,
+        first + q_floor / start_acc,
+        last - q_floor / stop_acc,
+    )
+}
+
+/// The stall floors `(acceleration mm/s², q (mm/s)²)` on a path of length
+/// `length` mm: [`STALL_ACC_REL`] and [`STALL_FEED_REL`] of what a
+/// rest-to-rest move can reach there at all, min(Ā, J̄^{2/3}(L/2)^{1/3}) and
+/// min(v̄, J̄^{1/3}(L/2)^{2/3}) (pure jerk phases over each half), so that a
+/// path of a few µm is not called stalled for being short.
+pub fn stall_floors(limits: &Limits, length: f64) -> (f64, f64) {
+    let half = (0.5 * length).max(0.0);
+    let acc = limits.abar.min(limits.jbar.powf(2.0 / 3.0) * half.cbrt());
+    let feed = limits.vbar.min(limits.jbar.cbrt() * half.powf(2.0 / 3.0));
+    (STALL_ACC_REL * acc, (STALL_FEED_REL * feed).powi(2))
+}
+
+/// The interior part of [`find_stall`]: the exact minimum of q on [lo, hi]
+/// against (STALL_FEED_REL·v̄)². With end segments, [lo, hi] = [s₁, s₂]:
+/// the segments start and stop the motion, q must not vanish in between.
+pub fn find_stall_between(knots: &[f64], ctrl: &[f64], limits: &Limits, lo: f64, hi: f64) -> Option<StallAt> {
+    let at = |s: f64, k: usize| BasisRow::at(knots, s).map(|b| b.apply(k, ctrl));
+    let length = knots.last().copied().unwrap_or(0.0) - knots.first().copied().unwrap_or(0.0);
+    let (_, q_floor) = stall_floors(limits, length);
     let mut worst: Option<(f64, f64)> = None;
     for w in knots.windows(2).filter(|w| w[1] > w[0] && w[1] > lo && w[0] < hi) {
         let (a, b) = (w[0].max(lo), w[1].min(hi));
@@ -582,12 +665,32 @@ pub fn find_stall(knots: &[f64], ctrl: &[f64], limits: &Limits) -> Option<StallA
     }
 }
 
+/// Machining time of the plan `ctrl`, s: T = ∫ ds/√q, or with end segments
+/// t₁ + ∫_{s₁}^{s₂} ds/√q + t₂ (infinite if q vanishes at a join).
+pub fn plan_time(knots: &[f64], ctrl: &[f64], ends: Option<&EndRows>) -> f64 {
+    match ends {
+        None => machining_time(knots, ctrl),
+        Some(e) => match e.segments(ctrl) {
+            Some(g) => g.t_start + machining_time_between(knots, ctrl, g.s_start, g.s_stop) + g.t_stop,
+            None => f64::INFINITY,
+        },
+    }
+}
+
 /// Predicted machining time T = ∫₀ᴸ ds/√q(s), s.
 ///
 /// Per knot span, 16-point Gauss–Legendre; on a span whose end has q = 0 (the
 /// start and the stop) the substitution s = end ± h·τ² removes the 1/√s
 /// singularity of a simple zero, so the rule stays exact to rounding.
 pub fn machining_time(knots: &[f64], ctrl: &[f64]) -> f64 {
+    match (knots.first(), knots.last()) {
+        (Some(&a), Some(&b)) => machining_time_between(knots, ctrl, a, b),
+        _ => 0.0,
+    }
+}
+
+/// ∫ ds/√q over the knot spans of q inside [lo, hi] (lo, hi knots), s.
+pub fn machining_time_between(knots: &[f64], ctrl: &[f64], lo: f64, hi: f64) -> f64 {
     let q = |s: f64| {
         BasisRow::at(knots, s)
             .map(|b| b.apply(0, ctrl))
@@ -598,7 +701,10 @@ pub fn machining_time(knots: &[f64], ctrl: &[f64]) -> f64 {
     let qmax = ctrl.iter().cloned().fold(0.0, f64::max);
     let zero = 1e-12 * qmax.max(f64::MIN_POSITIVE);
     let mut total = 0.0;
-    for win in knots.windows(2).filter(|w| w[1] > w[0]) {
+    for win in knots
+        .windows(2)
+        .filter(|w| w[1] > w[0] && w[0] >= lo && w[1] <= hi)
+    {
         let (a, b) = (win[0], win[1]);
         let h = b - a;
         let za = q(a) <= zero;
@@ -705,12 +811,12 @@ mod tests {
     fn find_stall_finds_the_exact_interior_minimum() {
         // Asymmetric dips: the minimum lies inside a knot span, not at a knot.
         // find_stall's verdict and place agree with a fine scan, on both sides
-        // of the floor q = (1e-3·v̄)² ≈ 0.0278 (mm/s)².
-        let floor = (STALL_FEED_REL * TABLE1.vbar).powi(2);
+        // of the floor q = (1e-3·min(v̄, J̄^{1/3}(L/2)^{2/3}))² ([`stall_floors`]).
         let mut verdicts = [0; 2];
         for dip in [-50.0, -1.2, -0.99, -0.97, -0.95, -0.9, -0.5, 0.0] {
             let (knots, mut ctrl) = q_plan(5000.0, 10000.0);
             ctrl[5..8].copy_from_slice(&[3.0, dip, 1.0]);
+            let floor = stall_floors(&TABLE1, knots[knots.len() - 1] - knots[0]).1;
             let (s_scan, q_scan) = scan_min(&knots, &ctrl);
             let stalls = q_scan < floor;
             verdicts[usize::from(stalls)] += 1;

@@ -10,7 +10,7 @@ use crate::arclength::ArcLength;
 use crate::curve::Nurbs;
 use crate::lp::BasisRow;
 use crate::plan::path_derivs_at;
-use firmware_core::table::Limits;
+use firmware_core::table::{EndSegments, Limits};
 
 /// Largest ratio to each limit (1.0 = at the limit).
 #[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
@@ -50,6 +50,9 @@ impl Ratios {
     }
 }
 
+/// Fewest time samples per end segment in [`dense_check_ends`].
+pub const SEGMENT_MIN_POINTS: usize = 200;
+
 /// Result of a dense check.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct DenseReport {
@@ -78,7 +81,13 @@ pub fn ratios_at(
     let q = b.apply(0, ctrl).max(0.0);
     let (q1, q2) = (b.apply(1, ctrl), b.apply(2, ctrl));
     let sd = q.sqrt();
-    let (sdd, sddd) = (0.5 * q1, 0.5 * q2 * sd);
+    ratios_kin(curve, arc, lim, s, [sd, 0.5 * q1, 0.5 * q2 * sd])
+}
+
+/// Ratios to the limits at arc length `s` moving with `[ṡ, s̈, s⃛]`.
+pub fn ratios_kin(curve: &Nurbs, arc: &ArcLength, lim: &Limits, s: f64, kin: [f64; 3]) -> Ratios {
+    let [sd, sdd, sddd] = kin;
+    let q = sd * sd;
     let g = path_derivs_at(curve, arc, s);
     let mut r = Ratios {
         feed: sd / lim.vbar,
@@ -107,21 +116,64 @@ pub fn dense_check(
     lim: &Limits,
     per_span: usize,
 ) -> DenseReport {
+    dense_check_ends(curve, arc, knots, ctrl, None, lim, per_span)
+}
+
+/// [`dense_check`] of a plan with end segments: q on [s₁, s₂] as there, and
+/// each segment at `per_span` × (its knot spans, at least [`SEGMENT_MIN_POINTS`])
+/// points evenly spaced in time, from the exact s(t) of the segment.
+pub fn dense_check_ends(
+    curve: &Nurbs,
+    arc: &ArcLength,
+    knots: &[f64],
+    ctrl: &[f64],
+    ends: Option<&EndSegments>,
+    lim: &Limits,
+    per_span: usize,
+) -> DenseReport {
     let per_span = per_span.max(1);
     let mut ratios = Ratios::default();
     let mut argmax_s = Ratios::default();
     let mut points = 0;
+    let (lo, hi) = match ends {
+        Some(e) => (e.s_start, e.s_stop),
+        None => (f64::NEG_INFINITY, f64::INFINITY),
+    };
     let spans: Vec<(f64, f64)> = knots
         .windows(2)
-        .filter(|w| w[1] > w[0])
+        .filter(|w| w[1] > w[0] && w[0] >= lo && w[1] <= hi)
         .map(|w| (w[0], w[1]))
         .collect();
     let n_spans = spans.len();
+    let mut samples: Vec<(f64, Ratios)> = Vec::new();
+    if let Some(e) = ends {
+        let length = knots.last().copied().unwrap_or(0.0);
+        let spans_in = |a: f64, b: f64| {
+            knots
+                .windows(2)
+                .filter(|w| w[1] > w[0] && w[0] >= a && w[1] <= b)
+                .count()
+        };
+        let n1 = (per_span * spans_in(0.0, e.s_start)).max(SEGMENT_MIN_POINTS);
+        let n2 = (per_span * spans_in(e.s_stop, length)).max(SEGMENT_MIN_POINTS);
+        for k in 0..=n1 {
+            let [s, v, a, j] = e.start_at(e.t_start * k as f64 / n1 as f64);
+            samples.push((s, ratios_kin(curve, arc, lim, s, [v, a, j])));
+        }
+        for k in 0..=n2 {
+            let [s, v, a, j] = e.stop_at(length, e.t_stop * k as f64 / n2 as f64);
+            samples.push((s, ratios_kin(curve, arc, lim, s, [v, a, j])));
+        }
+    }
     for (i, (a, b)) in spans.into_iter().enumerate() {
         let count = if i + 1 == n_spans { per_span + 1 } else { per_span };
         for k in 0..count {
             let s = a + (b - a) * k as f64 / per_span as f64;
-            let r = ratios_at(curve, arc, knots, ctrl, lim, s);
+            samples.push((s, ratios_at(curve, arc, knots, ctrl, lim, s)));
+        }
+    }
+    for (s, r) in samples {
+        {
             points += 1;
             let upd = |best: &mut f64, at: &mut f64, x: f64| {
                 if x > *best {

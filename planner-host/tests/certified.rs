@@ -10,7 +10,7 @@ use planner_host::verify;
 fn check(curve: &Nurbs, cfg: &PlanConfig) -> (f64, verify::Ratios) {
     let out = plan::plan_curve(curve, cfg).unwrap();
     let arc = ArcLength::new(curve);
-    let d = verify::dense_check(curve, &arc, &out.q_knots, &out.q_ctrl, &cfg.limits, 20);
+    let d = out.dense_check(curve, &arc, 20);
     eprintln!(
         "{}: T {:.4} s, dense {:?}",
         curve.name, out.predicted_time_s, d.ratios

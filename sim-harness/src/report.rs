@@ -20,7 +20,7 @@ use planner_host::curve::Nurbs;
 use planner_host::lp::{greville, BasisRow, LpStats, Objective, QhatBound};
 use planner_host::plan::{self, PlanConfig, PlanError, PlanOutput};
 use planner_host::sampling::{self, Sampling};
-use planner_host::verify::{self, Ratios};
+use planner_host::verify::Ratios;
 use plotters::prelude::*;
 
 use crate::plot::{register_font, PlotError};
@@ -278,6 +278,8 @@ fn plan_one(
         formulation: plan::Formulation::Paper,
         objective: f.objective,
         qhat_bound: f.qhat_bound,
+        // the paper's plans: q(0) = q(L) = 0, acceleration steps at the ends
+        ends: planner_host::ends::EndMode::Step,
         ..PlanConfig::default()
     };
     plan::plan_curve(curve, &pc)
@@ -294,8 +296,7 @@ fn run_case(
     let t0 = Instant::now();
     let p = plan_one(curve, cfg, method, density, f).map_err(|e| e.to_string())?;
     let plan_time_s = t0.elapsed().as_secs_f64();
-    let dense =
-        verify::dense_check(curve, arc, &p.q_knots, &p.q_ctrl, &cfg.limits, cfg.dense_per_span).ratios;
+    let dense = p.dense_check(curve, arc, cfg.dense_per_span).ratios;
     let (sim, feed) = match sim::run_table(&p.table_bytes, &cfg.sim) {
         Ok(r) => {
             let feed = if density == cfg.feed_density {

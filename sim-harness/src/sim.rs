@@ -299,8 +299,10 @@ impl SimResult {
     }
 }
 
-/// √q(s) of a table at `n` evenly spaced points of [0, L].
+/// The planned feed of a table at `n` evenly spaced points of [0, L]: √q(s),
+/// and inside the end segments (if any) the segments' own feed.
 pub fn planned_feed(table: &Table, n: usize) -> Series {
+    let ends = table.ends();
     let Some(q) = QSpline::new(table.q_knots(), table.q_ctrl()) else {
         return Vec::new();
     };
@@ -311,7 +313,10 @@ pub fn planned_feed(table: &Table, n: usize) -> Series {
     (0..n)
         .filter_map(|k| {
             let s = a + (b - a) * k as f64 / (n - 1) as f64;
-            Some((s, q.eval(s)?[0].max(0.0).sqrt()))
+            match ends.and_then(|e| e.feed_at(s, b)) {
+                Some(v) => Some((s, v)),
+                None => Some((s, q.eval(s)?[0].max(0.0).sqrt())),
+            }
         })
         .collect()
 }

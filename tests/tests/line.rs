@@ -17,9 +17,10 @@
 
 use planner_host::arclength::ArcLength;
 use planner_host::curve::Nurbs;
+use planner_host::ends::EndMode;
 use planner_host::limits::TABLE1;
 use planner_host::lp;
-use planner_host::plan::{self, PlanConfig};
+use planner_host::plan::{self, Formulation, PlanConfig};
 use planner_host::verify;
 
 fn closed_forms(len: f64, v: f64, a: f64, j: f64) -> (f64, f64) {
@@ -39,8 +40,11 @@ fn line_plans_lie_between_the_closed_forms() {
     let line = Nurbs::line([0.0, 0.0, 0.0], [len, 0.0, 0.0]);
     let (t_a, t_j) = closed_forms(len, TABLE1.vbar, TABLE1.abar, TABLE1.jbar);
     for density in [1.0, 2.0, 4.0] {
+        // the paper's ends: q(0) = q(L) = 0 with an acceleration step
         let cfg = PlanConfig {
             density_per_mm: density,
+            formulation: Formulation::Paper,
+            ends: EndMode::Step,
             ..PlanConfig::default()
         };
         let out = plan::plan_curve(&line, &cfg).unwrap();
@@ -100,9 +104,11 @@ fn diagonal_line_is_limited_per_axis() {
         ..cfg
     };
     let out = plan::plan_curve(&diag, &slow).unwrap();
-    // the LP holds the limits at its evaluation points, the Greville points (18)
+    // the plan holds the limits where q is executed (between the end segments)
+    let e = out.ends.expect("end segments");
     let vmax = lp::greville(&out.q_knots)
         .into_iter()
+        .filter(|&g| g >= e.s_start && g <= e.s_stop)
         .map(|g| {
             lp::BasisRow::at(&out.q_knots, g)
                 .unwrap()
@@ -115,4 +121,69 @@ fn diagonal_line_is_limited_per_axis() {
         vmax >= 50.0 * 2f64.sqrt() * 0.99,
         "feed {vmax} reaches the axial bound"
     );
+}
+
+#[test]
+fn jerk_limited_ends_follow_the_s_curve_on_a_line() {
+    // With the end segments (the default) the plan starts and stops at rest
+    // with zero acceleration, like the 7-segment S-curve: it can no longer beat
+    // T_j. On a line the start segment is the S-curve's jerk-up phase itself:
+    // s₁ is the last knot before 1.25·A³/(6J²) = 2.75 mm, with J close to J̄,
+    // t₁ = (6s₁/J)^{1/3}, s̈(t₁) = Jt₁ ≤ A.
+    let len = 100.0;
+    let line = Nurbs::line([0.0, 0.0, 0.0], [len, 0.0, 0.0]);
+    let (_, t_j) = closed_forms(len, TABLE1.vbar, TABLE1.abar, TABLE1.jbar);
+    let arc = ArcLength::new(&line);
+    for density in [1.0, 2.0, 4.0] {
+        let cfg = PlanConfig {
+            density_per_mm: density,
+            ..PlanConfig::default()
+        };
+        let out = plan::plan_curve(&line, &cfg).unwrap();
+        let e = out.ends.expect("a 100 mm line has room for end segments");
+        let (jbar, abar) = (TABLE1.jbar, TABLE1.abar);
+        let s_phase = abar.powi(3) / (6.0 * jbar * jbar);
+        let spacing = len / (out.sampling_points - 1) as f64;
+        assert!(
+            e.s_start <= 1.25 * s_phase && e.s_start > 1.25 * s_phase - spacing - 1e-9,
+            "{e:?}"
+        );
+        assert!(((len - e.s_stop) - e.s_start).abs() < 1e-9, "symmetric: {e:?}");
+        for (j, t, d) in [
+            (e.jerk_start, e.t_start, e.s_start),
+            (e.jerk_stop, e.t_stop, len - e.s_stop),
+        ] {
+            // the certified sequence linearises the jerk rows at q̄ ≥ q (trust
+            // region): the join's Q, hence J = 2Q^{3/2}/(9d²), stays a little
+            // under the S-curve's J̄
+            let (j_closed, t_closed) = (jbar, (6.0 * d / j).cbrt());
+            assert!(j <= j_closed && j >= j_closed * 0.9, "J {j} vs {j_closed}");
+            assert!((t - t_closed).abs() <= 1e-4 * t_closed, "t {t} vs {t_closed}");
+            assert!(j * t <= abar, "the segment stays under A");
+        }
+        // C² join: q, q′, q″ of the plan equal the segment's at s₁ and s₂
+        for (s, stop) in [(e.s_start, false), (e.s_stop, true)] {
+            let want = e.q_join(len, stop);
+            let b = lp::BasisRow::at(&out.q_knots, s).unwrap();
+            for (k, w) in want.iter().enumerate() {
+                let got = b.apply(k, &out.q_ctrl);
+                assert!(
+                    (got - w).abs() <= 1e-9 * w.abs(),
+                    "stop {stop}, q^({k}): {got} vs {w}"
+                );
+            }
+        }
+        let t = out.predicted_time_s;
+        let dense = verify::dense_check_ends(&line, &arc, &out.q_knots, &out.q_ctrl, Some(&e), &TABLE1, 20);
+        eprintln!(
+            "density {density}: T_plan {t:.5} (S-curve {t_j:.5}), segments {e:?}, dense {:?}",
+            dense.ratios
+        );
+        assert!(
+            t >= t_j * (1.0 - 1e-6),
+            "a jerk-limited plan cannot beat the S-curve"
+        );
+        assert!(t <= t_j * 1.02, "plan within 2 % of the S-curve");
+        assert!(dense.ratios.worst() <= 1.01, "{:?}", dense.ratios);
+    }
 }

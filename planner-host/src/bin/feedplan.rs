@@ -11,6 +11,7 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 use planner_host::arclength::ArcLength;
 use planner_host::curve::Nurbs;
+use planner_host::ends::EndMode;
 use planner_host::limits;
 use planner_host::lp::{Objective, QhatBound};
 use planner_host::plan::{self, Formulation, PlanConfig};
@@ -65,6 +66,11 @@ enum Cmd {
         /// Certified formulation: check points per knot span of q.
         #[arg(long)]
         checks_per_span: Option<usize>,
+        /// Start and stop: jerk (time-domain constant-jerk segments joined C² to q, at rest
+        /// with zero acceleration at both ends) or step (q(0) = q(L) = 0, the paper: an
+        /// acceleration step at both ends).
+        #[arg(long, default_value = "jerk")]
+        ends: EndMode,
         /// Points per knot span of q in the dense re-evaluation of the plan.
         #[arg(long, default_value_t = 20)]
         dense: usize,
@@ -95,6 +101,7 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             objective,
             qhat_bound,
             checks_per_span,
+            ends,
         } => {
             if formulation != Formulation::Paper && (objective.is_some() || qhat_bound.is_some()) {
                 return Err("--objective and --qhat-bound go with --formulation paper".into());
@@ -111,6 +118,7 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                 limits,
                 objective: objective.unwrap_or(Objective::Uniform),
                 qhat_bound: qhat_bound.unwrap_or(QhatBound::None),
+                ends,
                 ..PlanConfig::default()
             };
             if let Some(c) = checks_per_span {
@@ -118,7 +126,15 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             }
             let out = plan::plan_curve(&curve, &cfg)?;
             let arc = ArcLength::new(&curve);
-            let check = verify::dense_check(&curve, &arc, &out.q_knots, &out.q_ctrl, &cfg.limits, dense);
+            let check = verify::dense_check_ends(
+                &curve,
+                &arc,
+                &out.q_knots,
+                &out.q_ctrl,
+                out.ends.as_ref(),
+                &cfg.limits,
+                dense,
+            );
             plan::write_atomic(&output, &out.table_bytes)?;
             if json {
                 let mut v = serde_json::to_value(&out)?;

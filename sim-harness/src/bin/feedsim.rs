@@ -286,7 +286,15 @@ fn demo(out: &Path) -> Result<(), BoxError> {
     };
     let planned = plan::plan_curve(&curve, &cfg)?;
     let arc = ArcLength::new(&curve);
-    let check = verify::dense_check(&curve, &arc, &planned.q_knots, &planned.q_ctrl, &cfg.limits, 20);
+    let check = verify::dense_check_ends(
+        &curve,
+        &arc,
+        &planned.q_knots,
+        &planned.q_ctrl,
+        planned.ends.as_ref(),
+        &cfg.limits,
+        20,
+    );
     println!("== plan");
     print!("{}", planned.summary(Some(&check)));
 
