@@ -178,8 +178,32 @@ fn static_cap(lp: &FeedLp, p: &EvalPoint) -> f64 {
 
 /// Run the certified sequence on `lp`, whose `points` are the check points
 /// (sorted by s; `is_knot[i]` marks those on a knot of q, which always carry rows).
-pub fn solve(lp: &FeedLp, is_knot: &[bool], cfg: &CertifiedConfig) -> Result<CertifiedPlan, LpError> {
+///
+/// `caps` are the curvature jumps ([`crate::junction`]) as `(s, q_cap)`:
+/// the row q(s) ≤ q_cap, and at the check points within 1e-6 mm of s the
+/// jerk rows and the exact check held to (1 − β)·J.
+pub fn solve(
+    lp: &FeedLp,
+    is_knot: &[bool],
+    caps: &[(f64, f64)],
+    cfg: &CertifiedConfig,
+) -> Result<CertifiedPlan, LpError> {
     let pts = lp.points;
+    // jerk limit share at each check point: 1 − β next to a curvature jump
+    let jerk_share: Vec<f64> = pts
+        .iter()
+        .map(|p| {
+            if caps.iter().any(|&(s, _)| (p.s - s).abs() <= 1e-6) {
+                1.0 - crate::junction::JUMP_JERK_SHARE
+            } else {
+                1.0
+            }
+        })
+        .collect();
+    let cap_rows: Vec<Row> = caps
+        .iter()
+        .filter_map(|&(s, cap)| Some(Row::q_at(&crate::lp::BasisRow::at(lp.knots, s)?, cap)))
+        .collect();
     let n = lp.n_ctrl();
     let lim = lp.limits;
     let qmax: Vec<f64> = pts.iter().map(|p| lp.q_max(&p.geo)).collect();
@@ -215,6 +239,7 @@ pub fn solve(lp: &FeedLp, is_knot: &[bool], cfg: &CertifiedConfig) -> Result<Cer
     for it in 0..cfg.max_lps {
         let t0 = Instant::now();
         rows.clear();
+        rows.extend_from_slice(&cap_rows);
         for (i, p) in pts.iter().enumerate() {
             if !executed[i] {
                 // q inside an end segment is not executed, but it is in the
@@ -236,7 +261,10 @@ pub fn solve(lp: &FeedLp, is_knot: &[bool], cfg: &CertifiedConfig) -> Result<Cer
                 }
                 let start = rows.len();
                 lp.kind_rows(p, kind, sq.max(f64::MIN_POSITIVE), &mut rows);
-                let r = rows[start];
+                let mut r = rows[start];
+                if matches!(kind, RowKind::Jerk(_) | RowKind::TJerk) {
+                    r.rhs *= jerk_share[i];
+                }
                 rows.truncate(start);
                 if m & 1 != 0 {
                     rows.push(r);
@@ -296,7 +324,10 @@ pub fn solve(lp: &FeedLp, is_knot: &[bool], cfg: &CertifiedConfig) -> Result<Cer
             if !executed[i] {
                 continue;
             }
-            let v = values(lp, p, qmax[i], &sol.ctrl);
+            let mut v = values(lp, p, qmax[i], &sol.ctrl);
+            for x in v[5..].iter_mut() {
+                *x /= jerk_share[i];
+            }
             q_now[i] = v[0] * qmax[i];
             for (k, x) in v[1..].iter().enumerate() {
                 if *x > cfg.activity {

@@ -13,6 +13,7 @@
 //! - [`plan`]: the pipeline, from a curve to a firmware table
 //!   ([`firmware_core::table`]), with the predicted machining time.
 //! - [`ends`]: jerk-limited start and stop segments joined C² to q.
+//! - [`junction`]: curvature jumps of the toolpath and the feed cap at them.
 //! - [`verify`]: dense re-evaluation of a plan against every limit.
 //! - [`transition`]: ArcLen (Appendix C), the length of a jerk-limited
 //!   feed transition, for the override (§4).
@@ -24,6 +25,7 @@ pub mod certified;
 pub mod curve;
 pub mod ends;
 mod ipm;
+pub mod junction;
 pub mod limits;
 pub mod lp;
 pub mod plan;

@@ -10,6 +10,7 @@ use crate::arclength::{ArcLength, PathDerivs};
 use crate::certified::{self, CertifiedConfig};
 use crate::curve::{CurveError, Nurbs};
 use crate::ends::{EndMode, EndRows};
+use crate::junction::{self, Jump};
 use crate::limits::{self, LimitsError, TABLE1};
 use crate::lp::{self, BasisRow, EvalPoint, FeedLp, LpError, LpStats, Objective, QhatBound, SolverSettings};
 use crate::sampling::{self, Sampling};
@@ -78,6 +79,9 @@ pub struct PlanConfig {
     pub su_tol_mm: f64,
     /// How the plan starts and stops: jerk-limited segments or steps.
     pub ends: EndMode,
+    /// Servo period T the table is planned for, s: the feed cap at curvature
+    /// jumps ([`crate::junction`]) depends on it (certified formulation).
+    pub servo_period_s: f64,
 }
 
 fn display<S: serde::Serializer, T: std::fmt::Display>(v: &T, s: S) -> Result<S::Ok, S::Error> {
@@ -100,6 +104,7 @@ impl Default for PlanConfig {
             qhat_bound: QhatBound::ControlPoints,
             su_tol_mm: sumap::DEFAULT_TOL_MM,
             ends: EndMode::Jerk,
+            servo_period_s: 250e-6,
         }
     }
 }
@@ -166,6 +171,9 @@ pub struct PlanOutput {
     pub lp: Vec<LpStats>,
     /// Certified formulation: largest exact ratio to each limit over its check points.
     pub check: Option<Ratios>,
+    /// Certified formulation: the toolpath's curvature jumps and the feed cap
+    /// at each ([`crate::junction`]).
+    pub curvature_jumps: Vec<Jump>,
     /// Predicted machining time, s: T = ∫ ds/√q, or with end segments
     /// t₁ + ∫_{s₁}^{s₂} ds/√q + t₂.
     pub predicted_time_s: f64,
@@ -243,6 +251,15 @@ impl PlanOutput {
             "  s->u map: {} segments, max |s(u(s)) - s| = {:.2e} mm",
             self.su_segments, self.su_max_err_mm
         );
+        if let Some(min) = self.curvature_jumps.iter().map(|j| j.q_cap).reduce(f64::min) {
+            let _ = writeln!(
+                o,
+                "  curvature jumps: {} (feed capped for a servo period of {:.0} us, lowest cap {:.3} mm/s)",
+                self.curvature_jumps.len(),
+                self.config.servo_period_s * 1e6,
+                min.sqrt()
+            );
+        }
         match &self.ends {
             Some(e) => {
                 let _ = writeln!(
@@ -413,6 +430,10 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
             basis: BasisRow::at(&knots, s)?,
         })
     };
+    let jumps = match cfg.formulation {
+        Formulation::Paper => Vec::new(),
+        Formulation::Certified => junction::curvature_jumps(curve, &arc, &cfg.limits, cfg.servo_period_s),
+    };
     let (points, is_knot): (Vec<EvalPoint>, Vec<bool>) = match cfg.formulation {
         Formulation::Paper => lp::greville(&knots)
             .into_iter()
@@ -452,7 +473,8 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
             (plan.ctrl, pseudo.ctrl, vec![pseudo.stats, plan.stats], None)
         }
         Formulation::Certified => {
-            let c = certified::solve(&feed_lp, &is_knot, &cfg.certified)?;
+            let caps: Vec<(f64, f64)> = jumps.iter().map(|j| (j.s_mm, j.q_cap)).collect();
+            let c = certified::solve(&feed_lp, &is_knot, &caps, &cfg.certified)?;
             (c.ctrl, Vec::new(), c.lps, Some(c.check))
         }
     };
@@ -502,6 +524,7 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
         control_points: ctrl.len(),
         lp: lp_stats,
         check,
+        curvature_jumps: jumps,
         predicted_time_s,
         ends,
         su_segments: su.segments.len(),

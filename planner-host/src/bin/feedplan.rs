@@ -68,9 +68,15 @@ enum Cmd {
         checks_per_span: Option<usize>,
         /// Start and stop: jerk (time-domain constant-jerk segments joined C² to q, at rest
         /// with zero acceleration at both ends) or step (q(0) = q(L) = 0, the paper: an
-        /// acceleration step at both ends).
-        #[arg(long, default_value = "jerk")]
-        ends: EndMode,
+        /// acceleration step at both ends). Default: jerk with the certified formulation,
+        /// step with the paper's.
+        #[arg(long)]
+        ends: Option<EndMode>,
+        /// Servo period the table is planned for, µs: the feed at curvature jumps is
+        /// capped so that the acceleration step uses at most half the jerk limit over
+        /// one period (certified formulation).
+        #[arg(long, default_value_t = 250.0)]
+        servo_period_us: f64,
         /// Points per knot span of q in the dense re-evaluation of the plan.
         #[arg(long, default_value_t = 20)]
         dense: usize,
@@ -102,6 +108,7 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             qhat_bound,
             checks_per_span,
             ends,
+            servo_period_us,
         } => {
             if formulation != Formulation::Paper && (objective.is_some() || qhat_bound.is_some()) {
                 return Err("--objective and --qhat-bound go with --formulation paper".into());
@@ -118,7 +125,11 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                 limits,
                 objective: objective.unwrap_or(Objective::Uniform),
                 qhat_bound: qhat_bound.unwrap_or(QhatBound::None),
-                ends,
+                ends: ends.unwrap_or(match formulation {
+                    Formulation::Paper => EndMode::Step,
+                    Formulation::Certified => EndMode::Jerk,
+                }),
+                servo_period_s: servo_period_us * 1e-6,
                 ..PlanConfig::default()
             };
             if let Some(c) = checks_per_span {
