@@ -31,7 +31,7 @@
 //! does not actually jump — the rational circle's double knot — gets no row
 //! and counts as smooth.
 
-use crate::arclength::{ArcLength, PathDerivs};
+use crate::arclength::{ArcLength, PathDerivs, SpanArc};
 use crate::curve::Nurbs;
 use firmware_core::table::Limits;
 
@@ -51,6 +51,61 @@ pub struct Jump {
     pub d2_jump: [f64; 3],
     /// The cap on q there, (mm/s)².
     pub q_cap: f64,
+}
+
+/// Angle between the tangents on both sides of a knot above which it is a
+/// corner, rad.
+pub const CORNER_ANGLE_RAD: f64 = 1e-6;
+
+/// A corner: the unit tangent r′ jumps at a knot (a C0 knot whose two sides
+/// are not tangent).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct Corner {
+    /// Arc length of the knot, mm.
+    pub s_mm: f64,
+    /// Curve parameter of the knot.
+    pub u: f64,
+    /// Angle between the two tangents, rad.
+    pub angle_rad: f64,
+}
+
+/// The corners of `curve`: interior knots of multiplicity ≥ p (C0) whose
+/// two sides meet at an angle above [`CORNER_ANGLE_RAD`], sorted by s.
+pub fn corners(curve: &Nurbs, arc: &ArcLength) -> Vec<Corner> {
+    let p = curve.degree;
+    let mut out = Vec::new();
+    for w in arc.spans().windows(2) {
+        let (left, right) = (&w[0], &w[1]);
+        let u = right.u0;
+        if curve.knots.iter().filter(|&&k| k == u).count() < p {
+            continue;
+        }
+        let (l, r) = sides(curve, arc, left, right);
+        let dot: f64 = l.d1.iter().zip(&r.d1).map(|(a, b)| a * b).sum();
+        let cross = [
+            l.d1[1] * r.d1[2] - l.d1[2] * r.d1[1],
+            l.d1[2] * r.d1[0] - l.d1[0] * r.d1[2],
+            l.d1[0] * r.d1[1] - l.d1[1] * r.d1[0],
+        ];
+        let angle = cross.iter().map(|x| x * x).sum::<f64>().sqrt().atan2(dot);
+        if angle.is_nan() || angle > CORNER_ANGLE_RAD {
+            out.push(Corner {
+                s_mm: right.s0,
+                u,
+                angle_rad: angle,
+            });
+        }
+    }
+    out
+}
+
+/// The path derivatives just left and right of the knot between two spans.
+fn sides(curve: &Nurbs, arc: &ArcLength, left: &SpanArc, right: &SpanArc) -> (PathDerivs, PathDerivs) {
+    let at = |s: f64| -> PathDerivs { arc.derivs_s(curve, arc.u_of_s(s)) };
+    (
+        at(right.s0 - SIDE_REL * (left.s1 - left.s0)),
+        at(right.s0 + SIDE_REL * (right.s1 - right.s0)),
+    )
 }
 
 /// The cap on q at a jump of r″ by `d2_jump` for servo period `period_s`.
@@ -77,9 +132,7 @@ pub fn curvature_jumps(curve: &Nurbs, arc: &ArcLength, limits: &Limits, period_s
         if mult + 1 < p {
             continue; // C² at this knot: r″ is continuous
         }
-        let at = |s: f64| -> PathDerivs { arc.derivs_s(curve, arc.u_of_s(s)) };
-        let l = at(right.s0 - SIDE_REL * (left.s1 - left.s0));
-        let r = at(right.s0 + SIDE_REL * (right.s1 - right.s0));
+        let (l, r) = sides(curve, arc, left, right);
         let d2_jump = core::array::from_fn(|k| r.d2[k] - l.d2[k]);
         let cap = q_cap(limits, d2_jump, period_s);
         if cap < limits.vbar * limits.vbar {
@@ -134,6 +187,42 @@ mod tests {
             }
             assert!(jump.q_cap < TABLE1.vbar * TABLE1.vbar);
         }
+    }
+
+    #[test]
+    fn c0_corner_is_found_and_a_smooth_c0_knot_is_not() {
+        // two lines meeting at 90° through a triple knot (degree 3), and the
+        // same knot where both sides are collinear
+        let mk = |corner: [f64; 3]| {
+            let pts = vec![
+                [0.0, 0.0, 0.0],
+                [3.0, 0.0, 0.0],
+                [6.0, 0.0, 0.0],
+                [10.0, 0.0, 0.0],
+                [10.0 + corner[0] * 3.0, corner[1] * 3.0, 0.0],
+                [10.0 + corner[0] * 6.0, corner[1] * 6.0, 0.0],
+                [10.0 + corner[0] * 10.0, corner[1] * 10.0, 0.0],
+            ];
+            Nurbs::new(
+                3,
+                vec![0.0, 0.0, 0.0, 0.0, 0.5, 0.5, 0.5, 1.0, 1.0, 1.0, 1.0],
+                vec![1.0; 7],
+                pts,
+            )
+            .unwrap()
+        };
+        let c = mk([0.0, 1.0, 0.0]);
+        let arc = ArcLength::new(&c);
+        let found = corners(&c, &arc);
+        assert_eq!(found.len(), 1);
+        assert!(
+            (found[0].angle_rad - core::f64::consts::FRAC_PI_2).abs() < 1e-9,
+            "{found:?}"
+        );
+        assert!((found[0].s_mm - 10.0).abs() < 1e-9 && found[0].u == 0.5);
+        let straight = mk([1.0, 0.0, 0.0]);
+        let arc = ArcLength::new(&straight);
+        assert!(corners(&straight, &arc).is_empty());
     }
 
     #[test]

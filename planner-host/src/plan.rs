@@ -142,6 +142,17 @@ pub enum PlanError {
         length_mm: f64,
     },
     /// The table could not be encoded.
+    /// The toolpath's tangent turns abruptly at a knot (a C0 corner): the
+    /// feed must be zero there, and one table runs from rest to rest only.
+    #[error("the toolpath has a corner at s = {s_mm:.3} mm (u = {u}): the tangent turns by {angle_deg:.3} deg; no feed crosses it with finite acceleration: split the toolpath at the corner and plan each piece")]
+    Corner {
+        /// Arc length of the corner, mm.
+        s_mm: f64,
+        /// Curve parameter of the corner.
+        u: f64,
+        /// Angle between the tangents on both sides, degrees.
+        angle_deg: f64,
+    },
     #[error("table encoding failed: {0:?}")]
     Table(table::EncodeError),
     /// Writing the table failed.
@@ -404,6 +415,13 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
             density: cfg.density_per_mm,
             points: m,
             length_mm: length,
+        });
+    }
+    if let Some(c) = junction::corners(curve, &arc).first() {
+        return Err(PlanError::Corner {
+            s_mm: c.s_mm,
+            u: c.u,
+            angle_deg: c.angle_rad.to_degrees(),
         });
     }
     let samples = sampling::sample(curve, &arc, cfg.sampling, m)?;

@@ -79,12 +79,26 @@ fn far_from_the_origin_plans_like_near_it() {
 }
 
 #[test]
+fn c0_corner_is_refused_by_name_and_c1_corner_is_capped() {
+    // a corner (the tangent turns at a triple knot) cannot be crossed at any
+    // feed: a clear error naming where, instead of a plan
+    match plan_at("corner_c0_deg3.json", 1.0) {
+        Err(PlanError::Corner { s_mm, angle_deg, .. }) => {
+            assert!(s_mm > 0.0 && angle_deg > 1.0, "{s_mm} {angle_deg}");
+        }
+        other => panic!("{other:?}"),
+    }
+    // a C1 knot (double knot, degree 3): the curvature jumps, the feed is capped
+    let p = plan_at("corner_c1_deg3.json", 1.0).unwrap();
+    assert_eq!(p.curvature_jumps.len(), 1, "{:?}", p.curvature_jumps);
+}
+
+#[test]
 fn tiny_huge_and_cornered_curves_plan() {
     // huge.json is 318 m long: 0.005 points/mm keeps its LP at ~1,600 points.
     for (name, density) in [
         ("tiny.json", 1.0),
         ("huge.json", 0.005),
-        ("corner_c0_deg3.json", 1.0),
         ("corner_c1_deg3.json", 1.0),
         ("weights_extreme.json", 1.0),
     ] {
