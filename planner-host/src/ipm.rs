@@ -54,7 +54,7 @@ fn at_mul(rows: &[BandRow], y: &[f64], out: &mut [f64]) {
 fn cholesky(m: &mut [[f64; W]]) -> bool {
     let n = m.len();
     let dmax = m.iter().map(|r| r[0]).fold(0.0, f64::max);
-    let floor = 1e-14 * dmax.max(f64::MIN_POSITIVE);
+    let floor = 1e-300 * dmax.max(f64::MIN_POSITIVE);
     for i in 0..n {
         for k in (1..W).rev() {
             if k > i {
@@ -74,6 +74,9 @@ fn cholesky(m: &mut [[f64; W]]) -> bool {
             m[i][k] = s / m[j][0];
         }
         let mut d = m[i][0];
+        // pivot floor relative to this row's own diagonal (rows of very different
+        // scale are normal near the optimum: D = y/s spans many decades)
+        let floor = (1e-13 * d).max(floor);
         for l in 1..W.min(i + 1) {
             d -= m[i][l] * m[i][l];
         }
@@ -142,6 +145,8 @@ pub(crate) fn solve(
             rp[i] = ax[i] + s[i] - b[i];
         }
         at_mul(rows, &y, &mut rd);
+        // scale of the dual residual: the terms it is the difference of (as Clarabel does)
+        let aty_n = rd.iter().fold(0.0f64, |a, v| a.max(v.abs()));
         for j in 0..n {
             rd[j] += g[j];
         }
@@ -153,13 +158,16 @@ pub(crate) fn solve(
             return almost.ok_or(IpmFail::Numerical(it));
         }
         let gap = mu * m as f64;
-        if rp_n <= tol * (1.0 + bnorm) && rd_n <= tol * (1.0 + gnorm) && gap <= tol * (1.0 + pobj.abs()) {
+        if std::env::var_os("FEEDLP_IPM_DEBUG").is_some() {
+            eprintln!("  it {it}: rp {rp_n:.2e} rd {rd_n:.2e} aty {aty_n:.2e} gap {gap:.2e} pobj {pobj:.6e}");
+        }
+        if rp_n <= tol * (1.0 + bnorm) && rd_n <= tol * (1.0 + gnorm.max(aty_n)) && gap <= tol * (1.0 + pobj.abs()) {
             return Ok((x, it));
         }
         // within 1e4× the tolerance: kept in case the iteration stagnates (rounding);
         // the certified sequence checks every iterate exactly, so this is safe there
         let loose = 1e4 * tol;
-        if rp_n <= loose * (1.0 + bnorm) && rd_n <= loose * (1.0 + gnorm) && gap <= loose * (1.0 + pobj.abs())
+        if rp_n <= loose * (1.0 + bnorm) && rd_n <= loose * (1.0 + gnorm.max(aty_n)) && gap <= loose * (1.0 + pobj.abs())
         {
             almost = Some((x.clone(), it));
             if stalled {
@@ -216,6 +224,9 @@ pub(crate) fn solve(
         let ap = (0.99 * max_step(&s, &ds)).min(1.0);
         let ad = (0.99 * max_step(&y, &dy)).min(1.0);
         stalled = ap.max(ad) < 1e-6;
+        if std::env::var_os("FEEDLP_IPM_DEBUG").is_some() {
+            eprintln!("    sigma {sigma:.2e} ap {ap:.2e} ad {ad:.2e}");
+        }
         for j in 0..n {
             x[j] += ap * dx[j];
         }
