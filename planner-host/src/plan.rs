@@ -281,6 +281,54 @@ pub fn refine_turning(samples: &[f64], max_turn: f64, turn: impl Fn(f64, f64) ->
     out
 }
 
+/// The turning angle ∫ₐᵇ |κ| ds of [`refine_turning`], integrated in the
+/// toolpath's parameter: ∫ |κ(u)|·|r_u| du over [u(a), u(b)] by 16-point
+/// Gauss–Legendre on one polynomial piece (the span holding the middle; the
+/// sampling carries every toolpath break, [`with_breaks`]). Two inversions
+/// u(s) per interval (the last few are remembered) instead of one per node.
+struct TurnInU<'a> {
+    curve: &'a Nurbs,
+    arc: &'a ArcLength,
+    floor: f64,
+    memo: std::cell::RefCell<[(f64, f64); 4]>,
+}
+
+impl<'a> TurnInU<'a> {
+    fn new(curve: &'a Nurbs, arc: &'a ArcLength) -> Self {
+        TurnInU {
+            curve,
+            arc,
+            floor: crate::arclength::speed_floor(curve, arc.total()),
+            memo: std::cell::RefCell::new([(f64::NAN, f64::NAN); 4]),
+        }
+    }
+
+    fn u_of_s(&self, s: f64) -> f64 {
+        let mut memo = self.memo.borrow_mut();
+        if let Some(&(_, u)) = memo.iter().find(|p| p.0 == s) {
+            return u;
+        }
+        let u = self.arc.u_of_s(s);
+        memo.rotate_right(1);
+        memo[0] = (s, u);
+        u
+    }
+
+    fn turning(&self, a: f64, b: f64) -> f64 {
+        let (ua, ub) = (self.u_of_s(a), self.u_of_s(b));
+        let (x, w) = crate::arclength::GL16;
+        let (m, h) = (0.5 * (ua + ub), 0.5 * (ub - ua));
+        let span = self.curve.span_of(m);
+        (0..16)
+            .map(|i| {
+                let d = self.curve.derivs_in_span(span, m + h * x[i], 2);
+                let sig = (d[1][0] * d[1][0] + d[1][1] * d[1][1] + d[1][2] * d[1][2]).sqrt();
+                w[i] * h * crate::arclength::curvature_of(&d, self.floor) * sig
+            })
+            .sum()
+    }
+}
+
 /// The toolpath's own knots (as arc lengths) merged into the sampling Γ:
 /// r‴ of a cubic NURBS jumps at its knots, so the jerk (10) has a jump there
 /// and both one-sided values must be checked; with a knot of q at each
@@ -342,6 +390,12 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
     curve.validate()?;
     limits::validate(&cfg.limits)?;
     let arc = ArcLength::new(curve);
+    let dbg_t = |what: &str| {
+        if std::env::var_os("FEEDLP_TIME_DEBUG").is_some() {
+            eprintln!("  {what}: {:.1} ms", t0.elapsed().as_secs_f64() * 1e3);
+        }
+    };
+    dbg_t("arc length");
     let length = arc.total();
     let m = sampling::points_for_density(length, cfg.density_per_mm);
     if m < 2 {
@@ -352,21 +406,19 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
         });
     }
     let samples = sampling::sample(curve, &arc, cfg.sampling, m)?;
+    dbg_t("sampling");
     let su = SuMap::fit(curve, &arc, cfg.su_tol_mm)?;
+    dbg_t("s-u map");
     let samples = match cfg.formulation {
         Formulation::Paper => samples,
-        Formulation::Certified => refine_turning(
-            &with_breaks(&samples, &arc),
-            cfg.certified.max_turn_rad,
-            |a, b| {
-                let (x, w) = crate::arclength::GL16;
-                let (m, h) = (0.5 * (a + b), 0.5 * (b - a));
-                (0..16)
-                    .map(|i| w[i] * h * path_derivs_at(curve, &arc, m + h * x[i]).curvature())
-                    .sum()
-            },
-        ),
+        Formulation::Certified => {
+            let turn = TurnInU::new(curve, &arc);
+            refine_turning(&with_breaks(&samples, &arc), cfg.certified.max_turn_rad, |a, b| {
+                turn.turning(a, b)
+            })
+        }
     };
+    dbg_t("refine");
     let knots = lp::knot_vector(&samples);
     let eval = |s: f64| {
         Some(EvalPoint {
@@ -386,6 +438,7 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
             .unzip(),
     };
     let geometry_time_s = t0.elapsed().as_secs_f64();
+    dbg_t("check points");
 
     let feed_lp = FeedLp {
         knots: &knots,
@@ -413,6 +466,7 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
             (c.ctrl, Vec::new(), c.lps, Some(c.check))
         }
     };
+    dbg_t("LPs");
     if let Some(at) = find_stall(&knots, &ctrl, &cfg.limits) {
         return Err(PlanError::Stall {
             at,
@@ -437,6 +491,7 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
     let mut bytes = vec![0u8; table::encoded_len(&parts)];
     let written = table::encode(&parts, &mut bytes).map_err(PlanError::Table)?;
     bytes.truncate(written);
+    dbg_t("table");
 
     Ok(PlanOutput {
         curve: curve.name.clone(),
