@@ -10,10 +10,26 @@ fn main() {
     let sampling = args.next().unwrap_or_else(|| "len".into()).parse().unwrap();
     let reps: usize = args.next().map_or(10, |s| s.parse().unwrap());
     let curve = planner_host::builtin::butterfly().unwrap();
-    let cfg = PlanConfig {
+    let mut cfg = PlanConfig {
         sampling,
         ..PlanConfig::default()
     };
+    // optional overrides of the certified sequence: KEY=VALUE
+    for a in args {
+        let (k, v) = a.split_once('=').expect("KEY=VALUE");
+        let v: f64 = v.parse().unwrap();
+        let c = &mut cfg.certified;
+        match k {
+            "rho0" => c.rho0 = v,
+            "shrink" => c.rho_shrink = v,
+            "rho_min" => c.rho_min = v,
+            "activity" => c.activity = v,
+            "max_lps" => c.max_lps = v as usize,
+            "stop_rel" => c.stop_rel = v,
+            "checks" => c.checks_per_span = v as usize,
+            _ => panic!("unknown {k}"),
+        }
+    }
     let mut totals = Vec::new();
     for _ in 0..reps {
         let out = plan::plan_curve(&curve, &cfg).unwrap();

@@ -413,9 +413,11 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
         Formulation::Paper => samples,
         Formulation::Certified => {
             let turn = TurnInU::new(curve, &arc);
-            refine_turning(&with_breaks(&samples, &arc), cfg.certified.max_turn_rad, |a, b| {
-                turn.turning(a, b)
-            })
+            refine_turning(
+                &with_breaks(&samples, &arc),
+                cfg.certified.max_turn_rad,
+                |a, b| turn.turning(a, b),
+            )
         }
     };
     dbg_t("refine");
