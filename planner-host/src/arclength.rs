@@ -64,6 +64,18 @@ pub(crate) fn gl16(a: f64, b: f64, mut f: impl FnMut(f64) -> f64) -> f64 {
     sum * h
 }
 
+/// ∫ₐᵇ f by the 4-point Gauss–Legendre rule (for short steps).
+pub(crate) fn gl4(a: f64, b: f64, mut f: impl FnMut(f64) -> f64) -> f64 {
+    const X: [f64; 2] = [0.339_981_043_584_856_3, 0.861_136_311_594_052_6];
+    const W: [f64; 2] = [0.652_145_154_862_546_1, 0.347_854_845_137_453_9];
+    let (c, h) = (0.5 * (a + b), 0.5 * (b - a));
+    let mut sum = 0.0;
+    for i in 0..2 {
+        sum += W[i] * (f(c - h * X[i]) + f(c + h * X[i]));
+    }
+    sum * h
+}
+
 /// Adaptive Gauss–Legendre on [a, b]: pushes accepted pieces `(lo, hi,
 /// integral)` in increasing order. A piece is accepted when the 16-point
 /// rule on it agrees with the sum over its halves within
@@ -178,6 +190,8 @@ pub struct ArcLength {
     s: Vec<f64>,
     /// Knot span of piece k = [u_k, u_{k+1}].
     piece_span: Vec<usize>,
+    /// |r_u| at both ends of piece k (on its span).
+    piece_speed: Vec<[f64; 2]>,
     spans: Vec<SpanArc>,
     total: f64,
     /// Speed below which the curve counts as standing still, mm per unit u.
@@ -221,11 +235,17 @@ impl ArcLength {
             piece_span = vec![curve.degree];
         }
         let speed_floor = speed_floor(curve, acc);
+        let piece_speed = piece_span
+            .iter()
+            .enumerate()
+            .map(|(k, &sp)| [curve.speed_in_span(sp, u[k]), curve.speed_in_span(sp, u[k + 1])])
+            .collect();
         ArcLength {
             curve: curve.clone(),
             u,
             s,
             piece_span,
+            piece_speed,
             spans,
             total: acc,
             speed_floor,
@@ -305,9 +325,24 @@ impl ArcLength {
         }
         let tol = 1e-13 * self.total.max(1.0);
         let span = self.piece_span[k];
-        let mut u = (lo + (s - self.s[k]) / ds * (hi - lo)).clamp(lo, hi);
+        let width = hi - lo;
+        // first guess: the cubic Hermite interpolant of u(s) on the piece
+        // (du/ds = 1/|r_u| at its ends), else linear where the curve stalls
+        let t = (s - self.s[k]) / ds;
+        let [sig0, sig1] = self.piece_speed[k];
+        let mut u = if sig0 > self.speed_floor && sig1 > self.speed_floor {
+            let (t2, t3) = (t * t, t * t * t);
+            (2.0 * t3 - 3.0 * t2 + 1.0) * lo
+                + (t3 - 2.0 * t2 + t) * ds / sig0
+                + (3.0 * t2 - 2.0 * t3) * hi
+                + (t3 - t2) * ds / sig1
+        } else {
+            lo + t * (hi - lo)
+        }
+        .clamp(lo, hi);
+        let mut su = self.s_in_piece(k, u);
         for _ in 0..100 {
-            let f = self.s_in_piece(k, u) - s;
+            let f = su - s;
             if f.abs() <= tol {
                 break;
             }
@@ -321,7 +356,16 @@ impl ArcLength {
             }
             let sig = self.curve.speed_in_span(span, u);
             let un = u - f / sig;
-            u = if un > lo && un < hi { un } else { 0.5 * (lo + hi) };
+            let un = if un > lo && un < hi { un } else { 0.5 * (lo + hi) };
+            // s(un) = s(u) + ∫_u^un: a short step (the Newton steps after the
+            // first) needs only the 4-point rule (error ∝ step⁹), a long one
+            // is integrated afresh from the piece start
+            su = if (un - u).abs() <= 1e-3 * width {
+                su + gl4(u, un, |x| self.curve.speed_in_span(span, x))
+            } else {
+                self.s_in_piece(k, un)
+            };
+            u = un;
         }
         u
     }
