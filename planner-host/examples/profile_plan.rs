@@ -27,10 +27,12 @@ fn main() {
             "max_lps" => c.max_lps = v as usize,
             "stop_rel" => c.stop_rel = v,
             "checks" => c.checks_per_span = v as usize,
+            "tol" => cfg.solver.tol_gap = v,
             _ => panic!("unknown {k}"),
         }
     }
     let mut totals = Vec::new();
+    let mut lps = Vec::new();
     for _ in 0..reps {
         let out = plan::plan_curve(&curve, &cfg).unwrap();
         let lp_ms: f64 = out.lp.iter().map(|l| l.solve_time_s * 1e3).sum();
@@ -45,7 +47,14 @@ fn main() {
             out.total_time_s * 1e3
         );
         totals.push(out.total_time_s * 1e3);
+        lps.push(lp_ms);
     }
     totals.sort_by(f64::total_cmp);
-    println!("median total {:.1} ms", totals[totals.len() / 2]);
+    lps.sort_by(f64::total_cmp);
+    println!(
+        "median total {:.1} ms, min total {:.1} ms, min LPs {:.1} ms",
+        totals[totals.len() / 2],
+        totals[0],
+        lps[0]
+    );
 }

@@ -89,7 +89,8 @@ fn good_curve_plans_and_bad_limits_are_refused() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert!(v["predicted_time_s"].as_f64().unwrap() > 0.0);
-    assert_eq!(v["lp"].as_array().unwrap().len(), 2);
+    // the default (certified) formulation solves a sequence of LPs
+    assert!(!v["lp"].as_array().unwrap().is_empty());
     let bytes = std::fs::read(&table).unwrap();
     assert_eq!(bytes.len() as u64, v["table_bytes_len"].as_u64().unwrap());
     assert!(firmware_core::table::Table::parse(&bytes).is_ok());
