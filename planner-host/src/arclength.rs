@@ -16,7 +16,7 @@
 //! the curve, which must be the one it was built from (checked in debug
 //! builds).
 
-use crate::curve::{cross, dot, norm, CurveError, Nurbs};
+use crate::curve::{cross, dot, norm, CurveError, Nurbs, SpanPolys};
 
 /// Nodes (on [−1, 1]) and weights of the 16-point Gauss–Legendre rule.
 pub const GL16: ([f64; 16], [f64; 16]) = {
@@ -192,6 +192,8 @@ pub struct ArcLength {
     piece_span: Vec<usize>,
     /// |r_u| at both ends of piece k (on its span).
     piece_speed: Vec<[f64; 2]>,
+    /// The curve's spans in power form (fast evaluation).
+    polys: SpanPolys,
     spans: Vec<SpanArc>,
     total: f64,
     /// Speed below which the curve counts as standing still, mm per unit u.
@@ -202,6 +204,7 @@ impl ArcLength {
     /// Tabulate s(u) over the whole curve (see the module docs). The curve
     /// is copied; it should be valid ([`Nurbs::validate`]).
     pub fn new(curve: &Nurbs) -> ArcLength {
+        let polys = curve.span_polys();
         let mut u = Vec::new();
         let mut s = vec![0.0];
         let mut piece_span = Vec::new();
@@ -210,7 +213,7 @@ impl ArcLength {
         let mut acc = 0.0;
         for (i, a, b) in curve.spans() {
             pieces.clear();
-            adaptive_gl(a, b, SPAN_TOL_MM, &|x| curve.speed_in_span(i, x), &mut pieces);
+            adaptive_gl(a, b, SPAN_TOL_MM, &|x| polys.speed_in_span(i, x), &mut pieces);
             let s0 = acc;
             for &(lo, _, v) in &pieces {
                 u.push(lo);
@@ -238,7 +241,7 @@ impl ArcLength {
         let piece_speed = piece_span
             .iter()
             .enumerate()
-            .map(|(k, &sp)| [curve.speed_in_span(sp, u[k]), curve.speed_in_span(sp, u[k + 1])])
+            .map(|(k, &sp)| [polys.speed_in_span(sp, u[k]), polys.speed_in_span(sp, u[k + 1])])
             .collect();
         ArcLength {
             curve: curve.clone(),
@@ -246,10 +249,16 @@ impl ArcLength {
             s,
             piece_span,
             piece_speed,
+            polys,
             spans,
             total: acc,
             speed_floor,
         }
+    }
+
+    /// The curve's spans in power form: [`Nurbs::derivs_in_span`], fast.
+    pub fn polys(&self) -> &SpanPolys {
+        &self.polys
     }
 
     /// The curve this was built from.
@@ -282,7 +291,7 @@ impl ArcLength {
 
     fn s_in_piece(&self, k: usize, u: f64) -> f64 {
         let span = self.piece_span[k];
-        self.s[k] + gl16(self.u[k], u, |x| self.curve.speed_in_span(span, x))
+        self.s[k] + gl16(self.u[k], u, |x| self.polys.speed_in_span(span, x))
     }
 
     /// s(u), mm; u is clamped into the curve's range (s = 0 at the start,
@@ -354,14 +363,14 @@ impl ArcLength {
             if hi - lo <= 4.0 * f64::EPSILON * hi.abs().max(lo.abs()) {
                 break;
             }
-            let sig = self.curve.speed_in_span(span, u);
+            let sig = self.polys.speed_in_span(span, u);
             let un = u - f / sig;
             let un = if un > lo && un < hi { un } else { 0.5 * (lo + hi) };
             // s(un) = s(u) + ∫_u^un: a short step (the Newton steps after the
             // first) needs only the 4-point rule (error ∝ step⁹), a long one
             // is integrated afresh from the piece start
             su = if (un - u).abs() <= 1e-3 * width {
-                su + gl4(u, un, |x| self.curve.speed_in_span(span, x))
+                su + gl4(u, un, |x| self.polys.speed_in_span(span, x))
             } else {
                 self.s_in_piece(k, un)
             };
@@ -374,7 +383,7 @@ impl ArcLength {
     /// the right at an interior knot).
     fn u_derivs(&self, curve: &Nurbs, u: f64) -> (usize, [[f64; 3]; 4]) {
         let span = curve.span_of(u);
-        (span, curve.derivs_in_span(span, u, 3))
+        (span, self.polys.derivs_in_span(span, u, 3))
     }
 
     /// Like [`ArcLength::derivs_s`], but a typed error where the curve stands

@@ -321,7 +321,7 @@ impl<'a> TurnInU<'a> {
         let span = self.curve.span_of(m);
         (0..16)
             .map(|i| {
-                let d = self.curve.derivs_in_span(span, m + h * x[i], 2);
+                let d = self.arc.polys().derivs_in_span(span, m + h * x[i], 2);
                 let sig = (d[1][0] * d[1][0] + d[1][1] * d[1][1] + d[1][2] * d[1][2]).sqrt();
                 w[i] * h * crate::arclength::curvature_of(&d, self.floor) * sig
             })
