@@ -655,6 +655,7 @@ impl Nurbs {
 
     /// Every non-empty span's homogeneous polynomial in power form, for fast
     /// repeated evaluation ([`SpanPolys`]).
+    #[allow(clippy::needless_range_loop)] // a small dense solve, written with indices
     pub fn span_polys(&self) -> SpanPolys {
         let p = self.degree.min(MAX_DEGREE);
         let mut polys = vec![None; self.knots.len()];
@@ -795,6 +796,7 @@ pub struct SpanPolys {
 
 impl SpanPolys {
     /// As [`Nurbs::derivs_in_span`] (same span convention, `order ≤ 3`).
+    #[allow(clippy::needless_range_loop)] // coordinates by index, as in Nurbs::derivs_in_span
     pub fn derivs_in_span(&self, span: usize, u: f64, order: usize) -> [[f64; 3]; 4] {
         let Some(Some(sp)) = self.polys.get(span) else {
             return self.curve.derivs_in_span(span, u, order);

@@ -309,6 +309,123 @@ mod tests {
         }
     }
 
+    /// Minimal LCG, for reproducible random problems without a dependency.
+    struct Lcg(u64);
+    impl Lcg {
+        fn next(&mut self) -> f64 {
+            self.0 = self
+                .0
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (self.0 >> 11) as f64 / (1u64 << 53) as f64
+        }
+    }
+
+    /// A random banded LP in the shape of the planner's: rows of four
+    /// consecutive variables with b > 0 (x = 0 is feasible), coefficients over
+    /// several decades, 0 ≤ x ≤ 1 as singleton rows, a negative cost.
+    fn random_lp(seed: u64, n: usize, m: usize) -> (Vec<BandRow>, Vec<f64>, Vec<f64>) {
+        let mut r = Lcg(seed);
+        let mut rows = Vec::new();
+        let mut b = Vec::new();
+        for _ in 0..m {
+            let first = ((r.next() * n as f64) as usize).min(n - 1);
+            let scale = 10f64.powf(3.0 * r.next() - 1.0);
+            let val: [f64; 4] = core::array::from_fn(|j| {
+                if first + j < n {
+                    scale * (2.0 * r.next() - 0.7)
+                } else {
+                    0.0
+                }
+            });
+            rows.push(BandRow { first, val });
+            b.push(0.1 + r.next());
+        }
+        for j in 0..n {
+            rows.push(BandRow {
+                first: j,
+                val: [-1.0, 0.0, 0.0, 0.0],
+            });
+            b.push(0.0);
+            rows.push(BandRow {
+                first: j,
+                val: [1.0, 0.0, 0.0, 0.0],
+            });
+            b.push(1.0);
+        }
+        let g = (0..n).map(|_| -(0.05 + r.next())).collect();
+        (rows, b, g)
+    }
+
+    fn clarabel_optimum(n: usize, rows: &[BandRow], b: &[f64], g: &[f64]) -> f64 {
+        use clarabel::algebra::CscMatrix;
+        use clarabel::solver::{
+            DefaultSettingsBuilder, DefaultSolver, IPSolver, NonnegativeConeT, SupportedConeT,
+        };
+        let mut trip: Vec<(usize, usize, f64)> = Vec::new();
+        for (i, r) in rows.iter().enumerate() {
+            for j in 0..W {
+                if r.val[j] != 0.0 {
+                    trip.push((i, r.first + j, r.val[j]));
+                }
+            }
+        }
+        trip.sort_by_key(|&(i, c, _)| (c, i));
+        let mut colptr = vec![0usize; n + 1];
+        for &(_, c, _) in &trip {
+            colptr[c + 1] += 1;
+        }
+        for c in 0..n {
+            colptr[c + 1] += colptr[c];
+        }
+        let a = CscMatrix::new(
+            rows.len(),
+            n,
+            colptr,
+            trip.iter().map(|t| t.0).collect(),
+            trip.iter().map(|t| t.2).collect(),
+        );
+        let p = CscMatrix::<f64>::zeros((n, n));
+        let cones = [NonnegativeConeT(rows.len())];
+        let settings = DefaultSettingsBuilder::default().verbose(false).build().unwrap();
+        let mut solver =
+            DefaultSolver::new(&p, g, &a, b, &cones as &[SupportedConeT<f64>], settings).unwrap();
+        solver.solve();
+        solver.solution.obj_val
+    }
+
+    #[test]
+    fn random_banded_lps_match_clarabel_cold_and_warm() {
+        for seed in 0..40u64 {
+            let n = 5 + (seed as usize * 7) % 40;
+            let m = 2 * n + (seed as usize * 13) % (3 * n);
+            let (rows, b, g) = random_lp(seed, n, m);
+            let want = clarabel_optimum(n, &rows, &b, &g);
+            // a warm start from an infeasible, arbitrary point must work too
+            let mut r = Lcg(seed + 1000);
+            let x0: Vec<f64> = (0..n).map(|_| 2.0 * r.next()).collect();
+            for start in [None, Some(&x0[..])] {
+                let (x, _) = solve(n, &rows, &b, &g, 200, 1e-9, start).unwrap();
+                let got: f64 = g.iter().zip(&x).map(|(a, b)| a * b).sum();
+                assert!(
+                    (got - want).abs() <= 1e-6 * (1.0 + want.abs()),
+                    "seed {seed} (n {n}, m {m}, warm {}): {got} vs Clarabel {want}",
+                    start.is_some()
+                );
+                for (row, &bi) in rows.iter().zip(&b) {
+                    let ax: f64 = (0..W)
+                        .filter(|&j| row.first + j < n)
+                        .map(|j| row.val[j] * x[row.first + j])
+                        .sum();
+                    assert!(
+                        ax <= bi + 1e-7 * (1.0 + bi.abs()),
+                        "seed {seed}: row violated {ax} > {bi}"
+                    );
+                }
+            }
+        }
+    }
+
     #[test]
     fn small_lp_reaches_its_vertex() {
         // max x0 + x1  s.t. x0 + 2 x1 ≤ 4, 3 x0 + x1 ≤ 6, x ≥ 0  → (1.6, 1.2)
