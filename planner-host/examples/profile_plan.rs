@@ -28,6 +28,7 @@ fn main() {
             "stop_rel" => c.stop_rel = v,
             "checks" => c.checks_per_span = v as usize,
             "tol" => cfg.solver.tol_gap = v,
+            "banded" => cfg.solver.banded = v != 0.0,
             _ => panic!("unknown {k}"),
         }
     }
