@@ -645,12 +645,6 @@ pub fn find_stall(knots: &[f64], ctrl: &[f64], limits: &Limits) -> Option<StallA
 /// start and the stop) the substitution s = end ± h·τ² removes the 1/√s
 /// singularity of a simple zero, so the rule stays exact to rounding.
 pub fn machining_time(knots: &[f64], ctrl: &[f64]) -> f64 {
-    let q = |s: f64| {
-        BasisRow::at(knots, s)
-            .map(|b| b.apply(0, ctrl))
-            .unwrap_or(0.0)
-            .max(0.0)
-    };
     let (x, w) = crate::arclength::GL16;
     let qmax = ctrl.iter().cloned().fold(0.0, f64::max);
     let zero = 1e-12 * qmax.max(f64::MIN_POSITIVE);
@@ -658,6 +652,20 @@ pub fn machining_time(knots: &[f64], ctrl: &[f64]) -> f64 {
     for win in knots.windows(2).filter(|w| w[1] > w[0]) {
         let (a, b) = (win[0], win[1]);
         let h = b - a;
+        // q is one cubic on the span: from its values at four points (q is
+        // continuous at the knots), by Newton's divided differences
+        let f: [f64; 4] = core::array::from_fn(|k| {
+            BasisRow::at(knots, a + h * k as f64 / 3.0)
+                .map(|b| b.apply(0, ctrl))
+                .unwrap_or(0.0)
+        });
+        let d1 = [f[1] - f[0], f[2] - f[1], f[3] - f[2]];
+        let d2 = [0.5 * (d1[1] - d1[0]), 0.5 * (d1[2] - d1[1])];
+        let d3 = (d2[1] - d2[0]) / 3.0;
+        let q = |s: f64| {
+            let t = 3.0 * (s - a) / h; // nodes at t = 0, 1, 2, 3
+            (f[0] + t * (d1[0] + (t - 1.0) * (d2[0] + (t - 2.0) * d3))).max(0.0)
+        };
         let za = q(a) <= zero;
         let zb = q(b) <= zero;
         let piece = |lo: f64, hi: f64, from_lo: bool, from_hi: bool| {
