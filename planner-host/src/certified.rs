@@ -41,7 +41,8 @@
 //! the q ≤ q̄ and jerk rows at the knots (with the bounds 0 ≤ a_i ≤ v̄² on
 //! every control point), and at any check point the rows whose exact value at
 //! the last iterate exceeded `activity` × limit (a row, once in, stays in).
-//! Each LP's interior-point solve starts from the last plan ([`crate::ipm`]). After each LP the exact
+//! Each LP's interior-point solve starts from the last plan ([`crate::ipm`])
+//! and stops at a relative gap of [`LP_TOL`]. After each LP the exact
 //! kinematics (eqs. 1–6 as in [`crate::verify`]) are evaluated at every check
 //! point; the best iterate with every exact ratio ≤ 1 + `tol` is the plan.
 //! This keeps the LPs at a few thousand banded rows (≤ 4 non-zeros each).
