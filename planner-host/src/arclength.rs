@@ -16,7 +16,7 @@
 //! the curve, which must be the one it was built from (checked in debug
 //! builds).
 
-use crate::curve::{cross, dot, norm, CurveError, Nurbs};
+use crate::curve::{cross, dot, norm, CurveError, Nurbs, SpanPolys};
 
 /// Nodes (on [−1, 1]) and weights of the 16-point Gauss–Legendre rule.
 pub const GL16: ([f64; 16], [f64; 16]) = {
@@ -60,6 +60,18 @@ pub(crate) fn gl16(a: f64, b: f64, mut f: impl FnMut(f64) -> f64) -> f64 {
     let mut sum = 0.0;
     for i in 0..16 {
         sum += w[i] * f(c + h * x[i]);
+    }
+    sum * h
+}
+
+/// ∫ₐᵇ f by the 4-point Gauss–Legendre rule (for short steps).
+pub(crate) fn gl4(a: f64, b: f64, mut f: impl FnMut(f64) -> f64) -> f64 {
+    const X: [f64; 2] = [0.339_981_043_584_856_3, 0.861_136_311_594_052_6];
+    const W: [f64; 2] = [0.652_145_154_862_546_1, 0.347_854_845_137_453_9];
+    let (c, h) = (0.5 * (a + b), 0.5 * (b - a));
+    let mut sum = 0.0;
+    for i in 0..2 {
+        sum += W[i] * (f(c - h * X[i]) + f(c + h * X[i]));
     }
     sum * h
 }
@@ -198,6 +210,10 @@ pub struct ArcLength {
     s: Vec<f64>,
     /// Knot span of piece k = [u_k, u_{k+1}].
     piece_span: Vec<usize>,
+    /// |r_u| at both ends of piece k (on its span).
+    piece_speed: Vec<[f64; 2]>,
+    /// The curve's spans in power form (fast evaluation).
+    polys: SpanPolys,
     spans: Vec<SpanArc>,
     total: f64,
     /// Speed below which the curve counts as standing still, mm per unit u.
@@ -208,6 +224,7 @@ impl ArcLength {
     /// Tabulate s(u) over the whole curve (see the module docs). The curve
     /// is copied; it should be valid ([`Nurbs::validate`]).
     pub fn new(curve: &Nurbs) -> ArcLength {
+        let polys = curve.span_polys();
         let mut u = Vec::new();
         let mut s = vec![0.0];
         let mut piece_span = Vec::new();
@@ -217,7 +234,7 @@ impl ArcLength {
         let tol = span_tol_mm(curve);
         for (i, a, b) in curve.spans() {
             pieces.clear();
-            adaptive_gl(a, b, tol, &|x| curve.speed_in_span(i, x), &mut pieces);
+            adaptive_gl(a, b, tol, &|x| polys.speed_in_span(i, x), &mut pieces);
             let s0 = acc;
             for &(lo, _, v) in &pieces {
                 u.push(lo);
@@ -242,15 +259,27 @@ impl ArcLength {
             piece_span = vec![curve.degree];
         }
         let speed_floor = speed_floor(curve, acc);
+        let piece_speed = piece_span
+            .iter()
+            .enumerate()
+            .map(|(k, &sp)| [polys.speed_in_span(sp, u[k]), polys.speed_in_span(sp, u[k + 1])])
+            .collect();
         ArcLength {
             curve: curve.clone(),
             u,
             s,
             piece_span,
+            piece_speed,
+            polys,
             spans,
             total: acc,
             speed_floor,
         }
+    }
+
+    /// The curve's spans in power form: [`Nurbs::derivs_in_span`], fast.
+    pub fn polys(&self) -> &SpanPolys {
+        &self.polys
     }
 
     /// The curve this was built from.
@@ -283,7 +312,7 @@ impl ArcLength {
 
     fn s_in_piece(&self, k: usize, u: f64) -> f64 {
         let span = self.piece_span[k];
-        self.s[k] + gl16(self.u[k], u, |x| self.curve.speed_in_span(span, x))
+        self.s[k] + gl16(self.u[k], u, |x| self.polys.speed_in_span(span, x))
     }
 
     /// s(u), mm; u is clamped into the curve's range (s = 0 at the start,
@@ -326,9 +355,24 @@ impl ArcLength {
         }
         let tol = 1e-13 * self.total.max(1.0);
         let span = self.piece_span[k];
-        let mut u = (lo + (s - self.s[k]) / ds * (hi - lo)).clamp(lo, hi);
+        let width = hi - lo;
+        // first guess: the cubic Hermite interpolant of u(s) on the piece
+        // (du/ds = 1/|r_u| at its ends), else linear where the curve stalls
+        let t = (s - self.s[k]) / ds;
+        let [sig0, sig1] = self.piece_speed[k];
+        let mut u = if sig0 > self.speed_floor && sig1 > self.speed_floor {
+            let (t2, t3) = (t * t, t * t * t);
+            (2.0 * t3 - 3.0 * t2 + 1.0) * lo
+                + (t3 - 2.0 * t2 + t) * ds / sig0
+                + (3.0 * t2 - 2.0 * t3) * hi
+                + (t3 - t2) * ds / sig1
+        } else {
+            lo + t * (hi - lo)
+        }
+        .clamp(lo, hi);
+        let mut su = self.s_in_piece(k, u);
         for _ in 0..100 {
-            let f = self.s_in_piece(k, u) - s;
+            let f = su - s;
             if f.abs() <= tol {
                 break;
             }
@@ -340,9 +384,18 @@ impl ArcLength {
             if hi - lo <= 4.0 * f64::EPSILON * hi.abs().max(lo.abs()) {
                 break;
             }
-            let sig = self.curve.speed_in_span(span, u);
+            let sig = self.polys.speed_in_span(span, u);
             let un = u - f / sig;
-            u = if un > lo && un < hi { un } else { 0.5 * (lo + hi) };
+            let un = if un > lo && un < hi { un } else { 0.5 * (lo + hi) };
+            // s(un) = s(u) + ∫_u^un: a short step (the Newton steps after the
+            // first) needs only the 4-point rule (error ∝ step⁹), a long one
+            // is integrated afresh from the piece start
+            su = if (un - u).abs() <= 1e-3 * width {
+                su + gl4(u, un, |x| self.polys.speed_in_span(span, x))
+            } else {
+                self.s_in_piece(k, un)
+            };
+            u = un;
         }
         u
     }
@@ -351,7 +404,7 @@ impl ArcLength {
     /// the right at an interior knot).
     fn u_derivs(&self, curve: &Nurbs, u: f64) -> (usize, [[f64; 3]; 4]) {
         let span = curve.span_of(u);
-        (span, curve.derivs_in_span(span, u, 3))
+        (span, self.polys.derivs_in_span(span, u, 3))
     }
 
     /// Like [`ArcLength::derivs_s`], but a typed error where the curve stands

@@ -420,7 +420,7 @@ impl<'a> FeedLp<'a> {
             }
         }
         let upper = qhat.filter(|_| self.qhat_bound == QhatBound::ControlPoints);
-        self.solve_rows(stage, &rows, upper, &self.weights(), t0)
+        self.solve_rows(stage, &rows, upper, &self.weights(), t0, None)
     }
 
     /// Rows of one kind of limit at one evaluation point, for the certified
@@ -467,6 +467,7 @@ impl<'a> FeedLp<'a> {
         upper: Option<&[f64]>,
         c: &[f64],
         t0: Instant,
+        warm: Option<&[f64]>,
     ) -> Result<LpSolution, LpError> {
         let n = self.n_ctrl();
         let fail = |status: &str, iterations| LpError {
@@ -567,7 +568,21 @@ impl<'a> FeedLp<'a> {
         let mut banded = None;
         if self.settings.banded {
             banded = Some(band_rows(&trip, m, nv)).and_then(|rows| {
-                let r = crate::ipm::solve(nv, &rows, &b, &q, self.settings.max_iter, self.settings.tol_gap);
+                // a warm start: the control points of a previous plan, as variables
+                let x0 = warm.map(|a| {
+                    (0..nv)
+                        .map(|v| a.get(v + 1).copied().unwrap_or(0.0) / scale)
+                        .collect::<Vec<_>>()
+                });
+                let r = crate::ipm::solve(
+                    nv,
+                    &rows,
+                    &b,
+                    &q,
+                    self.settings.max_iter,
+                    self.settings.tol_gap,
+                    x0.as_deref(),
+                );
                 if std::env::var_os("FEEDLP_SLP_DEBUG").is_some() {
                     if let Err(e) = &r {
                         eprintln!("banded IPM failed: {e:?}");

@@ -347,6 +347,54 @@ pub fn refine_turning(samples: &[f64], max_turn: f64, turn: impl Fn(f64, f64) ->
     out
 }
 
+/// The turning angle ∫ₐᵇ |κ| ds of [`refine_turning`], integrated in the
+/// toolpath's parameter: ∫ |κ(u)|·|r_u| du over [u(a), u(b)] by 16-point
+/// Gauss–Legendre on one polynomial piece (the span holding the middle; the
+/// sampling carries every toolpath break, [`with_breaks`]). Two inversions
+/// u(s) per interval (the last few are remembered) instead of one per node.
+struct TurnInU<'a> {
+    curve: &'a Nurbs,
+    arc: &'a ArcLength,
+    floor: f64,
+    memo: std::cell::RefCell<[(f64, f64); 4]>,
+}
+
+impl<'a> TurnInU<'a> {
+    fn new(curve: &'a Nurbs, arc: &'a ArcLength) -> Self {
+        TurnInU {
+            curve,
+            arc,
+            floor: crate::arclength::speed_floor(curve, arc.total()),
+            memo: std::cell::RefCell::new([(f64::NAN, f64::NAN); 4]),
+        }
+    }
+
+    fn u_of_s(&self, s: f64) -> f64 {
+        let mut memo = self.memo.borrow_mut();
+        if let Some(&(_, u)) = memo.iter().find(|p| p.0 == s) {
+            return u;
+        }
+        let u = self.arc.u_of_s(s);
+        memo.rotate_right(1);
+        memo[0] = (s, u);
+        u
+    }
+
+    fn turning(&self, a: f64, b: f64) -> f64 {
+        let (ua, ub) = (self.u_of_s(a), self.u_of_s(b));
+        let (x, w) = crate::arclength::GL16;
+        let (m, h) = (0.5 * (ua + ub), 0.5 * (ub - ua));
+        let span = self.curve.span_of(m);
+        (0..16)
+            .map(|i| {
+                let d = self.arc.polys().derivs_in_span(span, m + h * x[i], 2);
+                let sig = (d[1][0] * d[1][0] + d[1][1] * d[1][1] + d[1][2] * d[1][2]).sqrt();
+                w[i] * h * crate::arclength::curvature_of(&d, self.floor) * sig
+            })
+            .sum()
+    }
+}
+
 /// The toolpath's own knots (as arc lengths) merged into the sampling Γ:
 /// r‴ of a cubic NURBS jumps at its knots, so the jerk (10) has a jump there
 /// and both one-sided values must be checked; with a knot of q at each
@@ -408,6 +456,12 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
     curve.validate()?;
     limits::validate(&cfg.limits)?;
     let arc = ArcLength::new(curve);
+    let dbg_t = |what: &str| {
+        if std::env::var_os("FEEDLP_TIME_DEBUG").is_some() {
+            eprintln!("  {what}: {:.1} ms", t0.elapsed().as_secs_f64() * 1e3);
+        }
+    };
+    dbg_t("arc length");
     let length = arc.total();
     let m = sampling::points_for_density(length, cfg.density_per_mm);
     if m < 2 {
@@ -425,21 +479,21 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
         });
     }
     let samples = sampling::sample(curve, &arc, cfg.sampling, m)?;
+    dbg_t("sampling");
     let su = SuMap::fit(curve, &arc, cfg.su_tol_mm)?;
+    dbg_t("s-u map");
     let samples = match cfg.formulation {
         Formulation::Paper => samples,
-        Formulation::Certified => refine_turning(
-            &with_breaks(&samples, &arc),
-            cfg.certified.max_turn_rad,
-            |a, b| {
-                let (x, w) = crate::arclength::GL16;
-                let (m, h) = (0.5 * (a + b), 0.5 * (b - a));
-                (0..16)
-                    .map(|i| w[i] * h * path_derivs_at(curve, &arc, m + h * x[i]).curvature())
-                    .sum()
-            },
-        ),
+        Formulation::Certified => {
+            let turn = TurnInU::new(curve, &arc);
+            refine_turning(
+                &with_breaks(&samples, &arc),
+                cfg.certified.max_turn_rad,
+                |a, b| turn.turning(a, b),
+            )
+        }
     };
+    dbg_t("refine");
     let knots = lp::knot_vector(&samples);
     let eval = |s: f64| {
         Some(EvalPoint {
@@ -463,6 +517,7 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
             .unzip(),
     };
     let geometry_time_s = t0.elapsed().as_secs_f64();
+    dbg_t("check points");
 
     let end_rows = match cfg.ends {
         EndMode::Jerk => EndRows::new(&knots, &cfg.limits, &|s| path_derivs_at(curve, &arc, s)),
@@ -505,6 +560,7 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
             feed_mm_s: 0.0,
         }),
     };
+    dbg_t("LPs");
     if let Some(at) = stall {
         return Err(PlanError::Stall {
             at,
@@ -533,6 +589,7 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
     let mut bytes = vec![0u8; table::encoded_len(&parts)];
     let written = table::encode(&parts, &mut bytes).map_err(PlanError::Table)?;
     bytes.truncate(written);
+    dbg_t("table");
 
     Ok(PlanOutput {
         curve: curve.name.clone(),
@@ -732,12 +789,6 @@ pub fn machining_time(knots: &[f64], ctrl: &[f64]) -> f64 {
 
 /// ∫ ds/√q over the knot spans of q inside [lo, hi] (lo, hi knots), s.
 pub fn machining_time_between(knots: &[f64], ctrl: &[f64], lo: f64, hi: f64) -> f64 {
-    let q = |s: f64| {
-        BasisRow::at(knots, s)
-            .map(|b| b.apply(0, ctrl))
-            .unwrap_or(0.0)
-            .max(0.0)
-    };
     let (x, w) = crate::arclength::GL16;
     let qmax = ctrl.iter().cloned().fold(0.0, f64::max);
     let zero = 1e-12 * qmax.max(f64::MIN_POSITIVE);
@@ -748,6 +799,20 @@ pub fn machining_time_between(knots: &[f64], ctrl: &[f64], lo: f64, hi: f64) -> 
     {
         let (a, b) = (win[0], win[1]);
         let h = b - a;
+        // q is one cubic on the span: from its values at four points (q is
+        // continuous at the knots), by Newton's divided differences
+        let f: [f64; 4] = core::array::from_fn(|k| {
+            BasisRow::at(knots, a + h * k as f64 / 3.0)
+                .map(|b| b.apply(0, ctrl))
+                .unwrap_or(0.0)
+        });
+        let d1 = [f[1] - f[0], f[2] - f[1], f[3] - f[2]];
+        let d2 = [0.5 * (d1[1] - d1[0]), 0.5 * (d1[2] - d1[1])];
+        let d3 = (d2[1] - d2[0]) / 3.0;
+        let q = |s: f64| {
+            let t = 3.0 * (s - a) / h; // nodes at t = 0, 1, 2, 3
+            (f[0] + t * (d1[0] + (t - 1.0) * (d2[0] + (t - 2.0) * d3))).max(0.0)
+        };
         let za = q(a) <= zero;
         let zb = q(b) <= zero;
         let piece = |lo: f64, hi: f64, from_lo: bool, from_hi: bool| {

@@ -159,7 +159,16 @@ impl Turning {
         let mut acc = 0.0;
         for (i, a, b) in curve.spans() {
             pieces.clear();
-            adaptive_gl(a, b, 1e-10, &|x| t.density(curve, i, x), &mut pieces);
+            adaptive_gl(
+                a,
+                b,
+                1e-10,
+                &|x| {
+                    let d = arc.polys().derivs_in_span(i, x, 2);
+                    curvature_of(&d, floor) * norm(d[1])
+                },
+                &mut pieces,
+            );
             for &(lo, _, v) in &pieces {
                 t.u.push(lo);
                 acc += v;
@@ -285,7 +294,7 @@ fn ada(curve: &Nurbs, arc: &ArcLength, t: &Turning, lambda_s: f64, lambda_k: f64
         let (c, h) = (0.5 * (grid[i] + u), 0.5 * (u - grid[i]));
         let (mut fs, mut ss) = (0.0, 0.0);
         for q in 0..16 {
-            let d = curve.derivs_in_span(span, c + h * x[q], 2);
+            let d = arc.polys().derivs_in_span(span, c + h * x[q], 2);
             let sig = norm(d[1]);
             fs += w[q] * (cs + ck * curvature_of(&d, t.floor)) * sig;
             ss += w[q] * sig;
@@ -322,7 +331,7 @@ fn ada(curve: &Nurbs, arc: &ArcLength, t: &Turning, lambda_s: f64, lambda_k: f64
             if hi - lo <= 4.0 * f64::EPSILON * hi.abs().max(lo.abs()) {
                 break;
             }
-            let d = curve.derivs_in_span(span, u, 2);
+            let d = arc.polys().derivs_in_span(span, u, 2);
             let sig = norm(d[1]);
             let df = (cs + ck * curvature_of(&d, t.floor)) * sig;
             let un = u - f / df;

@@ -29,7 +29,7 @@
 use firmware_core::table::{SuSegment, SU_COEFFS};
 
 use crate::arclength::{speed_floor, ArcLength};
-use crate::curve::{dot, norm, CurveError, Nurbs};
+use crate::curve::{dot, norm, CurveError, Nurbs, SpanPolys};
 
 /// Default tolerance of the s → u map, mm.
 pub const DEFAULT_TOL_MM: f64 = 1e-6;
@@ -74,7 +74,7 @@ struct Node {
     uss: f64,
 }
 
-fn node(curve: &Nurbs, span: usize, s: f64, u: f64, floor: f64) -> Result<Node, CurveError> {
+fn node(curve: &SpanPolys, span: usize, s: f64, u: f64, floor: f64) -> Result<Node, CurveError> {
     let d = curve.derivs_in_span(span, u, 2);
     let sig = norm(d[1]);
     if sig.is_nan() || sig <= floor || sig.is_infinite() {
@@ -127,7 +127,7 @@ fn hermite(a: &Node, b: &Node) -> [f64; SU_COEFFS] {
 /// s(u) − s_a = ∫σ du), accumulated by 4-point Gauss–Legendre on each
 /// 1/32 — no cancellation against s, 124 speed evaluations. σ is span
 /// `span`'s piece (continued a hair past its ends if u_c overshoots).
-fn segment_error(curve: &Nurbs, span: usize, c: &[f64; SU_COEFFS], h: f64) -> (f64, f64) {
+fn segment_error(curve: &SpanPolys, span: usize, c: &[f64; SU_COEFFS], h: f64) -> (f64, f64) {
     const X: [f64; 2] = [0.339_981_043_584_856_3, 0.861_136_311_594_052_6];
     const W: [f64; 2] = [0.652_145_154_862_546_1, 0.347_854_845_137_453_9];
     let dc = [c[1], 2.0 * c[2], 3.0 * c[3], 4.0 * c[4], 5.0 * c[5]];
@@ -171,6 +171,7 @@ impl SuMap {
         }
         let len = arc.total();
         let floor = speed_floor(curve, len);
+        let polys = arc.polys();
         let mut map = SuMap {
             breaks: vec![0.0],
             segments: Vec::new(),
@@ -181,8 +182,8 @@ impl SuMap {
             if sp.s1 <= sp.s0 {
                 continue;
             }
-            let mut a = node(curve, sp.span, sp.s0, sp.u0, floor)?;
-            let end = node(curve, sp.span, sp.s1, sp.u1, floor)?;
+            let mut a = node(polys, sp.span, sp.s0, sp.u0, floor)?;
+            let end = node(polys, sp.span, sp.s1, sp.u1, floor)?;
             let mut h_try = sp.s1 - sp.s0;
             let mut trials = 0;
             // greedy march: the longest segment from `a` that meets the tolerance,
@@ -197,11 +198,11 @@ impl SuMap {
                 } else {
                     let h_try = rest / pieces;
                     let sb = a.s + h_try;
-                    node(curve, sp.span, sb, arc.u_of_s(sb).clamp(sp.u0, sp.u1), floor)?
+                    node(polys, sp.span, sb, arc.u_of_s(sb).clamp(sp.u0, sp.u1), floor)?
                 };
                 let h = b.s - a.s;
                 let c = hermite(&a, &b);
-                let (err, feed_err) = segment_error(curve, sp.span, &c, h);
+                let (err, feed_err) = segment_error(polys, sp.span, &c, h);
                 // both criteria as a fraction of their tolerance
                 let ratio = (err / tol_mm).max(feed_err / FEED_TOL);
                 let grow = if ratio > 0.0 {
