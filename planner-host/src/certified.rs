@@ -187,6 +187,32 @@ fn static_cap(lp: &FeedLp, p: &EvalPoint) -> f64 {
     c
 }
 
+/// Indices of the candidate points `cand` (executed ones) where the plan
+/// `ctrl` exceeds any limit by more than the factor `limit` (exact
+/// kinematics, the jerk held to (1 − β)·J within 1e-6 mm of a curvature jump
+/// in `caps`): the cutting planes of [`crate::plan`]'s refinement rounds.
+pub fn violations(lp: &FeedLp, ctrl: &[f64], cand: &[EvalPoint], caps: &[(f64, f64)], limit: f64) -> Vec<usize> {
+    let share = |s: f64| {
+        if caps.iter().any(|&(c, _)| (s - c).abs() <= 1e-6) {
+            1.0 - crate::junction::JUMP_JERK_SHARE
+        } else {
+            1.0
+        }
+    };
+    cand.iter()
+        .enumerate()
+        .filter(|(_, p)| lp.executes(p.s))
+        .filter(|(_, p)| {
+            let v = values(lp, p, lp.q_max(&p.geo), ctrl);
+            let sh = share(p.s);
+            v[0] > limit * limit
+                || v[1..5].iter().any(|x| x.abs() > limit)
+                || v[5..].iter().any(|x| x.abs() / sh > limit)
+        })
+        .map(|(i, _)| i)
+        .collect()
+}
+
 /// Run the certified sequence on `lp`, whose `points` are the check points
 /// (sorted by s; `is_knot[i]` marks those on a knot of q, which always carry rows).
 ///

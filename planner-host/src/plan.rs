@@ -547,8 +547,37 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
         }
         Formulation::Certified => {
             let caps: Vec<(f64, f64)> = jumps.iter().map(|j| (j.s_mm, j.q_cap)).collect();
-            let c = certified::solve(&feed_lp, &is_knot, &caps, &cfg.certified)?;
-            (c.ctrl, Vec::new(), c.lps, Some(c.check))
+            // Refinement rounds (cutting planes): the plan is re-evaluated at
+            // REFINE_PER_SPAN points per knot span; where it exceeds a limit by
+            // more than REFINE_TRIGGER (narrow curvature spikes, fast changes
+            // of q between check points) those points join the check points
+            // with every row, and the sequence runs again.
+            let dense: Vec<EvalPoint> = knots
+                .windows(2)
+                .filter(|w| w[1] > w[0])
+                .flat_map(|w| (1..REFINE_PER_SPAN).map(move |k| w[0] + (w[1] - w[0]) * k as f64 / REFINE_PER_SPAN as f64))
+                .filter_map(eval)
+                .collect();
+            let (mut pts, mut forced) = (points.clone(), is_knot.clone());
+            let mut lps = Vec::new();
+            let mut round = 0;
+            loop {
+                let lp = FeedLp {
+                    points: &pts,
+                    ..feed_lp.clone()
+                };
+                let c = certified::solve(&lp, &forced, &caps, &cfg.certified)?;
+                lps.extend(c.lps);
+                let bad = certified::violations(&lp, &c.ctrl, &dense, &caps, REFINE_TRIGGER);
+                if bad.is_empty() || round == REFINE_ROUNDS {
+                    break (c.ctrl, Vec::new(), lps, Some(c.check));
+                }
+                round += 1;
+                let mut merged: Vec<(EvalPoint, bool)> = pts.drain(..).zip(forced.drain(..)).collect();
+                merged.extend(bad.iter().map(|&i| (dense[i].clone(), true)));
+                merged.sort_by(|a, b| a.0.s.total_cmp(&b.0.s));
+                (pts, forced) = merged.into_iter().unzip();
+            }
         }
     };
     let ends = end_rows.as_ref().and_then(|e| e.segments(&ctrl));
@@ -613,6 +642,15 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
         table_bytes: bytes,
     })
 }
+
+/// Points per knot span of q at which a certified plan is re-evaluated for
+/// the refinement rounds.
+pub const REFINE_PER_SPAN: usize = 24;
+/// A refinement round runs where the re-evaluation exceeds a limit by more
+/// than this factor.
+pub const REFINE_TRIGGER: f64 = 1.004;
+/// Most refinement rounds.
+pub const REFINE_ROUNDS: usize = 2;
 
 /// Smallest mid-path feed a plan may command, relative to v̄: below it the
 /// machine crawls (and the firmware's single-precision q, accurate to
