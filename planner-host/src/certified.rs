@@ -191,7 +191,13 @@ fn static_cap(lp: &FeedLp, p: &EvalPoint) -> f64 {
 /// `ctrl` exceeds any limit by more than the factor `limit` (exact
 /// kinematics, the jerk held to (1 − β)·J within 1e-6 mm of a curvature jump
 /// in `caps`): the cutting planes of [`crate::plan`]'s refinement rounds.
-pub fn violations(lp: &FeedLp, ctrl: &[f64], cand: &[EvalPoint], caps: &[(f64, f64)], limit: f64) -> Vec<usize> {
+pub fn violations(
+    lp: &FeedLp,
+    ctrl: &[f64],
+    cand: &[EvalPoint],
+    caps: &[(f64, f64)],
+    limit: f64,
+) -> Vec<usize> {
     let share = |s: f64| {
         if caps.iter().any(|&(c, _)| (s - c).abs() <= 1e-6) {
             1.0 - crate::junction::JUMP_JERK_SHARE

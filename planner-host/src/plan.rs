@@ -555,7 +555,10 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
             let dense: Vec<EvalPoint> = knots
                 .windows(2)
                 .filter(|w| w[1] > w[0])
-                .flat_map(|w| (1..REFINE_PER_SPAN).map(move |k| w[0] + (w[1] - w[0]) * k as f64 / REFINE_PER_SPAN as f64))
+                .flat_map(|w| {
+                    (1..REFINE_PER_SPAN)
+                        .map(move |k| w[0] + (w[1] - w[0]) * k as f64 / REFINE_PER_SPAN as f64)
+                })
                 .filter_map(eval)
                 .collect();
             let (mut pts, mut forced) = (points.clone(), is_knot.clone());
@@ -566,7 +569,13 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
                     points: &pts,
                     ..feed_lp.clone()
                 };
-                let c = certified::solve(&lp, &forced, &caps, &cfg.certified)?;
+                // a refinement round may need more LPs to reach an iterate
+                // that holds every limit at the added points
+                let ccfg = CertifiedConfig {
+                    max_lps: cfg.certified.max_lps * (1 + round),
+                    ..cfg.certified
+                };
+                let c = certified::solve(&lp, &forced, &caps, &ccfg)?;
                 lps.extend(c.lps);
                 let bad = certified::violations(&lp, &c.ctrl, &dense, &caps, REFINE_TRIGGER);
                 if bad.is_empty() || round == REFINE_ROUNDS {

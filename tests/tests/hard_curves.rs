@@ -121,17 +121,11 @@ fn straight_then_tight() {
     plans_and_holds("straight_then_tight", &[0.5, 1.0, 2.0], false);
 }
 
-// Fails at every density: the certified plan's own check (6 points per knot
-// span of q) is <= 1, but the dense check finds axial jerk 1.31 / 1.78 / 1.53
-// (0.5 / 1 / 2 pts/mm) near s = 188 and 217 mm. There the 400x weight ratios
-// make curvature spikes ~0.09 mm wide (kappa 1.95 /mm, |dkappa/ds| up to
-// 34 /mm^2) that fall between the planner's check points; the knot refinement
-// only looks at the turning angle, not at how fast r‴ varies. With
-// `checks_per_span = 20` the 20-per-span check passes (but 80 per span still
-// finds 1.16-1.28 at 0.5 and 1 pts/mm). A planner matter (refine q's knots or
-// its check points where r‴ varies fast), not the fixture's.
+// The 400x weight ratios make curvature spikes ~0.09 mm wide (kappa 1.95 /mm,
+// |dkappa/ds| up to 34 /mm^2) that fall between the certified sequence's
+// check points (6 per knot span of q): before the planner's refinement rounds
+// the dense check found axial jerk 1.31 / 1.78 / 1.53 at 0.5 / 1 / 2 pts/mm.
 #[test]
-#[ignore = "planner: axial jerk 1.31-1.78 between check points at narrow curvature spikes (see comment)"]
 fn weights_far() {
     plans_and_holds("weights_far", &[0.5, 1.0, 2.0], false);
 }
@@ -143,13 +137,10 @@ fn many_points() {
     plans_and_holds("many_points", &[1.0, 2.0], false);
 }
 
-// At 0.5 pts/mm (2 mm knot spans of q) the dense check finds axial jerk 1.0150
-// at s = 6.4 mm, where the feed rises after the start: q varies too much
-// between the 6 check points per span (with `checks_per_span = 12` it is
-// 1.0021, with 20 it is 0.9947). A planner matter (check-point spacing), not
-// the fixture's.
+// At 0.5 pts/mm (2 mm knot spans of q) q varies fast between the check
+// points where the feed rises after the start: before the planner's
+// refinement rounds the dense check found axial jerk 1.0150 at s = 6.4 mm.
 #[test]
-#[ignore = "planner: axial jerk 1.015 between check points at s = 6.4 mm at 0.5 pts/mm (see comment)"]
 fn many_points_at_half_a_point_per_mm() {
     plans_and_holds("many_points", &[0.5], false);
 }
