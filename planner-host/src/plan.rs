@@ -583,7 +583,7 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
                 }
                 round += 1;
                 let mut merged: Vec<(EvalPoint, bool)> = pts.drain(..).zip(forced.drain(..)).collect();
-                merged.extend(bad.iter().map(|&i| (dense[i].clone(), true)));
+                merged.extend(bad.iter().map(|&i| (dense[i], true)));
                 merged.sort_by(|a, b| a.0.s.total_cmp(&b.0.s));
                 (pts, forced) = merged.into_iter().unzip();
             }
