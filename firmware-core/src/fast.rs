@@ -46,7 +46,6 @@
 use libm::sqrtf;
 
 use crate::array::{F64Array, Point4Array};
-use crate::basis::MAX_DEGREE;
 use crate::nurbs::NurbsView;
 use crate::qspline::QSpline;
 use crate::sumap::horner;
@@ -65,16 +64,43 @@ pub const PIECE_MIN_MM: f64 = 0.1;
 /// of a servo step where the feed is low (at 5 mm/s a step is 1.25 µm), so
 /// the speed measured from consecutive setpoints stays within ~1e-5 of √q.
 pub const PIECE_TIME_S: f64 = 0.02;
-/// f64 values per piece: u_a, o_x, o_y, o_z.
-pub const PIECE_F64_LEN: usize = 4;
-/// f32 values per piece before the NURBS coefficients: d1 … d5, w, 1/len.
+/// Fractional bits of the fixed-point arc length and positions: Q40 mm
+/// (quantum 2⁻⁴⁰ mm = 9.1e-13 mm, range ±2²³ mm).
+pub const FX_FRAC: u32 = 40;
+/// 2⁴⁰ as f64.
+pub const FX_ONE: f64 = (1u64 << FX_FRAC) as f64;
+/// Fractional bits of the fixed-point q and ṡ: Q32 ((mm/s)², mm/s).
+pub const Q_FRAC: u32 = 32;
+/// 2³² as f64.
+pub const Q_ONE: f64 = (1u64 << Q_FRAC) as f64;
+/// Fractional bits of the normalised local coordinate τ ∈ [−1, 1]: Q62.
+pub const TAU_FRAC: u32 = 62;
+/// i64 values per q span in the fixed-point q section: C0 … C3 (Q32
+/// (mm/s)², the cubic in τ = (s − U_i)/2^e), then the shift `22 − e`.
+pub const Q_FX_LEN: usize = 5;
+/// Degree of the per-piece position polynomial in τ.
+pub const POS_DEG: usize = 7;
+/// Coefficients per axis of the position polynomial.
+pub const POS_COEFFS: usize = POS_DEG + 1;
+/// 64-bit words per piece: u_a (f64), the centre c (i64, Q40 mm), the
+/// shift `22 − e` (i64), then the position coefficients b_k (i64, Q40 mm),
+/// x first, k ascending, then y, then z.
+pub const PIECE_F64_LEN: usize = 3 + 3 * POS_COEFFS;
+/// f32 values per piece: d1 … d5, w, 1/len (the s → u form: the reported u).
 pub const PIECE_HEAD_LEN: usize = 7;
-/// Most f32 values per piece (degree [`MAX_DEGREE`]).
-pub const PIECE_F32_MAX: usize = PIECE_HEAD_LEN + 4 * (MAX_DEGREE + 1);
+/// f32 values per piece (every degree).
+pub const PIECE_F32_MAX: usize = PIECE_HEAD_LEN;
+/// The host bisects a piece (up to [`MAX_SPLIT`] times) until its
+/// fixed-point position polynomial is within this of the f64 reference, mm.
+pub const FIT_TOL_MM: f64 = 2e-11;
+/// Most bisections of one piece.
+pub const MAX_SPLIT: u32 = 10;
+/// Points per piece at which the host measures the fit.
+const FIT_CHECKS: usize = 4 * POS_DEG + 1;
 
-/// f32 values per piece for NURBS degree p: `7 + 4 (p + 1)`.
-pub fn piece_f32_len(degree: usize) -> usize {
-    PIECE_HEAD_LEN + 4 * (degree + 1)
+/// f32 values per piece: [`PIECE_HEAD_LEN`] for every degree.
+pub fn piece_f32_len(_degree: usize) -> usize {
+    PIECE_HEAD_LEN
 }
 
 /// Length of a piece starting where the planned feed is `v` mm/s:
@@ -90,10 +116,15 @@ pub const Q_TOL_REL: f64 = 1e-5;
 /// knot span's width) at three points per piece, the width and the inverse
 /// piece length within `SU_TOL` relative, and the q span length too.
 pub const SU_TOL: f64 = 1e-6;
-/// Parse tolerance for positions, absolute part, mm.
-pub const POS_TOL_ABS_MM: f64 = 1e-6;
-/// Parse tolerance for positions, part relative to the piece's chord.
-pub const POS_TOL_REL: f64 = 1e-6;
+/// Parse tolerance for the fixed-point positions, mm (the host fits them
+/// to [`FIT_TOL_MM`]).
+pub const POS_TOL_MM: f64 = 1e-9;
+/// Parse tolerance for the fixed-point q, absolute part, (mm/s)².
+pub const Q_FX_TOL_ABS: f64 = 1e-7;
+/// Parse tolerance for the fixed-point q, part relative to max q.
+pub const Q_FX_TOL_REL: f64 = 1e-12;
+/// Points per piece at which parse compares the fixed-point positions.
+pub const POS_CHECK_POINTS: usize = 5;
 /// Points per span (v or τ = k / (CHECK_POINTS − 1)) at which parse compares.
 pub const CHECK_POINTS: usize = 3;
 
@@ -142,26 +173,83 @@ pub fn shifted_u(c: &[f64; SU_COEFFS], ta: f64, h: f64) -> [f64; SU_COEFFS] {
     e
 }
 
+/// The e with 2^(e−1) < x ≤ 2^e (x > 0), within −60 ..= 60, and 2^e.
+fn ceil_log2(x: f64) -> (i32, f64) {
+    let (mut e, mut p) = (0i32, 1.0f64);
+    while p < x && e < 60 {
+        p *= 2.0;
+        e += 1;
+    }
+    while p * 0.5 >= x && e > -60 {
+        p *= 0.5;
+        e -= 1;
+    }
+    (e, p)
+}
+
+/// The fixed-point form of q span `span` (U_i ≤ s < U_{i+1}, h = U_{i+1} − U_i):
+/// `[C0, C1, C2, C3, 22 − e]` with 2^e ≥ h and C_k = c_k 2^(ek) in Q32, so
+/// that q = Σ C_k τ^k, τ = (s − U_i)/2^e ∈ [0, 1] ([`q_fx_eval`]); zeros for
+/// an empty span or one out of range.
+pub fn q_fixed<A: F64Array>(q: &QSpline<A>, span: usize) -> [i64; Q_FX_LEN] {
+    let (Some(a), Some(b)) = (q.knots().get(span), q.knots().get(span.saturating_add(1))) else {
+        return [0; Q_FX_LEN];
+    };
+    let Some(p) = q.span_poly(span).filter(|_| b > a) else {
+        return [0; Q_FX_LEN];
+    };
+    let (e, scale) = ceil_log2(b - a);
+    if !(-40..=22).contains(&e) {
+        return [0; Q_FX_LEN];
+    }
+    let mut out = [0i64; Q_FX_LEN];
+    let mut sk = Q_ONE;
+    for (o, c) in out.iter_mut().zip(p.c.iter()) {
+        *o = libm::round(c * sk) as i64;
+        sk *= scale;
+    }
+    out[4] = i64::from(22 - e);
+    out
+}
+
 /// One piece as the table stores it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PieceData {
     /// s at the piece's start, mm.
     pub s_start: f64,
-    /// `[u_a, o_x, o_y, o_z]`.
-    pub f64s: [f64; PIECE_F64_LEN],
-    /// `[d1 … d5, w, 1/len, a_0 … a_p]` (the first `piece_f32_len(p)` used).
+    /// The [`PIECE_F64_LEN`] 64-bit words: u_a (f64 bits), c, shift, b_k.
+    pub words: [u64; PIECE_F64_LEN],
+    /// `[d1 … d5, w, 1/len]`.
     pub f32s: [f32; PIECE_F32_MAX],
+    /// Largest distance of the fixed-point positions from the f64 reference
+    /// at [`FIT_CHECKS`] points of the piece, mm.
+    pub fit_err: f64,
+}
+
+/// The f64 reference r(u(s)) on segment `seg` over `[s0, s1]`.
+pub fn ref_point<K: F64Array, P: Point4Array>(
+    curve: &NurbsView<K, P>,
+    seg: &SuSegment,
+    (s0, s1): (f64, f64),
+    s: f64,
+) -> Option<[f64; 3]> {
+    let u = horner(&seg.coeffs, ((s - s0) / (s1 - s0)).clamp(0.0, 1.0));
+    curve.point_in_span(seg.span as usize, u)
 }
 
 /// The piece `[s_start, s_end]` of segment `seg` over `[s0, s1]` (mm) in its
-/// NURBS knot span; `None` if the span or an evaluation is bad.
+/// NURBS knot span; `None` if the span or an evaluation is bad or the piece
+/// is out of the fixed-point range.
+///
+/// Position: the degree-[`POS_DEG`] polynomial through r(u(s)) at the
+/// Chebyshev–Lobatto points of the piece, in τ = (s − c)/2^e (c the
+/// centre in Q40, 2^e ≥ half the length), coefficients rounded to Q40 mm.
 pub fn piece_local<K: F64Array, P: Point4Array>(
     curve: &NurbsView<K, P>,
     seg: &SuSegment,
     (s0, s1): (f64, f64),
     (s_start, s_end): (f64, f64),
 ) -> Option<PieceData> {
-    let p = curve.degree();
     let span = seg.span as usize;
     let k0 = curve.knots().get(span)?;
     let k1 = curve.knots().get(span.checked_add(1)?)?;
@@ -174,67 +262,233 @@ pub fn piece_local<K: F64Array, P: Point4Array>(
     let (ta, h) = ((s_start - s0) / seg_len, len / seg_len);
     let e = shifted_u(&seg.coeffs, ta, h);
     let u_a = e[0];
-    let dmax: f64 = e.iter().skip(1).sum::<f64>() / w; // Δv at τ′ = 1
-    let sp = curve.span(span)?;
-    let origin = sp.point(u_a + 0.5 * dmax * w)?;
-    // Power form of A in Δv from p + 1 samples (Newton divided differences
-    // on nodes spread over [0, D], D ≥ the piece's Δv range).
-    let dd = if dmax > 1e-6 { dmax } else { 1e-6 };
-    let node = |k: usize| dd * k as f64 / p as f64;
-    let mut d = [[0.0f64; 4]; MAX_DEGREE + 1];
-    for (k, dk) in d.iter_mut().enumerate().take(p + 1) {
-        let a = sp.homogeneous_point(u_a + node(k) * w)?;
-        *dk = [
-            a[0] - origin[0] * a[3],
-            a[1] - origin[1] * a[3],
-            a[2] - origin[2] * a[3],
-            a[3],
-        ];
+    let half = 0.5 * len;
+    let c_fx = to_fx(s_start + half);
+    let c = fx_to_f64(c_fx);
+    let (ex, scale) = ceil_log2(half);
+    if !(-40..=22).contains(&ex) {
+        return None;
     }
-    for level in 1..=p {
-        for k in (level..=p).rev() {
-            let den = node(k) - node(k - level);
-            let prev = *d.get(k - 1)?;
-            let cur = d.get_mut(k)?;
-            for (x, pv) in cur.iter_mut().zip(prev.iter()) {
-                *x = (*x - pv) / den;
+    // Values at the nodes, Newton divided differences in τ, then the power form.
+    let mut tau = [0.0f64; POS_COEFFS];
+    let mut d = [[0.0f64; 3]; POS_COEFFS];
+    for (i, (ti, di)) in tau.iter_mut().zip(d.iter_mut()).enumerate() {
+        let x = -half * libm::cos(core::f64::consts::PI * i as f64 / POS_DEG as f64);
+        let s = (c + x).clamp(s_start, s_end);
+        *ti = (s - c) / scale;
+        *di = ref_point(curve, seg, (s0, s1), s)?;
+    }
+    for level in 1..=POS_DEG {
+        for k in (level..=POS_DEG).rev() {
+            let den = tau[k] - tau[k - level];
+            for a in 0..3 {
+                d[k][a] = (d[k][a] - d[k - 1][a]) / den;
             }
         }
     }
-    let mut cp = [[0.0f64; 4]; MAX_DEGREE + 1];
-    *cp.get_mut(0)? = *d.get(p)?;
-    for k in (0..p).rev() {
-        let vk = node(k);
-        let mut next = [[0.0f64; 4]; MAX_DEGREE + 1];
-        for j in 0..=(p - k) {
-            for comp in 0..4 {
-                let hi = if j > 0 { cp.get(j - 1)?[comp] } else { 0.0 };
-                next.get_mut(j)?[comp] = hi - vk * cp.get(j)?[comp];
+    let mut cp = [[0.0f64; 3]; POS_COEFFS];
+    cp[0] = d[POS_DEG];
+    for k in (0..POS_DEG).rev() {
+        let mut next = [[0.0f64; 3]; POS_COEFFS];
+        for j in 0..=(POS_DEG - k) {
+            for a in 0..3 {
+                let hi = if j > 0 { cp[j - 1][a] } else { 0.0 };
+                next[j][a] = hi - tau[k] * cp[j][a];
             }
         }
-        for comp in 0..4 {
-            next.get_mut(0)?[comp] += d.get(k)?[comp];
+        for a in 0..3 {
+            next[0][a] += d[k][a];
         }
         cp = next;
+    }
+    let mut words = [0u64; PIECE_F64_LEN];
+    words[0] = u_a.to_bits();
+    words[1] = c_fx as u64;
+    words[2] = (22 - ex) as u64;
+    let mut bytes = [0u8; POS_BYTES];
+    for a in 0..3 {
+        for k in 0..POS_COEFFS {
+            let b = libm::round(cp[k][a] * FX_ONE);
+            if !(b.abs() < 9.0e18) {
+                return None;
+            }
+            let v = b as i64;
+            words[3 + a * POS_COEFFS + k] = v as u64;
+            let at = 8 * (a * POS_COEFFS + k);
+            bytes[at..at + 8].copy_from_slice(&v.to_le_bytes());
+        }
+    }
+    let mut fit_err = 0.0f64;
+    for j in 0..FIT_CHECKS {
+        let s = s_start + len * j as f64 / (FIT_CHECKS - 1) as f64;
+        let r = ref_point(curve, seg, (s0, s1), s)?;
+        let t = piece_tau(to_fx(s), c_fx, (22 - ex) as u32)?;
+        let p = pos_eval(&bytes, t);
+        for (pa, ra) in p.iter().zip(r.iter()) {
+            fit_err = fit_err.max((fx_to_f64(*pa) - ra).abs());
+        }
     }
     let mut f32s = [0.0f32; PIECE_F32_MAX];
     for (o, ek) in f32s.iter_mut().zip(e.iter().skip(1)) {
         *o = (ek / w) as f32;
     }
-    *f32s.get_mut(5)? = w as f32;
-    *f32s.get_mut(6)? = (1.0 / len) as f32;
-    for (o, x) in f32s
-        .iter_mut()
-        .skip(PIECE_HEAD_LEN)
-        .zip(cp.iter().take(p + 1).flatten())
-    {
-        *o = *x as f32;
-    }
+    f32s[5] = w as f32;
+    f32s[6] = (1.0 / len) as f32;
     Some(PieceData {
         s_start,
-        f64s: [u_a, origin[0], origin[1], origin[2]],
+        words,
         f32s,
+        fit_err,
     })
+}
+
+// ------------------------------------------------------------ fixed point
+
+/// (a · b) >> 62 with the exact 128-bit product (rounded toward −∞): one
+/// Horner step in Q62 τ. Plain integer arithmetic, the same on every target.
+#[inline(always)]
+pub fn mul_q62(a: i64, b: i64) -> i64 {
+    ((i128::from(a) * i128::from(b)) >> TAU_FRAC) as i64
+}
+
+/// The high 64 bits of the 128-bit product a · b.
+#[inline(always)]
+pub fn mul_hi(a: i64, b: i64) -> i64 {
+    ((i128::from(a) * i128::from(b)) >> 64) as i64
+}
+
+/// mm → Q40 mm: x·2⁴⁰ (exact: an exponent addition, not a soft-float
+/// multiply) truncated toward zero (saturating; NaN → `i64::MIN`).
+#[inline]
+pub fn to_fx(x: f64) -> i64 {
+    if x == 0.0 {
+        return 0;
+    }
+    f64::from_bits(x.to_bits().wrapping_add(u64::from(FX_FRAC) << 52)) as i64
+}
+
+/// Q40 mm → mm: exact for |x| < 2⁵³ (8192 mm), else correctly rounded. The
+/// scaling by 2⁻⁴⁰ is an exponent subtraction, not a soft-float multiply.
+#[inline]
+pub fn fx_to_f64(x: i64) -> f64 {
+    if x == 0 {
+        return 0.0;
+    }
+    // |x| ≥ 1: the exponent is ≥ 1023, minus 40 stays normal.
+    f64::from_bits((x as f64).to_bits().wrapping_sub(u64::from(FX_FRAC) << 52))
+}
+
+/// A small Q40 difference (|d| < 2^(31 + sh − 40) mm) as f32 mm, through
+/// i32 (one VFP conversion instead of a soft i64 → f32 call): `sh` bits of
+/// resolution are dropped first.
+#[inline]
+pub fn fx_small_f32(d: i64, sh: u32) -> f32 {
+    ((d >> sh) as i32) as f32 * f32::from_bits((127 + sh - FX_FRAC) << 23)
+}
+
+/// τ in Q62 from s and the local origin c (both Q40) and the shift `22 − e`:
+/// `(s − c) << shift`; `None` if that overflows Q62 (|τ| > 1).
+#[inline]
+pub fn piece_tau(s: i64, c: i64, shift: u32) -> Option<i64> {
+    let d = s.checked_sub(c)?;
+    let t = d.checked_shl(shift)?;
+    (shift <= 62 && t >> shift == d && t.unsigned_abs() <= 1u64 << TAU_FRAC).then_some(t)
+}
+
+/// Bytes of one piece's position coefficients (24 i64).
+pub const POS_BYTES: usize = 24 * POS_COEFFS;
+
+#[inline(always)]
+fn rd_i64(b: &[u8; POS_BYTES], at: usize) -> i64 {
+    let mut w = [0u8; 8];
+    w.copy_from_slice(&b[at..at + 8]);
+    i64::from_le_bytes(w)
+}
+
+/// The position (Q40 mm, x, y, z) of a piece at τ (Q62), Horner in i64
+/// with 128-bit products ([`mul_q62`]): bit-identical on every target.
+#[inline]
+pub fn pos_eval(b: &[u8; POS_BYTES], tau: i64) -> [i64; 3] {
+    let mut out = [0i64; 3];
+    for (a, o) in out.iter_mut().enumerate() {
+        let base = 8 * POS_COEFFS * a;
+        let mut acc = rd_i64(b, base + 8 * POS_DEG);
+        for k in (0..POS_DEG).rev() {
+            acc = mul_q62(acc, tau).wrapping_add(rd_i64(b, base + 8 * k));
+        }
+        *o = acc;
+    }
+    out
+}
+
+/// q (Q32 (mm/s)²) of a fixed-point q span `[C0, C1, C2, C3]` at τ (Q62).
+#[inline]
+pub fn q_fx_eval(c: [i64; 4], tau: i64) -> i64 {
+    let [c0, c1, c2, c3] = c;
+    let acc = mul_q62(c3, tau).wrapping_add(c2);
+    let acc = mul_q62(acc, tau).wrapping_add(c1);
+    mul_q62(acc, tau).wrapping_add(c0)
+}
+
+/// x > 0 (f32) in Q32, exact for 2⁻⁸ ≤ x < 2¹⁵ (truncated below, saturated
+/// above), from the bit pattern.
+#[inline]
+pub fn f32_to_q32(x: f32) -> i64 {
+    if !(x > 0.0) {
+        return 0;
+    }
+    let b = x.to_bits();
+    let m = i64::from((b & 0x7f_ffff) | 0x80_0000);
+    let sh = ((b >> 23) & 0xff) as i32 - 150 + Q_FRAC as i32;
+    if sh >= 39 {
+        i64::MAX >> 1
+    } else if sh >= 0 {
+        m << sh
+    } else if sh > -24 {
+        m >> (-sh)
+    } else {
+        0
+    }
+}
+
+/// √q in Q32 mm/s from q (Q32) and an f32 estimate `v0` within ~1e-6: one
+/// Newton step v = v0 + (q − v0²)/(2 v0), the residual exact in integers,
+/// the (small) correction in f32. Relative error ~1e-14 (v0's error
+/// squared); 0 for q ≤ 0 or v0 ≤ 0.
+#[inline]
+pub fn sqrt_q32(q: i64, v0: f32) -> i64 {
+    let v = f32_to_q32(v0);
+    if q <= 0 || v <= 0 {
+        return 0;
+    }
+    let sq = ((i128::from(v) * i128::from(v)) >> Q_FRAC) as i64;
+    let r = q.wrapping_sub(sq).clamp(-(1 << 30), 1 << 30) as i32;
+    let corr = (r as f32 * (0.5 / v0)) as i32;
+    v.wrapping_add(i64::from(corr))
+}
+
+/// The step scale for a period h (s): `(k, g)` with k = h·2^(72 − g) < 2⁶²,
+/// so that ds (Q40 mm) = `mul_hi(v, k) << g` for v in Q32 mm/s.
+pub fn step_scale(h: f64) -> (i64, u32) {
+    let mut x = h * (1u128 << 72) as f64;
+    let mut g = 0u32;
+    while !(x < (1u64 << 62) as f64) && g < 60 {
+        x *= 0.5;
+        g += 1;
+    }
+    (if x > 0.0 { x as i64 } else { 0 }, g)
+}
+
+/// An f32 length (mm) in Q40: through i32 when |x| < 1e-3 mm (one VFP
+/// conversion), else through i64.
+#[inline]
+pub fn f32_to_fx(x: f32) -> i64 {
+    let y = x * (1u64 << FX_FRAC) as f32;
+    if y.abs() < 1.0e9 {
+        i64::from(y as i32)
+    } else {
+        y as i64
+    }
 }
 
 // ------------------------------------------------------------ evaluators
@@ -302,43 +556,6 @@ impl PieceU {
     }
 }
 
-/// r − o at Δv from the table bytes of one piece's NURBS part
-/// (`16 (p + 1)` bytes, a_0 first), read in place; `None` if the weight is
-/// not > 0.
-#[inline]
-pub fn offset_from_bytes(bytes: &[u8], v: f32) -> Option<[f32; 3]> {
-    let f = |c: &[u8]| -> [f32; 4] {
-        let g = |i: usize| {
-            let mut b = [0u8; 4];
-            if let Some(src) = c.get(4 * i..4 * i + 4) {
-                b.copy_from_slice(src);
-            }
-            f32::from_le_bytes(b)
-        };
-        [g(0), g(1), g(2), g(3)]
-    };
-    horner_offset(bytes.chunks_exact(16).map(f), v)
-}
-
-#[inline]
-fn horner_offset<I: DoubleEndedIterator<Item = [f32; 4]>>(coeffs: I, v: f32) -> Option<[f32; 3]> {
-    let mut acc = [0.0f32; 4];
-    for ak in coeffs.rev() {
-        acc = [
-            acc[0] * v + ak[0],
-            acc[1] * v + ak[1],
-            acc[2] * v + ak[2],
-            acc[3] * v + ak[3],
-        ];
-    }
-    let [x, y, z, w] = acc;
-    if !(w > 0.0) {
-        return None;
-    }
-    let inv = 1.0 / w;
-    Some([x * inv, y * inv, z * inv])
-}
-
 /// √max(q, 0) in f32 (the same correctly rounded square root on every
 /// target).
 #[inline]
@@ -404,18 +621,49 @@ pub fn check_q<A: F64Array>(q: &QSpline<A>, span: usize, local: &QLocal, q_scale
     })
 }
 
-/// Piece check: u and r from the f32 form against the f64 s → u segment
-/// (`seg` over `[s0, s1]`) and the f64 curve, at three points of the piece
-/// `[sa, sb]`. `f32s` are the piece's `piece_f32_len(p)` values.
-#[allow(clippy::too_many_arguments)]
+/// Fixed-point q span check: q from [`q_fx_eval`] within
+/// [`Q_FX_TOL_ABS`]` + `[`Q_FX_TOL_REL`]` · q_scale` of the f64 span
+/// polynomial at [`CHECK_POINTS`] points, and τ within Q62 over the span.
+pub fn check_q_fx<A: F64Array>(q: &QSpline<A>, span: usize, c: [i64; Q_FX_LEN], q_scale: f64) -> bool {
+    let (Some(a), Some(b)) = (q.knots().get(span), q.knots().get(span.saturating_add(1))) else {
+        return false;
+    };
+    if !(b > a) {
+        return c == [0; Q_FX_LEN];
+    }
+    let Some(poly) = q.span_poly(span) else {
+        return false;
+    };
+    let Ok(shift) = u32::try_from(c[4]) else {
+        return false;
+    };
+    let (ua, ub) = (to_fx(a), to_fx(b));
+    if piece_tau(ub, ua, shift).is_none() {
+        return false;
+    }
+    let tol = Q_FX_TOL_ABS + Q_FX_TOL_REL * q_scale;
+    check_nodes().all(|x| {
+        let s = a + x * (b - a);
+        let Some(t) = piece_tau(to_fx(s).max(ua), ua, shift) else {
+            return false;
+        };
+        let qf = q_fx_eval([c[0], c[1], c[2], c[3]], t) as f64 / Q_ONE;
+        (qf - poly.eval(s)[0]).abs() <= tol
+    })
+}
+
+/// Piece check: u from the f32 form against the f64 s → u segment (`seg`
+/// over `[s0, s1]`) at [`CHECK_POINTS`] points, and the fixed-point
+/// position within [`POS_TOL_MM`] of r(u(s)) at [`POS_CHECK_POINTS`]
+/// points of the piece `[sa, sb]`, τ within Q62 over it. `words` are the
+/// piece's [`PIECE_F64_LEN`] 64-bit words (bytes).
 pub fn check_piece<K: F64Array, P: Point4Array>(
     curve: &NurbsView<K, P>,
     seg: &SuSegment,
     (s0, s1): (f64, f64),
     (sa, sb): (f64, f64),
-    f64s: [f64; PIECE_F64_LEN],
+    words: &[u8],
     head: &PieceU,
-    nurbs_bytes: &[u8],
 ) -> bool {
     let span = seg.span as usize;
     let (Some(k0), Some(k1)) = (curve.knots().get(span), curve.knots().get(span.saturating_add(1))) else {
@@ -430,35 +678,40 @@ pub fn check_piece<K: F64Array, P: Point4Array>(
     {
         return false;
     }
-    let [u_a, ox, oy, oz] = f64s;
-    let (Some(ra), Some(rb)) = (
-        curve.point_in_span(span, horner(&seg.coeffs, (sa - s0) / seg_len)),
-        curve.point_in_span(span, horner(&seg.coeffs, (sb - s0) / seg_len)),
-    ) else {
+    let word = |i: usize| -> Option<u64> {
+        let mut b = [0u8; 8];
+        b.copy_from_slice(words.get(8 * i..8 * i + 8)?);
+        Some(u64::from_le_bytes(b))
+    };
+    let (Some(u_a), Some(c_fx), Some(shift)) = (word(0), word(1), word(2)) else {
         return false;
     };
-    let chord = ra
-        .iter()
-        .zip(rb.iter())
-        .map(|(a, b)| (a - b) * (a - b))
-        .sum::<f64>();
-    let tol = POS_TOL_ABS_MM + POS_TOL_REL * libm::sqrt(chord);
-    check_nodes().all(|x| {
+    let (u_a, c_fx) = (f64::from_bits(u_a), c_fx as i64);
+    let Ok(shift) = u32::try_from(shift) else {
+        return false;
+    };
+    let Some(pos): Option<&[u8; POS_BYTES]> = words.get(24..24 + POS_BYTES).and_then(|b| b.try_into().ok()) else {
+        return false;
+    };
+    if piece_tau(to_fx(sa), c_fx, shift).is_none() || piece_tau(to_fx(sb), c_fx, shift).is_none() {
+        return false;
+    }
+    let u_ok = check_nodes().all(|x| {
         let s = sa + x * len;
         let u64v = horner(&seg.coeffs, ((s - s0) / seg_len).clamp(0.0, 1.0));
         let dv = head.delta((s - sa) as f32);
         let u32v = u_a + f64::from(dv * head.width);
-        if !((u32v - u64v).abs() <= SU_TOL * w) {
-            return false;
-        }
-        let (Some(r64), Some(off)) = (
-            curve.point_in_span(span, u64v),
-            offset_from_bytes(nurbs_bytes, dv),
+        (u32v - u64v).abs() <= SU_TOL * w
+    });
+    u_ok && (0..POS_CHECK_POINTS).all(|k| {
+        let s = sa + len * k as f64 / (POS_CHECK_POINTS - 1) as f64;
+        let (Some(r64), Some(t)) = (
+            ref_point(curve, seg, (s0, s1), s),
+            piece_tau(to_fx(s), c_fx, shift),
         ) else {
             return false;
         };
-        r64.iter()
-            .zip([ox, oy, oz].iter().zip(off.iter()))
-            .all(|(&r, (&o, &d))| ((o + f64::from(d)) - r).abs() <= tol)
+        let p = pos_eval(pos, t);
+        r64.iter().zip(p.iter()).all(|(&r, &x)| (fx_to_f64(x) - r).abs() <= POS_TOL_MM)
     })
 }

@@ -42,8 +42,8 @@
 
 use crate::array::{F64Array, LeF32, LeF64, Point4Array};
 use crate::fast::{
-    feed_near, feed_of, offset_from_bytes, piece_f32_len, pos, PieceU, QLocal, PIECE_F64_LEN, PIECE_HEAD_LEN,
-    Q_LOCAL_LEN,
+    f32_to_fx, feed_near, fx_small_f32, fx_to_f64, mul_hi, piece_f32_len, pos, pos_eval, q_fx_eval, sqrt_q32,
+    step_scale, to_fx, PieceU, QLocal, PIECE_F64_LEN, PIECE_HEAD_LEN, POS_BYTES, Q_FRAC, Q_FX_LEN, Q_LOCAL_LEN,
 };
 use crate::output::SetpointSink;
 use crate::table::{EndSegments, Table, MATCH_TOL_REL};
@@ -129,31 +129,40 @@ enum Phase {
     Faulted(Fault),
 }
 
-/// The current q span: its index among the q spans (knot span 3 + idx) and
-/// its start U_i (the last span's local form is anchored at its end
-/// U_{i+1} instead, see [`crate::fast`]).
+/// The current q span: its index among the q spans (knot span 3 + idx),
+/// its start U_i and end U_{i+1} in Q40 (the end `i64::MAX` for the last
+/// span), the anchor of its f32 form (U_i, or U_{i+1} for the last span,
+/// see [`crate::fast`]), and its fixed-point cubic and shift.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
 struct QCur {
     idx: usize,
-    start: f64,
+    start: i64,
+    next: i64,
+    anchor: i64,
+    shift: u32,
+    c: [i64; 4],
 }
 
-/// The current piece: index, start s_a, u_a and origin (f64).
+/// The current piece: index, start and next break (Q40, `i64::MAX` after
+/// the last piece), u_a, the centre (Q40) and the shift of τ.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
 struct PCur {
     idx: usize,
-    start: f64,
+    start: i64,
+    next: i64,
     u0: f64,
-    origin: [f64; 3],
+    centre: i64,
+    shift: u32,
 }
 
 /// The table data the fast path reads (zero-copy views). Coefficients are
-/// read from here every tick, never copied into RAM: a span or piece entry
-/// only moves an index and reads a few f64.
+/// read from here every tick (the position's) or on span entry (q's, 32
+/// bytes), never recomputed.
 #[derive(Clone, Copy, Debug)]
 struct Views<'a> {
     q_knots: LeF64<'a>,
     q_local: LeF32<'a>,
+    q_fixed: LeF64<'a>,
     q_last: usize,
     piece_breaks: LeF64<'a>,
     piece_f64: LeF64<'a>,
@@ -166,9 +175,22 @@ struct Views<'a> {
 impl Views<'_> {
     #[inline]
     fn q(&self, idx: usize) -> Option<QCur> {
+        let start = to_fx(self.q_knots.get(idx.checked_add(3)?)?);
+        let end = to_fx(self.q_knots.get(idx.checked_add(4)?)?);
+        let b = idx.checked_mul(Q_FX_LEN)?;
+        let last = idx >= self.q_last;
         Some(QCur {
             idx,
-            start: self.q_knots.get(idx.checked_add(3)?)?,
+            start,
+            next: if last { i64::MAX } else { end },
+            anchor: if last { end } else { start },
+            shift: u32::try_from(self.q_fixed.get_i64(b.checked_add(4)?)?).ok()?,
+            c: [
+                self.q_fixed.get_i64(b)?,
+                self.q_fixed.get_i64(b.checked_add(1)?)?,
+                self.q_fixed.get_i64(b.checked_add(2)?)?,
+                self.q_fixed.get_i64(b.checked_add(3)?)?,
+            ],
         })
     }
 
@@ -185,34 +207,37 @@ impl Views<'_> {
         let b = idx.checked_mul(PIECE_F64_LEN)?;
         Some(PCur {
             idx,
-            start: self.piece_breaks.get(idx)?,
+            start: to_fx(self.piece_breaks.get(idx)?),
+            next: if idx >= self.p_last {
+                i64::MAX
+            } else {
+                to_fx(self.piece_breaks.get(idx.checked_add(1)?)?)
+            },
             u0: self.piece_f64.get(b)?,
-            origin: [
-                self.piece_f64.get(b.checked_add(1)?)?,
-                self.piece_f64.get(b.checked_add(2)?)?,
-                self.piece_f64.get(b.checked_add(3)?)?,
-            ],
+            centre: self.piece_f64.get_i64(b.checked_add(1)?)?,
+            shift: u32::try_from(self.piece_f64.get_i64(b.checked_add(2)?)?).ok()?,
         })
     }
 
-    /// The s → u head of piece `idx` and the bytes of its NURBS form.
+    /// The s → u head of piece `idx` and the bytes of its position form.
     #[inline]
-    fn piece_forms(&self, idx: usize) -> Option<(PieceU, &[u8])> {
-        let base = idx.checked_mul(self.per)?;
-        let head = PieceU::from_array(self.piece_f32.get_array::<PIECE_HEAD_LEN>(base)?);
-        let from = base.checked_add(PIECE_HEAD_LEN)?.checked_mul(4)?;
-        let to = base.checked_add(self.per)?.checked_mul(4)?;
-        Some((head, self.piece_f32.as_bytes().get(from..to)?))
+    fn piece_forms(&self, idx: usize) -> Option<(PieceU, &[u8; POS_BYTES])> {
+        let head = PieceU::from_array(
+            self.piece_f32
+                .get_array::<PIECE_HEAD_LEN>(idx.checked_mul(self.per)?)?,
+        );
+        let from = idx.checked_mul(PIECE_F64_LEN)?.checked_add(3)?.checked_mul(8)?;
+        let to = from.checked_add(POS_BYTES)?;
+        Some((head, self.piece_f64.as_bytes().get(from..to)?.try_into().ok()?))
     }
 }
 
-/// `a ≥ b` for non-negative, non-NaN doubles, on the bit patterns (IEEE
-/// order for +0 ..= +∞ is the integer order): 3 instructions instead of a
-/// soft-float compare. Callers guarantee a, b ≥ +0 (s > 0 in mid-path,
-/// breaks and knots ≥ 0).
-#[inline]
-fn ge_nonneg(a: f64, b: f64) -> bool {
-    a.to_bits() >= b.to_bits()
+/// τ (Q62) from s and a local origin (Q40) and shift; the table's check
+/// guarantees no overflow inside the piece or span, and wrapping keeps the
+/// tick panic-free outside.
+#[inline(always)]
+fn tau_of(s: i64, origin: i64, shift: u32) -> i64 {
+    s.wrapping_sub(origin).wrapping_shl(shift)
 }
 
 /// q-local t at s = 0 (the first span's start, or, if there is only one q
@@ -225,26 +250,54 @@ fn t0_q(v: &Views<'_>) -> Option<f32> {
     }
 }
 
-/// `[q, q′, q″, q‴]` at s from the f32 local forms, as the tick evaluates
-/// them (a scan over the spans: for [`Interpolator::new`] only).
-fn q_at(v: &Views<'_>, s: f64) -> Option<[f32; 4]> {
-    let mut idx = 0;
-    while idx < v.q_last && s >= v.q_knots.get(idx.checked_add(4)?)? {
-        idx += 1;
+/// The q state at s (Q40) as the tick computes it: `[q, q′, q″, q‴]` (q from
+/// the fixed-point form, the derivatives from the f32 form), √q in f32 and
+/// in Q32 ([`q_eval`]). A scan over the spans: for [`Interpolator::new`],
+/// reset and the start segment's join only.
+fn q_state_at(v: &Views<'_>, s: i64, guess: f32) -> Option<QState> {
+    let mut qc = v.q(0)?;
+    while qc.idx < v.q_last && s >= qc.next {
+        qc = v.q(qc.idx.checked_add(1)?)?;
     }
-    let anchor = if idx < v.q_last {
-        v.q_knots.get(idx.checked_add(3)?)?
+    let poly = v.q_poly(qc.idx)?;
+    let tq = if s == 0 && qc.idx == 0 {
+        t0_q(v)?
     } else {
-        v.q_knots.get(idx.checked_add(4)?)?
+        fx_small_f32(s.wrapping_sub(qc.anchor), 20)
     };
-    Some(v.q_poly(idx)?.eval((s - anchor) as f32))
+    Some(q_eval(&qc, &poly, s, tq, guess))
+}
+
+/// `[q, q′, q″, q‴]` (f32), √q (f32) and √q (Q32 mm/s) at s.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+struct QState {
+    qd: [f32; 4],
+    v: f32,
+    v_fx: i64,
+}
+
+/// q at s (Q40) on the q span `qc`: the fixed-point cubic (Q32) for q and
+/// √q (an f32 estimate from `guess`, then one integer Newton step,
+/// [`sqrt_q32`]), the f32 form `poly` at `tq` for q′, q″, q‴.
+#[inline(always)]
+fn q_eval(qc: &QCur, poly: &QLocal, s: i64, tq: f32, guess: f32) -> QState {
+    let q_fx = q_fx_eval(qc.c, tau_of(s, qc.start, qc.shift));
+    let qf = q_fx as f32 * (1.0 / (1u64 << Q_FRAC) as f32);
+    let mut qd = poly.eval(tq);
+    qd[0] = qf;
+    let v = feed_near(qf, guess);
+    QState {
+        qd,
+        v,
+        v_fx: sqrt_q32(q_fx, v),
+    }
 }
 
 /// The servo-rate interpolator over one validated table.
 ///
-/// The fast path of [`crate::fast`]: s accumulates in f64; q, the Taylor
-/// step, u(s) and r(u) are f32 in span-local coordinates; the position is the
-/// span origin (f64) plus the f32 offset.
+/// The fast path of [`crate::fast`]: s accumulates in Q40 fixed point; q and
+/// √q are fixed point (Q32) with f32 estimates, the higher Taylor terms f32,
+/// the position a fixed-point polynomial per piece (Q40), u(s) f32 local.
 #[derive(Clone, Debug)]
 pub struct Interpolator<'a> {
     table: Table<'a>,
@@ -252,21 +305,21 @@ pub struct Interpolator<'a> {
     period_s: f64,
     /// The period in f32 for the Taylor step.
     h: f32,
+    /// The step scale of the period ([`step_scale`]).
+    tk: (i64, u32),
     length_mm: f64,
+    /// L in Q40.
+    len_fx: i64,
     qc: QCur,
     pc: PCur,
-    /// `(pc.start − qc.start)` in f32: the q-local t is the piece-local t
-    /// plus this (one f64 subtraction per span entry instead of per tick).
-    su_to_q: f32,
     first: Setpoint,
     last: Setpoint,
     /// Index of the next tick (its time is `k · T`).
     k: u64,
-    s: f64,
-    /// `[q, q′, q″, q‴]` at `s`.
-    qd: [f32; 4],
-    /// √max(q, 0) at `s`.
-    v: f32,
+    /// Arc length, Q40 mm.
+    s: i64,
+    /// q, √q at `s`.
+    qs: QState,
     /// q below which a falling feed in mid-path is a stall, (mm/s)².
     stall_q: f32,
     /// A step shorter than this (mm) is no progress.
@@ -275,13 +328,13 @@ pub struct Interpolator<'a> {
     end_tol: f32,
     /// The time-domain start and stop segments, if the table has them.
     ends: Option<EndSegments>,
-    /// Where the Taylor steps hand over to the stop: s₂ with segments, else L.
-    stop_at: f64,
+    /// Where the Taylor steps hand over to the stop: s₂ with segments, else
+    /// L (Q40).
+    stop_at: i64,
     /// Last tick time still in the start segment, t₁ + 1e-6·T, s.
     t_switch: f64,
-    /// `[q, q′, q″, q‴]` and √q at s₁ (the join), for the first Taylor step.
-    join_qd: [f32; 4],
-    join_v: f32,
+    /// The q state at s₁ (the join), for the first Taylor step.
+    join: QState,
     /// When the stop segment reaches L (set on entering it), s.
     t_end: f64,
     phase: Phase,
@@ -302,6 +355,7 @@ impl<'a> Interpolator<'a> {
         let views = Views {
             q_knots: table.q_knots(),
             q_local: table.q_local(),
+            q_fixed: table.q_fixed(),
             q_last: q_spans.checked_sub(1).ok_or(bad)?,
             piece_breaks: table.piece_breaks(),
             piece_f64: table.piece_f64(),
@@ -311,9 +365,8 @@ impl<'a> Interpolator<'a> {
         };
         let qc = views.q(0).ok_or(bad)?;
         let pc = views.piece(0).ok_or(bad)?;
-        let qd = views.q_poly(0).ok_or(bad)?.eval(t0_q(&views).ok_or(bad)?);
+        let qs = q_state_at(&views, 0, 0.0).ok_or(bad)?;
         views.piece_forms(0).ok_or(bad)?;
-        let v = feed_of(qd[0]);
         let [x0, y0, z0, _] = pts.get(0).ok_or(bad)?;
         let [x1, y1, z1, _] = pts.get(pts.len().checked_sub(1).ok_or(bad)?).ok_or(bad)?;
         let length_mm = table.path_length_mm();
@@ -322,7 +375,7 @@ impl<'a> Interpolator<'a> {
             t_s: 0.0,
             s_mm: 0.0,
             u: knots.get(p).ok_or(bad)?,
-            feed_mm_s: f64::from(v),
+            feed_mm_s: f64::from(qs.v),
             pos_mm: [x0, y0, z0],
         };
         let last = Setpoint {
@@ -333,35 +386,38 @@ impl<'a> Interpolator<'a> {
             pos_mm: [x1, y1, z1],
         };
         let ends = table.ends();
-        let (stop_at, t_switch, join_qd) = match ends {
-            Some(e) => (
-                e.s_stop,
-                e.t_start + 1e-6 * period_s,
-                q_at(&views, e.s_start).ok_or(bad)?,
-            ),
-            None => (length_mm, 0.0, [0.0; 4]),
+        let (stop_at, t_switch, join) = match ends {
+            Some(e) => {
+                let s1 = to_fx(e.s_start);
+                let guess = q_state_at(&views, s1, 0.0).ok_or(bad)?.v;
+                (
+                    to_fx(e.s_stop),
+                    e.t_start + 1e-6 * period_s,
+                    q_state_at(&views, s1, guess).ok_or(bad)?,
+                )
+            }
+            None => (to_fx(length_mm), 0.0, QState::default()),
         };
         Ok(Interpolator {
             ends,
             stop_at,
             t_switch,
-            join_qd,
-            join_v: feed_of(join_qd[0]),
+            join,
             t_end: 0.0,
             table,
             views,
             period_s,
             h: period_s as f32,
+            tk: step_scale(period_s),
             length_mm,
+            len_fx: to_fx(length_mm),
             qc,
             pc,
-            su_to_q: (pc.start - qc.start) as f32,
             first,
             last,
             k: 0,
-            s: 0.0,
-            qd,
-            v,
+            s: 0,
+            qs,
             stall_q: (v_floor * v_floor) as f32,
             stall_ds: (STALL_REL * length_mm) as f32,
             end_tol: (MATCH_TOL_REL * length_mm) as f32,
@@ -381,7 +437,7 @@ impl<'a> Interpolator<'a> {
 
     /// Arc length reached, mm.
     pub fn s_mm(&self) -> f64 {
-        self.s
+        fx_to_f64(self.s)
     }
 
     /// Ticks issued so far.
@@ -397,16 +453,11 @@ impl<'a> Interpolator<'a> {
     /// Back to the start (also clears a fault).
     pub fn reset(&mut self) {
         self.k = 0;
-        self.s = 0.0;
+        self.s = 0;
         if let (Some(qc), Some(pc)) = (self.views.q(0), self.views.piece(0)) {
             (self.qc, self.pc) = (qc, pc);
-            self.su_to_q = (pc.start - qc.start) as f32;
         }
-        self.qd = match (self.views.q_poly(0), t0_q(&self.views)) {
-            (Some(p), Some(t)) => p.eval(t),
-            _ => [0.0; 4],
-        };
-        self.v = feed_of(self.qd[0]);
+        self.qs = q_state_at(&self.views, 0, 0.0).unwrap_or_default();
         self.phase = Phase::Start;
     }
 
@@ -426,7 +477,7 @@ impl<'a> Interpolator<'a> {
     }
 
     fn finish(&mut self, t_s: f64) -> Setpoint {
-        self.s = self.length_mm;
+        self.s = self.len_fx;
         self.phase = Phase::Done;
         Setpoint { t_s, ..self.last }
     }
@@ -465,28 +516,31 @@ impl<'a> Interpolator<'a> {
             Phase::Run => {}
         }
         self.k = self.k.saturating_add(1);
-        self.step(t_s, self.h)
+        self.step(t_s, self.h, self.tk)
     }
 
-    /// One Taylor step of `h` seconds from (s, q) (see the module docs).
+    /// One Taylor step of `h` seconds (step scale `tk`, [`step_scale`]) from
+    /// (s, q) (see the module docs): ds = √q·h in fixed point (Q32 × the
+    /// scale) plus the higher Taylor terms in f32.
     #[inline(always)]
-    fn step(&mut self, t_s: f64, h: f32) -> Result<Setpoint, Fault> {
+    fn step(&mut self, t_s: f64, h: f32, tk: (i64, u32)) -> Result<Setpoint, Fault> {
         let s = self.s;
-        let [q_raw, dq, ddq, dddq] = self.qd;
+        let [q_raw, dq, ddq, dddq] = self.qs.qd;
         let q = pos(q_raw);
-        let v = self.v; // (1)
+        let v = self.qs.v; // (1)
         let a = 0.5 * dq; // (4)
         let j = 0.5 * ddq * v; // (5)
         let sn = 0.5 * dddq * q + 0.25 * ddq * dq; // d/dt of (5)
-        let ds = h * (v + h * (0.5 * a + h * (j * (1.0 / 6.0) + h * sn * (1.0 / 24.0))));
+        let rest = h * h * (0.5 * a + h * (j * (1.0 / 6.0) + h * sn * (1.0 / 24.0)));
+        let ds = h * v + rest;
         if !ds.is_finite() {
-            return self.fault(Fault::NonFinite { s_mm: s });
+            return self.fault(Fault::NonFinite { s_mm: fx_to_f64(s) });
         }
-        let s_new = s + f64::from(ds);
-        // s_new ≥ stop_at (L, or s₂ with a stop segment) on the bit
-        // patterns: exact for finite s_new and stop_at > 0 (a negative s_new
-        // has the sign bit, a negative i64), without the soft-float compare.
-        if (s_new.to_bits() as i64) >= (self.stop_at.to_bits() as i64) {
+        let ds_fx = mul_hi(self.qs.v_fx, tk.0)
+            .wrapping_shl(tk.1)
+            .wrapping_add(f32_to_fx(rest));
+        let s_new = s.wrapping_add(ds_fx);
+        if s_new >= self.stop_at {
             if self.ends.is_some() {
                 return self.enter_stop(t_s, s_new);
             }
@@ -496,7 +550,7 @@ impl<'a> Interpolator<'a> {
         let v_end = v + h * (a + 0.5 * h * j);
         let low = q <= self.stall_q && dq < 0.0;
         let remaining = if v_end <= 0.0 || low || !(ds > self.stall_ds) {
-            (self.length_mm - s) as f32
+            fx_to_f64(self.len_fx.wrapping_sub(s)) as f32
         } else {
             f32::INFINITY
         };
@@ -507,35 +561,30 @@ impl<'a> Interpolator<'a> {
         // Twice the stopping distance if q fell linearly to 0 (q/|q′|): inside
         // it a low feed is the run-out into L, not a stall.
         let starved = low && remaining > 2.0 * q / -dq + self.end_tol;
-        // (ds > stall_ds = 1e-14 L also makes s_new > s: ulp(s) ≤ 2.3e-16 L.)
-        if starved || !(ds > self.stall_ds) {
+        // (ds > stall_ds = 1e-14 L also makes s_new > s: the quantum 2⁻⁴⁰ mm
+        // is below 1e-14 L for L > 0.1 mm.)
+        if starved || !(ds > self.stall_ds) || s_new <= s {
             if remaining <= self.end_tol {
                 return Ok(self.finish(t_s));
             }
-            return self.fault(Fault::Stalled { s_mm: s, t_s });
+            return self.fault(Fault::Stalled { s_mm: fx_to_f64(s), t_s });
         }
         let Some((tp, tq, poly)) = self.seek(s_new) else {
-            return self.fault(Fault::Eval { s_mm: s_new });
+            return self.fault(Fault::Eval { s_mm: fx_to_f64(s_new) });
         };
-        let Some((head, nurbs)) = self.views.piece_forms(self.pc.idx) else {
-            return self.fault(Fault::Eval { s_mm: s_new });
+        let Some((head, coeffs)) = self.views.piece_forms(self.pc.idx) else {
+            return self.fault(Fault::Eval { s_mm: fx_to_f64(s_new) });
         };
         let dv = head.delta(tp);
-        let Some([dx, dy, dz]) = offset_from_bytes(nurbs, dv) else {
-            return self.fault(Fault::Eval { s_mm: s_new });
-        };
-        let qd = poly.eval(tq);
-        let feed = feed_near(qd[0], v_end);
-        let [ox, oy, oz] = self.pc.origin;
+        let [x, y, z] = pos_eval(coeffs, tau_of(s_new, self.pc.centre, self.pc.shift));
+        self.qs = q_eval(&self.qc, &poly, s_new, tq, v_end);
         self.s = s_new;
-        self.qd = qd;
-        self.v = feed;
         Ok(Setpoint {
             t_s,
-            s_mm: s_new,
+            s_mm: fx_to_f64(s_new),
             u: self.pc.u0 + f64::from(dv * head.width),
-            feed_mm_s: f64::from(feed),
-            pos_mm: [ox + f64::from(dx), oy + f64::from(dy), oz + f64::from(dz)],
+            feed_mm_s: f64::from(self.qs.v),
+            pos_mm: [fx_to_f64(x), fx_to_f64(y), fx_to_f64(z)],
         })
     }
 
@@ -545,38 +594,38 @@ impl<'a> Interpolator<'a> {
     #[inline(never)]
     fn start_tick(&mut self, t_s: f64) -> Result<Setpoint, Fault> {
         let Some(e) = self.ends else {
-            return self.fault(Fault::Eval { s_mm: self.s });
+            return self.fault(Fault::Eval { s_mm: fx_to_f64(self.s) });
         };
         if t_s <= self.t_switch {
             let [s, v, _, _] = e.start_at(t_s);
-            return self.place(t_s, s, v as f32);
+            return self.place(t_s, (s, to_fx(s)), v as f32);
         }
         self.phase = Phase::Run;
-        self.s = e.s_start;
-        self.qd = self.join_qd;
-        self.v = self.join_v;
-        self.step(t_s, (t_s - e.t_start) as f32)
+        self.s = to_fx(e.s_start);
+        self.qs = self.join;
+        let h = t_s - e.t_start;
+        self.step(t_s, h as f32, step_scale(h))
     }
 
     /// The Taylor step reached s₂ at `s_new`: the stop segment takes over,
     /// s = L − J₂τ³/6 with τ = ∛(6(L − s_new)/J₂) now, counting down with the
     /// clock to 0, where the motion ends at L at rest.
     #[inline(never)]
-    fn enter_stop(&mut self, t_s: f64, s_new: f64) -> Result<Setpoint, Fault> {
+    fn enter_stop(&mut self, t_s: f64, s_new: i64) -> Result<Setpoint, Fault> {
         let Some(e) = self.ends else {
             return Ok(self.finish(t_s));
         };
-        let rest = self.length_mm - s_new;
+        let rest = self.length_mm - fx_to_f64(s_new);
         if !(rest > 0.0) {
             return Ok(self.finish(t_s));
         }
         let tau = libm::cbrt(6.0 * rest / e.jerk_stop);
         if !tau.is_finite() {
-            return self.fault(Fault::NonFinite { s_mm: s_new });
+            return self.fault(Fault::NonFinite { s_mm: fx_to_f64(s_new) });
         }
         self.t_end = t_s + tau;
         self.phase = Phase::StopSeg;
-        self.place(t_s, s_new, (0.5 * e.jerk_stop * tau * tau) as f32)
+        self.place(t_s, (fx_to_f64(s_new), s_new), (0.5 * e.jerk_stop * tau * tau) as f32)
     }
 
     /// A tick in the stop segment: τ = t_end − t; at τ ≤ 0 the end point.
@@ -587,61 +636,47 @@ impl<'a> Interpolator<'a> {
             return Ok(self.finish(t_s));
         };
         let [s, v, _, _] = e.stop_at(self.length_mm, tau);
-        self.place(t_s, s, v as f32)
+        self.place(t_s, (s, to_fx(s)), v as f32)
     }
 
-    /// The setpoint at arc length `s` (0 ≤ s < L, not behind the cursors)
-    /// with the feed `feed`; moves the cursors and `self.s`.
+    /// The setpoint at arc length `s` (mm as reported, and Q40 as evaluated;
+    /// 0 ≤ s < L, not behind the cursors) with the feed `feed`; moves the
+    /// cursors and `self.s`.
     #[inline(never)]
-    fn place(&mut self, t_s: f64, s: f64, feed: f32) -> Result<Setpoint, Fault> {
+    fn place(&mut self, t_s: f64, (s_mm, s): (f64, i64), feed: f32) -> Result<Setpoint, Fault> {
         let Some((tp, _, _)) = self.seek(s) else {
-            return self.fault(Fault::Eval { s_mm: s });
+            return self.fault(Fault::Eval { s_mm: fx_to_f64(s) });
         };
-        let Some((head, nurbs)) = self.views.piece_forms(self.pc.idx) else {
-            return self.fault(Fault::Eval { s_mm: s });
+        let Some((head, coeffs)) = self.views.piece_forms(self.pc.idx) else {
+            return self.fault(Fault::Eval { s_mm: fx_to_f64(s) });
         };
         let dv = head.delta(tp);
-        let Some([dx, dy, dz]) = offset_from_bytes(nurbs, dv) else {
-            return self.fault(Fault::Eval { s_mm: s });
-        };
-        let [ox, oy, oz] = self.pc.origin;
+        let [x, y, z] = pos_eval(coeffs, tau_of(s, self.pc.centre, self.pc.shift));
         self.s = s;
         Ok(Setpoint {
             t_s,
-            s_mm: s,
+            s_mm,
             u: self.pc.u0 + f64::from(dv * head.width),
             feed_mm_s: f64::from(feed),
-            pos_mm: [ox + f64::from(dx), oy + f64::from(dy), oz + f64::from(dz)],
+            pos_mm: [fx_to_f64(x), fx_to_f64(y), fx_to_f64(z)],
         })
     }
 
     /// Move both cursors forward to the piece and the q span containing s
-    /// (compared on the bit patterns, [`ge_nonneg`]); the piece-local t, the
-    /// q-local t and the q span's local form. One f64 subtraction per tick
-    /// (t in the piece), one more when a cursor moves (the piece-to-q
-    /// offset), one more per tick in the last q span (anchored at L, where
-    /// q → 0: t from s directly).
+    /// (integer compares on Q40); the piece-local t and the q-local t (f32,
+    /// for u and q′, q″, q‴) and the q span's f32 form. Entering a piece or a
+    /// span converts its breaks to Q40 and reads its words.
     #[inline]
-    fn seek(&mut self, s: f64) -> Option<(f32, f32, QLocal)> {
+    fn seek(&mut self, s: i64) -> Option<(f32, f32, QLocal)> {
         let v = &self.views;
-        let mut moved = false;
-        while self.pc.idx < v.p_last && ge_nonneg(s, v.piece_breaks.get(self.pc.idx.checked_add(1)?)?) {
+        while self.pc.idx < v.p_last && s >= self.pc.next {
             self.pc = v.piece(self.pc.idx.checked_add(1)?)?;
-            moved = true;
         }
-        while self.qc.idx < v.q_last && ge_nonneg(s, v.q_knots.get(self.qc.idx.checked_add(4)?)?) {
+        while self.qc.idx < v.q_last && s >= self.qc.next {
             self.qc = v.q(self.qc.idx.checked_add(1)?)?;
-            moved = true;
         }
-        if moved {
-            self.su_to_q = (self.pc.start - self.qc.start) as f32;
-        }
-        let tp = (s - self.pc.start) as f32;
-        let tq = if self.qc.idx < v.q_last {
-            tp + self.su_to_q
-        } else {
-            (s - v.q_knots.get(self.qc.idx.checked_add(4)?)?) as f32
-        };
+        let tp = fx_small_f32(s.wrapping_sub(self.pc.start), 16);
+        let tq = fx_small_f32(s.wrapping_sub(self.qc.anchor), 20);
         Some((tp, tq, v.q_poly(self.qc.idx)?))
     }
 

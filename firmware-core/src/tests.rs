@@ -930,7 +930,8 @@ fn local_forms_are_checked_against_the_f64_data() {
     assert_eq!(t.q_local().len(), 5 * (good().q_ctrl.len() - 3));
     let pieces = t.piece_breaks().len() - 1;
     assert!(pieces >= t.su_segments().len());
-    assert_eq!(t.piece_f64().len(), 4 * pieces);
+    assert_eq!(t.piece_f64().len(), crate::fast::PIECE_F64_LEN * pieces);
+    assert_eq!(t.q_fixed().len(), crate::fast::Q_FX_LEN * (good().q_ctrl.len() - 3));
     assert_eq!(t.piece_f32().len(), crate::fast::piece_f32_len(2) * pieces);
     assert_eq!(t.piece_breaks().get(0), Some(0.0));
     assert_eq!(t.piece_breaks().last(), Some(L));
@@ -963,26 +964,57 @@ fn local_forms_are_checked_against_the_f64_data() {
             index: 0
         }
     );
-    // piece 0: a_1.x (the NURBS form)
+    // fixed-point words: `add(n)` adds n to an i64
+    let add = |n: i64| {
+        move |b: &mut [u8]| {
+            let x = i64::from_le_bytes(b[..8].try_into().unwrap());
+            b[..8].copy_from_slice(&x.wrapping_add(n).to_le_bytes());
+        }
+    };
+    // piece 0: position b_0.x off by 1e-8 mm (the tolerance is 1e-9 mm)
     assert_eq!(
-        corrupt(13, 4 * 11, &scale_f32(1.0001)),
+        corrupt(12, 24, &add(11_000)),
         TableError::FastMismatch {
             section: Section::PieceF32,
             index: 0
         }
     );
-    // piece 0: origin x off by 0.1 µm
+    // piece 0: b_1.x off by 1e-8 mm at τ = 1
+    assert_eq!(
+        corrupt(12, 32, &add(11_000)),
+        TableError::FastMismatch {
+            section: Section::PieceF32,
+            index: 0
+        }
+    );
+    // piece 0: its centre moved by 1e-6 mm
+    assert_eq!(
+        corrupt(12, 8, &add(1_100_000)),
+        TableError::FastMismatch {
+            section: Section::PieceF32,
+            index: 0
+        }
+    );
+    // q span 0: C1 off by 1e-6 (mm/s)² (the tolerance is ~1e-7)
+    assert_eq!(
+        corrupt(15, 8, &add(4295)),
+        TableError::FastMismatch {
+            section: Section::QFixed,
+            index: 0
+        }
+    );
+    // q span 0: an out-of-range shift
+    assert_eq!(
+        corrupt(15, 32, &add(100)),
+        TableError::FastMismatch {
+            section: Section::QFixed,
+            index: 0
+        }
+    );
     let shift = |b: &mut [u8]| {
         let x = f64::from_le_bytes(b[..8].try_into().unwrap());
         b[..8].copy_from_slice(&(x + 1e-4).to_le_bytes());
     };
-    assert_eq!(
-        corrupt(12, 8, &shift),
-        TableError::FastMismatch {
-            section: Section::PieceF32,
-            index: 0
-        }
-    );
     // a piece break moved: no longer the segments' tiling
     let last_break = 8 * pieces;
     assert_eq!(
@@ -1174,3 +1206,4 @@ fn corrupt_end_segments_are_refused() {
     // without segments (section 14 empty) the table has none
     assert_eq!(Table::parse(&good().encode().unwrap()).unwrap().ends(), None);
 }
+
