@@ -73,17 +73,19 @@ pub const FX_ONE: f64 = (1u64 << FX_FRAC) as f64;
 pub const Q_FRAC: u32 = 32;
 /// 2³² as f64.
 pub const Q_ONE: f64 = (1u64 << Q_FRAC) as f64;
-/// Fractional bits of the normalised local coordinate τ ∈ [−1, 1]: Q62.
-pub const TAU_FRAC: u32 = 62;
+/// Fractional bits of the normalised local coordinate τ ∈ [−1, 1]: Q61.
+pub const TAU_FRAC: u32 = 61;
+/// τ (Q61) = (s − origin) (Q40) << (`TAU_SHIFT_BASE` − e), 2^e the scale.
+pub const TAU_SHIFT_BASE: i32 = TAU_FRAC as i32 - FX_FRAC as i32;
 /// i64 values per q span in the fixed-point q section: C0 … C3 (Q32
-/// (mm/s)², the cubic in τ = (s − U_i)/2^e), then the shift `22 − e`.
+/// (mm/s)², the cubic in τ = (s − U_i)/2^e), then the shift `21 − e`.
 pub const Q_FX_LEN: usize = 5;
 /// Degree of the per-piece position polynomial in τ.
 pub const POS_DEG: usize = 7;
 /// Coefficients per axis of the position polynomial.
 pub const POS_COEFFS: usize = POS_DEG + 1;
 /// 64-bit words per piece: u_a (f64), the centre c (i64, Q40 mm), the
-/// shift `22 − e` (i64), then the position coefficients b_k (i64, Q40 mm),
+/// shift `21 − e` (i64), then the position coefficients b_k (i64, Q40 mm),
 /// x first, k ascending, then y, then z.
 pub const PIECE_F64_LEN: usize = 3 + 3 * POS_COEFFS;
 /// f32 values per piece: d1 … d5, w, 1/len (the s → u form: the reported u).
@@ -188,7 +190,7 @@ fn ceil_log2(x: f64) -> (i32, f64) {
 }
 
 /// The fixed-point form of q span `span` (U_i ≤ s < U_{i+1}, h = U_{i+1} − U_i):
-/// `[C0, C1, C2, C3, 22 − e]` with 2^e ≥ h and C_k = c_k 2^(ek) in Q32, so
+/// `[C0, C1, C2, C3, 21 − e]` with 2^e ≥ h and C_k = c_k 2^(ek) in Q32, so
 /// that q = Σ C_k τ^k, τ = (s − U_i)/2^e ∈ [0, 1] ([`q_fx_eval`]); zeros for
 /// an empty span or one out of range.
 pub fn q_fixed<A: F64Array>(q: &QSpline<A>, span: usize) -> [i64; Q_FX_LEN] {
@@ -199,7 +201,7 @@ pub fn q_fixed<A: F64Array>(q: &QSpline<A>, span: usize) -> [i64; Q_FX_LEN] {
         return [0; Q_FX_LEN];
     };
     let (e, scale) = ceil_log2(b - a);
-    if !(-40..=22).contains(&e) {
+    if !(-40..=TAU_SHIFT_BASE).contains(&e) {
         return [0; Q_FX_LEN];
     }
     let mut out = [0i64; Q_FX_LEN];
@@ -208,7 +210,7 @@ pub fn q_fixed<A: F64Array>(q: &QSpline<A>, span: usize) -> [i64; Q_FX_LEN] {
         *o = libm::round(c * sk) as i64;
         sk *= scale;
     }
-    out[4] = i64::from(22 - e);
+    out[4] = i64::from(TAU_SHIFT_BASE - e);
     out
 }
 
@@ -266,7 +268,7 @@ pub fn piece_local<K: F64Array, P: Point4Array>(
     let c_fx = to_fx(s_start + half);
     let c = fx_to_f64(c_fx);
     let (ex, scale) = ceil_log2(half);
-    if !(-40..=22).contains(&ex) {
+    if !(-40..=TAU_SHIFT_BASE).contains(&ex) {
         return None;
     }
     // Values at the nodes, Newton divided differences in τ, then the power form.
@@ -304,7 +306,7 @@ pub fn piece_local<K: F64Array, P: Point4Array>(
     let mut words = [0u64; PIECE_F64_LEN];
     words[0] = u_a.to_bits();
     words[1] = c_fx as u64;
-    words[2] = (22 - ex) as u64;
+    words[2] = (TAU_SHIFT_BASE - ex) as u64;
     let mut bytes = [0u8; POS_BYTES];
     for a in 0..3 {
         for k in 0..POS_COEFFS {
@@ -322,7 +324,7 @@ pub fn piece_local<K: F64Array, P: Point4Array>(
     for j in 0..FIT_CHECKS {
         let s = s_start + len * j as f64 / (FIT_CHECKS - 1) as f64;
         let r = ref_point(curve, seg, (s0, s1), s)?;
-        let t = piece_tau(to_fx(s), c_fx, (22 - ex) as u32)?;
+        let t = piece_tau(to_fx(s), c_fx, (TAU_SHIFT_BASE - ex) as u32)?;
         let p = pos_eval(&bytes, t);
         for (pa, ra) in p.iter().zip(r.iter()) {
             fit_err = fit_err.max((fx_to_f64(*pa) - ra).abs());
@@ -344,27 +346,65 @@ pub fn piece_local<K: F64Array, P: Point4Array>(
 
 // ------------------------------------------------------------ fixed point
 
-/// (a · b) >> 62 with the exact 128-bit product (rounded toward −∞): one
-/// Horner step in Q62 τ. Plain integer arithmetic, the same on every target.
-#[inline(always)]
-pub fn mul_q62(a: i64, b: i64) -> i64 {
-    ((i128::from(a) * i128::from(b)) >> TAU_FRAC) as i64
-}
-
 /// The high 64 bits of the 128-bit product a · b.
 #[inline(always)]
 pub fn mul_hi(a: i64, b: i64) -> i64 {
     ((i128::from(a) * i128::from(b)) >> 64) as i64
 }
 
-/// mm → Q40 mm: x·2⁴⁰ (exact: an exponent addition, not a soft-float
-/// multiply) truncated toward zero (saturating; NaN → `i64::MIN`).
+/// x · 2^frac truncated toward zero, from the bit pattern (integer
+/// instructions only: no soft-float call, no saturation compares);
+/// saturates at ±2¹²⁶, NaN gives 0.
+#[inline]
+pub fn f64_to_fixed(x: f64, frac: i32) -> i128 {
+    let b = x.to_bits();
+    let e = ((b >> 52) & 0x7ff) as i32;
+    if e == 0 || e == 0x7ff && b << 12 != 0 {
+        return 0; // ±0, subnormal (|x| < 2⁻¹⁰²²), NaN
+    }
+    let m = i128::from((b & ((1u64 << 52) - 1)) | (1u64 << 52));
+    let sh = e - 1075 + frac;
+    let mag = if sh >= 74 {
+        1i128 << 126
+    } else if sh >= 0 {
+        m << sh
+    } else if sh > -64 {
+        m >> (-sh)
+    } else {
+        0
+    };
+    if b >> 63 != 0 {
+        -mag
+    } else {
+        mag
+    }
+}
+
+/// mm → Q40 mm: x·2⁴⁰ truncated toward zero, from the bit pattern like
+/// [`f64_to_fixed`] (saturating at ±(2⁶³ − 1), NaN gives 0).
 #[inline]
 pub fn to_fx(x: f64) -> i64 {
-    if x == 0.0 {
+    let b = x.to_bits();
+    let e = ((b >> 52) & 0x7ff) as i32;
+    if e == 0 || e == 0x7ff && b << 12 != 0 {
         return 0;
     }
-    f64::from_bits(x.to_bits().wrapping_add(u64::from(FX_FRAC) << 52)) as i64
+    let m = ((b & ((1u64 << 52) - 1)) | (1u64 << 52)) as i64;
+    let sh = e - 1075 + FX_FRAC as i32;
+    let mag = if sh >= 10 {
+        i64::MAX
+    } else if sh >= 0 {
+        m << sh
+    } else if sh > -63 {
+        m >> (-sh)
+    } else {
+        0
+    };
+    if b >> 63 != 0 {
+        -mag
+    } else {
+        mag
+    }
 }
 
 /// Q40 mm → mm: exact for |x| < 2⁵³ (8192 mm), else correctly rounded. The
@@ -386,13 +426,13 @@ pub fn fx_small_f32(d: i64, sh: u32) -> f32 {
     ((d >> sh) as i32) as f32 * f32::from_bits((127 + sh - FX_FRAC) << 23)
 }
 
-/// τ in Q62 from s and the local origin c (both Q40) and the shift `22 − e`:
-/// `(s − c) << shift`; `None` if that overflows Q62 (|τ| > 1).
+/// τ in Q61 from s and the local origin c (both Q40) and the shift `21 − e`:
+/// `(s − c) << shift`; `None` if |τ| > 1.
 #[inline]
 pub fn piece_tau(s: i64, c: i64, shift: u32) -> Option<i64> {
     let d = s.checked_sub(c)?;
     let t = d.checked_shl(shift)?;
-    (shift <= 62 && t >> shift == d && t.unsigned_abs() <= 1u64 << TAU_FRAC).then_some(t)
+    (shift <= 61 && t >> shift == d && t.unsigned_abs() <= 1u64 << TAU_FRAC).then_some(t)
 }
 
 /// Bytes of one piece's position coefficients (24 i64).
@@ -401,33 +441,66 @@ pub const POS_BYTES: usize = 24 * POS_COEFFS;
 #[inline(always)]
 fn rd_i64(b: &[u8; POS_BYTES], at: usize) -> i64 {
     let mut w = [0u8; 8];
-    w.copy_from_slice(&b[at..at + 8]);
+    if let Some(src) = b.get(at..at + 8) {
+        w.copy_from_slice(src);
+    }
     i64::from_le_bytes(w)
 }
 
-/// The position (Q40 mm, x, y, z) of a piece at τ (Q62), Horner in i64
-/// with 128-bit products ([`mul_q62`]): bit-identical on every target.
-#[inline]
-pub fn pos_eval(b: &[u8; POS_BYTES], tau: i64) -> [i64; 3] {
-    let mut out = [0i64; 3];
-    for (a, o) in out.iter_mut().enumerate() {
-        let base = 8 * POS_COEFFS * a;
-        let mut acc = rd_i64(b, base + 8 * POS_DEG);
-        for k in (0..POS_DEG).rev() {
-            acc = mul_q62(acc, tau).wrapping_add(rd_i64(b, base + 8 * k));
-        }
-        *o = acc;
-    }
-    out
+/// τ (Q61, |τ| ≤ 2⁶¹) split for [`mul_tau`]: τ = τ_h 2³¹ + τ_l with
+/// 0 ≤ τ_l < 2³¹ (so both halves are signed 32-bit values).
+#[inline(always)]
+pub fn split_tau(tau: i64) -> (i32, i32) {
+    ((tau >> 31) as i32, (tau & 0x7fff_ffff) as i32)
 }
 
-/// q (Q32 (mm/s)²) of a fixed-point q span `[C0, C1, C2, C3]` at τ (Q62).
+/// ≈ (a · τ) >> 61 for |a| < 2⁶², τ split by [`split_tau`], from three
+/// signed 32 × 32 → 64 products (one instruction each on the M4):
+/// a·τ = a_h τ_h 2⁶² + (a_h τ_l + a_l τ_h) 2³¹ + a_l τ_l with a = a_h 2³¹ + a_l,
+/// 0 ≤ a_l < 2³¹; the middle sum stays below 2⁶³, the last product
+/// (< 2⁶², i.e. < 2 units after the shift) is dropped. So the result is the
+/// exact floor minus 0 to 2 units (units of a: 2⁻⁴⁰ mm for positions).
+/// Integer arithmetic: the same on every target.
+#[inline(always)]
+pub fn mul_tau(a: i64, (th, tl): (i32, i32)) -> i64 {
+    let (ah, al) = ((a >> 31) as i32, (a & 0x7fff_ffff) as i32);
+    let hh = i64::from(ah) * i64::from(th);
+    let mid = (i64::from(ah) * i64::from(tl)).wrapping_add(i64::from(al) * i64::from(th));
+    hh.wrapping_shl(1).wrapping_add(mid >> 30)
+}
+
+/// The position (Q40 mm, x, y, z) of a piece at τ (Q61): Horner in i64
+/// with [`mul_tau`], bit-identical on every target. An axis whose
+/// coefficients b₁ … b₇ are all zero (constant along the piece, e.g. z on a
+/// planar path) is b₀ without the Horner steps.
+#[inline]
+pub fn pos_eval(b: &[u8; POS_BYTES], tau: i64) -> [i64; 3] {
+    let t = split_tau(tau);
+    let axis = |base: usize| {
+        let mut acc = rd_i64(b, base + 8 * POS_DEG);
+        let mut any = acc;
+        for k in 1..POS_DEG {
+            any |= rd_i64(b, base + 8 * k);
+        }
+        if any == 0 {
+            return rd_i64(b, base);
+        }
+        for k in (0..POS_DEG).rev() {
+            acc = mul_tau(acc, t).wrapping_add(rd_i64(b, base + 8 * k));
+        }
+        acc
+    };
+    [axis(0), axis(8 * POS_COEFFS), axis(16 * POS_COEFFS)]
+}
+
+/// q (Q32 (mm/s)²) of a fixed-point q span `[C0, C1, C2, C3]` at τ (Q61).
 #[inline]
 pub fn q_fx_eval(c: [i64; 4], tau: i64) -> i64 {
     let [c0, c1, c2, c3] = c;
-    let acc = mul_q62(c3, tau).wrapping_add(c2);
-    let acc = mul_q62(acc, tau).wrapping_add(c1);
-    mul_q62(acc, tau).wrapping_add(c0)
+    let t = split_tau(tau);
+    let acc = mul_tau(c3, t).wrapping_add(c2);
+    let acc = mul_tau(acc, t).wrapping_add(c1);
+    mul_tau(acc, t).wrapping_add(c0)
 }
 
 /// x > 0 (f32) in Q32, exact for 2⁻⁸ ≤ x < 2¹⁵ (truncated below, saturated
@@ -623,7 +696,7 @@ pub fn check_q<A: F64Array>(q: &QSpline<A>, span: usize, local: &QLocal, q_scale
 
 /// Fixed-point q span check: q from [`q_fx_eval`] within
 /// [`Q_FX_TOL_ABS`]` + `[`Q_FX_TOL_REL`]` · q_scale` of the f64 span
-/// polynomial at [`CHECK_POINTS`] points, and τ within Q62 over the span.
+/// polynomial at [`CHECK_POINTS`] points, and τ within Q61 over the span.
 pub fn check_q_fx<A: F64Array>(q: &QSpline<A>, span: usize, c: [i64; Q_FX_LEN], q_scale: f64) -> bool {
     let (Some(a), Some(b)) = (q.knots().get(span), q.knots().get(span.saturating_add(1))) else {
         return false;
@@ -655,7 +728,7 @@ pub fn check_q_fx<A: F64Array>(q: &QSpline<A>, span: usize, c: [i64; Q_FX_LEN], 
 /// Piece check: u from the f32 form against the f64 s → u segment (`seg`
 /// over `[s0, s1]`) at [`CHECK_POINTS`] points, and the fixed-point
 /// position within [`POS_TOL_MM`] of r(u(s)) at [`POS_CHECK_POINTS`]
-/// points of the piece `[sa, sb]`, τ within Q62 over it. `words` are the
+/// points of the piece `[sa, sb]`, τ within Q61 over it. `words` are the
 /// piece's [`PIECE_F64_LEN`] 64-bit words (bytes).
 pub fn check_piece<K: F64Array, P: Point4Array>(
     curve: &NurbsView<K, P>,

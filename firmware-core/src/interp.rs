@@ -42,7 +42,7 @@
 
 use crate::array::{F64Array, LeF32, LeF64, Point4Array};
 use crate::fast::{
-    f32_to_fx, feed_near, fx_small_f32, fx_to_f64, mul_hi, piece_f32_len, pos, pos_eval, q_fx_eval, sqrt_q32,
+    f32_to_fx, f64_to_fixed, feed_near, fx_small_f32, fx_to_f64, mul_hi, piece_f32_len, pos, pos_eval, q_fx_eval, sqrt_q32,
     step_scale, to_fx, PieceU, QLocal, PIECE_F64_LEN, PIECE_HEAD_LEN, POS_BYTES, Q_FRAC, Q_FX_LEN, Q_LOCAL_LEN,
 };
 use crate::output::SetpointSink;
@@ -150,7 +150,8 @@ struct PCur {
     idx: usize,
     start: i64,
     next: i64,
-    u0: f64,
+    /// u_a in Q40.
+    u0: i64,
     centre: i64,
     shift: u32,
 }
@@ -213,7 +214,7 @@ impl Views<'_> {
             } else {
                 to_fx(self.piece_breaks.get(idx.checked_add(1)?)?)
             },
-            u0: self.piece_f64.get(b)?,
+            u0: to_fx(self.piece_f64.get(b)?),
             centre: self.piece_f64.get_i64(b.checked_add(1)?)?,
             shift: u32::try_from(self.piece_f64.get_i64(b.checked_add(2)?)?).ok()?,
         })
@@ -232,7 +233,7 @@ impl Views<'_> {
     }
 }
 
-/// τ (Q62) from s and a local origin (Q40) and shift; the table's check
+/// τ (Q61) from s and a local origin (Q40) and shift; the table's check
 /// guarantees no overflow inside the piece or span, and wrapping keeps the
 /// tick panic-free outside.
 #[inline(always)]
@@ -335,9 +336,83 @@ pub struct Interpolator<'a> {
     t_switch: f64,
     /// The q state at s₁ (the join), for the first Taylor step.
     join: QState,
-    /// When the stop segment reaches L (set on entering it), s.
-    t_end: f64,
+    /// The end segment being executed: s in Q80 and its forward
+    /// differences (exact integer recurrences, [`SegRun`]).
+    seg: SegRun,
+    /// Constants of the segments for T (zeros without segments).
+    segk: SegConsts,
     phase: Phase,
+}
+
+/// An end segment as a cubic in the tick index, run by forward differences
+/// in Q80 (i128): s_{j+1} = s_j + d₁, d₁ += d₂, d₂ += d₃ — integer
+/// additions, so no rounding noise and no drift beyond the initial values'
+/// (f64, relative 1e-16).
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+struct SegRun {
+    s: i128,
+    d: [i128; 3],
+    /// Ticks still to place (stop segment).
+    left: u32,
+    /// Stop ticks done.
+    j: u32,
+    /// τ at the entry into the stop segment, s.
+    tau: f64,
+    /// Stop segment: the differences are still to be set up (the tick after
+    /// the entry, to spread the work).
+    pending: bool,
+}
+
+/// Precomputed constants of the end segments for the period T.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+struct SegConsts {
+    /// Start: d₁, d₂, d₃ at tick 0 of s = D k³, D = J₁T³/6 (Q80).
+    start_d: [i128; 3],
+    /// 0.5 J₁ T² (f32): the start feed is this · k².
+    start_v: f32,
+    /// Stop: t₂ and s₂′ = L − J₂t₂³/6 (f64), 1/v₂ (v₂ = J₂t₂²/2).
+    t2: f64,
+    s2: f64,
+    inv_v2: f64,
+    /// 1/t₂ and 1/(3t₂²), f32 (the small correction of τ).
+    inv_t2: f32,
+    inv_3t2sq: f32,
+    /// J₂T/2, J₂T²/2, J₂T³/6 (f64), J₂T³ (Q80).
+    k1: f64,
+    k2: f64,
+    k3: f64,
+    d3: i128,
+    /// 1/T, 0.5·J₂ (f32) for the feed.
+    inv_t: f64,
+    stop_v: f32,
+}
+
+/// 2⁸⁰ · x as i128, truncated ([`f64_to_fixed`]).
+fn to_q80(x: f64) -> i128 {
+    f64_to_fixed(x, 80)
+}
+
+impl SegConsts {
+    fn new(e: &EndSegments, length: f64, t: f64) -> Self {
+        let (j1, j2, t2) = (e.jerk_start, e.jerk_stop, e.t_stop);
+        let d = to_q80(j1 * t * t * t / 6.0);
+        let v2 = 0.5 * j2 * t2 * t2;
+        SegConsts {
+            start_d: [d, 6 * d, 6 * d],
+            start_v: (0.5 * j1 * t * t) as f32,
+            t2,
+            s2: length - j2 * t2 * t2 * t2 / 6.0,
+            inv_v2: 1.0 / v2,
+            inv_t2: (1.0 / t2) as f32,
+            inv_3t2sq: (1.0 / (3.0 * t2 * t2)) as f32,
+            k1: 0.5 * j2 * t,
+            k2: 0.5 * j2 * t * t,
+            k3: j2 * t * t * t / 6.0,
+            d3: to_q80(j2 * t * t * t),
+            inv_t: 1.0 / t,
+            stop_v: (0.5 * j2) as f32,
+        }
+    }
 }
 
 impl<'a> Interpolator<'a> {
@@ -403,7 +478,13 @@ impl<'a> Interpolator<'a> {
             stop_at,
             t_switch,
             join,
-            t_end: 0.0,
+            seg: SegRun {
+                d: ends.map(|e| SegConsts::new(&e, length_mm, period_s).start_d).unwrap_or_default(),
+                ..SegRun::default()
+            },
+            segk: ends
+                .map(|e| SegConsts::new(&e, length_mm, period_s))
+                .unwrap_or_default(),
             table,
             views,
             period_s,
@@ -458,6 +539,10 @@ impl<'a> Interpolator<'a> {
             (self.qc, self.pc) = (qc, pc);
         }
         self.qs = q_state_at(&self.views, 0, 0.0).unwrap_or_default();
+        self.seg = SegRun {
+            d: self.segk.start_d,
+            ..SegRun::default()
+        };
         self.phase = Phase::Start;
     }
 
@@ -582,23 +667,36 @@ impl<'a> Interpolator<'a> {
         Ok(Setpoint {
             t_s,
             s_mm: fx_to_f64(s_new),
-            u: self.pc.u0 + f64::from(dv * head.width),
+            u: fx_to_f64(self.pc.u0.wrapping_add(f32_to_fx(dv * head.width))),
             feed_mm_s: f64::from(self.qs.v),
             pos_mm: [fx_to_f64(x), fx_to_f64(y), fx_to_f64(z)],
         })
     }
 
-    /// A tick in the start segment: s = J₁t³/6 exactly (f64) while t ≤ t₁
-    /// (+1e-6·T), then, on the first tick past t₁, a Taylor step of t − t₁
-    /// from the join s₁, where q continues the segment C².
+    /// One forward-difference step of the end segment; its s in Q40.
+    #[inline(always)]
+    fn seg_advance(&mut self) -> i64 {
+        let g = &mut self.seg;
+        g.s = g.s.wrapping_add(g.d[0]);
+        g.d[0] = g.d[0].wrapping_add(g.d[1]);
+        g.d[1] = g.d[1].wrapping_add(g.d[2]);
+        (g.s >> 40) as i64
+    }
+
+    /// A tick in the start segment: s = J₁t³/6 = D k³ (forward differences
+    /// in Q80, within 2⁻⁴⁰ mm of the f64 formula) while t ≤ t₁ (+1e-6·T),
+    /// then, on the first tick past t₁, a Taylor step of t − t₁ from the
+    /// join s₁, where q continues the segment C².
     #[inline(never)]
     fn start_tick(&mut self, t_s: f64) -> Result<Setpoint, Fault> {
         let Some(e) = self.ends else {
             return self.fault(Fault::Eval { s_mm: fx_to_f64(self.s) });
         };
         if t_s <= self.t_switch {
-            let [s, v, _, _] = e.start_at(t_s);
-            return self.place(t_s, (s, to_fx(s)), v as f32);
+            let s = self.seg_advance();
+            let k = (self.k - 1) as f32;
+            let v = self.segk.start_v * k * k;
+            return self.place(t_s, (fx_to_f64(s), s), v);
         }
         self.phase = Phase::Run;
         self.s = to_fx(e.s_start);
@@ -608,35 +706,71 @@ impl<'a> Interpolator<'a> {
     }
 
     /// The Taylor step reached s₂ at `s_new`: the stop segment takes over,
-    /// s = L − J₂τ³/6 with τ = ∛(6(L − s_new)/J₂) now, counting down with the
-    /// clock to 0, where the motion ends at L at rest.
+    /// s = L − J₂τ³/6 with τ from L − s_new = J₂τ³/6 now, counting down a
+    /// period a tick to 0, where the motion ends at L at rest. τ = t₂ − Δ,
+    /// Δ = δ/v₂ + c (δ = s_new − s₂′, c = Δ²/t₂ − Δ³/(3t₂²) by fixed-point
+    /// iteration in f32: c is ≤ ~T²/t₂, its f32 error ≤ 1e-12 s); a libm
+    /// cube root if t₂ < 20 T.
     #[inline(never)]
     fn enter_stop(&mut self, t_s: f64, s_new: i64) -> Result<Setpoint, Fault> {
         let Some(e) = self.ends else {
             return Ok(self.finish(t_s));
         };
-        let rest = self.length_mm - fx_to_f64(s_new);
-        if !(rest > 0.0) {
+        let k = self.segk;
+        let s_mm = fx_to_f64(s_new);
+        let tau = if k.t2 >= 20.0 * self.period_s {
+            let d0 = (s_mm - k.s2) * k.inv_v2;
+            let x = d0 as f32;
+            let mut c = 0.0f32;
+            for _ in 0..8 {
+                let d = x + c;
+                c = d * d * (k.inv_t2 - d * k.inv_3t2sq);
+            }
+            k.t2 - (d0 + f64::from(c))
+        } else {
+            let rest = self.length_mm - s_mm;
+            libm::cbrt(6.0 * rest / e.jerk_stop)
+        };
+        if !(tau > 0.0 && tau.is_finite()) {
             return Ok(self.finish(t_s));
         }
-        let tau = libm::cbrt(6.0 * rest / e.jerk_stop);
-        if !tau.is_finite() {
-            return self.fault(Fault::NonFinite { s_mm: fx_to_f64(s_new) });
-        }
-        self.t_end = t_s + tau;
+        // Ticks j ≥ 1 with j·T < τ.
+        let x = tau * k.inv_t;
+        let n = x as u32;
+        let left = if f64::from(n) == x { n.saturating_sub(1) } else { n };
+        self.seg = SegRun {
+            s: i128::from(s_new) << 40,
+            d: [0; 3],
+            left,
+            j: 0,
+            tau,
+            pending: true,
+        };
         self.phase = Phase::StopSeg;
-        self.place(t_s, (fx_to_f64(s_new), s_new), (0.5 * e.jerk_stop * tau * tau) as f32)
+        self.place(t_s, (s_mm, s_new), (0.5 * e.jerk_stop * tau * tau) as f32)
     }
 
-    /// A tick in the stop segment: τ = t_end − t; at τ ≤ 0 the end point.
+    /// A tick in the stop segment: the next forward-difference step (set
+    /// up on the first one: d₁ = J₂(3τ²T − 3τT² + T³)/6, d₂ = J₂T²(T − τ),
+    /// d₃ = J₂T³); after the last tick with τ > 0, the end point.
     #[inline(never)]
     fn stop_tick(&mut self, t_s: f64) -> Result<Setpoint, Fault> {
-        let tau = self.t_end - t_s;
-        let Some(e) = self.ends.filter(|_| tau > 0.0) else {
+        if self.seg.left == 0 {
             return Ok(self.finish(t_s));
-        };
-        let [s, v, _, _] = e.stop_at(self.length_mm, tau);
-        self.place(t_s, (s, to_fx(s)), v as f32)
+        }
+        if self.seg.pending {
+            let (k, tau) = (self.segk, self.seg.tau);
+            let d1 = tau * (tau * k.k1 - k.k2) + k.k3;
+            let d2 = 2.0 * k.k2 * (self.period_s - tau);
+            self.seg.d = [to_q80(d1), to_q80(d2), k.d3];
+            self.seg.pending = false;
+        }
+        self.seg.left -= 1;
+        self.seg.j = self.seg.j.wrapping_add(1);
+        let s = self.seg_advance();
+        let tau_j = self.seg.tau as f32 - self.seg.j as f32 * self.h;
+        let v = self.segk.stop_v * tau_j * tau_j;
+        self.place(t_s, (fx_to_f64(s), s), v)
     }
 
     /// The setpoint at arc length `s` (mm as reported, and Q40 as evaluated;
@@ -656,7 +790,7 @@ impl<'a> Interpolator<'a> {
         Ok(Setpoint {
             t_s,
             s_mm,
-            u: self.pc.u0 + f64::from(dv * head.width),
+            u: fx_to_f64(self.pc.u0.wrapping_add(f32_to_fx(dv * head.width))),
             feed_mm_s: f64::from(feed),
             pos_mm: [fx_to_f64(x), fx_to_f64(y), fx_to_f64(z)],
         })
