@@ -407,15 +407,51 @@ pub fn to_fx(x: f64) -> i64 {
     }
 }
 
-/// Q40 mm → mm: exact for |x| < 2⁵³ (8192 mm), else correctly rounded. The
-/// scaling by 2⁻⁴⁰ is an exponent subtraction, not a soft-float multiply.
+/// The f64 nearest (ties to even) to m·2^(e − 63), m with its top bit set,
+/// `sticky` if bits below m were non-zero; the exponent must stay normal.
+#[inline(always)]
+fn round_to_f64(m: u64, sticky: bool, e: i32) -> f64 {
+    let mant = m >> 11;
+    let rest = m & 0x7ff;
+    let up = rest > 0x400 || rest == 0x400 && (sticky || mant & 1 == 1);
+    let bits = (((1023 + e) as u64) << 52)
+        .wrapping_add(mant & ((1u64 << 52) - 1))
+        .wrapping_add(u64::from(up));
+    f64::from_bits(bits)
+}
+
+/// x · 2^e2 (x ≠ 0, the result normal) correctly rounded, in integer
+/// instructions (a leading-zero count, shifts, the round-to-nearest-even
+/// rule): the same bits as `x as f64 * 2^e2`, without soft-float calls.
+#[inline(always)]
+pub fn i64_to_f64_pow2(x: i64, e2: i32) -> f64 {
+    let a = x.unsigned_abs();
+    let lz = a.leading_zeros();
+    let r = round_to_f64(a << lz, false, 63 - lz as i32 + e2);
+    if x < 0 {
+        -r
+    } else {
+        r
+    }
+}
+
+/// a · 2^e2 (a ≠ 0, the result normal) correctly rounded, like
+/// [`i64_to_f64_pow2`].
+#[inline(always)]
+pub fn u128_to_f64_pow2(a: u128, e2: i32) -> f64 {
+    let lz = a.leading_zeros();
+    let m = a << lz;
+    round_to_f64((m >> 64) as u64, m as u64 != 0, 127 - lz as i32 + e2)
+}
+
+/// Q40 mm → mm: exact for |x| < 2⁵³ (8192 mm), else correctly rounded
+/// ([`i64_to_f64_pow2`], no soft-float call).
 #[inline]
 pub fn fx_to_f64(x: i64) -> f64 {
     if x == 0 {
         return 0.0;
     }
-    // |x| ≥ 1: the exponent is ≥ 1023, minus 40 stays normal.
-    f64::from_bits((x as f64).to_bits().wrapping_sub(u64::from(FX_FRAC) << 52))
+    i64_to_f64_pow2(x, -(FX_FRAC as i32))
 }
 
 /// A small Q40 difference (|d| < 2^(31 + sh − 40) mm) as f32 mm, through
@@ -540,16 +576,18 @@ pub fn sqrt_q32(q: i64, v0: f32) -> i64 {
     v.wrapping_add(i64::from(corr))
 }
 
-/// The step scale for a period h (s): `(k, g)` with k = h·2^(72 − g) < 2⁶²,
-/// so that ds (Q40 mm) = `mul_hi(v, k) << g` for v in Q32 mm/s.
+/// The step scale for a period h (s): `(k, g)` with k = ⌊h·2^(72 − g)⌋ < 2⁶²,
+/// so that ds (Q40 mm) = `mul_hi(v, k) << g` for v in Q32 mm/s. Integer
+/// operations only ([`f64_to_fixed`]): the join tick after the start
+/// segment computes it.
 pub fn step_scale(h: f64) -> (i64, u32) {
-    let mut x = h * (1u128 << 72) as f64;
+    let mut x = f64_to_fixed(h, 72).max(0);
     let mut g = 0u32;
-    while !(x < (1u64 << 62) as f64) && g < 60 {
-        x *= 0.5;
+    while x >= 1i128 << 62 && g < 64 {
+        x >>= 1;
         g += 1;
     }
-    (if x > 0.0 { x as i64 } else { 0 }, g)
+    (x as i64, g)
 }
 
 /// An f32 length (mm) in Q40: through i32 when |x| < 1e-3 mm (one VFP

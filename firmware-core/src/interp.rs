@@ -42,7 +42,7 @@
 
 use crate::array::{F64Array, LeF32, LeF64, Point4Array};
 use crate::fast::{
-    f32_to_fx, f64_to_fixed, feed_near, fx_small_f32, fx_to_f64, mul_hi, piece_f32_len, pos, pos_eval, q_fx_eval, sqrt_q32,
+    f32_to_fx, f64_to_fixed, feed_near, fx_small_f32, u128_to_f64_pow2, fx_to_f64, mul_hi, piece_f32_len, pos, pos_eval, q_fx_eval, sqrt_q32,
     step_scale, to_fx, PieceU, QLocal, PIECE_F64_LEN, PIECE_HEAD_LEN, POS_BYTES, Q_FRAC, Q_FX_LEN, Q_LOCAL_LEN,
 };
 use crate::output::SetpointSink;
@@ -306,6 +306,8 @@ pub struct Interpolator<'a> {
     period_s: f64,
     /// The period in f32 for the Taylor step.
     h: f32,
+    /// T = m·2^e (m the 53-bit significand; (0, 0) if T is not normal).
+    period_parts: (u64, i32),
     /// The step scale of the period ([`step_scale`]).
     tk: (i64, u32),
     length_mm: f64,
@@ -356,8 +358,12 @@ struct SegRun {
     left: u32,
     /// Stop ticks done.
     j: u32,
-    /// τ at the entry into the stop segment, s.
+    /// τ at the entry into the stop segment, s (f64 for the cube-root
+    /// fallback, f32 for the feed).
     tau: f64,
+    tau_f: f32,
+    /// Fast path: `tau` holds Δ₀ and this the f32 correction c (τ = t₂ − Δ₀ − c).
+    c: f32,
     /// Stop segment: the differences are still to be set up (the tick after
     /// the entry, to spread the work).
     pending: bool,
@@ -385,6 +391,22 @@ struct SegConsts {
     /// 1/T, 0.5·J₂ (f32) for the feed.
     inv_t: f64,
     stop_v: f32,
+    /// t₂ ≥ 20 T: τ = t₂ − Δ by the series below (else a cube root).
+    fast: bool,
+    /// s₂′ in Q40.
+    s2_fx: i64,
+    /// d₁, d₂ at τ = t₂ (Q80); d₁(t₂ − Δ) = d₁(t₂) − Δ·kd1 + kd1q·Δ²,
+    /// d₂(t₂ − Δ) = d₂(t₂) + Δ·kd2 (kd1 = J₂Tt₂ − J₂T²/2, kd1q = J₂T/2,
+    /// kd2 = J₂T²).
+    d1_nom: i128,
+    d2_nom: i128,
+    kd1: f64,
+    kd1q: f32,
+    kd2: f64,
+    /// t₂/T, 1/T and t₂, f32 (the tick count of the stop segment).
+    t2_t: f32,
+    t2_f: f32,
+    inv_t_f: f32,
 }
 
 /// 2⁸⁰ · x as i128, truncated ([`f64_to_fixed`]).
@@ -411,6 +433,16 @@ impl SegConsts {
             d3: to_q80(j2 * t * t * t),
             inv_t: 1.0 / t,
             stop_v: (0.5 * j2) as f32,
+            fast: t2 >= 20.0 * t,
+            s2_fx: to_fx(length - j2 * t2 * t2 * t2 / 6.0),
+            d1_nom: to_q80(j2 / 6.0 * (3.0 * t2 * t2 * t - 3.0 * t2 * t * t + t * t * t)),
+            d2_nom: to_q80(j2 * t * t * (t - t2)),
+            kd1: j2 * t * t2 - 0.5 * j2 * t * t,
+            kd1q: (0.5 * j2 * t) as f32,
+            kd2: j2 * t * t,
+            t2_t: (t2 / t) as f32,
+            t2_f: t2 as f32,
+            inv_t_f: (1.0 / t) as f32,
         }
     }
 }
@@ -489,6 +521,15 @@ impl<'a> Interpolator<'a> {
             views,
             period_s,
             h: period_s as f32,
+            period_parts: {
+                let b = period_s.to_bits();
+                let e = ((b >> 52) & 0x7ff) as i32;
+                if e == 0 || e == 0x7ff {
+                    (0, 0)
+                } else {
+                    ((b & ((1u64 << 52) - 1)) | (1u64 << 52), e - 1075)
+                }
+            },
             tk: step_scale(period_s),
             length_mm,
             len_fx: to_fx(length_mm),
@@ -546,19 +587,22 @@ impl<'a> Interpolator<'a> {
         self.phase = Phase::Start;
     }
 
+    /// t = k·T, correctly rounded (the same bits as `k as f64 * T`): the
+    /// exact integer product k·m_T (T = m_T·2^e_T) rounded once, in integer
+    /// instructions; soft-float only past 2³² ticks (~12 days at 250 µs).
     // Out of line: inlined, LLVM evaluates both branches' conversions
-    // speculatively (three soft-float calls instead of one).
+    // speculatively.
     #[inline(never)]
     fn now(&self) -> f64 {
-        // u32 → f64 is a cheaper soft-float conversion than u64 → f64; the
-        // two parts are exact (k < 2^53), so this is exactly `k as f64`.
+        let (m, e) = self.period_parts;
+        if self.k == 0 {
+            return 0.0;
+        }
+        if self.k >> 32 == 0 && m != 0 {
+            return u128_to_f64_pow2(u128::from(self.k) * u128::from(m), e);
+        }
         let (hi, lo) = ((self.k >> 32) as u32, self.k as u32);
-        let kf = if hi == 0 {
-            f64::from(lo)
-        } else {
-            f64::from(hi) * 4294967296.0 + f64::from(lo)
-        };
-        kf * self.period_s
+        (f64::from(hi) * 4294967296.0 + f64::from(lo)) * self.period_s
     }
 
     fn finish(&mut self, t_s: f64) -> Setpoint {
@@ -718,36 +762,57 @@ impl<'a> Interpolator<'a> {
         };
         let k = self.segk;
         let s_mm = fx_to_f64(s_new);
-        let tau = if k.t2 >= 20.0 * self.period_s {
-            let d0 = (s_mm - k.s2) * k.inv_v2;
+        if k.fast {
+            // Δ = t₂ − τ: Δ₀ = δ/v₂ in f64 (δ = s_new − s₂′ exact in Q40),
+            // then c = Δ²/t₂ − Δ³/(3t₂²) by fixed-point iteration in f32.
+            let d0 = fx_to_f64(s_new.wrapping_sub(k.s2_fx)) * k.inv_v2;
             let x = d0 as f32;
             let mut c = 0.0f32;
             for _ in 0..8 {
                 let d = x + c;
                 c = d * d * (k.inv_t2 - d * k.inv_3t2sq);
             }
-            k.t2 - (d0 + f64::from(c))
-        } else {
-            let rest = self.length_mm - s_mm;
-            libm::cbrt(6.0 * rest / e.jerk_stop)
-        };
+            let df = x + c;
+            let tau_f = k.t2_f - df;
+            // Ticks j ≥ 1 with j·T < τ: ⌈τ/T⌉ − 1 (τ/T in Q20, f32).
+            let xq = ((k.t2_t - df * k.inv_t_f) * 1_048_576.0) as i64;
+            let left = (xq.wrapping_sub(1) >> 20).clamp(0, i64::from(u32::MAX)) as u32;
+            // The differences are set up on the next tick (spreading the
+            // work): Δ₀ and c are kept.
+            self.seg = SegRun {
+                s: i128::from(s_new) << 40,
+                d: [0; 3],
+                left,
+                j: 0,
+                tau: d0,
+                tau_f,
+                c,
+                pending: true,
+            };
+            self.phase = Phase::StopSeg;
+            return self.place(t_s, (s_mm, s_new), k.stop_v * tau_f * tau_f);
+        }
+        let rest = self.length_mm - s_mm;
+        let tau = libm::cbrt(6.0 * rest / e.jerk_stop);
         if !(tau > 0.0 && tau.is_finite()) {
             return Ok(self.finish(t_s));
         }
-        // Ticks j ≥ 1 with j·T < τ.
-        let x = tau * k.inv_t;
-        let n = x as u32;
-        let left = if f64::from(n) == x { n.saturating_sub(1) } else { n };
+        // Ticks j ≥ 1 with j·T < τ: ⌈τ/T⌉ − 1, from τ/T in Q20.
+        let x = f64_to_fixed(tau * k.inv_t, 20).clamp(0, i128::from(u32::MAX) << 20);
+        let left = ((x - 1) >> 20).max(0) as u32;
         self.seg = SegRun {
             s: i128::from(s_new) << 40,
             d: [0; 3],
             left,
             j: 0,
             tau,
+            tau_f: tau as f32,
+            c: 0.0,
             pending: true,
         };
         self.phase = Phase::StopSeg;
-        self.place(t_s, (s_mm, s_new), (0.5 * e.jerk_stop * tau * tau) as f32)
+        let tf = tau as f32;
+        self.place(t_s, (s_mm, s_new), k.stop_v * tf * tf)
     }
 
     /// A tick in the stop segment: the next forward-difference step (set
@@ -759,16 +824,31 @@ impl<'a> Interpolator<'a> {
             return Ok(self.finish(t_s));
         }
         if self.seg.pending {
-            let (k, tau) = (self.segk, self.seg.tau);
-            let d1 = tau * (tau * k.k1 - k.k2) + k.k3;
-            let d2 = 2.0 * k.k2 * (self.period_s - tau);
-            self.seg.d = [to_q80(d1), to_q80(d2), k.d3];
+            let (k, g) = (self.segk, self.seg);
+            self.seg.d = if k.fast {
+                // τ = t₂ − Δ: d₁ = d₁(t₂) − Δ·kd1 + kd1q·Δ², d₂ = d₂(t₂) + Δ·kd2.
+                let delta = g.tau + f64::from(g.c);
+                let df = delta as f32;
+                let small = f64_to_fixed(f64::from(k.kd1q * df * df), 80);
+                [
+                    k.d1_nom
+                        .wrapping_sub(to_q80(delta * k.kd1))
+                        .wrapping_add(small),
+                    k.d2_nom.wrapping_add(to_q80(delta * k.kd2)),
+                    k.d3,
+                ]
+            } else {
+                let tau = g.tau;
+                let d1 = tau * (tau * k.k1 - k.k2) + k.k3;
+                let d2 = 2.0 * k.k2 * (self.period_s - tau);
+                [to_q80(d1), to_q80(d2), k.d3]
+            };
             self.seg.pending = false;
         }
         self.seg.left -= 1;
         self.seg.j = self.seg.j.wrapping_add(1);
         let s = self.seg_advance();
-        let tau_j = self.seg.tau as f32 - self.seg.j as f32 * self.h;
+        let tau_j = self.seg.tau_f - self.seg.j as f32 * self.h;
         let v = self.segk.stop_v * tau_j * tau_j;
         self.place(t_s, (fx_to_f64(s), s), v)
     }

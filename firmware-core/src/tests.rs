@@ -1209,3 +1209,43 @@ fn corrupt_end_segments_are_refused() {
     assert_eq!(Table::parse(&good().encode().unwrap()).unwrap().ends(), None);
 }
 
+
+// ------------------------------------------------------------------- fixed point
+
+/// The integer-only conversions give the same bits as the soft-float ones.
+#[test]
+fn integer_conversions_match_ieee() {
+    use crate::fast::{f64_to_fixed, fx_to_f64, to_fx, u128_to_f64_pow2};
+    let mut x = 0x9e37_79b9_7f4a_7c15u64;
+    let mut next = || {
+        x ^= x << 13;
+        x ^= x >> 7;
+        x ^= x << 17;
+        x
+    };
+    for i in 0..200_000 {
+        let r = next();
+        let v = (r >> (r % 64)) as i64 * if i % 2 == 0 { 1 } else { -1 };
+        if v != 0 {
+            assert_eq!(fx_to_f64(v).to_bits(), (v as f64 * 2f64.powi(-40)).to_bits(), "{v}");
+        }
+        let f = f64::from_bits(next() % 0x4100_0000_0000_0000) * if i % 3 == 0 { -1.0 } else { 1.0 };
+        if f.abs() < 1e6 {
+            assert_eq!(to_fx(f), (f * 2f64.powi(40)) as i64, "{f}");
+            assert_eq!(f64_to_fixed(f, 80), (f * 2f64.powi(80)) as i128, "{f}");
+        }
+        let k = next() >> 32;
+        for t in [250e-6, 1e-3, 125e-6, 0.1, 7.3e-5] {
+            let b = f64::to_bits(t);
+            let m = (b & ((1u64 << 52) - 1)) | (1u64 << 52);
+            let e = ((b >> 52) & 0x7ff) as i32 - 1075;
+            if k > 0 {
+                assert_eq!(
+                    u128_to_f64_pow2(u128::from(k) * u128::from(m), e).to_bits(),
+                    (k as f64 * t).to_bits(),
+                    "{k} {t}"
+                );
+            }
+        }
+    }
+}
