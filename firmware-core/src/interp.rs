@@ -141,6 +141,8 @@ struct QCur {
     anchor: i64,
     shift: u32,
     c: [i64; 4],
+    /// The span's f32 form (q′, q″, q‴), copied on entry.
+    poly: QLocal,
 }
 
 /// The current piece: index, start and next break (Q40, `i64::MAX` after
@@ -154,6 +156,10 @@ struct PCur {
     u0: i64,
     centre: i64,
     shift: u32,
+    /// The s → u head, copied on entry.
+    head: PieceU,
+    /// Byte offset of the position coefficients in the piece section.
+    pos_at: usize,
 }
 
 /// The table data the fast path reads (zero-copy views). Coefficients are
@@ -174,24 +180,36 @@ struct Views<'a> {
 }
 
 impl Views<'_> {
+    /// q span `idx`; `start` its start U_i in Q40 if known (the previous
+    /// span's end), else converted from the knots.
     #[inline]
-    fn q(&self, idx: usize) -> Option<QCur> {
-        let start = to_fx(self.q_knots.get(idx.checked_add(3)?)?);
+    fn q(&self, idx: usize, start: Option<i64>) -> Option<QCur> {
+        let start = match start {
+            Some(x) => x,
+            None => to_fx(self.q_knots.get(idx.checked_add(3)?)?),
+        };
         let end = to_fx(self.q_knots.get(idx.checked_add(4)?)?);
-        let b = idx.checked_mul(Q_FX_LEN)?;
+        let at = idx.checked_mul(8 * Q_FX_LEN)?;
+        let w: &[u8; 8 * Q_FX_LEN] = self
+            .q_fixed
+            .as_bytes()
+            .get(at..at.checked_add(8 * Q_FX_LEN)?)?
+            .try_into()
+            .ok()?;
+        let word = |i: usize| {
+            let mut b = [0u8; 8];
+            b.copy_from_slice(&w[8 * i..8 * i + 8]);
+            i64::from_le_bytes(b)
+        };
         let last = idx >= self.q_last;
         Some(QCur {
             idx,
             start,
             next: if last { i64::MAX } else { end },
             anchor: if last { end } else { start },
-            shift: u32::try_from(self.q_fixed.get_i64(b.checked_add(4)?)?).ok()?,
-            c: [
-                self.q_fixed.get_i64(b)?,
-                self.q_fixed.get_i64(b.checked_add(1)?)?,
-                self.q_fixed.get_i64(b.checked_add(2)?)?,
-                self.q_fixed.get_i64(b.checked_add(3)?)?,
-            ],
+            shift: u32::try_from(word(4)).ok()?,
+            c: [word(0), word(1), word(2), word(3)],
+            poly: self.q_poly(idx)?,
         })
     }
 
@@ -203,12 +221,21 @@ impl Views<'_> {
         ))
     }
 
+    /// Piece `idx`; `start` its start in Q40 if known (the previous piece's
+    /// next break), else converted from the breaks.
     #[inline]
-    fn piece(&self, idx: usize) -> Option<PCur> {
+    fn piece(&self, idx: usize, start: Option<i64>) -> Option<PCur> {
         let b = idx.checked_mul(PIECE_F64_LEN)?;
+        let start = match start {
+            Some(x) => x,
+            None => to_fx(self.piece_breaks.get(idx)?),
+        };
+        let pos_at = b.checked_add(3)?.checked_mul(8)?;
+        // The coefficients must be there (checked once, on entry).
+        self.piece_f64.as_bytes().get(pos_at..pos_at.checked_add(POS_BYTES)?)?;
         Some(PCur {
             idx,
-            start: to_fx(self.piece_breaks.get(idx)?),
+            start,
             next: if idx >= self.p_last {
                 i64::MAX
             } else {
@@ -217,19 +244,22 @@ impl Views<'_> {
             u0: to_fx(self.piece_f64.get(b)?),
             centre: self.piece_f64.get_i64(b.checked_add(1)?)?,
             shift: u32::try_from(self.piece_f64.get_i64(b.checked_add(2)?)?).ok()?,
+            head: PieceU::from_array(
+                self.piece_f32
+                    .get_array::<PIECE_HEAD_LEN>(idx.checked_mul(self.per)?)?,
+            ),
+            pos_at,
         })
     }
 
-    /// The s → u head of piece `idx` and the bytes of its position form.
+    /// The position coefficients of the current piece.
     #[inline]
-    fn piece_forms(&self, idx: usize) -> Option<(PieceU, &[u8; POS_BYTES])> {
-        let head = PieceU::from_array(
-            self.piece_f32
-                .get_array::<PIECE_HEAD_LEN>(idx.checked_mul(self.per)?)?,
-        );
-        let from = idx.checked_mul(PIECE_F64_LEN)?.checked_add(3)?.checked_mul(8)?;
-        let to = from.checked_add(POS_BYTES)?;
-        Some((head, self.piece_f64.as_bytes().get(from..to)?.try_into().ok()?))
+    fn coeffs(&self, pc: &PCur) -> Option<&[u8; POS_BYTES]> {
+        self.piece_f64
+            .as_bytes()
+            .get(pc.pos_at..pc.pos_at.wrapping_add(POS_BYTES))?
+            .try_into()
+            .ok()
     }
 }
 
@@ -256,11 +286,11 @@ fn t0_q(v: &Views<'_>) -> Option<f32> {
 /// in Q32 ([`q_eval`]). A scan over the spans: for [`Interpolator::new`],
 /// reset and the start segment's join only.
 fn q_state_at(v: &Views<'_>, s: i64, guess: f32) -> Option<QState> {
-    let mut qc = v.q(0)?;
+    let mut qc = v.q(0, None)?;
     while qc.idx < v.q_last && s >= qc.next {
-        qc = v.q(qc.idx.checked_add(1)?)?;
+        qc = v.q(qc.idx.checked_add(1)?, Some(qc.next))?;
     }
-    let poly = v.q_poly(qc.idx)?;
+    let poly = qc.poly;
     let tq = if s == 0 && qc.idx == 0 {
         t0_q(v)?
     } else {
@@ -334,8 +364,12 @@ pub struct Interpolator<'a> {
     /// Where the Taylor steps hand over to the stop: s₂ with segments, else
     /// L (Q40).
     stop_at: i64,
-    /// Last tick time still in the start segment, t₁ + 1e-6·T, s.
-    t_switch: f64,
+    /// Index of the first tick past t_switch (the join), its step h = t − t₁
+    /// and step scale, precomputed so the join tick costs no more than a
+    /// Taylor tick.
+    k_join: u64,
+    h_join: f32,
+    tk_join: (i64, u32),
     /// The q state at s₁ (the join), for the first Taylor step.
     join: QState,
     /// The end segment being executed: s in Q80 and its forward
@@ -470,10 +504,9 @@ impl<'a> Interpolator<'a> {
             p_last: table.piece_breaks().len().checked_sub(2).ok_or(bad)?,
             per,
         };
-        let qc = views.q(0).ok_or(bad)?;
-        let pc = views.piece(0).ok_or(bad)?;
+        let qc = views.q(0, None).ok_or(bad)?;
+        let pc = views.piece(0, None).ok_or(bad)?;
         let qs = q_state_at(&views, 0, 0.0).ok_or(bad)?;
-        views.piece_forms(0).ok_or(bad)?;
         let [x0, y0, z0, _] = pts.get(0).ok_or(bad)?;
         let [x1, y1, z1, _] = pts.get(pts.len().checked_sub(1).ok_or(bad)?).ok_or(bad)?;
         let length_mm = table.path_length_mm();
@@ -493,22 +526,35 @@ impl<'a> Interpolator<'a> {
             pos_mm: [x1, y1, z1],
         };
         let ends = table.ends();
-        let (stop_at, t_switch, join) = match ends {
+        // The join tick: the first k with k·T > t_switch.
+        let (k_join, h_join) = match ends {
+            Some(e) => {
+                let ts = e.t_start + 1e-6 * period_s;
+                let mut k = libm::floor(ts / period_s).max(0.0) as u64;
+                while k as f64 * period_s <= ts {
+                    k += 1;
+                }
+                while k > 1 && (k - 1) as f64 * period_s > ts {
+                    k -= 1;
+                }
+                (k, k as f64 * period_s - e.t_start)
+            }
+            None => (0, 0.0),
+        };
+        let (stop_at, join) = match ends {
             Some(e) => {
                 let s1 = to_fx(e.s_start);
                 let guess = q_state_at(&views, s1, 0.0).ok_or(bad)?.v;
-                (
-                    to_fx(e.s_stop),
-                    e.t_start + 1e-6 * period_s,
-                    q_state_at(&views, s1, guess).ok_or(bad)?,
-                )
+                (to_fx(e.s_stop), q_state_at(&views, s1, guess).ok_or(bad)?)
             }
-            None => (to_fx(length_mm), 0.0, QState::default()),
+            None => (to_fx(length_mm), QState::default()),
         };
         Ok(Interpolator {
             ends,
             stop_at,
-            t_switch,
+            k_join,
+            h_join: h_join as f32,
+            tk_join: step_scale(h_join),
             join,
             seg: SegRun {
                 d: ends.map(|e| SegConsts::new(&e, length_mm, period_s).start_d).unwrap_or_default(),
@@ -576,7 +622,7 @@ impl<'a> Interpolator<'a> {
     pub fn reset(&mut self) {
         self.k = 0;
         self.s = 0;
-        if let (Some(qc), Some(pc)) = (self.views.q(0), self.views.piece(0)) {
+        if let (Some(qc), Some(pc)) = (self.views.q(0, None), self.views.piece(0, None)) {
             (self.qc, self.pc) = (qc, pc);
         }
         self.qs = q_state_at(&self.views, 0, 0.0).unwrap_or_default();
@@ -701,9 +747,10 @@ impl<'a> Interpolator<'a> {
         let Some((tp, tq, poly)) = self.seek(s_new) else {
             return self.fault(Fault::Eval { s_mm: fx_to_f64(s_new) });
         };
-        let Some((head, coeffs)) = self.views.piece_forms(self.pc.idx) else {
+        let Some(coeffs) = self.views.coeffs(&self.pc) else {
             return self.fault(Fault::Eval { s_mm: fx_to_f64(s_new) });
         };
+        let head = self.pc.head;
         let dv = head.delta(tp);
         let [x, y, z] = pos_eval(coeffs, tau_of(s_new, self.pc.centre, self.pc.shift));
         self.qs = q_eval(&self.qc, &poly, s_new, tq, v_end);
@@ -736,7 +783,7 @@ impl<'a> Interpolator<'a> {
         let Some(e) = self.ends else {
             return self.fault(Fault::Eval { s_mm: fx_to_f64(self.s) });
         };
-        if t_s <= self.t_switch {
+        if self.k <= self.k_join {
             let s = self.seg_advance();
             let k = (self.k - 1) as f32;
             let v = self.segk.start_v * k * k;
@@ -745,8 +792,7 @@ impl<'a> Interpolator<'a> {
         self.phase = Phase::Run;
         self.s = to_fx(e.s_start);
         self.qs = self.join;
-        let h = t_s - e.t_start;
-        self.step(t_s, h as f32, step_scale(h))
+        self.step(t_s, self.h_join, self.tk_join)
     }
 
     /// The Taylor step reached s₂ at `s_new`: the stop segment takes over,
@@ -861,9 +907,10 @@ impl<'a> Interpolator<'a> {
         let Some((tp, _, _)) = self.seek(s) else {
             return self.fault(Fault::Eval { s_mm: fx_to_f64(s) });
         };
-        let Some((head, coeffs)) = self.views.piece_forms(self.pc.idx) else {
+        let Some(coeffs) = self.views.coeffs(&self.pc) else {
             return self.fault(Fault::Eval { s_mm: fx_to_f64(s) });
         };
+        let head = self.pc.head;
         let dv = head.delta(tp);
         let [x, y, z] = pos_eval(coeffs, tau_of(s, self.pc.centre, self.pc.shift));
         self.s = s;
@@ -884,14 +931,14 @@ impl<'a> Interpolator<'a> {
     fn seek(&mut self, s: i64) -> Option<(f32, f32, QLocal)> {
         let v = &self.views;
         while self.pc.idx < v.p_last && s >= self.pc.next {
-            self.pc = v.piece(self.pc.idx.checked_add(1)?)?;
+            self.pc = v.piece(self.pc.idx.checked_add(1)?, Some(self.pc.next))?;
         }
         while self.qc.idx < v.q_last && s >= self.qc.next {
-            self.qc = v.q(self.qc.idx.checked_add(1)?)?;
+            self.qc = v.q(self.qc.idx.checked_add(1)?, Some(self.qc.next))?;
         }
         let tp = fx_small_f32(s.wrapping_sub(self.pc.start), 16);
         let tq = fx_small_f32(s.wrapping_sub(self.qc.anchor), 20);
-        Some((tp, tq, v.q_poly(self.qc.idx)?))
+        Some((tp, tq, self.qc.poly))
     }
 
     /// Tick until done, handing every setpoint (the start and the end
