@@ -246,6 +246,7 @@ pub fn ref_point<K: F64Array, P: Point4Array>(
 /// Position: the degree-[`POS_DEG`] polynomial through r(u(s)) at the
 /// Chebyshev–Lobatto points of the piece, in τ = (s − c)/2^e (c the
 /// centre in Q40, 2^e ≥ half the length), coefficients rounded to Q40 mm.
+#[allow(clippy::needless_range_loop)] // divided differences: index arithmetic
 pub fn piece_local<K: F64Array, P: Point4Array>(
     curve: &NurbsView<K, P>,
     seg: &SuSegment,
@@ -804,7 +805,8 @@ pub fn check_piece<K: F64Array, P: Point4Array>(
     let Ok(shift) = u32::try_from(shift) else {
         return false;
     };
-    let Some(pos): Option<&[u8; POS_BYTES]> = words.get(24..24 + POS_BYTES).and_then(|b| b.try_into().ok()) else {
+    let Some(pos): Option<&[u8; POS_BYTES]> = words.get(24..24 + POS_BYTES).and_then(|b| b.try_into().ok())
+    else {
         return false;
     };
     if piece_tau(to_fx(sa), c_fx, shift).is_none() || piece_tau(to_fx(sb), c_fx, shift).is_none() {
@@ -826,6 +828,8 @@ pub fn check_piece<K: F64Array, P: Point4Array>(
             return false;
         };
         let p = pos_eval(pos, t);
-        r64.iter().zip(p.iter()).all(|(&r, &x)| (fx_to_f64(x) - r).abs() <= POS_TOL_MM)
+        r64.iter()
+            .zip(p.iter())
+            .all(|(&r, &x)| (fx_to_f64(x) - r).abs() <= POS_TOL_MM)
     })
 }

@@ -42,8 +42,9 @@
 
 use crate::array::{F64Array, LeF32, LeF64, Point4Array};
 use crate::fast::{
-    f32_to_fx, f64_to_fixed, feed_near, fx_small_f32, u128_to_f64_pow2, fx_to_f64, mul_hi, piece_f32_len, pos, pos_eval, q_fx_eval, sqrt_q32,
-    step_scale, to_fx, PieceU, QLocal, PIECE_F64_LEN, PIECE_HEAD_LEN, POS_BYTES, Q_FRAC, Q_FX_LEN, Q_LOCAL_LEN,
+    f32_to_fx, f64_to_fixed, feed_near, fx_small_f32, fx_to_f64, mul_hi, piece_f32_len, pos, pos_eval,
+    q_fx_eval, sqrt_q32, step_scale, to_fx, u128_to_f64_pow2, PieceU, QLocal, PIECE_F64_LEN, PIECE_HEAD_LEN,
+    POS_BYTES, Q_FRAC, Q_FX_LEN, Q_LOCAL_LEN,
 };
 use crate::output::SetpointSink;
 use crate::table::{EndSegments, Table, MATCH_TOL_REL};
@@ -232,7 +233,9 @@ impl Views<'_> {
         };
         let pos_at = b.checked_add(3)?.checked_mul(8)?;
         // The coefficients must be there (checked once, on entry).
-        self.piece_f64.as_bytes().get(pos_at..pos_at.checked_add(POS_BYTES)?)?;
+        self.piece_f64
+            .as_bytes()
+            .get(pos_at..pos_at.checked_add(POS_BYTES)?)?;
         Some(PCur {
             idx,
             start,
@@ -557,7 +560,9 @@ impl<'a> Interpolator<'a> {
             tk_join: step_scale(h_join),
             join,
             seg: SegRun {
-                d: ends.map(|e| SegConsts::new(&e, length_mm, period_s).start_d).unwrap_or_default(),
+                d: ends
+                    .map(|e| SegConsts::new(&e, length_mm, period_s).start_d)
+                    .unwrap_or_default(),
                 ..SegRun::default()
             },
             segk: ends
@@ -742,13 +747,20 @@ impl<'a> Interpolator<'a> {
             if remaining <= self.end_tol {
                 return Ok(self.finish(t_s));
             }
-            return self.fault(Fault::Stalled { s_mm: fx_to_f64(s), t_s });
+            return self.fault(Fault::Stalled {
+                s_mm: fx_to_f64(s),
+                t_s,
+            });
         }
         let Some((tp, tq, poly)) = self.seek(s_new) else {
-            return self.fault(Fault::Eval { s_mm: fx_to_f64(s_new) });
+            return self.fault(Fault::Eval {
+                s_mm: fx_to_f64(s_new),
+            });
         };
         let Some(coeffs) = self.views.coeffs(&self.pc) else {
-            return self.fault(Fault::Eval { s_mm: fx_to_f64(s_new) });
+            return self.fault(Fault::Eval {
+                s_mm: fx_to_f64(s_new),
+            });
         };
         let head = self.pc.head;
         let dv = head.delta(tp);
@@ -781,7 +793,9 @@ impl<'a> Interpolator<'a> {
     #[inline(never)]
     fn start_tick(&mut self, t_s: f64) -> Result<Setpoint, Fault> {
         let Some(e) = self.ends else {
-            return self.fault(Fault::Eval { s_mm: fx_to_f64(self.s) });
+            return self.fault(Fault::Eval {
+                s_mm: fx_to_f64(self.s),
+            });
         };
         if self.k <= self.k_join {
             let s = self.seg_advance();
@@ -877,9 +891,7 @@ impl<'a> Interpolator<'a> {
                 let df = delta as f32;
                 let small = f64_to_fixed(f64::from(k.kd1q * df * df), 80);
                 [
-                    k.d1_nom
-                        .wrapping_sub(to_q80(delta * k.kd1))
-                        .wrapping_add(small),
+                    k.d1_nom.wrapping_sub(to_q80(delta * k.kd1)).wrapping_add(small),
                     k.d2_nom.wrapping_add(to_q80(delta * k.kd2)),
                     k.d3,
                 ]

@@ -268,7 +268,12 @@ impl EndSegments {
     /// on a path of length `length`.
     pub fn stop_at(&self, length: f64, tau: f64) -> [f64; 4] {
         let j = self.jerk_stop;
-        [length - j * tau * tau * tau / 6.0, 0.5 * j * tau * tau, -j * tau, j]
+        [
+            length - j * tau * tau * tau / 6.0,
+            0.5 * j * tau * tau,
+            -j * tau,
+            j,
+        ]
     }
 
     /// `[q, q′, q″]` the segments impose at s₁ (`stop` false) or s₂ (true):
@@ -843,7 +848,13 @@ fn seg_pieces<F: FnMut(f64, f64)>(parts: &TableParts, q: Option<&QSpline<&[f64]>
 /// [`fast::MAX_SPLIT`] times) until its fixed-point position polynomial is
 /// within [`fast::FIT_TOL_MM`] of the f64 reference. Calls `f(sa, sb, piece)`
 /// for each final piece (`None` if it could not be formed: encode fails).
-fn fit_piece<F: FnMut(f64, f64, Option<&PieceData>)>(parts: &TableParts, j: usize, (sa, sb): (f64, f64), depth: u32, f: &mut F) {
+fn fit_piece<F: FnMut(f64, f64, Option<&PieceData>)>(
+    parts: &TableParts,
+    j: usize,
+    (sa, sb): (f64, f64),
+    depth: u32,
+    f: &mut F,
+) {
     let p = encode_degree(parts);
     let (Some(&s0), Some(&s1), Some(seg)) = (
         parts.su_breaks.get(j),
@@ -856,7 +867,7 @@ fn fit_piece<F: FnMut(f64, f64, Option<&PieceData>)>(parts: &TableParts, j: usiz
     let piece = NurbsView::new(p, parts.nurbs_knots, parts.nurbs_points)
         .and_then(|c| fast::piece_local(&c, seg, (s0, s1), (sa, sb)));
     let mid = 0.5 * (sa + sb);
-    let fits = piece.as_ref().is_none_or(|d| d.fit_err <= fast::FIT_TOL_MM);
+    let fits = !matches!(&piece, Some(d) if d.fit_err > fast::FIT_TOL_MM);
     if !fits && depth < fast::MAX_SPLIT && mid > sa && mid < sb {
         fit_piece(parts, j, (sa, mid), depth + 1, f);
         fit_piece(parts, j, (mid, sb), depth + 1, f);
@@ -1541,12 +1552,11 @@ impl<'a> Table<'a> {
             }
             let seg = segs.get(j).ok_or(bad)?;
             let fb = i.checked_mul(8 * PIECE_F64_LEN).ok_or(bad)?;
-            let words = piece_f64
-                .as_bytes()
-                .get(fb..fb + 8 * PIECE_F64_LEN)
-                .ok_or(bad)?;
-            if !f64::from_bits(u64::from_le_bytes(words.get(..8).and_then(|w| w.try_into().ok()).ok_or(bad)?))
-                .is_finite()
+            let words = piece_f64.as_bytes().get(fb..fb + 8 * PIECE_F64_LEN).ok_or(bad)?;
+            if !f64::from_bits(u64::from_le_bytes(
+                words.get(..8).and_then(|w| w.try_into().ok()).ok_or(bad)?,
+            ))
+            .is_finite()
             {
                 return Err(TableError::NotFinite {
                     section: Section::PieceF64,

@@ -10,8 +10,8 @@ use crate::output::FnSink;
 use crate::qspline::QSpline;
 use crate::sumap::SegmentArray;
 use crate::table::{
-    encode, encoded_len, EncodeError, EndSegments, Limits, Section, SuSegment, Table, TableError, TableParts, CRC_LEN,
-    DIR_ENTRY_LEN, HEADER_LEN,
+    encode, encoded_len, EncodeError, EndSegments, Limits, Section, SuSegment, Table, TableError, TableParts,
+    CRC_LEN, DIR_ENTRY_LEN, HEADER_LEN,
 };
 
 const L: f64 = 100.0;
@@ -931,7 +931,10 @@ fn local_forms_are_checked_against_the_f64_data() {
     let pieces = t.piece_breaks().len() - 1;
     assert!(pieces >= t.su_segments().len());
     assert_eq!(t.piece_f64().len(), crate::fast::PIECE_F64_LEN * pieces);
-    assert_eq!(t.q_fixed().len(), crate::fast::Q_FX_LEN * (good().q_ctrl.len() - 3));
+    assert_eq!(
+        t.q_fixed().len(),
+        crate::fast::Q_FX_LEN * (good().q_ctrl.len() - 3)
+    );
     assert_eq!(t.piece_f32().len(), crate::fast::piece_f32_len(2) * pieces);
     assert_eq!(t.piece_breaks().get(0), Some(0.0));
     assert_eq!(t.piece_breaks().last(), Some(L));
@@ -1100,7 +1103,11 @@ fn end_segments_execute_without_jumps_and_end_exactly_at_l() {
         assert!(in_start.len() > 10);
         for p in &in_start {
             let d = p.s_mm - e.start_at(p.t_s)[0];
-            assert!(d.abs() <= 1.0e-12 + 1e-15 * p.s_mm, "start segment at t = {}: {d:e}", p.t_s);
+            assert!(
+                d.abs() <= 1.0e-12 + 1e-15 * p.s_mm,
+                "start segment at t = {}: {d:e}",
+                p.t_s
+            );
         }
         // no jump: with 50 ticks at rest before and after, the third
         // differences of s (jerk) stay within the largest jerk of the plan,
@@ -1139,7 +1146,10 @@ fn end_segments_execute_without_jumps_and_end_exactly_at_l() {
             "degree {degree}, T {period}: {e:?}\n  fd acc {a_fd:.2} (max {acc_max:.2}), fd jerk at the ends {j_fd:.1} \
              at s = {j_at:.3} (max {jerk_max:.1}, f32 step noise {noise:.1})"
         );
-        assert!(a_fd <= acc_max * 1.01 + 1e-6, "acceleration step: {a_fd} vs {acc_max}");
+        assert!(
+            a_fd <= acc_max * 1.01 + 1e-6,
+            "acceleration step: {a_fd} vs {acc_max}"
+        );
         assert!(j_fd <= jerk_max * 1.05 + noise, "jerk {j_fd} vs {jerk_max}");
         // monotone, and the feed at the switches matches the segment's
         for w in sps.windows(2) {
@@ -1193,7 +1203,10 @@ fn corrupt_end_segments_are_refused() {
     assert_eq!(p.encode().unwrap_err(), EncodeError::Invalid(stop));
     // a wrong count
     let mut b = bytes.clone();
-    let dir = (0..14).map(entry).find(|&d| u16::from_le_bytes([b[d], b[d + 1]]) == 14).unwrap();
+    let dir = (0..14)
+        .map(entry)
+        .find(|&d| u16::from_le_bytes([b[d], b[d + 1]]) == 14)
+        .unwrap();
     b[dir + 4..dir + 8].copy_from_slice(&3u32.to_le_bytes());
     b[dir + 12..dir + 16].copy_from_slice(&24u32.to_le_bytes());
     fix_crc(&mut b);
@@ -1208,7 +1221,6 @@ fn corrupt_end_segments_are_refused() {
     // without segments (section 14 empty) the table has none
     assert_eq!(Table::parse(&good().encode().unwrap()).unwrap().ends(), None);
 }
-
 
 // ------------------------------------------------------------------- fixed point
 
@@ -1227,7 +1239,11 @@ fn integer_conversions_match_ieee() {
         let r = next();
         let v = (r >> (r % 64)) as i64 * if i % 2 == 0 { 1 } else { -1 };
         if v != 0 {
-            assert_eq!(fx_to_f64(v).to_bits(), (v as f64 * 2f64.powi(-40)).to_bits(), "{v}");
+            assert_eq!(
+                fx_to_f64(v).to_bits(),
+                (v as f64 * 2f64.powi(-40)).to_bits(),
+                "{v}"
+            );
         }
         let f = f64::from_bits(next() % 0x4100_0000_0000_0000) * if i % 3 == 0 { -1.0 } else { 1.0 };
         if f.abs() < 1e6 {

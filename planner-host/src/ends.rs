@@ -130,11 +130,18 @@ impl Join {
     /// The two equality rows q′ − k₁q = 0, q″ − k₂q = 0, scaled to unit size.
     fn eq_rows(&self) -> [EndRow; 2] {
         let (d, b) = (self.d, &self.basis);
-        let k1 = if self.stop { -4.0 / (3.0 * d) } else { 4.0 / (3.0 * d) };
+        let k1 = if self.stop {
+            -4.0 / (3.0 * d)
+        } else {
+            4.0 / (3.0 * d)
+        };
         let k2 = 4.0 / (9.0 * d * d);
         let row = |k: usize, c: f64| {
             let val: [f64; ORDER] = core::array::from_fn(|j| b.d[k][j] - c * b.d[0][j]);
-            let m = val.iter().fold(0.0f64, |m, v| m.max(v.abs())).max(f64::MIN_POSITIVE);
+            let m = val
+                .iter()
+                .fold(0.0f64, |m, v| m.max(v.abs()))
+                .max(f64::MIN_POSITIVE);
             EndRow {
                 first: b.first,
                 val: val.map(|v| v / m),
@@ -401,7 +408,11 @@ mod tests {
             let want = e.q_join(20.0, stop);
             for k in 0..3 {
                 let got = join.basis.apply(k, &ctrl);
-                assert!((got - want[k]).abs() <= 1e-9 * want[k].abs(), "{k}: {got} vs {}", want[k]);
+                assert!(
+                    (got - want[k]).abs() <= 1e-9 * want[k].abs(),
+                    "{k}: {got} vs {}",
+                    want[k]
+                );
             }
         }
     }

@@ -17,7 +17,8 @@ use std::time::Instant;
 
 use clarabel::algebra::CscMatrix;
 use clarabel::solver::{
-    DefaultSettingsBuilder, DefaultSolver, IPSolver, NonnegativeConeT, SolverStatus, SupportedConeT, ZeroConeT,
+    DefaultSettingsBuilder, DefaultSolver, IPSolver, NonnegativeConeT, SolverStatus, SupportedConeT,
+    ZeroConeT,
 };
 use firmware_core::basis::{ders_basis, find_span, window, BasisDerivs, MAX_DEGREE, MAX_DERIV};
 use firmware_core::table::Limits;
@@ -369,8 +370,15 @@ impl<'a> FeedLp<'a> {
             val: r.val,
             rhs: r.rhs,
         };
-        let eq_rows: Vec<Row> = self.ends.map_or(Vec::new(), |e| e.eq_rows().into_iter().map(to_row).collect());
-        rows.extend(self.ends.map_or(Vec::new(), |e| e.ineq_rows()).into_iter().map(to_row));
+        let eq_rows: Vec<Row> = self
+            .ends
+            .map_or(Vec::new(), |e| e.eq_rows().into_iter().map(to_row).collect());
+        rows.extend(
+            self.ends
+                .map_or(Vec::new(), |e| e.ineq_rows())
+                .into_iter()
+                .map(to_row),
+        );
         // Triplets (row, col, value), rows normalised so that rhs = 1 where rhs > 0.
         let mut trip: Vec<(usize, usize, f64)> = Vec::with_capacity(rows.len() * ORDER + 2 * nv);
         let mut b = Vec::with_capacity(rows.len() + 2 * nv);
@@ -427,9 +435,8 @@ impl<'a> FeedLp<'a> {
             .build()
             .map_err(|_| fail("BadSettings", 0))?;
         let nonzeros = a_mat.nnz();
-        let mut solver =
-            DefaultSolver::new(&p_mat, &q, &a_mat, &b, &cones, settings)
-                .map_err(|e| fail(&format!("SetupError({e})"), 0))?;
+        let mut solver = DefaultSolver::new(&p_mat, &q, &a_mat, &b, &cones, settings)
+            .map_err(|e| fail(&format!("SetupError({e})"), 0))?;
         solver.solve();
         let sol = &solver.solution;
         let status = format!("{:?}", sol.status);

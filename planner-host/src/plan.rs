@@ -484,7 +484,10 @@ pub fn machining_time_between(knots: &[f64], ctrl: &[f64], lo: f64, hi: f64) -> 
     let qmax = ctrl.iter().cloned().fold(0.0, f64::max);
     let zero = 1e-12 * qmax.max(f64::MIN_POSITIVE);
     let mut total = 0.0;
-    for win in knots.windows(2).filter(|w| w[1] > w[0] && w[0] >= lo && w[1] <= hi) {
+    for win in knots
+        .windows(2)
+        .filter(|w| w[1] > w[0] && w[0] >= lo && w[1] <= hi)
+    {
         let (a, b) = (win[0], win[1]);
         let h = b - a;
         let za = q(a) <= zero;

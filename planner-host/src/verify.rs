@@ -148,7 +148,12 @@ pub fn dense_check_ends(
     let mut samples: Vec<(f64, Ratios)> = Vec::new();
     if let Some(e) = ends {
         let length = knots.last().copied().unwrap_or(0.0);
-        let spans_in = |a: f64, b: f64| knots.windows(2).filter(|w| w[1] > w[0] && w[0] >= a && w[1] <= b).count();
+        let spans_in = |a: f64, b: f64| {
+            knots
+                .windows(2)
+                .filter(|w| w[1] > w[0] && w[0] >= a && w[1] <= b)
+                .count()
+        };
         let n1 = (per_span * spans_in(0.0, e.s_start)).max(SEGMENT_MIN_POINTS);
         let n2 = (per_span * spans_in(e.s_stop, length)).max(SEGMENT_MIN_POINTS);
         for k in 0..=n1 {

@@ -141,14 +141,20 @@ fn jerk_limited_ends_follow_the_s_curve_on_a_line() {
         let (jbar, abar) = (TABLE1.jbar, TABLE1.abar);
         let s_phase = abar.powi(3) / (6.0 * jbar * jbar);
         let spacing = len / (out.sampling_points - 1) as f64;
-        assert!(e.s_start <= 1.25 * s_phase && e.s_start > 1.25 * s_phase - spacing - 1e-9, "{e:?}");
+        assert!(
+            e.s_start <= 1.25 * s_phase && e.s_start > 1.25 * s_phase - spacing - 1e-9,
+            "{e:?}"
+        );
         assert!(((len - e.s_stop) - e.s_start).abs() < 1e-9, "symmetric: {e:?}");
         for (j, t, d) in [
             (e.jerk_start, e.t_start, e.s_start),
             (e.jerk_stop, e.t_stop, len - e.s_stop),
         ] {
             let (j_closed, t_closed) = (jbar, (6.0 * d / jbar).cbrt());
-            assert!(j <= j_closed && j >= j_closed * (1.0 - 2e-4), "J {j} vs {j_closed}");
+            assert!(
+                j <= j_closed && j >= j_closed * (1.0 - 2e-4),
+                "J {j} vs {j_closed}"
+            );
             assert!((t - t_closed).abs() <= 1e-4 * t_closed, "t {t} vs {t_closed}");
             assert!(j * t <= abar, "the segment stays under A");
         }
@@ -158,7 +164,10 @@ fn jerk_limited_ends_follow_the_s_curve_on_a_line() {
             let b = lp::BasisRow::at(&out.q_knots, s).unwrap();
             for (k, w) in want.iter().enumerate() {
                 let got = b.apply(k, &out.q_ctrl);
-                assert!((got - w).abs() <= 1e-9 * w.abs(), "stop {stop}, q^({k}): {got} vs {w}");
+                assert!(
+                    (got - w).abs() <= 1e-9 * w.abs(),
+                    "stop {stop}, q^({k}): {got} vs {w}"
+                );
             }
         }
         let t = out.predicted_time_s;
@@ -167,7 +176,10 @@ fn jerk_limited_ends_follow_the_s_curve_on_a_line() {
             "density {density}: T_plan {t:.5} (S-curve {t_j:.5}), segments {e:?}, dense {:?}",
             dense.ratios
         );
-        assert!(t >= t_j * (1.0 - 1e-6), "a jerk-limited plan cannot beat the S-curve");
+        assert!(
+            t >= t_j * (1.0 - 1e-6),
+            "a jerk-limited plan cannot beat the S-curve"
+        );
         assert!(t <= t_j * 1.02, "plan within 2 % of the S-curve");
         assert!(dense.ratios.worst() <= 1.01, "{:?}", dense.ratios);
     }

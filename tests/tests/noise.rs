@@ -78,7 +78,11 @@ pub fn noise(table_bytes: &[u8]) -> Noise {
         let sn = 0.5 * dddq * qv + 0.25 * ddq * dq;
         s += h * (v + h * (0.5 * a + h * (j / 6.0 + h * sn / 24.0)));
     }
-    let n = fw.iter().zip(rf.iter()).take_while(|(f, _)| f.0 < s_last - 2.0).count();
+    let n = fw
+        .iter()
+        .zip(rf.iter())
+        .take_while(|(f, _)| f.0 < s_last - 2.0)
+        .count();
     let h3 = h * h * h;
     let d3 = |x: &dyn Fn(usize) -> f64, k: usize| (x(k + 3) - 3.0 * x(k + 2) + 3.0 * x(k + 1) - x(k)) / h3;
     let mut out = Noise {
@@ -107,7 +111,9 @@ pub fn noise(table_bytes: &[u8]) -> Noise {
 }
 
 fn plan(curve: &Nurbs) -> Vec<u8> {
-    plan::plan_curve(curve, &PlanConfig::default()).unwrap().table_bytes
+    plan::plan_curve(curve, &PlanConfig::default())
+        .unwrap()
+        .table_bytes
 }
 
 /// 1 % of the paper's Table 1 jerk limit, mm/s³ (see the module docs).
@@ -122,7 +128,11 @@ fn check(name: &str, curve: &Nurbs) {
         "{name}: jerk noise {} mm/s³ ≥ {NOISE_BOUND}",
         r.jerk_noise_max
     );
-    assert!(r.s_jerk_noise_max < NOISE_BOUND, "{name}: s noise {}", r.s_jerk_noise_max);
+    assert!(
+        r.s_jerk_noise_max < NOISE_BOUND,
+        "{name}: s noise {}",
+        r.s_jerk_noise_max
+    );
 }
 
 #[test]
@@ -141,4 +151,121 @@ fn shared_curves_setpoint_noise_below_one_percent_of_the_jerk_limit() {
         }
         check(name, &Nurbs::load(&path).unwrap());
     }
+}
+
+// ------------------------------------------------------------ analytic cases
+
+/// A table for `curve` with the planner's s → u map and a plateau q: q
+/// uniform cubic B-spline on 12 control points [0, f², …, f², 0], so q = f²
+/// exactly for L/9 ≤ s ≤ 8L/9 and s(t) is linear there.
+fn plateau_table(curve: &Nurbs, feed: f64) -> (Vec<u8>, f64) {
+    use firmware_core::table::{self, TableParts};
+    use planner_host::arclength::ArcLength;
+    use planner_host::sumap::{self, SuMap};
+    let arc = ArcLength::new(curve);
+    let su = SuMap::fit(curve, &arc, sumap::DEFAULT_TOL_MM).unwrap();
+    let len = *su.breaks.last().unwrap();
+    let n = 12;
+    let mut q_knots = vec![0.0; 4];
+    q_knots.extend((1..n - 3).map(|i| len * i as f64 / (n - 3) as f64));
+    q_knots.extend([len; 4]);
+    let mut q_ctrl = vec![feed * feed; n];
+    q_ctrl[0] = 0.0;
+    q_ctrl[n - 1] = 0.0;
+    let homogeneous = curve.to_homogeneous_table();
+    let parts = TableParts {
+        limits: PlanConfig::default().limits,
+        path_length_mm: len,
+        predicted_time_s: 1.0,
+        nurbs_degree: curve.degree as u32,
+        nurbs_knots: &curve.knots,
+        nurbs_points: &homogeneous,
+        su_breaks: &su.breaks,
+        su_segments: &su.segments,
+        q_knots: &q_knots,
+        q_ctrl: &q_ctrl,
+        ends: None,
+    };
+    let mut bytes = vec![0u8; table::encoded_len(&parts)];
+    let w = table::encode(&parts, &mut bytes).unwrap();
+    bytes.truncate(w);
+    (bytes, len)
+}
+
+/// On the plateau the exact motion is s = s₀ + f·(t − t₀): the third
+/// differences of the setpoints minus r(u(s₀ + f·kT)) (f64 map and curve)
+/// are the firmware's rounding noise alone. Returns (max |Δ³(x − x_ref)|/T³,
+/// max |Δ³x|/T³, max |Δ³s − 0|/T³), mm/s³.
+fn plateau_noise(curve: &Nurbs, feed: f64) -> (f64, f64, f64) {
+    let (bytes, len) = plateau_table(curve, feed);
+    let table = Table::parse(&bytes).unwrap();
+    let su = table.su_map().unwrap();
+    let nurbs = table.curve().unwrap();
+    let mut it = Interpolator::new(table, PERIOD_S).unwrap();
+    let mut fw: Vec<(f64, [f64; 3])> = Vec::new();
+    while !it.is_done() {
+        let sp = it.tick().unwrap();
+        if sp.s_mm > len / 9.0 + 1.0 && sp.s_mm < 8.0 * len / 9.0 - 1.0 {
+            fw.push((sp.s_mm, sp.pos_mm));
+        }
+    }
+    assert!(fw.len() > 1000, "{} plateau ticks", fw.len());
+    let h3 = PERIOD_S * PERIOD_S * PERIOD_S;
+    let s0 = fw[0].0;
+    let rf: Vec<[f64; 3]> = (0..fw.len())
+        .map(|k| {
+            nurbs
+                .point(su.eval(s0 + feed * k as f64 * PERIOD_S).unwrap().u)
+                .unwrap()
+        })
+        .collect();
+    let d3 = |x: &dyn Fn(usize) -> f64, k: usize| (x(k + 3) - 3.0 * x(k + 2) + 3.0 * x(k + 1) - x(k)) / h3;
+    let (mut noise, mut fd, mut s_noise) = (0.0f64, 0.0f64, 0.0f64);
+    for k in 0..fw.len() - 3 {
+        for ax in 0..3 {
+            noise = noise.max(d3(&|i| fw[i].1[ax] - rf[i][ax], k).abs());
+            fd = fd.max(d3(&|i| fw[i].1[ax], k).abs());
+        }
+        s_noise = s_noise.max(d3(&|i| fw[i].0, k).abs());
+    }
+    (noise, fd, s_noise)
+}
+
+/// A line along x: the exact jerk on the plateau is 0.
+#[test]
+fn line_plateau_third_differences_are_below_one_percent_of_the_jerk_limit() {
+    let line = Nurbs::new(
+        2,
+        vec![0.0, 0.0, 0.0, 1.0, 1.0, 1.0],
+        vec![1.0; 3],
+        vec![[0.0, 0.0, 0.0], [75.0, 0.0, 0.0], [150.0, 0.0, 0.0]],
+    )
+    .unwrap();
+    let (noise, fd, s_noise) = plateau_noise(&line, 160.0);
+    eprintln!("line: jerk noise {noise:.3e}, FD jerk {fd:.3e}, s third-difference {s_noise:.3e} mm/s³");
+    assert!(noise < NOISE_BOUND, "{noise}");
+    assert!(fd < NOISE_BOUND, "{fd}");
+    assert!(s_noise < NOISE_BOUND, "{s_noise}");
+}
+
+/// The rational-quadratic quarter circle, R = 50 mm, at 150 mm/s: the exact
+/// axis jerk is at most v³/R² = 1,350 mm/s³; the setpoints' FD jerk may
+/// exceed it by the noise bound only.
+#[test]
+fn circle_plateau_third_differences_are_below_one_percent_of_the_jerk_limit() {
+    let (r, v) = (50.0, 150.0);
+    let w = std::f64::consts::FRAC_1_SQRT_2;
+    let arc = Nurbs::new(
+        2,
+        vec![0.0, 0.0, 0.0, 1.0, 1.0, 1.0],
+        vec![1.0, w, 1.0],
+        vec![[r, 0.0, 0.0], [r, r, 0.0], [0.0, r, 0.0]],
+    )
+    .unwrap();
+    let (noise, fd, s_noise) = plateau_noise(&arc, v);
+    let exact = v * v * v / (r * r);
+    eprintln!("circle: jerk noise {noise:.3e}, FD jerk {fd:.3e} (exact ≤ {exact:.1}), s {s_noise:.3e} mm/s³");
+    assert!(noise < NOISE_BOUND, "{noise}");
+    assert!(fd < exact + NOISE_BOUND, "{fd}");
+    assert!(s_noise < NOISE_BOUND, "{s_noise}");
 }
