@@ -372,6 +372,8 @@ pub struct Interpolator<'a> {
     /// Taylor tick.
     k_join: u64,
     h_join: f32,
+    /// s₁ in Q40.
+    join_s: i64,
     tk_join: (i64, u32),
     /// The q state at s₁ (the join), for the first Taylor step.
     join: QState,
@@ -557,6 +559,7 @@ impl<'a> Interpolator<'a> {
             stop_at,
             k_join,
             h_join: h_join as f32,
+            join_s: ends.map(|e| to_fx(e.s_start)).unwrap_or(0),
             tk_join: step_scale(h_join),
             join,
             seg: SegRun {
@@ -670,7 +673,7 @@ impl<'a> Interpolator<'a> {
     /// The next setpoint (see the module docs for start, end and faults).
     pub fn tick(&mut self) -> Result<Setpoint, Fault> {
         let t_s = self.now();
-        match self.phase {
+        let (h, tk) = match self.phase {
             Phase::Start => {
                 self.phase = if self.ends.is_some() {
                     Phase::StartSeg
@@ -682,7 +685,15 @@ impl<'a> Interpolator<'a> {
             }
             Phase::StartSeg => {
                 self.k = self.k.saturating_add(1);
-                return self.start_tick(t_s);
+                if self.k <= self.k_join {
+                    return self.start_tick(t_s);
+                }
+                // The join: a Taylor step of t − t₁ from s₁ (below, so the
+                // step is inlined once).
+                self.phase = Phase::Run;
+                self.s = self.join_s;
+                self.qs = self.join;
+                (self.h_join, self.tk_join)
             }
             Phase::StopSeg => {
                 self.k = self.k.saturating_add(1);
@@ -693,10 +704,12 @@ impl<'a> Interpolator<'a> {
                 return Ok(Setpoint { t_s, ..self.last });
             }
             Phase::Faulted(f) => return Err(f),
-            Phase::Run => {}
-        }
-        self.k = self.k.saturating_add(1);
-        self.step(t_s, self.h, self.tk)
+            Phase::Run => {
+                self.k = self.k.saturating_add(1);
+                (self.h, self.tk)
+            }
+        };
+        self.step(t_s, h, tk)
     }
 
     /// One Taylor step of `h` seconds (step scale `tk`, [`step_scale`]) from
@@ -787,34 +800,23 @@ impl<'a> Interpolator<'a> {
     }
 
     /// A tick in the start segment: s = J₁t³/6 = D k³ (forward differences
-    /// in Q80, within 2⁻⁴⁰ mm of the f64 formula) while t ≤ t₁ (+1e-6·T),
-    /// then, on the first tick past t₁, a Taylor step of t − t₁ from the
-    /// join s₁, where q continues the segment C².
+    /// in Q80, within 2⁻⁴⁰ mm of the f64 formula) while t ≤ t₁ (+1e-6·T);
+    /// [`Interpolator::tick`] makes the first tick past t₁ a Taylor step of
+    /// t − t₁ from the join s₁, where q continues the segment C².
     #[inline(never)]
     fn start_tick(&mut self, t_s: f64) -> Result<Setpoint, Fault> {
-        let Some(e) = self.ends else {
-            return self.fault(Fault::Eval {
-                s_mm: fx_to_f64(self.s),
-            });
-        };
-        if self.k <= self.k_join {
-            let s = self.seg_advance();
-            let k = (self.k - 1) as f32;
-            let v = self.segk.start_v * k * k;
-            return self.place(t_s, (fx_to_f64(s), s), v);
-        }
-        self.phase = Phase::Run;
-        self.s = to_fx(e.s_start);
-        self.qs = self.join;
-        self.step(t_s, self.h_join, self.tk_join)
+        let s = self.seg_advance();
+        let k = (self.k - 1) as f32;
+        let v = self.segk.start_v * k * k;
+        self.place(t_s, (fx_to_f64(s), s), v)
     }
 
     /// The Taylor step reached s₂ at `s_new`: the stop segment takes over,
     /// s = L − J₂τ³/6 with τ from L − s_new = J₂τ³/6 now, counting down a
     /// period a tick to 0, where the motion ends at L at rest. τ = t₂ − Δ,
     /// Δ = δ/v₂ + c (δ = s_new − s₂′, c = Δ²/t₂ − Δ³/(3t₂²) by fixed-point
-    /// iteration in f32: c is ≤ ~T²/t₂, its f32 error ≤ 1e-12 s); a libm
-    /// cube root if t₂ < 20 T.
+    /// iteration in f32: c is ≤ ~T²/t₂, its f32 error ≤ 1e-12 s); Newton in
+    /// f64 if t₂ < 20 T.
     #[inline(never)]
     fn enter_stop(&mut self, t_s: f64, s_new: i64) -> Result<Setpoint, Fault> {
         let Some(e) = self.ends else {
@@ -852,8 +854,18 @@ impl<'a> Interpolator<'a> {
             self.phase = Phase::StopSeg;
             return self.place(t_s, (s_mm, s_new), k.stop_v * tau_f * tau_f);
         }
+        // Short stop segments (t₂ < 20 T, rare): Newton on J₂τ³/6 = L − s_new
+        // from τ = t₂ (from above: monotone), f64, no libm.
         let rest = self.length_mm - s_mm;
-        let tau = libm::cbrt(6.0 * rest / e.jerk_stop);
+        let mut tau = k.t2;
+        for _ in 0..60 {
+            let f = e.jerk_stop * tau * tau * tau / 6.0 - rest;
+            let step = f / (0.5 * e.jerk_stop * tau * tau);
+            if !(step.abs() > 1e-15 * tau) {
+                break;
+            }
+            tau -= step;
+        }
         if !(tau > 0.0 && tau.is_finite()) {
             return Ok(self.finish(t_s));
         }
