@@ -18,7 +18,7 @@
 //! | offset | size | field                                         |
 //! +--------+------+-----------------------------------------------+
 //! |      0 |    4 | magic "FLPT"                                  |
-//! |      4 |    2 | format version u16 = 2 (`VERSION`)            |
+//! |      4 |    2 | format version u16 = 3 (`VERSION`)            |
 //! |      6 |    2 | header length u16 (≥ 16, multiple of 8)       |
 //! |      8 |    4 | total length u32, including the CRC           |
 //! |     12 |    2 | section count u16 (1 ..= `MAX_SECTIONS`)      |
@@ -55,10 +55,13 @@
 //! |    9 | q ctrl        |     N | f64, (mm/s)², ≥ 0, first and last 0      |
 //! |   10 | q local       | 5(N−3)| f32 c0..c3, h per q span (`fast`)        |
 //! |   11 | piece breaks  |   P+1 | f64 s at each piece start, then L        |
-//! |   12 | piece f64     |    4P | f64 u_a, origin x, y, z per piece        |
-//! |   13 | piece f32     |(11+4p)| f32 d1..d5, w, 1/len, a_k = [x, y, z, w] |
-//! |      |               |    ·P | k = 0..=p (k-major) per piece            |
+//! |   12 | piece words   |   27P | per piece: f64 u_a; i64 centre c (Q40    |
+//! |      |               |       | mm); i64 shift 21 − e; i64 b_k (Q40 mm), |
+//! |      |               |       | k = 0..=7, x then y then z               |
+//! |   13 | piece f32     |    7P | f32 d1..d5, w, 1/len per piece           |
 //! |   14 | end segments  | 0 or 6| f64 s₁, J₁, t₁, s₂, J₂, t₂ (optional)    |
+//! |   15 | q fixed       | 5(N−3)| i64 C0..C3 (Q32 (mm/s)²), shift 21 − e   |
+//! |      |               |       | per q span (`fast`)                      |
 //! +------+---------------+-------+------------------------------------------+
 //! ```
 //!
@@ -70,18 +73,21 @@
 //! and that q joins them C² (q, q′, q″ at s₁ and s₂ within
 //! [`END_TOL_REL`]); q on [0, s₁] and [s₂, L] is then not executed.
 //!
-//! Sections 10–13 (new in version 2) are derived data: the span-local
-//! single-precision forms the servo-rate fast path evaluates
-//! ([`crate::fast`]). [`encode`] computes them from the f64 sections (the
-//! host never fills them in by hand); [`Table::parse`] checks every span of
-//! them against the f64 data at `fast::CHECK_POINTS` points with the
-//! tolerances stated in [`crate::fast`] (empty spans: all zeros).
+//! Sections 10–13 and 15 are derived data: the span-local forms the
+//! servo-rate fast path evaluates ([`crate::fast`]; version 3 replaced the
+//! f32 homogeneous NURBS pieces of version 2 by fixed-point position
+//! polynomials, section 12, dropped their f32 NURBS part from section 13 and
+//! added the fixed-point q cubics, section 15). [`encode`] computes them from
+//! the f64 sections (the host never fills them in by hand); [`Table::parse`]
+//! checks every span and piece of them against the f64 data with the
+//! tolerances stated in [`crate::fast`] (empty spans: all zeros). Sections
+//! 12 and 15 hold i64 bit patterns, so only u_a is checked for finiteness.
 //!
 //! Kinds `0x8000 ..= 0xFFFF` ([`EXTENSION_BASE`]) are extensions a reader may
 //! skip: they are bounds-, alignment- and overlap-checked, then ignored.
 //! `0x8000 + k` ([`OVERRIDE_PROFILE_BASE`]) is reserved for feedrate-override
 //! profile k (§4 of the paper: alternative q control points on the q knots).
-//! Any other unknown kind (0, 10 ..= 0x7FFF) is refused: a change a reader
+//! Any other unknown kind (0, 16 ..= 0x7FFF) is refused: a change a reader
 //! must understand takes a new kind below the base or a new version.
 //!
 //! The s → u map must cover the curve: the first segment starts at `U[p]`,
