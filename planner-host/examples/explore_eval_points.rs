@@ -56,6 +56,7 @@ fn main() {
                 limits: TABLE1,
                 objective: Objective::Integral,
                 qhat_bound: qb,
+                ends: None,
             };
             let pseudo = mk(QhatBound::ControlPoints).solve_pseudo_jerk().unwrap();
             let plan = mk(QhatBound::ControlPoints).solve_plan(&pseudo.ctrl).unwrap();

@@ -55,6 +55,9 @@
 //! `1.25 · Ā_e³/(6J̄_e²)` (Ā_e, J̄_e: the tangential limits, lowered by the
 //! axial ones along the start direction), or the first interior knot, and at
 //! most L/3; s₂ likewise from the end.
+// `!(x < y)` is deliberate (true for NaN, which must fail the check, as in
+// firmware-core); the 3 × 3 solves index rows and columns together.
+#![allow(clippy::neg_cmp_op_on_partial_ord, clippy::needless_range_loop)]
 
 use firmware_core::table::{EndSegments, Limits};
 use serde::Serialize;

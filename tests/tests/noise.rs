@@ -14,6 +14,8 @@
 //! below 1 % of the jerk limit, 0.01 · 16 000 = 160 mm/s³, i.e. a third
 //! difference below 160 · T³ = 2.5e-9 mm.
 
+#![allow(clippy::needless_range_loop)] // per-axis third differences index fw and rf together
+
 use firmware_core::interp::Interpolator;
 use firmware_core::table::Table;
 use planner_host::curve::Nurbs;
