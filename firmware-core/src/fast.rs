@@ -26,8 +26,8 @@
 //!   as k = T·2^(72−g), [`step_scale`]) plus the higher Taylor terms
 //!   T²(s̈/2 + T s⃛/6 + T² s⁗/24) in f32 (≤ ~3e-4 mm, so their f32 rounding
 //!   is ≤ 2e-11 mm), converted to Q40 ([`f32_to_fx`]).
-//! - **position** per *piece* (pieces as before: 0.02 s of planned travel,
-//!   0.1–4 mm, inside one s → u segment): r(u(s)) as one degree-[`POS_DEG`]
+//! - **position** per *piece* (0.1 s of planned travel, 0.1–16 mm, inside
+//!   one s → u segment, then bisected as needed): r(u(s)) as one degree-[`POS_DEG`]
 //!   polynomial per axis in τ = (s − c)/2^e ∈ [−1, 1] (c the piece's centre
 //!   in Q40, 2^e ≥ half its length), i64 Q40 mm coefficients, fitted on the
 //!   host at the Chebyshev–Lobatto points of the piece against the f64
@@ -105,17 +105,18 @@ use crate::table::{SuSegment, SU_COEFFS};
 
 /// f32 values per q span: c0, c1, c2, c3, h.
 pub const Q_LOCAL_LEN: usize = 5;
-/// Longest piece, mm (see the module docs): f32 offsets of at most
-/// `PIECE_MAX_MM / 2` round at ≤ 1.2e-7 mm.
-pub const PIECE_MAX_MM: f64 = 4.0;
+/// Longest piece before the fit's bisection, mm (see the module docs). The
+/// fixed-point position has no length-dependent rounding; long pieces keep
+/// tables small where the curve is gentle (the fit bisects where it is
+/// not). Must stay < 128 mm (the f32 piece-local t, [`fx_small_f32`]).
+pub const PIECE_MAX_MM: f64 = 16.0;
 /// Shortest piece the feed rule asks for, mm.
 pub const PIECE_MIN_MM: f64 = 0.1;
 /// Pieces are `PIECE_TIME_S · v` long (v the planned feed where the piece
-/// starts, mm/s), between [`PIECE_MIN_MM`] and [`PIECE_MAX_MM`]:
-/// the f32 quantum of u and r (~1e-7 of the piece) stays a small fraction
-/// of a servo step where the feed is low (at 5 mm/s a step is 1.25 µm), so
-/// the speed measured from consecutive setpoints stays within ~1e-5 of √q.
-pub const PIECE_TIME_S: f64 = 0.02;
+/// starts, mm/s), between [`PIECE_MIN_MM`] and [`PIECE_MAX_MM`], then
+/// bisected until the position fits ([`FIT_TOL_MM`]). Only the reported u
+/// (f32 Δv over the piece, ~1e-7 of its u range) depends on the length.
+pub const PIECE_TIME_S: f64 = 0.1;
 /// Fractional bits of the fixed-point arc length and positions: Q40 mm
 /// (quantum 2⁻⁴⁰ mm = 9.1e-13 mm, range ±2²³ mm).
 pub const FX_FRAC: u32 = 40;
