@@ -70,21 +70,24 @@
 //! | curve | FD jerk noise max | rms | σ (rms/√20) | s-only noise max |
 //! |---|---|---|---|---|
 //! | Butterfly | 108,297 → 10.9 mm/s³ | 6,718 → 0.22 | 2.3e-8 → 7.7e-13 mm | 1,055 → 1.4 |
-//! | Circle | 192,260 → 1.2 | 22,590 → 0.16 | 7.9e-8 → 5.5e-13 mm | 1,152 → 1.0 |
-//! | Fan | 209,778 → 2.2 | 13,655 → 0.16 | 4.8e-8 → 5.6e-13 mm | 1,271 → 0.9 |
+//! | Circle | 192,260 → 1.8 | 22,590 → 0.15 | 7.9e-8 → 5.2e-13 mm | 1,152 → 1.0 |
+//! | Fan | 209,778 → 2.2 | 13,655 → 0.16 | 4.8e-8 → 5.5e-13 mm | 1,271 → 0.9 |
 //!
 //! (The bound the tests assert is 1 % of the jerk limit, 160 mm/s³.) The max
 //! FD axis jerk of the Circle's setpoints: 190,735 mm/s³ before, 15,954 now,
 //! the reference's own 15,954 (the plan's, not noise). Analytic plateau
-//! cases (q constant, exact jerk known): a line, Δ³ noise 1.5 mm/s³; the
-//! rational-quadratic quarter circle R = 50 mm at 150 mm/s, noise 0.8 mm/s³
-//! with FD jerk 1,324 mm/s³ against the exact ≤ v³/R² = 1,350.
+//! cases (q constant, exact jerk known): a line, Δ³ noise 0.35 mm/s³; the
+//! rational-quadratic quarter circle R = 50 mm at 150 mm/s, noise 1.2 mm/s³
+//! with FD jerk 1,324 mm/s³ against the exact ≤ v³/R² = 1,350. The 10.8 m
+//! helix (`tests/tests/long_path.rs`): setpoints within 2.2e-11 mm of
+//! r(u(s)) over the whole path (f32 path: 8.6e-7 mm).
 //!
 //! Cost (Cortex-M4F, QEMU, `firmware-core/mcu/bench-insn.sh`, Butterfly):
-//! 1,431 mean / 1,798 max Thumb instructions a tick (f32 path: 1,353 /
-//! 1,667 before the end segments), interpolator state 1,200 bytes. Tables
-//! grow: 27 words (216 bytes) + 28 bytes per piece, 40 bytes per q span;
-//! Butterfly 127,436 → 237,580 bytes (687 pieces).
+//! 1,432 mean / 1,798 max Thumb instructions a tick (f32 path with the end
+//! segments: 1,426 / 6,401), interpolator state 1,200 bytes (696). Per
+//! piece 27 words (216 bytes) + 28 bytes, per q span 40 bytes more; tables:
+//! Butterfly 127,436 → 228,252 bytes, 10.8 m helix at 0.25 points/mm
+//! 556,572 → 428,236 bytes.
 //!
 //! The host derives all local forms from the f64 data once
 //! ([`crate::table::encode`]) and [`crate::table::Table::parse`] checks
