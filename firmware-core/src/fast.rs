@@ -80,14 +80,14 @@
 //! rational-quadratic quarter circle R = 50 mm at 150 mm/s, noise 1.2 mm/s³
 //! with FD jerk 1,324 mm/s³ against the exact ≤ v³/R² = 1,350. The 10.8 m
 //! helix (`tests/tests/long_path.rs`): setpoints within 2.2e-11 mm of
-//! r(u(s)) over the whole path (f32 path: 8.6e-7 mm).
+//! r(u(s)) over the whole path (f32 path: 8.8e-7 mm).
 //!
 //! Cost (Cortex-M4F, QEMU, `firmware-core/mcu/bench-insn.sh`, Butterfly):
 //! 1,432 mean / 1,798 max Thumb instructions a tick (f32 path with the end
 //! segments: 1,426 / 6,401), interpolator state 1,200 bytes (696). Per
 //! piece 27 words (216 bytes) + 28 bytes, per q span 40 bytes more; tables:
 //! Butterfly 127,436 → 228,252 bytes, 10.8 m helix at 0.25 points/mm
-//! 556,572 → 428,236 bytes.
+//! 557,292 → 428,236 bytes.
 //!
 //! The host derives all local forms from the f64 data once
 //! ([`crate::table::encode`]) and [`crate::table::Table::parse`] checks

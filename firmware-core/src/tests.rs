@@ -1126,8 +1126,9 @@ fn end_segments_execute_without_jumps_and_end_exactly_at_l() {
         s.extend([L; 50]);
         let h = period;
         // Jerk near the switches only (0 ≤ t ≤ t₁ + 20T, and from 20T before
-        // the stop segment on): in mid-path the f32 Taylor step's rounding of
-        // Δs (ε·Δs) alone gives third differences of ~3ε·Δs/T³, allowed here too.
+        // the stop segment on). The allowance 3ε·Δs/T³ (ε the f32 epsilon) is
+        // from the f32 step; the fixed-point step's noise is far below it
+        // (tests/tests/noise.rs).
         let t_last = last.t_s;
         let ds_max = sps.windows(2).map(|w| w[1].s_mm - w[0].s_mm).fold(0.0, f64::max);
         let noise = 3.0 * f64::from(f32::EPSILON) * ds_max / (h * h * h);
