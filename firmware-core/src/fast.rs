@@ -141,7 +141,8 @@ pub const POS_DEG: usize = 7;
 /// Coefficients per axis of the position polynomial.
 pub const POS_COEFFS: usize = POS_DEG + 1;
 /// 64-bit words per piece: u_a (f64), the centre c (i64, Q40 mm), the
-/// shift `21 − e` (i64), then the position coefficients b_k (i64, Q40 mm),
+/// shift `21 − e` (bits 0–7) and the constant-axis mask (bits 8–10,
+/// [`pos_eval`]), then the position coefficients b_k (i64, Q40 mm),
 /// x first, k ascending, then y, then z.
 pub const PIECE_F64_LEN: usize = 3 + 3 * POS_COEFFS;
 /// f32 values per piece: d1 … d5, w, 1/len (the s → u form: the reported u).
@@ -363,26 +364,32 @@ pub fn piece_local<K: F64Array, P: Point4Array>(
     let mut words = [0u64; PIECE_F64_LEN];
     words[0] = u_a.to_bits();
     words[1] = c_fx as u64;
-    words[2] = (TAU_SHIFT_BASE - ex) as u64;
     let mut bytes = [0u8; POS_BYTES];
+    let mut constant = 0u32;
     for a in 0..3 {
+        let mut moves = false;
         for k in 0..POS_COEFFS {
             let b = libm::round(cp[k][a] * FX_ONE);
             if !(b.abs() < 9.0e18) {
                 return None;
             }
             let v = b as i64;
+            moves |= k > 0 && v != 0;
             words[3 + a * POS_COEFFS + k] = v as u64;
             let at = 8 * (a * POS_COEFFS + k);
             bytes[at..at + 8].copy_from_slice(&v.to_le_bytes());
         }
+        if !moves {
+            constant |= 1 << a;
+        }
     }
+    words[2] = (TAU_SHIFT_BASE - ex) as u64 | u64::from(constant) << 8;
     let mut fit_err = 0.0f64;
     for j in 0..FIT_CHECKS {
         let s = s_start + len * j as f64 / (FIT_CHECKS - 1) as f64;
         let r = ref_point(curve, seg, (s0, s1), s)?;
         let t = piece_tau(to_fx(s), c_fx, (TAU_SHIFT_BASE - ex) as u32)?;
-        let p = pos_eval(&bytes, t);
+        let p = pos_eval(&bytes, t, constant);
         for (pa, ra) in p.iter().zip(r.iter()) {
             fit_err = fit_err.max((fx_to_f64(*pa) - ra).abs());
         }
@@ -566,27 +573,32 @@ pub fn mul_tau(a: i64, (th, tl): (i32, i32)) -> i64 {
 }
 
 /// The position (Q40 mm, x, y, z) of a piece at τ (Q61): Horner in i64
-/// with [`mul_tau`], bit-identical on every target. An axis whose
-/// coefficients b₁ … b₇ are all zero (constant along the piece, e.g. z on a
-/// planar path) is b₀ without the Horner steps.
+/// with [`mul_tau`], bit-identical on every target. Bit a of `constant`
+/// set: axis a's b₁ … b₇ are all zero (constant along the piece, e.g. z on
+/// a planar path; the table says so, parse verifies it), so it is b₀
+/// without the Horner steps (the same value: `mul_tau(0, τ)` = 0).
 #[inline]
-pub fn pos_eval(b: &[u8; POS_BYTES], tau: i64) -> [i64; 3] {
+pub fn pos_eval(b: &[u8; POS_BYTES], tau: i64, constant: u32) -> [i64; 3] {
     let t = split_tau(tau);
-    let axis = |base: usize| {
-        let mut acc = rd_i64(b, base + 8 * POS_DEG);
-        let mut any = acc;
-        for k in 1..POS_DEG {
-            any |= rd_i64(b, base + 8 * k);
-        }
-        if any == 0 {
+    let axis = |a: usize| {
+        let base = 8 * POS_COEFFS * a;
+        if constant & (1 << a) != 0 {
             return rd_i64(b, base);
         }
+        let mut acc = rd_i64(b, base + 8 * POS_DEG);
         for k in (0..POS_DEG).rev() {
             acc = mul_tau(acc, t).wrapping_add(rd_i64(b, base + 8 * k));
         }
         acc
     };
-    [axis(0), axis(8 * POS_COEFFS), axis(16 * POS_COEFFS)]
+    [axis(0), axis(1), axis(2)]
+}
+
+/// The shift (`21 − e`) and the constant-axis mask of a piece's word 2:
+/// bits 0–7 and 8–10; `None` if other bits are set.
+#[inline]
+pub fn piece_shift_mask(w: u64) -> Option<(u32, u32)> {
+    (w >> 11 == 0).then_some(((w & 0xff) as u32, ((w >> 8) & 7) as u32))
 }
 
 /// q (Q32 (mm/s)²) of a fixed-point q span `[C0, C1, C2, C3]` at τ (Q61).
@@ -858,13 +870,20 @@ pub fn check_piece<K: F64Array, P: Point4Array>(
         return false;
     };
     let (u_a, c_fx) = (f64::from_bits(u_a), c_fx as i64);
-    let Ok(shift) = u32::try_from(shift) else {
+    let Some((shift, constant)) = piece_shift_mask(shift) else {
         return false;
     };
     let Some(pos): Option<&[u8; POS_BYTES]> = words.get(24..24 + POS_BYTES).and_then(|b| b.try_into().ok())
     else {
         return false;
     };
+    // An axis marked constant has b₁ … b₇ = 0 exactly.
+    let marked_ok = (0..3).all(|a| {
+        constant & (1 << a) == 0 || (1..POS_COEFFS).all(|k| rd_i64(pos, 8 * (a * POS_COEFFS + k)) == 0)
+    });
+    if !marked_ok {
+        return false;
+    }
     if piece_tau(to_fx(sa), c_fx, shift).is_none() || piece_tau(to_fx(sb), c_fx, shift).is_none() {
         return false;
     }
@@ -883,7 +902,7 @@ pub fn check_piece<K: F64Array, P: Point4Array>(
         ) else {
             return false;
         };
-        let p = pos_eval(pos, t);
+        let p = pos_eval(pos, t, constant);
         r64.iter()
             .zip(p.iter())
             .all(|(&r, &x)| (fx_to_f64(x) - r).abs() <= POS_TOL_MM)

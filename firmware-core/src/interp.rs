@@ -51,9 +51,9 @@
 
 use crate::array::{F64Array, LeF32, LeF64, Point4Array};
 use crate::fast::{
-    f32_to_fx, f64_to_fixed, feed_near, fx_small_f32, fx_to_f64, mul_hi, piece_f32_len, pos, pos_eval,
-    q_fx_eval, sqrt_q32, step_scale, to_fx, u128_to_f64_pow2, PieceU, QLocal, PIECE_F64_LEN, PIECE_HEAD_LEN,
-    POS_BYTES, Q_FRAC, Q_FX_LEN, Q_LOCAL_LEN,
+    f32_to_fx, f64_to_fixed, feed_near, fx_small_f32, fx_to_f64, mul_hi, piece_f32_len, piece_shift_mask,
+    pos, pos_eval, q_fx_eval, sqrt_q32, step_scale, to_fx, u128_to_f64_pow2, PieceU, QLocal, PIECE_F64_LEN,
+    PIECE_HEAD_LEN, POS_BYTES, Q_FRAC, Q_FX_LEN, Q_LOCAL_LEN,
 };
 use crate::output::SetpointSink;
 use crate::table::{EndSegments, Table, MATCH_TOL_REL};
@@ -166,6 +166,8 @@ struct PCur {
     u0: i64,
     centre: i64,
     shift: u32,
+    /// Constant-axis mask ([`pos_eval`]).
+    constant: u32,
     /// The s → u head, copied on entry.
     head: PieceU,
     /// Byte offset of the position coefficients in the piece section.
@@ -190,14 +192,62 @@ struct Views<'a> {
 }
 
 impl Views<'_> {
-    /// q span `idx`; `start` its start U_i in Q40 if known (the previous
-    /// span's end), else converted from the knots.
+    /// q span `idx` (for new and reset; the tick moves with [`Views::fill_q`]).
+    fn q(&self, idx: usize) -> Option<QCur> {
+        let mut qc = QCur::default();
+        self.fill_q(&mut qc, idx, to_fx(self.q_knots.get(idx.checked_add(3)?)?))?;
+        Some(qc)
+    }
+
     #[inline]
-    fn q(&self, idx: usize, start: Option<i64>) -> Option<QCur> {
-        let start = match start {
-            Some(x) => x,
-            None => to_fx(self.q_knots.get(idx.checked_add(3)?)?),
+    fn q_poly(&self, idx: usize) -> Option<QLocal> {
+        Some(QLocal::from_array(
+            self.q_local
+                .get_array::<Q_LOCAL_LEN>(idx.checked_mul(Q_LOCAL_LEN)?)?,
+        ))
+    }
+
+    /// Piece `idx` (for new and reset; the tick moves with
+    /// [`Views::fill_piece`]).
+    fn piece(&self, idx: usize) -> Option<PCur> {
+        let mut pc = PCur::default();
+        self.fill_piece(&mut pc, idx, to_fx(self.piece_breaks.get(idx)?))?;
+        Some(pc)
+    }
+
+    /// Moves `pc` to piece `idx` starting at `start` (Q40) in place (no
+    /// struct copy: a copy of the 80-byte cursor through `Option` cost ~160
+    /// instructions a piece entry).
+    #[inline]
+    fn fill_piece(&self, pc: &mut PCur, idx: usize, start: i64) -> Option<()> {
+        let b = idx.checked_mul(PIECE_F64_LEN)?;
+        let pos_at = b.checked_add(3)?.checked_mul(8)?;
+        self.piece_f64
+            .as_bytes()
+            .get(pos_at..pos_at.checked_add(POS_BYTES)?)?;
+        let (shift, constant) = piece_shift_mask(self.piece_f64.get_i64(b.checked_add(2)?)? as u64)?;
+        pc.next = if idx >= self.p_last {
+            i64::MAX
+        } else {
+            to_fx(self.piece_breaks.get(idx.checked_add(1)?)?)
         };
+        pc.u0 = to_fx(self.piece_f64.get(b)?);
+        pc.centre = self.piece_f64.get_i64(b.checked_add(1)?)?;
+        pc.head = PieceU::from_array(
+            self.piece_f32
+                .get_array::<PIECE_HEAD_LEN>(idx.checked_mul(self.per)?)?,
+        );
+        pc.idx = idx;
+        pc.start = start;
+        pc.shift = shift;
+        pc.constant = constant;
+        pc.pos_at = pos_at;
+        Some(())
+    }
+
+    /// Moves `qc` to q span `idx` starting at `start` (Q40) in place.
+    #[inline]
+    fn fill_q(&self, qc: &mut QCur, idx: usize, start: i64) -> Option<()> {
         let end = to_fx(self.q_knots.get(idx.checked_add(4)?)?);
         let at = idx.checked_mul(8 * Q_FX_LEN)?;
         let w: &[u8; 8 * Q_FX_LEN] = self
@@ -212,56 +262,14 @@ impl Views<'_> {
             i64::from_le_bytes(b)
         };
         let last = idx >= self.q_last;
-        Some(QCur {
-            idx,
-            start,
-            next: if last { i64::MAX } else { end },
-            anchor: if last { end } else { start },
-            shift: u32::try_from(word(4)).ok()?,
-            c: [word(0), word(1), word(2), word(3)],
-            poly: self.q_poly(idx)?,
-        })
-    }
-
-    #[inline]
-    fn q_poly(&self, idx: usize) -> Option<QLocal> {
-        Some(QLocal::from_array(
-            self.q_local
-                .get_array::<Q_LOCAL_LEN>(idx.checked_mul(Q_LOCAL_LEN)?)?,
-        ))
-    }
-
-    /// Piece `idx`; `start` its start in Q40 if known (the previous piece's
-    /// next break), else converted from the breaks.
-    #[inline]
-    fn piece(&self, idx: usize, start: Option<i64>) -> Option<PCur> {
-        let b = idx.checked_mul(PIECE_F64_LEN)?;
-        let start = match start {
-            Some(x) => x,
-            None => to_fx(self.piece_breaks.get(idx)?),
-        };
-        let pos_at = b.checked_add(3)?.checked_mul(8)?;
-        // The coefficients must be there (checked once, on entry).
-        self.piece_f64
-            .as_bytes()
-            .get(pos_at..pos_at.checked_add(POS_BYTES)?)?;
-        Some(PCur {
-            idx,
-            start,
-            next: if idx >= self.p_last {
-                i64::MAX
-            } else {
-                to_fx(self.piece_breaks.get(idx.checked_add(1)?)?)
-            },
-            u0: to_fx(self.piece_f64.get(b)?),
-            centre: self.piece_f64.get_i64(b.checked_add(1)?)?,
-            shift: u32::try_from(self.piece_f64.get_i64(b.checked_add(2)?)?).ok()?,
-            head: PieceU::from_array(
-                self.piece_f32
-                    .get_array::<PIECE_HEAD_LEN>(idx.checked_mul(self.per)?)?,
-            ),
-            pos_at,
-        })
+        qc.shift = u32::try_from(word(4)).ok()?;
+        qc.poly = self.q_poly(idx)?;
+        qc.c = [word(0), word(1), word(2), word(3)];
+        qc.idx = idx;
+        qc.start = start;
+        qc.next = if last { i64::MAX } else { end };
+        qc.anchor = if last { end } else { start };
+        Some(())
     }
 
     /// The position coefficients of the current piece.
@@ -298,9 +306,9 @@ fn t0_q(v: &Views<'_>) -> Option<f32> {
 /// in Q32 ([`q_eval`]). A scan over the spans: for [`Interpolator::new`],
 /// reset and the start segment's join only.
 fn q_state_at(v: &Views<'_>, s: i64, guess: f32) -> Option<QState> {
-    let mut qc = v.q(0, None)?;
+    let mut qc = v.q(0)?;
     while qc.idx < v.q_last && s >= qc.next {
-        qc = v.q(qc.idx.checked_add(1)?, Some(qc.next))?;
+        qc = v.q(qc.idx.checked_add(1)?)?;
     }
     let poly = qc.poly;
     let tq = if s == 0 && qc.idx == 0 {
@@ -518,8 +526,8 @@ impl<'a> Interpolator<'a> {
             p_last: table.piece_breaks().len().checked_sub(2).ok_or(bad)?,
             per,
         };
-        let qc = views.q(0, None).ok_or(bad)?;
-        let pc = views.piece(0, None).ok_or(bad)?;
+        let qc = views.q(0).ok_or(bad)?;
+        let pc = views.piece(0).ok_or(bad)?;
         let qs = q_state_at(&views, 0, 0.0).ok_or(bad)?;
         let [x0, y0, z0, _] = pts.get(0).ok_or(bad)?;
         let [x1, y1, z1, _] = pts.get(pts.len().checked_sub(1).ok_or(bad)?).ok_or(bad)?;
@@ -639,7 +647,7 @@ impl<'a> Interpolator<'a> {
     pub fn reset(&mut self) {
         self.k = 0;
         self.s = 0;
-        if let (Some(qc), Some(pc)) = (self.views.q(0, None), self.views.piece(0, None)) {
+        if let (Some(qc), Some(pc)) = (self.views.q(0), self.views.piece(0)) {
             (self.qc, self.pc) = (qc, pc);
         }
         self.qs = q_state_at(&self.views, 0, 0.0).unwrap_or_default();
@@ -786,7 +794,11 @@ impl<'a> Interpolator<'a> {
         };
         let head = self.pc.head;
         let dv = head.delta(tp);
-        let [x, y, z] = pos_eval(coeffs, tau_of(s_new, self.pc.centre, self.pc.shift));
+        let [x, y, z] = pos_eval(
+            coeffs,
+            tau_of(s_new, self.pc.centre, self.pc.shift),
+            self.pc.constant,
+        );
         self.qs = q_eval(&self.qc, &poly, s_new, tq, v_end);
         self.s = s_new;
         Ok(Setpoint {
@@ -945,7 +957,7 @@ impl<'a> Interpolator<'a> {
         };
         let head = self.pc.head;
         let dv = head.delta(tp);
-        let [x, y, z] = pos_eval(coeffs, tau_of(s, self.pc.centre, self.pc.shift));
+        let [x, y, z] = pos_eval(coeffs, tau_of(s, self.pc.centre, self.pc.shift), self.pc.constant);
         self.s = s;
         Ok(Setpoint {
             t_s,
@@ -964,10 +976,12 @@ impl<'a> Interpolator<'a> {
     fn seek(&mut self, s: i64) -> Option<(f32, f32, QLocal)> {
         let v = &self.views;
         while self.pc.idx < v.p_last && s >= self.pc.next {
-            self.pc = v.piece(self.pc.idx.checked_add(1)?, Some(self.pc.next))?;
+            let (idx, start) = (self.pc.idx.checked_add(1)?, self.pc.next);
+            v.fill_piece(&mut self.pc, idx, start)?;
         }
         while self.qc.idx < v.q_last && s >= self.qc.next {
-            self.qc = v.q(self.qc.idx.checked_add(1)?, Some(self.qc.next))?;
+            let (idx, start) = (self.qc.idx.checked_add(1)?, self.qc.next);
+            v.fill_q(&mut self.qc, idx, start)?;
         }
         let tp = fx_small_f32(s.wrapping_sub(self.pc.start), 16);
         let tq = fx_small_f32(s.wrapping_sub(self.qc.anchor), 20);

@@ -998,6 +998,16 @@ fn local_forms_are_checked_against_the_f64_data() {
             index: 0
         }
     );
+    // piece 0: x marked constant (it moves), and a reserved bit of word 2
+    for bits in [1 << 8, 1 << 11] {
+        assert_eq!(
+            corrupt(12, 16, &add(bits)),
+            TableError::FastMismatch {
+                section: Section::PieceF32,
+                index: 0
+            }
+        );
+    }
     // q span 0: C1 off by 1e-6 (mm/s)² (the tolerance is ~1e-7)
     assert_eq!(
         corrupt(15, 8, &add(4295)),
