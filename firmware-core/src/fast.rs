@@ -83,8 +83,9 @@
 //! r(u(s)) over the whole path (f32 path: 8.8e-7 mm).
 //!
 //! Cost (Cortex-M4F, QEMU, `firmware-core/mcu/bench-insn.sh`, Butterfly):
-//! 1,432 mean / 1,798 max Thumb instructions a tick (f32 path with the end
-//! segments: 1,426 / 6,401), interpolator state 1,200 bytes (696). Per
+//! 1,272 mean / 1,643 max Thumb instructions a tick (f32 path with the end
+//! segments: 1,426 / 6,401; a 3-D helix: 1,519 / 1,879), interpolator state
+//! 1,208 bytes (696). Per
 //! piece 27 words (216 bytes) + 28 bytes, per q span 40 bytes more; tables:
 //! Butterfly 127,436 → 228,252 bytes, 10.8 m helix at 0.25 points/mm
 //! 557,292 → 428,236 bytes.

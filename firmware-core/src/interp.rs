@@ -24,7 +24,7 @@
 //! rounding noise: σ < 1e-12 mm, finite-difference jerk noise ≤ 11 mm/s³ at
 //! 250 µs on the shared curves (see [`crate::fast`] for the error budget).
 //! Entering a q span or a piece converts two breaks to Q40 and copies its
-//! forms (~170 instructions). The f64 evaluators ([`crate::qspline`],
+//! forms in place (~200–400 instructions). The f64 evaluators ([`crate::qspline`],
 //! [`crate::sumap`], [`crate::nurbs`]) stay as the reference:
 //! [`crate::table::Table::parse`] checks the local forms against them. Host
 //! and MCU run this same code (integer arithmetic and IEEE f32/f64 without
