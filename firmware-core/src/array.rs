@@ -80,6 +80,17 @@ impl<'a> LeF64<'a> {
     }
 }
 
+impl LeF64<'_> {
+    /// Element `i` as the little-endian i64 it holds (the fixed-point
+    /// words of a table, [`crate::fast`]).
+    #[inline]
+    pub fn get_i64(&self, i: usize) -> Option<i64> {
+        let start = i.checked_mul(8)?;
+        let b: [u8; 8] = self.bytes.get(start..start.checked_add(8)?)?.try_into().ok()?;
+        Some(i64::from_le_bytes(b))
+    }
+}
+
 impl F64Array for LeF64<'_> {
     fn len(&self) -> usize {
         self.bytes.len() / 8

@@ -13,19 +13,28 @@
 //! r(u) on the current *piece* (a part of an s → u segment, ≤ 4 mm).
 //!
 //! Numerics (issue 3, the Cortex-M4F has a single-precision FPU only): the
-//! tick runs the fast path of [`crate::fast`]. s and the clock are f64 (the
-//! accumulator: no drift); q, q′, q″, q‴, the Taylor step, Δu and the
-//! homogeneous NURBS point are f32 in span- and piece-local coordinates read
-//! straight from the table's local-form sections; the outputs are f64 (piece
-//! origin + f32 offset). Per tick: 6 f64 additions, 1 f64 multiplication
-//! (t = k·T), no f64 compare (bit-pattern compares), no libm square root in
-//! mid-path (two Newton steps from the predicted end speed). Entering a q
-//! span or a piece moves an index and costs one more f64 subtraction — no
-//! coefficient is recomputed, so no tick is much dearer than another. The
-//! f64 evaluators ([`crate::qspline`], [`crate::sumap`], [`crate::nurbs`])
-//! stay as the reference: [`crate::table::Table::parse`] checks the local
-//! forms against them. Host and MCU run this same code and IEEE f32/f64
-//! arithmetic without contraction, so their setpoints agree bit for bit.
+//! tick runs the fast path of [`crate::fast`]. s is an i64 in Q40 mm (the
+//! accumulator: exact integer additions, no drift); q and √q are fixed point
+//! (Q32) with an f32 estimate refined by one integer Newton step; the step
+//! is √q·T in fixed point plus the higher Taylor terms in f32; the position
+//! is a degree-7 fixed-point (Q40) polynomial per piece in the piece-local
+//! τ; u (reported only) is u_a plus the f32 Δv form. Outputs are f64
+//! converted from Q40 on the bit patterns. The only soft-float calls left on
+//! the Taylor tick are the i64 → f64 conversions of the five outputs. Setpoint
+//! rounding noise: σ < 1e-12 mm, finite-difference jerk noise ≤ 11 mm/s³ at
+//! 250 µs on the shared curves (see [`crate::fast`] for the error budget).
+//! Entering a q span or a piece converts two breaks to Q40 and copies its
+//! forms in place (~200–400 instructions). The f64 evaluators ([`crate::qspline`],
+//! [`crate::sumap`], [`crate::nurbs`]) stay as the reference:
+//! [`crate::table::Table::parse`] checks the local forms against them. Host
+//! and MCU run this same code (integer arithmetic and IEEE f32/f64 without
+//! contraction), so their setpoints agree bit for bit.
+//!
+//! Start and stop segments (table section 14): s = J₁t³/6 and
+//! s = L − J₂τ³/6 run as cubics in the tick index by forward differences in
+//! Q80 (i128 additions: exact, no drift); the stop segment's τ at the
+//! hand-over comes from a short series around t₂ (no cube root), its
+//! differences are set up on the following tick.
 //!
 //! End: when a step would reach or pass L, or when the speed predicted for
 //! the end of the step, ṡ + s̈T + s⃛T²/2, is ≤ 0 within a step of L (q(L) = 0
@@ -42,8 +51,9 @@
 
 use crate::array::{F64Array, LeF32, LeF64, Point4Array};
 use crate::fast::{
-    feed_near, feed_of, offset_from_bytes, piece_f32_len, pos, PieceU, QLocal, PIECE_F64_LEN, PIECE_HEAD_LEN,
-    Q_LOCAL_LEN,
+    f32_to_fx, f64_to_fixed, feed_near, fx_small_f32, fx_to_f64, mul_hi, piece_f32_len, piece_shift_mask,
+    pos, pos_eval, q_fx_eval, sqrt_q32, step_scale, to_fx, u128_to_f64_pow2, PieceU, QLocal, PIECE_F64_LEN,
+    PIECE_HEAD_LEN, POS_BYTES, Q_FRAC, Q_FX_LEN, Q_LOCAL_LEN,
 };
 use crate::log;
 use crate::output::SetpointSink;
@@ -130,31 +140,49 @@ enum Phase {
     Faulted(Fault),
 }
 
-/// The current q span: its index among the q spans (knot span 3 + idx) and
-/// its start U_i (the last span's local form is anchored at its end
-/// U_{i+1} instead, see [`crate::fast`]).
+/// The current q span: its index among the q spans (knot span 3 + idx),
+/// its start U_i and end U_{i+1} in Q40 (the end `i64::MAX` for the last
+/// span), the anchor of its f32 form (U_i, or U_{i+1} for the last span,
+/// see [`crate::fast`]), and its fixed-point cubic and shift.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
 struct QCur {
     idx: usize,
-    start: f64,
+    start: i64,
+    next: i64,
+    anchor: i64,
+    shift: u32,
+    c: [i64; 4],
+    /// The span's f32 form (q′, q″, q‴), copied on entry.
+    poly: QLocal,
 }
 
-/// The current piece: index, start s_a, u_a and origin (f64).
+/// The current piece: index, start and next break (Q40, `i64::MAX` after
+/// the last piece), u_a, the centre (Q40) and the shift of τ.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
 struct PCur {
     idx: usize,
-    start: f64,
-    u0: f64,
-    origin: [f64; 3],
+    start: i64,
+    next: i64,
+    /// u_a in Q40.
+    u0: i64,
+    centre: i64,
+    shift: u32,
+    /// Constant-axis mask ([`pos_eval`]).
+    constant: u32,
+    /// The s → u head, copied on entry.
+    head: PieceU,
+    /// Byte offset of the position coefficients in the piece section.
+    pos_at: usize,
 }
 
 /// The table data the fast path reads (zero-copy views). Coefficients are
-/// read from here every tick, never copied into RAM: a span or piece entry
-/// only moves an index and reads a few f64.
+/// read from here every tick (the position's) or on span entry (q's, 32
+/// bytes), never recomputed.
 #[derive(Clone, Copy, Debug)]
 struct Views<'a> {
     q_knots: LeF64<'a>,
     q_local: LeF32<'a>,
+    q_fixed: LeF64<'a>,
     q_last: usize,
     piece_breaks: LeF64<'a>,
     piece_f64: LeF64<'a>,
@@ -165,12 +193,11 @@ struct Views<'a> {
 }
 
 impl Views<'_> {
-    #[inline]
+    /// q span `idx` (for new and reset; the tick moves with [`Views::fill_q`]).
     fn q(&self, idx: usize) -> Option<QCur> {
-        Some(QCur {
-            idx,
-            start: self.q_knots.get(idx.checked_add(3)?)?,
-        })
+        let mut qc = QCur::default();
+        self.fill_q(&mut qc, idx, to_fx(self.q_knots.get(idx.checked_add(3)?)?))?;
+        Some(qc)
     }
 
     #[inline]
@@ -181,39 +208,88 @@ impl Views<'_> {
         ))
     }
 
-    #[inline]
+    /// Piece `idx` (for new and reset; the tick moves with
+    /// [`Views::fill_piece`]).
     fn piece(&self, idx: usize) -> Option<PCur> {
-        let b = idx.checked_mul(PIECE_F64_LEN)?;
-        Some(PCur {
-            idx,
-            start: self.piece_breaks.get(idx)?,
-            u0: self.piece_f64.get(b)?,
-            origin: [
-                self.piece_f64.get(b.checked_add(1)?)?,
-                self.piece_f64.get(b.checked_add(2)?)?,
-                self.piece_f64.get(b.checked_add(3)?)?,
-            ],
-        })
+        let mut pc = PCur::default();
+        self.fill_piece(&mut pc, idx, to_fx(self.piece_breaks.get(idx)?))?;
+        Some(pc)
     }
 
-    /// The s → u head of piece `idx` and the bytes of its NURBS form.
+    /// Moves `pc` to piece `idx` starting at `start` (Q40) in place (no
+    /// struct copy: a copy of the 80-byte cursor through `Option` cost ~160
+    /// instructions a piece entry).
     #[inline]
-    fn piece_forms(&self, idx: usize) -> Option<(PieceU, &[u8])> {
-        let base = idx.checked_mul(self.per)?;
-        let head = PieceU::from_array(self.piece_f32.get_array::<PIECE_HEAD_LEN>(base)?);
-        let from = base.checked_add(PIECE_HEAD_LEN)?.checked_mul(4)?;
-        let to = base.checked_add(self.per)?.checked_mul(4)?;
-        Some((head, self.piece_f32.as_bytes().get(from..to)?))
+    fn fill_piece(&self, pc: &mut PCur, idx: usize, start: i64) -> Option<()> {
+        let b = idx.checked_mul(PIECE_F64_LEN)?;
+        let pos_at = b.checked_add(3)?.checked_mul(8)?;
+        self.piece_f64
+            .as_bytes()
+            .get(pos_at..pos_at.checked_add(POS_BYTES)?)?;
+        let (shift, constant) = piece_shift_mask(self.piece_f64.get_i64(b.checked_add(2)?)? as u64)?;
+        pc.next = if idx >= self.p_last {
+            i64::MAX
+        } else {
+            to_fx(self.piece_breaks.get(idx.checked_add(1)?)?)
+        };
+        pc.u0 = to_fx(self.piece_f64.get(b)?);
+        pc.centre = self.piece_f64.get_i64(b.checked_add(1)?)?;
+        pc.head = PieceU::from_array(
+            self.piece_f32
+                .get_array::<PIECE_HEAD_LEN>(idx.checked_mul(self.per)?)?,
+        );
+        pc.idx = idx;
+        pc.start = start;
+        pc.shift = shift;
+        pc.constant = constant;
+        pc.pos_at = pos_at;
+        Some(())
+    }
+
+    /// Moves `qc` to q span `idx` starting at `start` (Q40) in place.
+    #[inline]
+    fn fill_q(&self, qc: &mut QCur, idx: usize, start: i64) -> Option<()> {
+        let end = to_fx(self.q_knots.get(idx.checked_add(4)?)?);
+        let at = idx.checked_mul(8 * Q_FX_LEN)?;
+        let w: &[u8; 8 * Q_FX_LEN] = self
+            .q_fixed
+            .as_bytes()
+            .get(at..at.checked_add(8 * Q_FX_LEN)?)?
+            .try_into()
+            .ok()?;
+        let word = |i: usize| {
+            let mut b = [0u8; 8];
+            b.copy_from_slice(&w[8 * i..8 * i + 8]);
+            i64::from_le_bytes(b)
+        };
+        let last = idx >= self.q_last;
+        qc.shift = u32::try_from(word(4)).ok()?;
+        qc.poly = self.q_poly(idx)?;
+        qc.c = [word(0), word(1), word(2), word(3)];
+        qc.idx = idx;
+        qc.start = start;
+        qc.next = if last { i64::MAX } else { end };
+        qc.anchor = if last { end } else { start };
+        Some(())
+    }
+
+    /// The position coefficients of the current piece.
+    #[inline]
+    fn coeffs(&self, pc: &PCur) -> Option<&[u8; POS_BYTES]> {
+        self.piece_f64
+            .as_bytes()
+            .get(pc.pos_at..pc.pos_at.wrapping_add(POS_BYTES))?
+            .try_into()
+            .ok()
     }
 }
 
-/// `a ≥ b` for non-negative, non-NaN doubles, on the bit patterns (IEEE
-/// order for +0 ..= +∞ is the integer order): 3 instructions instead of a
-/// soft-float compare. Callers guarantee a, b ≥ +0 (s > 0 in mid-path,
-/// breaks and knots ≥ 0).
-#[inline]
-fn ge_nonneg(a: f64, b: f64) -> bool {
-    a.to_bits() >= b.to_bits()
+/// τ (Q61) from s and a local origin (Q40) and shift; the table's check
+/// guarantees no overflow inside the piece or span, and wrapping keeps the
+/// tick panic-free outside.
+#[inline(always)]
+fn tau_of(s: i64, origin: i64, shift: u32) -> i64 {
+    s.wrapping_sub(origin).wrapping_shl(shift)
 }
 
 /// q-local t at s = 0 (the first span's start, or, if there is only one q
@@ -226,26 +302,54 @@ fn t0_q(v: &Views<'_>) -> Option<f32> {
     }
 }
 
-/// `[q, q′, q″, q‴]` at s from the f32 local forms, as the tick evaluates
-/// them (a scan over the spans: for [`Interpolator::new`] only).
-fn q_at(v: &Views<'_>, s: f64) -> Option<[f32; 4]> {
-    let mut idx = 0;
-    while idx < v.q_last && s >= v.q_knots.get(idx.checked_add(4)?)? {
-        idx += 1;
+/// The q state at s (Q40) as the tick computes it: `[q, q′, q″, q‴]` (q from
+/// the fixed-point form, the derivatives from the f32 form), √q in f32 and
+/// in Q32 ([`q_eval`]). A scan over the spans: for [`Interpolator::new`],
+/// reset and the start segment's join only.
+fn q_state_at(v: &Views<'_>, s: i64, guess: f32) -> Option<QState> {
+    let mut qc = v.q(0)?;
+    while qc.idx < v.q_last && s >= qc.next {
+        qc = v.q(qc.idx.checked_add(1)?)?;
     }
-    let anchor = if idx < v.q_last {
-        v.q_knots.get(idx.checked_add(3)?)?
+    let poly = qc.poly;
+    let tq = if s == 0 && qc.idx == 0 {
+        t0_q(v)?
     } else {
-        v.q_knots.get(idx.checked_add(4)?)?
+        fx_small_f32(s.wrapping_sub(qc.anchor), 20)
     };
-    Some(v.q_poly(idx)?.eval((s - anchor) as f32))
+    Some(q_eval(&qc, &poly, s, tq, guess))
+}
+
+/// `[q, q′, q″, q‴]` (f32), √q (f32) and √q (Q32 mm/s) at s.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+struct QState {
+    qd: [f32; 4],
+    v: f32,
+    v_fx: i64,
+}
+
+/// q at s (Q40) on the q span `qc`: the fixed-point cubic (Q32) for q and
+/// √q (an f32 estimate from `guess`, then one integer Newton step,
+/// [`sqrt_q32`]), the f32 form `poly` at `tq` for q′, q″, q‴.
+#[inline(always)]
+fn q_eval(qc: &QCur, poly: &QLocal, s: i64, tq: f32, guess: f32) -> QState {
+    let q_fx = q_fx_eval(qc.c, tau_of(s, qc.start, qc.shift));
+    let qf = q_fx as f32 * (1.0 / (1u64 << Q_FRAC) as f32);
+    let mut qd = poly.eval(tq);
+    qd[0] = qf;
+    let v = feed_near(qf, guess);
+    QState {
+        qd,
+        v,
+        v_fx: sqrt_q32(q_fx, v),
+    }
 }
 
 /// The servo-rate interpolator over one validated table.
 ///
-/// The fast path of [`crate::fast`]: s accumulates in f64; q, the Taylor
-/// step, u(s) and r(u) are f32 in span-local coordinates; the position is the
-/// span origin (f64) plus the f32 offset.
+/// The fast path of [`crate::fast`]: s accumulates in Q40 fixed point; q and
+/// √q are fixed point (Q32) with f32 estimates, the higher Taylor terms f32,
+/// the position a fixed-point polynomial per piece (Q40), u(s) f32 local.
 #[derive(Clone, Debug)]
 pub struct Interpolator<'a> {
     table: Table<'a>,
@@ -253,21 +357,23 @@ pub struct Interpolator<'a> {
     period_s: f64,
     /// The period in f32 for the Taylor step.
     h: f32,
+    /// T = m·2^e (m the 53-bit significand; (0, 0) if T is not normal).
+    period_parts: (u64, i32),
+    /// The step scale of the period ([`step_scale`]).
+    tk: (i64, u32),
     length_mm: f64,
+    /// L in Q40.
+    len_fx: i64,
     qc: QCur,
     pc: PCur,
-    /// `(pc.start − qc.start)` in f32: the q-local t is the piece-local t
-    /// plus this (one f64 subtraction per span entry instead of per tick).
-    su_to_q: f32,
     first: Setpoint,
     last: Setpoint,
     /// Index of the next tick (its time is `k · T`).
     k: u64,
-    s: f64,
-    /// `[q, q′, q″, q‴]` at `s`.
-    qd: [f32; 4],
-    /// √max(q, 0) at `s`.
-    v: f32,
+    /// Arc length, Q40 mm.
+    s: i64,
+    /// q, √q at `s`.
+    qs: QState,
     /// q below which a falling feed in mid-path is a stall, (mm/s)².
     stall_q: f32,
     /// A step shorter than this (mm) is no progress.
@@ -276,16 +382,126 @@ pub struct Interpolator<'a> {
     end_tol: f32,
     /// The time-domain start and stop segments, if the table has them.
     ends: Option<EndSegments>,
-    /// Where the Taylor steps hand over to the stop: s₂ with segments, else L.
-    stop_at: f64,
-    /// Last tick time still in the start segment, t₁ + 1e-6·T, s.
-    t_switch: f64,
-    /// `[q, q′, q″, q‴]` and √q at s₁ (the join), for the first Taylor step.
-    join_qd: [f32; 4],
-    join_v: f32,
-    /// When the stop segment reaches L (set on entering it), s.
-    t_end: f64,
+    /// Where the Taylor steps hand over to the stop: s₂ with segments, else
+    /// L (Q40).
+    stop_at: i64,
+    /// Index of the first tick past t_switch (the join), its step h = t − t₁
+    /// and step scale, precomputed so the join tick costs no more than a
+    /// Taylor tick.
+    k_join: u64,
+    h_join: f32,
+    /// s₁ in Q40.
+    join_s: i64,
+    tk_join: (i64, u32),
+    /// The q state at s₁ (the join), for the first Taylor step.
+    join: QState,
+    /// The end segment being executed: s in Q80 and its forward
+    /// differences (exact integer recurrences, [`SegRun`]).
+    seg: SegRun,
+    /// Constants of the segments for T (zeros without segments).
+    segk: SegConsts,
     phase: Phase,
+}
+
+/// An end segment as a cubic in the tick index, run by forward differences
+/// in Q80 (i128): s_{j+1} = s_j + d₁, d₁ += d₂, d₂ += d₃ — integer
+/// additions, so no rounding noise and no drift beyond the initial values'
+/// (f64, relative 1e-16).
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+struct SegRun {
+    s: i128,
+    d: [i128; 3],
+    /// Ticks still to place (stop segment).
+    left: u32,
+    /// Stop ticks done.
+    j: u32,
+    /// τ at the entry into the stop segment, s (f64 for the cube-root
+    /// fallback, f32 for the feed).
+    tau: f64,
+    tau_f: f32,
+    /// Fast path: `tau` holds Δ₀ and this the f32 correction c (τ = t₂ − Δ₀ − c).
+    c: f32,
+    /// Stop segment: the differences are still to be set up (the tick after
+    /// the entry, to spread the work).
+    pending: bool,
+}
+
+/// Precomputed constants of the end segments for the period T.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+struct SegConsts {
+    /// Start: d₁, d₂, d₃ at tick 0 of s = D k³, D = J₁T³/6 (Q80).
+    start_d: [i128; 3],
+    /// 0.5 J₁ T² (f32): the start feed is this · k².
+    start_v: f32,
+    /// Stop: t₂ and s₂′ = L − J₂t₂³/6 (f64), 1/v₂ (v₂ = J₂t₂²/2).
+    t2: f64,
+    s2: f64,
+    inv_v2: f64,
+    /// 1/t₂ and 1/(3t₂²), f32 (the small correction of τ).
+    inv_t2: f32,
+    inv_3t2sq: f32,
+    /// J₂T/2, J₂T²/2, J₂T³/6 (f64), J₂T³ (Q80).
+    k1: f64,
+    k2: f64,
+    k3: f64,
+    d3: i128,
+    /// 1/T, 0.5·J₂ (f32) for the feed.
+    inv_t: f64,
+    stop_v: f32,
+    /// t₂ ≥ 20 T: τ = t₂ − Δ by the series below (else a cube root).
+    fast: bool,
+    /// s₂′ in Q40.
+    s2_fx: i64,
+    /// d₁, d₂ at τ = t₂ (Q80); d₁(t₂ − Δ) = d₁(t₂) − Δ·kd1 + kd1q·Δ²,
+    /// d₂(t₂ − Δ) = d₂(t₂) + Δ·kd2 (kd1 = J₂Tt₂ − J₂T²/2, kd1q = J₂T/2,
+    /// kd2 = J₂T²).
+    d1_nom: i128,
+    d2_nom: i128,
+    kd1: f64,
+    kd1q: f32,
+    kd2: f64,
+    /// t₂/T, 1/T and t₂, f32 (the tick count of the stop segment).
+    t2_t: f32,
+    t2_f: f32,
+    inv_t_f: f32,
+}
+
+/// 2⁸⁰ · x as i128, truncated ([`f64_to_fixed`]).
+fn to_q80(x: f64) -> i128 {
+    f64_to_fixed(x, 80)
+}
+
+impl SegConsts {
+    fn new(e: &EndSegments, length: f64, t: f64) -> Self {
+        let (j1, j2, t2) = (e.jerk_start, e.jerk_stop, e.t_stop);
+        let d = to_q80(j1 * t * t * t / 6.0);
+        let v2 = 0.5 * j2 * t2 * t2;
+        SegConsts {
+            start_d: [d, 6 * d, 6 * d],
+            start_v: (0.5 * j1 * t * t) as f32,
+            t2,
+            s2: length - j2 * t2 * t2 * t2 / 6.0,
+            inv_v2: 1.0 / v2,
+            inv_t2: (1.0 / t2) as f32,
+            inv_3t2sq: (1.0 / (3.0 * t2 * t2)) as f32,
+            k1: 0.5 * j2 * t,
+            k2: 0.5 * j2 * t * t,
+            k3: j2 * t * t * t / 6.0,
+            d3: to_q80(j2 * t * t * t),
+            inv_t: 1.0 / t,
+            stop_v: (0.5 * j2) as f32,
+            fast: t2 >= 20.0 * t,
+            s2_fx: to_fx(length - j2 * t2 * t2 * t2 / 6.0),
+            d1_nom: to_q80(j2 / 6.0 * (3.0 * t2 * t2 * t - 3.0 * t2 * t * t + t * t * t)),
+            d2_nom: to_q80(j2 * t * t * (t - t2)),
+            kd1: j2 * t * t2 - 0.5 * j2 * t * t,
+            kd1q: (0.5 * j2 * t) as f32,
+            kd2: j2 * t * t,
+            t2_t: (t2 / t) as f32,
+            t2_f: t2 as f32,
+            inv_t_f: (1.0 / t) as f32,
+        }
+    }
 }
 
 impl<'a> Interpolator<'a> {
@@ -323,6 +539,7 @@ impl<'a> Interpolator<'a> {
         let views = Views {
             q_knots: table.q_knots(),
             q_local: table.q_local(),
+            q_fixed: table.q_fixed(),
             q_last: q_spans.checked_sub(1).ok_or(bad)?,
             piece_breaks: table.piece_breaks(),
             piece_f64: table.piece_f64(),
@@ -332,9 +549,7 @@ impl<'a> Interpolator<'a> {
         };
         let qc = views.q(0).ok_or(bad)?;
         let pc = views.piece(0).ok_or(bad)?;
-        let qd = views.q_poly(0).ok_or(bad)?.eval(t0_q(&views).ok_or(bad)?);
-        views.piece_forms(0).ok_or(bad)?;
-        let v = feed_of(qd[0]);
+        let qs = q_state_at(&views, 0, 0.0).ok_or(bad)?;
         let [x0, y0, z0, _] = pts.get(0).ok_or(bad)?;
         let [x1, y1, z1, _] = pts.get(pts.len().checked_sub(1).ok_or(bad)?).ok_or(bad)?;
         let length_mm = table.path_length_mm();
@@ -343,7 +558,7 @@ impl<'a> Interpolator<'a> {
             t_s: 0.0,
             s_mm: 0.0,
             u: knots.get(p).ok_or(bad)?,
-            feed_mm_s: f64::from(v),
+            feed_mm_s: f64::from(qs.v),
             pos_mm: [x0, y0, z0],
         };
         let last = Setpoint {
@@ -354,35 +569,69 @@ impl<'a> Interpolator<'a> {
             pos_mm: [x1, y1, z1],
         };
         let ends = table.ends();
-        let (stop_at, t_switch, join_qd) = match ends {
-            Some(e) => (
-                e.s_stop,
-                e.t_start + 1e-6 * period_s,
-                q_at(&views, e.s_start).ok_or(bad)?,
-            ),
-            None => (length_mm, 0.0, [0.0; 4]),
+        // The join tick: the first k with k·T > t_switch.
+        let (k_join, h_join) = match ends {
+            Some(e) => {
+                let ts = e.t_start + 1e-6 * period_s;
+                let mut k = libm::floor(ts / period_s).max(0.0) as u64;
+                while k as f64 * period_s <= ts {
+                    k += 1;
+                }
+                while k > 1 && (k - 1) as f64 * period_s > ts {
+                    k -= 1;
+                }
+                (k, k as f64 * period_s - e.t_start)
+            }
+            None => (0, 0.0),
+        };
+        let (stop_at, join) = match ends {
+            Some(e) => {
+                let s1 = to_fx(e.s_start);
+                let guess = q_state_at(&views, s1, 0.0).ok_or(bad)?.v;
+                (to_fx(e.s_stop), q_state_at(&views, s1, guess).ok_or(bad)?)
+            }
+            None => (to_fx(length_mm), QState::default()),
         };
         Ok(Interpolator {
             ends,
             stop_at,
-            t_switch,
-            join_qd,
-            join_v: feed_of(join_qd[0]),
-            t_end: 0.0,
+            k_join,
+            h_join: h_join as f32,
+            join_s: ends.map(|e| to_fx(e.s_start)).unwrap_or(0),
+            tk_join: step_scale(h_join),
+            join,
+            seg: SegRun {
+                d: ends
+                    .map(|e| SegConsts::new(&e, length_mm, period_s).start_d)
+                    .unwrap_or_default(),
+                ..SegRun::default()
+            },
+            segk: ends
+                .map(|e| SegConsts::new(&e, length_mm, period_s))
+                .unwrap_or_default(),
             table,
             views,
             period_s,
             h: period_s as f32,
+            period_parts: {
+                let b = period_s.to_bits();
+                let e = ((b >> 52) & 0x7ff) as i32;
+                if e == 0 || e == 0x7ff {
+                    (0, 0)
+                } else {
+                    ((b & ((1u64 << 52) - 1)) | (1u64 << 52), e - 1075)
+                }
+            },
+            tk: step_scale(period_s),
             length_mm,
+            len_fx: to_fx(length_mm),
             qc,
             pc,
-            su_to_q: (pc.start - qc.start) as f32,
             first,
             last,
             k: 0,
-            s: 0.0,
-            qd,
-            v,
+            s: 0,
+            qs,
             stall_q: (v_floor * v_floor) as f32,
             stall_ds: (STALL_REL * length_mm) as f32,
             end_tol: (MATCH_TOL_REL * length_mm) as f32,
@@ -402,7 +651,7 @@ impl<'a> Interpolator<'a> {
 
     /// Arc length reached, mm.
     pub fn s_mm(&self) -> f64 {
-        self.s
+        fx_to_f64(self.s)
     }
 
     /// Ticks issued so far.
@@ -418,39 +667,41 @@ impl<'a> Interpolator<'a> {
     /// Back to the start (also clears a fault).
     pub fn reset(&mut self) {
         self.k = 0;
-        self.s = 0.0;
+        self.s = 0;
         if let (Some(qc), Some(pc)) = (self.views.q(0), self.views.piece(0)) {
             (self.qc, self.pc) = (qc, pc);
-            self.su_to_q = (pc.start - qc.start) as f32;
         }
-        self.qd = match (self.views.q_poly(0), t0_q(&self.views)) {
-            (Some(p), Some(t)) => p.eval(t),
-            _ => [0.0; 4],
+        self.qs = q_state_at(&self.views, 0, 0.0).unwrap_or_default();
+        self.seg = SegRun {
+            d: self.segk.start_d,
+            ..SegRun::default()
         };
-        self.v = feed_of(self.qd[0]);
         self.phase = Phase::Start;
     }
 
+    /// t = k·T, correctly rounded (the same bits as `k as f64 * T`): the
+    /// exact integer product k·m_T (T = m_T·2^e_T) rounded once, in integer
+    /// instructions; soft-float only past 2³² ticks (~12 days at 250 µs).
     // Out of line: inlined, LLVM evaluates both branches' conversions
-    // speculatively (three soft-float calls instead of one).
+    // speculatively.
     #[inline(never)]
     fn now(&self) -> f64 {
-        // u32 → f64 is a cheaper soft-float conversion than u64 → f64; the
-        // two parts are exact (k < 2^53), so this is exactly `k as f64`.
+        let (m, e) = self.period_parts;
+        if self.k == 0 {
+            return 0.0;
+        }
+        if self.k >> 32 == 0 && m != 0 {
+            return u128_to_f64_pow2(u128::from(self.k) * u128::from(m), e);
+        }
         let (hi, lo) = ((self.k >> 32) as u32, self.k as u32);
-        let kf = if hi == 0 {
-            f64::from(lo)
-        } else {
-            f64::from(hi) * 4294967296.0 + f64::from(lo)
-        };
-        kf * self.period_s
+        (f64::from(hi) * 4294967296.0 + f64::from(lo)) * self.period_s
     }
 
     // With defmt: out of line, so the log call is not copied into every
     // caller on the tick path.
     #[cfg_attr(feature = "defmt", inline(never))]
     fn finish(&mut self, t_s: f64) -> Setpoint {
-        self.s = self.length_mm;
+        self.s = self.len_fx;
         self.phase = Phase::Done;
         log::info!(
             "path done: {=u64} ticks, t={=f64} s, L={=f64} mm",
@@ -471,7 +722,7 @@ impl<'a> Interpolator<'a> {
     /// The next setpoint (see the module docs for start, end and faults).
     pub fn tick(&mut self) -> Result<Setpoint, Fault> {
         let t_s = self.now();
-        match self.phase {
+        let (h, tk) = match self.phase {
             Phase::Start => {
                 self.phase = if self.ends.is_some() {
                     Phase::StartSeg
@@ -483,7 +734,15 @@ impl<'a> Interpolator<'a> {
             }
             Phase::StartSeg => {
                 self.k = self.k.saturating_add(1);
-                return self.start_tick(t_s);
+                if self.k <= self.k_join {
+                    return self.start_tick(t_s);
+                }
+                // The join: a Taylor step of t − t₁ from s₁ (below, so the
+                // step is inlined once).
+                self.phase = Phase::Run;
+                self.s = self.join_s;
+                self.qs = self.join;
+                (self.h_join, self.tk_join)
             }
             Phase::StopSeg => {
                 self.k = self.k.saturating_add(1);
@@ -494,31 +753,36 @@ impl<'a> Interpolator<'a> {
                 return Ok(Setpoint { t_s, ..self.last });
             }
             Phase::Faulted(f) => return Err(f),
-            Phase::Run => {}
-        }
-        self.k = self.k.saturating_add(1);
-        self.step(t_s, self.h)
+            Phase::Run => {
+                self.k = self.k.saturating_add(1);
+                (self.h, self.tk)
+            }
+        };
+        self.step(t_s, h, tk)
     }
 
-    /// One Taylor step of `h` seconds from (s, q) (see the module docs).
+    /// One Taylor step of `h` seconds (step scale `tk`, [`step_scale`]) from
+    /// (s, q) (see the module docs): ds = √q·h in fixed point (Q32 × the
+    /// scale) plus the higher Taylor terms in f32.
     #[inline(always)]
-    fn step(&mut self, t_s: f64, h: f32) -> Result<Setpoint, Fault> {
+    fn step(&mut self, t_s: f64, h: f32, tk: (i64, u32)) -> Result<Setpoint, Fault> {
         let s = self.s;
-        let [q_raw, dq, ddq, dddq] = self.qd;
+        let [q_raw, dq, ddq, dddq] = self.qs.qd;
         let q = pos(q_raw);
-        let v = self.v; // (1)
+        let v = self.qs.v; // (1)
         let a = 0.5 * dq; // (4)
         let j = 0.5 * ddq * v; // (5)
         let sn = 0.5 * dddq * q + 0.25 * ddq * dq; // d/dt of (5)
-        let ds = h * (v + h * (0.5 * a + h * (j * (1.0 / 6.0) + h * sn * (1.0 / 24.0))));
+        let rest = h * h * (0.5 * a + h * (j * (1.0 / 6.0) + h * sn * (1.0 / 24.0)));
+        let ds = h * v + rest;
         if !ds.is_finite() {
-            return self.fault(Fault::NonFinite { s_mm: s });
+            return self.fault(Fault::NonFinite { s_mm: fx_to_f64(s) });
         }
-        let s_new = s + f64::from(ds);
-        // s_new ≥ stop_at (L, or s₂ with a stop segment) on the bit
-        // patterns: exact for finite s_new and stop_at > 0 (a negative s_new
-        // has the sign bit, a negative i64), without the soft-float compare.
-        if (s_new.to_bits() as i64) >= (self.stop_at.to_bits() as i64) {
+        let ds_fx = mul_hi(self.qs.v_fx, tk.0)
+            .wrapping_shl(tk.1)
+            .wrapping_add(f32_to_fx(rest));
+        let s_new = s.wrapping_add(ds_fx);
+        if s_new >= self.stop_at {
             if self.ends.is_some() {
                 return self.enter_stop(t_s, s_new);
             }
@@ -528,7 +792,7 @@ impl<'a> Interpolator<'a> {
         let v_end = v + h * (a + 0.5 * h * j);
         let low = q <= self.stall_q && dq < 0.0;
         let remaining = if v_end <= 0.0 || low || !(ds > self.stall_ds) {
-            (self.length_mm - s) as f32
+            fx_to_f64(self.len_fx.wrapping_sub(s)) as f32
         } else {
             f32::INFINITY
         };
@@ -539,142 +803,221 @@ impl<'a> Interpolator<'a> {
         // Twice the stopping distance if q fell linearly to 0 (q/|q′|): inside
         // it a low feed is the run-out into L, not a stall.
         let starved = low && remaining > 2.0 * q / -dq + self.end_tol;
-        // (ds > stall_ds = 1e-14 L also makes s_new > s: ulp(s) ≤ 2.3e-16 L.)
-        if starved || !(ds > self.stall_ds) {
+        // (ds > stall_ds = 1e-14 L also makes s_new > s: the quantum 2⁻⁴⁰ mm
+        // is below 1e-14 L for L > 0.1 mm.)
+        if starved || !(ds > self.stall_ds) || s_new <= s {
             if remaining <= self.end_tol {
                 return Ok(self.finish(t_s));
             }
-            return self.fault(Fault::Stalled { s_mm: s, t_s });
+            return self.fault(Fault::Stalled {
+                s_mm: fx_to_f64(s),
+                t_s,
+            });
         }
         let Some((tp, tq, poly)) = self.seek(s_new) else {
-            return self.fault(Fault::Eval { s_mm: s_new });
+            return self.fault(Fault::Eval {
+                s_mm: fx_to_f64(s_new),
+            });
         };
-        let Some((head, nurbs)) = self.views.piece_forms(self.pc.idx) else {
-            return self.fault(Fault::Eval { s_mm: s_new });
+        let Some(coeffs) = self.views.coeffs(&self.pc) else {
+            return self.fault(Fault::Eval {
+                s_mm: fx_to_f64(s_new),
+            });
         };
+        let head = self.pc.head;
         let dv = head.delta(tp);
-        let Some([dx, dy, dz]) = offset_from_bytes(nurbs, dv) else {
-            return self.fault(Fault::Eval { s_mm: s_new });
-        };
-        let qd = poly.eval(tq);
-        let feed = feed_near(qd[0], v_end);
-        let [ox, oy, oz] = self.pc.origin;
+        let [x, y, z] = pos_eval(
+            coeffs,
+            tau_of(s_new, self.pc.centre, self.pc.shift),
+            self.pc.constant,
+        );
+        self.qs = q_eval(&self.qc, &poly, s_new, tq, v_end);
         self.s = s_new;
-        self.qd = qd;
-        self.v = feed;
         Ok(Setpoint {
             t_s,
-            s_mm: s_new,
-            u: self.pc.u0 + f64::from(dv * head.width),
-            feed_mm_s: f64::from(feed),
-            pos_mm: [ox + f64::from(dx), oy + f64::from(dy), oz + f64::from(dz)],
+            s_mm: fx_to_f64(s_new),
+            u: fx_to_f64(self.pc.u0.wrapping_add(f32_to_fx(dv * head.width))),
+            feed_mm_s: f64::from(self.qs.v),
+            pos_mm: [fx_to_f64(x), fx_to_f64(y), fx_to_f64(z)],
         })
     }
 
-    /// A tick in the start segment: s = J₁t³/6 exactly (f64) while t ≤ t₁
-    /// (+1e-6·T), then, on the first tick past t₁, a Taylor step of t − t₁
-    /// from the join s₁, where q continues the segment C².
+    /// One forward-difference step of the end segment; its s in Q40.
+    #[inline(always)]
+    fn seg_advance(&mut self) -> i64 {
+        let g = &mut self.seg;
+        g.s = g.s.wrapping_add(g.d[0]);
+        g.d[0] = g.d[0].wrapping_add(g.d[1]);
+        g.d[1] = g.d[1].wrapping_add(g.d[2]);
+        (g.s >> 40) as i64
+    }
+
+    /// A tick in the start segment: s = J₁t³/6 = D k³ (forward differences
+    /// in Q80, within 2⁻⁴⁰ mm of the f64 formula) while t ≤ t₁ (+1e-6·T);
+    /// [`Interpolator::tick`] makes the first tick past t₁ a Taylor step of
+    /// t − t₁ from the join s₁, where q continues the segment C².
     #[inline(never)]
     fn start_tick(&mut self, t_s: f64) -> Result<Setpoint, Fault> {
-        let Some(e) = self.ends else {
-            return self.fault(Fault::Eval { s_mm: self.s });
-        };
-        if t_s <= self.t_switch {
-            let [s, v, _, _] = e.start_at(t_s);
-            return self.place(t_s, s, v as f32);
-        }
-        self.phase = Phase::Run;
-        self.s = e.s_start;
-        self.qd = self.join_qd;
-        self.v = self.join_v;
-        self.step(t_s, (t_s - e.t_start) as f32)
+        let s = self.seg_advance();
+        let k = (self.k - 1) as f32;
+        let v = self.segk.start_v * k * k;
+        self.place(t_s, (fx_to_f64(s), s), v)
     }
 
     /// The Taylor step reached s₂ at `s_new`: the stop segment takes over,
-    /// s = L − J₂τ³/6 with τ = ∛(6(L − s_new)/J₂) now, counting down with the
-    /// clock to 0, where the motion ends at L at rest.
+    /// s = L − J₂τ³/6 with τ from L − s_new = J₂τ³/6 now, counting down a
+    /// period a tick to 0, where the motion ends at L at rest. τ = t₂ − Δ,
+    /// Δ = δ/v₂ + c (δ = s_new − s₂′, c = Δ²/t₂ − Δ³/(3t₂²) by fixed-point
+    /// iteration in f32: c is ≤ ~T²/t₂, its f32 error ≤ 1e-12 s); Newton in
+    /// f64 if t₂ < 20 T.
     #[inline(never)]
-    fn enter_stop(&mut self, t_s: f64, s_new: f64) -> Result<Setpoint, Fault> {
+    fn enter_stop(&mut self, t_s: f64, s_new: i64) -> Result<Setpoint, Fault> {
         let Some(e) = self.ends else {
             return Ok(self.finish(t_s));
         };
-        let rest = self.length_mm - s_new;
-        if !(rest > 0.0) {
+        let k = self.segk;
+        let s_mm = fx_to_f64(s_new);
+        if k.fast {
+            // Δ = t₂ − τ: Δ₀ = δ/v₂ in f64 (δ = s_new − s₂′ exact in Q40),
+            // then c = Δ²/t₂ − Δ³/(3t₂²) by fixed-point iteration in f32.
+            let d0 = fx_to_f64(s_new.wrapping_sub(k.s2_fx)) * k.inv_v2;
+            let x = d0 as f32;
+            let mut c = 0.0f32;
+            for _ in 0..8 {
+                let d = x + c;
+                c = d * d * (k.inv_t2 - d * k.inv_3t2sq);
+            }
+            let df = x + c;
+            let tau_f = k.t2_f - df;
+            // Ticks j ≥ 1 with j·T < τ: ⌈τ/T⌉ − 1 (τ/T in Q20, f32).
+            let xq = ((k.t2_t - df * k.inv_t_f) * 1_048_576.0) as i64;
+            let left = (xq.wrapping_sub(1) >> 20).clamp(0, i64::from(u32::MAX)) as u32;
+            // The differences are set up on the next tick (spreading the
+            // work): Δ₀ and c are kept.
+            self.seg = SegRun {
+                s: i128::from(s_new) << 40,
+                d: [0; 3],
+                left,
+                j: 0,
+                tau: d0,
+                tau_f,
+                c,
+                pending: true,
+            };
+            self.phase = Phase::StopSeg;
+            return self.place(t_s, (s_mm, s_new), k.stop_v * tau_f * tau_f);
+        }
+        // Short stop segments (t₂ < 20 T, rare): Newton on J₂τ³/6 = L − s_new
+        // from τ = t₂ (from above: monotone), f64, no libm.
+        let rest = self.length_mm - s_mm;
+        let mut tau = k.t2;
+        for _ in 0..60 {
+            let f = e.jerk_stop * tau * tau * tau / 6.0 - rest;
+            let step = f / (0.5 * e.jerk_stop * tau * tau);
+            if !(step.abs() > 1e-15 * tau) {
+                break;
+            }
+            tau -= step;
+        }
+        if !(tau > 0.0 && tau.is_finite()) {
             return Ok(self.finish(t_s));
         }
-        let tau = libm::cbrt(6.0 * rest / e.jerk_stop);
-        if !tau.is_finite() {
-            return self.fault(Fault::NonFinite { s_mm: s_new });
-        }
-        self.t_end = t_s + tau;
+        // Ticks j ≥ 1 with j·T < τ: ⌈τ/T⌉ − 1, from τ/T in Q20.
+        let x = f64_to_fixed(tau * k.inv_t, 20).clamp(0, i128::from(u32::MAX) << 20);
+        let left = ((x - 1) >> 20).max(0) as u32;
+        self.seg = SegRun {
+            s: i128::from(s_new) << 40,
+            d: [0; 3],
+            left,
+            j: 0,
+            tau,
+            tau_f: tau as f32,
+            c: 0.0,
+            pending: true,
+        };
         self.phase = Phase::StopSeg;
-        self.place(t_s, s_new, (0.5 * e.jerk_stop * tau * tau) as f32)
+        let tf = tau as f32;
+        self.place(t_s, (s_mm, s_new), k.stop_v * tf * tf)
     }
 
-    /// A tick in the stop segment: τ = t_end − t; at τ ≤ 0 the end point.
+    /// A tick in the stop segment: the next forward-difference step (set
+    /// up on the first one: d₁ = J₂(3τ²T − 3τT² + T³)/6, d₂ = J₂T²(T − τ),
+    /// d₃ = J₂T³); after the last tick with τ > 0, the end point.
     #[inline(never)]
     fn stop_tick(&mut self, t_s: f64) -> Result<Setpoint, Fault> {
-        let tau = self.t_end - t_s;
-        let Some(e) = self.ends.filter(|_| tau > 0.0) else {
+        if self.seg.left == 0 {
             return Ok(self.finish(t_s));
-        };
-        let [s, v, _, _] = e.stop_at(self.length_mm, tau);
-        self.place(t_s, s, v as f32)
+        }
+        if self.seg.pending {
+            let (k, g) = (self.segk, self.seg);
+            self.seg.d = if k.fast {
+                // τ = t₂ − Δ: d₁ = d₁(t₂) − Δ·kd1 + kd1q·Δ², d₂ = d₂(t₂) + Δ·kd2.
+                let delta = g.tau + f64::from(g.c);
+                let df = delta as f32;
+                let small = f64_to_fixed(f64::from(k.kd1q * df * df), 80);
+                [
+                    k.d1_nom.wrapping_sub(to_q80(delta * k.kd1)).wrapping_add(small),
+                    k.d2_nom.wrapping_add(to_q80(delta * k.kd2)),
+                    k.d3,
+                ]
+            } else {
+                let tau = g.tau;
+                let d1 = tau * (tau * k.k1 - k.k2) + k.k3;
+                let d2 = 2.0 * k.k2 * (self.period_s - tau);
+                [to_q80(d1), to_q80(d2), k.d3]
+            };
+            self.seg.pending = false;
+        }
+        self.seg.left -= 1;
+        self.seg.j = self.seg.j.wrapping_add(1);
+        let s = self.seg_advance();
+        let tau_j = self.seg.tau_f - self.seg.j as f32 * self.h;
+        let v = self.segk.stop_v * tau_j * tau_j;
+        self.place(t_s, (fx_to_f64(s), s), v)
     }
 
-    /// The setpoint at arc length `s` (0 ≤ s < L, not behind the cursors)
-    /// with the feed `feed`; moves the cursors and `self.s`.
+    /// The setpoint at arc length `s` (mm as reported, and Q40 as evaluated;
+    /// 0 ≤ s < L, not behind the cursors) with the feed `feed`; moves the
+    /// cursors and `self.s`.
     #[inline(never)]
-    fn place(&mut self, t_s: f64, s: f64, feed: f32) -> Result<Setpoint, Fault> {
+    fn place(&mut self, t_s: f64, (s_mm, s): (f64, i64), feed: f32) -> Result<Setpoint, Fault> {
         let Some((tp, _, _)) = self.seek(s) else {
-            return self.fault(Fault::Eval { s_mm: s });
+            return self.fault(Fault::Eval { s_mm: fx_to_f64(s) });
         };
-        let Some((head, nurbs)) = self.views.piece_forms(self.pc.idx) else {
-            return self.fault(Fault::Eval { s_mm: s });
+        let Some(coeffs) = self.views.coeffs(&self.pc) else {
+            return self.fault(Fault::Eval { s_mm: fx_to_f64(s) });
         };
+        let head = self.pc.head;
         let dv = head.delta(tp);
-        let Some([dx, dy, dz]) = offset_from_bytes(nurbs, dv) else {
-            return self.fault(Fault::Eval { s_mm: s });
-        };
-        let [ox, oy, oz] = self.pc.origin;
+        let [x, y, z] = pos_eval(coeffs, tau_of(s, self.pc.centre, self.pc.shift), self.pc.constant);
         self.s = s;
         Ok(Setpoint {
             t_s,
-            s_mm: s,
-            u: self.pc.u0 + f64::from(dv * head.width),
+            s_mm,
+            u: fx_to_f64(self.pc.u0.wrapping_add(f32_to_fx(dv * head.width))),
             feed_mm_s: f64::from(feed),
-            pos_mm: [ox + f64::from(dx), oy + f64::from(dy), oz + f64::from(dz)],
+            pos_mm: [fx_to_f64(x), fx_to_f64(y), fx_to_f64(z)],
         })
     }
 
     /// Move both cursors forward to the piece and the q span containing s
-    /// (compared on the bit patterns, [`ge_nonneg`]); the piece-local t, the
-    /// q-local t and the q span's local form. One f64 subtraction per tick
-    /// (t in the piece), one more when a cursor moves (the piece-to-q
-    /// offset), one more per tick in the last q span (anchored at L, where
-    /// q → 0: t from s directly).
+    /// (integer compares on Q40); the piece-local t and the q-local t (f32,
+    /// for u and q′, q″, q‴) and the q span's f32 form. Entering a piece or a
+    /// span converts its breaks to Q40 and reads its words.
     #[inline]
-    fn seek(&mut self, s: f64) -> Option<(f32, f32, QLocal)> {
+    fn seek(&mut self, s: i64) -> Option<(f32, f32, QLocal)> {
         let v = &self.views;
-        let mut moved = false;
-        while self.pc.idx < v.p_last && ge_nonneg(s, v.piece_breaks.get(self.pc.idx.checked_add(1)?)?) {
-            self.pc = v.piece(self.pc.idx.checked_add(1)?)?;
-            moved = true;
+        while self.pc.idx < v.p_last && s >= self.pc.next {
+            let (idx, start) = (self.pc.idx.checked_add(1)?, self.pc.next);
+            v.fill_piece(&mut self.pc, idx, start)?;
         }
-        while self.qc.idx < v.q_last && ge_nonneg(s, v.q_knots.get(self.qc.idx.checked_add(4)?)?) {
-            self.qc = v.q(self.qc.idx.checked_add(1)?)?;
-            moved = true;
+        while self.qc.idx < v.q_last && s >= self.qc.next {
+            let (idx, start) = (self.qc.idx.checked_add(1)?, self.qc.next);
+            v.fill_q(&mut self.qc, idx, start)?;
         }
-        if moved {
-            self.su_to_q = (self.pc.start - self.qc.start) as f32;
-        }
-        let tp = (s - self.pc.start) as f32;
-        let tq = if self.qc.idx < v.q_last {
-            tp + self.su_to_q
-        } else {
-            (s - v.q_knots.get(self.qc.idx.checked_add(4)?)?) as f32
-        };
-        Some((tp, tq, v.q_poly(self.qc.idx)?))
+        let tp = fx_small_f32(s.wrapping_sub(self.pc.start), 16);
+        let tq = fx_small_f32(s.wrapping_sub(self.qc.anchor), 20);
+        Some((tp, tq, self.qc.poly))
     }
 
     /// Tick until done, handing every setpoint (the start and the end

@@ -18,7 +18,7 @@
 //! | offset | size | field                                         |
 //! +--------+------+-----------------------------------------------+
 //! |      0 |    4 | magic "FLPT"                                  |
-//! |      4 |    2 | format version u16 = 2 (`VERSION`)            |
+//! |      4 |    2 | format version u16 = 3 (`VERSION`)            |
 //! |      6 |    2 | header length u16 (≥ 16, multiple of 8)       |
 //! |      8 |    4 | total length u32, including the CRC           |
 //! |     12 |    2 | section count u16 (1 ..= `MAX_SECTIONS`)      |
@@ -55,10 +55,13 @@
 //! |    9 | q ctrl        |     N | f64, (mm/s)², ≥ 0, first and last 0      |
 //! |   10 | q local       | 5(N−3)| f32 c0..c3, h per q span (`fast`)        |
 //! |   11 | piece breaks  |   P+1 | f64 s at each piece start, then L        |
-//! |   12 | piece f64     |    4P | f64 u_a, origin x, y, z per piece        |
-//! |   13 | piece f32     |(11+4p)| f32 d1..d5, w, 1/len, a_k = [x, y, z, w] |
-//! |      |               |    ·P | k = 0..=p (k-major) per piece            |
+//! |   12 | piece words   |   27P | per piece: f64 u_a; i64 centre c (Q40    |
+//! |      |               |       | mm); i64 shift 21 − e; i64 b_k (Q40 mm), |
+//! |      |               |       | k = 0..=7, x then y then z               |
+//! |   13 | piece f32     |    7P | f32 d1..d5, w, 1/len per piece           |
 //! |   14 | end segments  | 0 or 6| f64 s₁, J₁, t₁, s₂, J₂, t₂ (optional)    |
+//! |   15 | q fixed       | 5(N−3)| i64 C0..C3 (Q32 (mm/s)²), shift 21 − e   |
+//! |      |               |       | per q span (`fast`)                      |
 //! +------+---------------+-------+------------------------------------------+
 //! ```
 //!
@@ -70,18 +73,21 @@
 //! and that q joins them C² (q, q′, q″ at s₁ and s₂ within
 //! [`END_TOL_REL`]); q on [0, s₁] and [s₂, L] is then not executed.
 //!
-//! Sections 10–13 (new in version 2) are derived data: the span-local
-//! single-precision forms the servo-rate fast path evaluates
-//! ([`crate::fast`]). [`encode`] computes them from the f64 sections (the
-//! host never fills them in by hand); [`Table::parse`] checks every span of
-//! them against the f64 data at `fast::CHECK_POINTS` points with the
-//! tolerances stated in [`crate::fast`] (empty spans: all zeros).
+//! Sections 10–13 and 15 are derived data: the span-local forms the
+//! servo-rate fast path evaluates ([`crate::fast`]; version 3 replaced the
+//! f32 homogeneous NURBS pieces of version 2 by fixed-point position
+//! polynomials, section 12, dropped their f32 NURBS part from section 13 and
+//! added the fixed-point q cubics, section 15). [`encode`] computes them from
+//! the f64 sections (the host never fills them in by hand); [`Table::parse`]
+//! checks every span and piece of them against the f64 data with the
+//! tolerances stated in [`crate::fast`] (empty spans: all zeros). Sections
+//! 12 and 15 hold i64 bit patterns, so only u_a is checked for finiteness.
 //!
 //! Kinds `0x8000 ..= 0xFFFF` ([`EXTENSION_BASE`]) are extensions a reader may
 //! skip: they are bounds-, alignment- and overlap-checked, then ignored.
 //! `0x8000 + k` ([`OVERRIDE_PROFILE_BASE`]) is reserved for feedrate-override
 //! profile k (§4 of the paper: alternative q control points on the q knots).
-//! Any other unknown kind (0, 10 ..= 0x7FFF) is refused: a change a reader
+//! Any other unknown kind (0, 16 ..= 0x7FFF) is refused: a change a reader
 //! must understand takes a new kind below the base or a new version.
 //!
 //! The s → u map must cover the curve: the first segment starts at `U[p]`,
@@ -97,7 +103,7 @@ use core::fmt;
 
 use crate::array::{F64Array, LeF32, LeF64, LePoint4, LeU32, Point4Array};
 use crate::basis::MAX_DEGREE;
-use crate::fast::{self, PieceU, QLocal, PIECE_F64_LEN, PIECE_HEAD_LEN, Q_LOCAL_LEN};
+use crate::fast::{self, PieceData, PieceU, QLocal, PIECE_F64_LEN, PIECE_HEAD_LEN, Q_FX_LEN, Q_LOCAL_LEN};
 use crate::log;
 use crate::nurbs::NurbsView;
 use crate::qspline::QSpline;
@@ -106,7 +112,7 @@ use crate::sumap::{horner, SegmentArray, SuMapView};
 /// Magic bytes at offset 0.
 pub const MAGIC: [u8; 4] = *b"FLPT";
 /// Format version written and accepted.
-pub const VERSION: u16 = 2;
+pub const VERSION: u16 = 3;
 /// Header length written by [`encode`].
 pub const HEADER_LEN: usize = 16;
 /// Bytes per directory entry.
@@ -361,17 +367,20 @@ pub enum Section {
     QLocal = 10,
     /// Piece starts in s, then L (kind 11).
     PieceBreaks = 11,
-    /// Per piece: u at its start and its origin, f64 (kind 12).
+    /// Per piece: u at its start (f64) and the fixed-point position
+    /// polynomial (i64) (kind 12).
     PieceF64 = 12,
-    /// Per piece: the f32 s → u and homogeneous NURBS forms (kind 13).
+    /// Per piece: the f32 s → u form (kind 13).
     PieceF32 = 13,
     /// Start and stop segments, 0 or 6 f64 (kind 14, optional).
     Ends = 14,
+    /// q span-local fixed-point cubics, i64 (kind 15).
+    QFixed = 15,
 }
 
 impl Section {
     /// Every known kind, in the order [`encode`] writes them.
-    pub const ALL: [Section; 14] = [
+    pub const ALL: [Section; 15] = [
         Section::Limits,
         Section::Meta,
         Section::NurbsKnots,
@@ -386,6 +395,7 @@ impl Section {
         Section::PieceF64,
         Section::PieceF32,
         Section::Ends,
+        Section::QFixed,
     ];
 
     /// The kind code in the directory.
@@ -412,6 +422,7 @@ impl Section {
             | Section::QCtrl
             | Section::PieceBreaks
             | Section::PieceF64
+            | Section::QFixed
             | Section::Ends => 8,
             Section::QLocal | Section::PieceF32 => 4,
         }
@@ -816,6 +827,7 @@ fn section_sizes(parts: &TableParts) -> [(Section, usize, usize); N_KNOWN] {
             n_pieces(parts).saturating_mul(fast::piece_f32_len(encode_degree(parts))),
         ),
         sz(Section::Ends, if parts.ends.is_some() { END_LEN } else { 0 }),
+        sz(Section::QFixed, q_spans(parts).saturating_mul(Q_FX_LEN)),
     ]
 }
 
@@ -856,13 +868,56 @@ fn seg_pieces<F: FnMut(f64, f64)>(parts: &TableParts, q: Option<&QSpline<&[f64]>
     }
 }
 
+/// Piece `[sa, sb]` of segment `j`, bisected (depth first, up to
+/// [`fast::MAX_SPLIT`] times) until its fixed-point position polynomial is
+/// within [`fast::fit_tol_mm`] of the f64 reference. Calls `f(sa, sb, piece)`
+/// for each final piece (`None` if it could not be formed: encode fails).
+fn fit_piece<F: FnMut(f64, f64, Option<&PieceData>)>(
+    parts: &TableParts,
+    j: usize,
+    (sa, sb): (f64, f64),
+    depth: u32,
+    f: &mut F,
+) {
+    let p = encode_degree(parts);
+    let (Some(&s0), Some(&s1), Some(seg)) = (
+        parts.su_breaks.get(j),
+        parts.su_breaks.get(j.saturating_add(1)),
+        parts.su_segments.get(j),
+    ) else {
+        f(sa, sb, None);
+        return;
+    };
+    let piece = NurbsView::new(p, parts.nurbs_knots, parts.nurbs_points)
+        .and_then(|c| fast::piece_local(&c, seg, (s0, s1), (sa, sb)));
+    let mid = 0.5 * (sa + sb);
+    let scale = parts
+        .nurbs_points
+        .iter()
+        .fold(0.0f64, |m, p| m.max(p[0].abs()).max(p[1].abs()).max(p[2].abs()));
+    let fits = !matches!(&piece, Some(d) if d.fit_err > fast::fit_tol_mm(scale));
+    if !fits && depth < fast::MAX_SPLIT && mid > sa && mid < sb {
+        fit_piece(parts, j, (sa, mid), depth + 1, f);
+        fit_piece(parts, j, (mid, sb), depth + 1, f);
+    } else {
+        f(sa, sb, piece.as_ref());
+    }
+}
+
+/// Every final piece of every segment, in order: `f(j, sa, sb, piece)`.
+fn all_pieces<F: FnMut(usize, f64, f64, Option<&PieceData>)>(parts: &TableParts, mut f: F) {
+    let q = QSpline::new(parts.q_knots, parts.q_ctrl);
+    for j in 0..parts.su_segments.len() {
+        seg_pieces(parts, q.as_ref(), j, |sa, sb| {
+            fit_piece(parts, j, (sa, sb), 0, &mut |a, b, d| f(j, a, b, d));
+        });
+    }
+}
+
 /// All pieces.
 fn n_pieces(parts: &TableParts) -> usize {
-    let q = QSpline::new(parts.q_knots, parts.q_ctrl);
     let mut n = 0usize;
-    for j in 0..parts.su_segments.len() {
-        seg_pieces(parts, q.as_ref(), j, |_, _| n = n.saturating_add(1));
-    }
+    all_pieces(parts, |_, _, _, _| n = n.saturating_add(1));
     n
 }
 
@@ -973,44 +1028,45 @@ pub fn encode(parts: &TableParts, out: &mut [u8]) -> Result<usize, EncodeError> 
                     }
                 }
             }
-            Section::PieceBreaks | Section::PieceF64 | Section::PieceF32 => {
-                let p = encode_degree(parts);
-                let per = fast::piece_f32_len(p);
-                let curve = NurbsView::new(p, parts.nurbs_knots, parts.nurbs_points);
-                let mut i = 0usize;
-                let q = QSpline::new(parts.q_knots, parts.q_ctrl);
-                for (j, seg) in parts.su_segments.iter().enumerate() {
-                    let (s0, s1) = match (parts.su_breaks.get(j), parts.su_breaks.get(j.saturating_add(1))) {
-                        (Some(&a), Some(&b)) => (a, b),
-                        _ => (0.0, 0.0),
-                    };
-                    let mut res = Ok(());
-                    seg_pieces(parts, q.as_ref(), j, |sa, sb| {
-                        let piece = curve
-                            .as_ref()
-                            .and_then(|c| fast::piece_local(c, seg, (s0, s1), (sa, sb)));
-                        if let (Some(pd), Ok(())) = (piece, res) {
-                            res = match section {
-                                Section::PieceBreaks => {
-                                    wr_f64s(buf, off.saturating_add(i.saturating_mul(8)), [pd.s_start])
-                                        .map(|_| ())
-                                }
-                                Section::PieceF64 => wr_f64s(
-                                    buf,
-                                    off.saturating_add(i.saturating_mul(8 * PIECE_F64_LEN)),
-                                    pd.f64s,
-                                )
-                                .map(|_| ()),
-                                _ => {
-                                    let at = off.saturating_add(i.saturating_mul(4 * per));
-                                    wr_f32s(buf, at, pd.f32s.iter().take(per).copied()).map(|_| ())
-                                }
-                            };
+            Section::QFixed => {
+                if let Some(q) = QSpline::new(parts.q_knots, parts.q_ctrl) {
+                    let mut at = off;
+                    for i in 0..q_spans(parts) {
+                        for c in fast::q_fixed(&q, i + Q_ORDER as usize - 1) {
+                            wr(buf, at, &c.to_le_bytes())?;
+                            at = at.saturating_add(8);
                         }
-                        i = i.saturating_add(1);
-                    });
-                    res?;
+                    }
                 }
+            }
+            Section::PieceBreaks | Section::PieceF64 | Section::PieceF32 => {
+                let per = fast::piece_f32_len(encode_degree(parts));
+                let mut i = 0usize;
+                let mut res = Ok(());
+                all_pieces(parts, |_, sa, _, piece| {
+                    if let (Some(pd), Ok(())) = (piece, res) {
+                        res = match section {
+                            Section::PieceBreaks => {
+                                wr_f64s(buf, off.saturating_add(i.saturating_mul(8)), [sa]).map(|_| ())
+                            }
+                            Section::PieceF64 => {
+                                let mut at = off.saturating_add(i.saturating_mul(8 * PIECE_F64_LEN));
+                                let mut r = Ok(());
+                                for w in pd.words {
+                                    r = r.and_then(|_| wr(buf, at, &w.to_le_bytes()));
+                                    at = at.saturating_add(8);
+                                }
+                                r
+                            }
+                            _ => {
+                                let at = off.saturating_add(i.saturating_mul(4 * per));
+                                wr_f32s(buf, at, pd.f32s.iter().take(per).copied()).map(|_| ())
+                            }
+                        };
+                    }
+                    i = i.saturating_add(1);
+                });
+                res?;
                 if section == Section::PieceBreaks {
                     if let Some(&l) = parts.su_breaks.last() {
                         wr_f64s(buf, off.saturating_add(i.saturating_mul(8)), [l])?;
@@ -1044,6 +1100,7 @@ pub struct Table<'a> {
     q_knots: LeF64<'a>,
     q_ctrl: LeF64<'a>,
     q_local: LeF32<'a>,
+    q_fixed: LeF64<'a>,
     piece_breaks: LeF64<'a>,
     piece_f64: LeF64<'a>,
     piece_f32: LeF32<'a>,
@@ -1474,8 +1531,26 @@ impl<'a> Table<'a> {
                 return Err(mismatch(Section::QLocal, i));
             }
         }
+        // The fixed-point q (i64, any bit pattern: no finiteness check).
+        let q_fixed = LeF64::new(sec(Section::QFixed)?).ok_or(TableError::SectionLength {
+            section: Section::QFixed,
+        })?;
+        expect_count(Section::QFixed, nq_spans.saturating_mul(Q_FX_LEN), q_fixed.len())?;
+        for i in 0..nq_spans {
+            let mut c = [0i64; Q_FX_LEN];
+            for (k, ck) in c.iter_mut().enumerate() {
+                *ck = q_fixed
+                    .get_i64(i * Q_FX_LEN + k)
+                    .ok_or(mismatch(Section::QFixed, i))?;
+            }
+            if !fast::check_q_fx(&q, i + Q_ORDER as usize - 1, c, q_scale) {
+                return Err(mismatch(Section::QFixed, i));
+            }
+        }
         let piece_breaks = f64s(Section::PieceBreaks)?;
-        let piece_f64 = f64s(Section::PieceF64)?;
+        let piece_f64 = LeF64::new(sec(Section::PieceF64)?).ok_or(TableError::SectionLength {
+            section: Section::PieceF64,
+        })?;
         let piece_f32 = f32s(Section::PieceF32)?;
         let np = piece_breaks.len().checked_sub(1).ok_or(TableError::Count {
             section: Section::PieceBreaks,
@@ -1508,23 +1583,32 @@ impl<'a> Table<'a> {
                 return Err(mismatch(Section::PieceBreaks, i));
             }
             let seg = segs.get(j).ok_or(bad)?;
-            let fb = i.checked_mul(PIECE_F64_LEN).ok_or(bad)?;
-            let f64s4 = [
-                piece_f64.get(fb).ok_or(bad)?,
-                piece_f64.get(fb + 1).ok_or(bad)?,
-                piece_f64.get(fb + 2).ok_or(bad)?,
-                piece_f64.get(fb + 3).ok_or(bad)?,
-            ];
+            let fb = i.checked_mul(8 * PIECE_F64_LEN).ok_or(bad)?;
+            let words = piece_f64.as_bytes().get(fb..fb + 8 * PIECE_F64_LEN).ok_or(bad)?;
+            if !f64::from_bits(u64::from_le_bytes(
+                words.get(..8).and_then(|w| w.try_into().ok()).ok_or(bad)?,
+            ))
+            .is_finite()
+            {
+                return Err(TableError::NotFinite {
+                    section: Section::PieceF64,
+                    index: i * PIECE_F64_LEN,
+                });
+            }
             let base = i.checked_mul(per).ok_or(bad)?;
             let head = piece_f32
                 .get_array::<PIECE_HEAD_LEN>(base)
                 .map(PieceU::from_array)
                 .ok_or(bad)?;
-            let nb = piece_f32
-                .as_bytes()
-                .get(4 * (base + PIECE_HEAD_LEN)..4 * (base + per))
-                .ok_or(bad)?;
-            if !fast::check_piece(&curve, &seg, (s0, s1), (sa, sb), f64s4, &head, nb) {
+            if !fast::check_piece(
+                &curve,
+                &seg,
+                (s0, s1),
+                (sa, sb),
+                words,
+                &head,
+                fast::pos_tol_mm(pos_scale),
+            ) {
                 return Err(bad);
             }
         }
@@ -1546,6 +1630,7 @@ impl<'a> Table<'a> {
             q_knots,
             q_ctrl,
             q_local,
+            q_fixed,
             piece_breaks,
             piece_f64,
             piece_f32,
@@ -1621,7 +1706,12 @@ impl<'a> Table<'a> {
     pub fn piece_breaks(&self) -> LeF64<'a> {
         self.piece_breaks
     }
-    /// Per piece `[u_a, o_x, o_y, o_z]`, f64.
+    /// Per q span `fast::Q_FX_LEN` i64: the fixed-point cubic and its shift.
+    pub fn q_fixed(&self) -> LeF64<'a> {
+        self.q_fixed
+    }
+    /// Per piece `fast::PIECE_F64_LEN` 64-bit words: u_a (f64), the centre
+    /// (i64 Q40), the shift, the position coefficients (i64 Q40).
     pub fn piece_f64(&self) -> LeF64<'a> {
         self.piece_f64
     }

@@ -368,6 +368,23 @@ pub fn solve(
                 c
             }
         };
+        // Control points whose support lies inside an end segment only shape
+        // the (never executed) filler: a small negative weight keeps them as
+        // low as the join allows instead of wherever the interior point lands
+        // (a steep filler is not representable in the firmware's fixed point).
+        let mut weights = weights;
+        if let Some(e) = lp.ends {
+            let cmax = weights
+                .iter()
+                .fold(0.0f64, |m, c| m.max(c.abs()))
+                .max(f64::MIN_POSITIVE);
+            for (i, c) in weights.iter_mut().enumerate() {
+                let (lo, hi) = (lp.knots[i], lp.knots[(i + ORDER).min(lp.knots.len() - 1)]);
+                if hi <= e.start.s || lo >= e.stop.s {
+                    *c = -1e-6 * cmax;
+                }
+            }
+        }
         let sol = lp.solve_rows(
             Stage::Linearised,
             &rows,

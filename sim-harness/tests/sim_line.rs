@@ -28,8 +28,8 @@ fn line_runs_and_measures() {
             < 2.0 * res.config.period_s + 1e-3 * res.predicted_time_s
     );
     // a line: the commanded positions lie on it, the feed stays within the limit
-    // (firmware-core evaluates r in f32 relative to an origin per ≤ 4 mm piece,
-    // issue 3: 1.2e-7 mm here)
+    // (firmware-core evaluates r as a fixed-point Q40 polynomial per piece,
+    // fitted to 2e-11 mm, issue 3)
     assert!(m.contour_err_cmd_mm.unwrap() < 1e-6, "{:?}", m.contour_err_cmd_mm);
     assert!(m.start_err_mm.unwrap() < 1e-9 && m.end_err_mm.unwrap() < 1e-9);
     assert!(m.min_ds_mm.unwrap() >= 0.0);
