@@ -290,7 +290,12 @@ pub fn solve(
     let mut rows: Vec<Row> = Vec::new();
     let mut last_ctrl: Vec<f64> = Vec::new();
     let mut warm: Option<Vec<f64>> = None;
-    for it in 0..cfg.max_lps {
+    // Up to max_lps LPs; if none of them held every limit yet, up to three
+    // times as many before giving up.
+    for it in 0..3 * cfg.max_lps {
+        if it >= cfg.max_lps && best.is_some() {
+            break;
+        }
         let t0 = Instant::now();
         rows.clear();
         rows.extend_from_slice(&cap_rows);

@@ -122,7 +122,7 @@ impl std::fmt::Display for QhatBound {
 
 /// An LP that did not end with an optimal point.
 #[derive(Debug, Clone, thiserror::Error)]
-#[error("{stage} failed: Clarabel status {status} after {iterations} iterations")]
+#[error("{stage} failed: solver status {status} after {iterations} iterations")]
 pub struct LpError {
     /// Which LP failed.
     pub stage: Stage,
@@ -760,7 +760,7 @@ mod tests {
         let err = lp.solve_pseudo_jerk().unwrap_err();
         assert_eq!(err.stage, Stage::PseudoJerk);
         let msg = err.to_string();
-        assert!(msg.starts_with("pseudo-jerk LP failed: Clarabel status"), "{msg}");
+        assert!(msg.starts_with("pseudo-jerk LP failed: solver status"), "{msg}");
         assert!(!err.status.is_empty() && err.status != "Solved", "{msg}");
     }
 
