@@ -808,6 +808,8 @@ fn pad8(n: usize) -> usize {
 /// Section sizes for `parts`: (kind, element count, byte length).
 fn section_sizes(parts: &TableParts) -> [(Section, usize, usize); N_KNOWN] {
     let m = parts.su_segments.len();
+    // fitting the pieces is the costly part of encoding: count them once
+    let np = n_pieces(parts);
     let sz = |s: Section, count: usize| (s, count, count.saturating_mul(s.element_len()));
     [
         sz(Section::Limits, 12),
@@ -820,11 +822,11 @@ fn section_sizes(parts: &TableParts) -> [(Section, usize, usize); N_KNOWN] {
         sz(Section::QKnots, parts.q_knots.len()),
         sz(Section::QCtrl, parts.q_ctrl.len()),
         sz(Section::QLocal, q_spans(parts).saturating_mul(Q_LOCAL_LEN)),
-        sz(Section::PieceBreaks, n_pieces(parts).saturating_add(1)),
-        sz(Section::PieceF64, n_pieces(parts).saturating_mul(PIECE_F64_LEN)),
+        sz(Section::PieceBreaks, np.saturating_add(1)),
+        sz(Section::PieceF64, np.saturating_mul(PIECE_F64_LEN)),
         sz(
             Section::PieceF32,
-            n_pieces(parts).saturating_mul(fast::piece_f32_len(encode_degree(parts))),
+            np.saturating_mul(fast::piece_f32_len(encode_degree(parts))),
         ),
         sz(Section::Ends, if parts.ends.is_some() { END_LEN } else { 0 }),
         sz(Section::QFixed, q_spans(parts).saturating_mul(Q_FX_LEN)),
@@ -936,7 +938,11 @@ fn data_start() -> usize {
 
 /// Bytes [`encode`] writes for `parts` (saturates at `usize::MAX`).
 pub fn encoded_len(parts: &TableParts) -> usize {
-    section_sizes(parts)
+    total_len(&section_sizes(parts))
+}
+
+fn total_len(sizes: &[(Section, usize, usize); N_KNOWN]) -> usize {
+    sizes
         .iter()
         .fold(data_start(), |acc, &(_, _, len)| acc.saturating_add(pad8(len)))
         .saturating_add(CRC_LEN)
@@ -946,7 +952,8 @@ pub fn encoded_len(parts: &TableParts) -> usize {
 /// parsed back before returning, so a table `encode` accepts is one
 /// [`Table::parse`] accepts; on error the contents of `out` are unspecified.
 pub fn encode(parts: &TableParts, out: &mut [u8]) -> Result<usize, EncodeError> {
-    let total = encoded_len(parts);
+    let sizes = section_sizes(parts);
+    let total = total_len(&sizes);
     let total32 = u32::try_from(total).map_err(|_| EncodeError::TooLarge)?;
     let available = out.len();
     let buf = out.get_mut(..total).ok_or(EncodeError::BufferTooSmall {
@@ -963,7 +970,7 @@ pub fn encode(parts: &TableParts, out: &mut [u8]) -> Result<usize, EncodeError> 
 
     let mut offset = data_start();
     let mut offsets = [0usize; N_KNOWN];
-    for (idx, &(section, count, len)) in section_sizes(parts).iter().enumerate() {
+    for (idx, &(section, count, len)) in sizes.iter().enumerate() {
         let e = HEADER_LEN + idx * DIR_ENTRY_LEN;
         let count32 = u32::try_from(count).map_err(|_| EncodeError::TooLarge)?;
         let off32 = u32::try_from(offset).map_err(|_| EncodeError::TooLarge)?;
@@ -977,7 +984,7 @@ pub fn encode(parts: &TableParts, out: &mut [u8]) -> Result<usize, EncodeError> 
         }
         offset = offset.saturating_add(pad8(len));
     }
-    for (&(section, _, _), &off) in section_sizes(parts).iter().zip(offsets.iter()) {
+    for (&(section, _, _), &off) in sizes.iter().zip(offsets.iter()) {
         match section {
             Section::Limits => {
                 wr_f64s(buf, off, parts.limits.to_array())?;
