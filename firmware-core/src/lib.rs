@@ -81,6 +81,7 @@ extern crate std;
 pub mod array;
 pub mod basis;
 pub mod digest;
+pub mod dryrun;
 pub mod fast;
 pub mod interp;
 mod log;

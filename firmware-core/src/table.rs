@@ -132,6 +132,12 @@ pub const Q_ORDER: u32 = 4;
 /// Relative tolerance for values that must agree with L or with a knot
 /// (su segment ends, last q knot, last su break).
 pub const MATCH_TOL_REL: f64 = 1e-9;
+/// Largest q control point allowed, relative to vbar²: q(s) ≤ max control
+/// point (B-spline convex hull), so no accepted table runs faster than
+/// √`Q_VBAR_SLACK` · vbar. The plan keeps q ≤ vbar² at its evaluation points
+/// only; at very coarse sampling its control points overshoot vbar² by up to
+/// ≈ 40 % (issue 4's sampling study, 0.05 points/mm), hence the slack.
+pub const Q_VBAR_SLACK: f64 = 2.0;
 /// Relative tolerance of the end segments' consistency checks (section 14).
 pub const END_TOL_REL: f64 = 1e-6;
 /// f64 values in the end-segment section when present.
@@ -593,6 +599,12 @@ pub enum TableError {
         /// Control point index.
         index: usize,
     },
+    /// A q control point exceeds [`Q_VBAR_SLACK`]` · vbar²`: the table's
+    /// feedrate disagrees with its own tangential velocity limit.
+    QAboveVbar {
+        /// Control point index.
+        index: usize,
+    },
     /// The first or last q control point is not exactly 0 (rest to rest).
     QEndNotZero {
         /// Control point index.
@@ -709,6 +721,9 @@ impl fmt::Display for TableError {
             E::KnotRange { section } => write!(f, "{section:?}: empty or wrong knot range"),
             E::Weight { index } => write!(f, "NURBS weight {index} is not > 0"),
             E::QNegative { index } => write!(f, "q control point {index} is negative"),
+            E::QAboveVbar { index } => {
+                write!(f, "q control point {index} is above {Q_VBAR_SLACK} vbar²")
+            }
             E::QEndNotZero { index } => write!(f, "q control point {index} must be exactly 0"),
             E::QFlatEnd { index } => write!(f, "q control point {index} is 0: q' vanishes at an end"),
             E::SuBreak { index } => write!(f, "su break {index} not increasing from 0 to L"),
@@ -758,6 +773,28 @@ impl fmt::Display for EncodeError {
             EncodeError::TooLarge => f.write_str("table larger than 4 GiB"),
             EncodeError::Invalid(e) => write!(f, "invalid table: {e}"),
         }
+    }
+}
+
+/// The CRC-32 (ISO-HDLC) a table stores over `body` (every byte before the CRC).
+pub fn crc32(body: &[u8]) -> u32 {
+    CRC.checksum(body)
+}
+
+/// Recompute and store the trailing CRC of `bytes` (a whole table, CRC
+/// included) in place; `false` if `bytes` is shorter than the CRC. For tools
+/// and tests that edit a table on purpose (fuzzing behind the checksum).
+pub fn reseal(bytes: &mut [u8]) -> bool {
+    let Some(body_len) = bytes.len().checked_sub(CRC_LEN) else {
+        return false;
+    };
+    let crc = crc32(bytes.get(..body_len).unwrap_or(&[]));
+    match bytes.get_mut(body_len..) {
+        Some(tail) => {
+            tail.copy_from_slice(&crc.to_le_bytes());
+            true
+        }
+        None => false,
     }
 }
 
@@ -1363,6 +1400,10 @@ impl<'a> Table<'a> {
         }
         if let Some(index) = q_ctrl.iter().position(|a| a < 0.0) {
             return Err(TableError::QNegative { index });
+        }
+        let q_cap = Q_VBAR_SLACK * limits.vbar * limits.vbar;
+        if let Some(index) = q_ctrl.iter().position(|a| !(a <= q_cap)) {
+            return Err(TableError::QAboveVbar { index });
         }
         for index in [0, nq - 1] {
             if q_ctrl.get(index) != Some(0.0) {

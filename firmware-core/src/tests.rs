@@ -499,6 +499,11 @@ fn encode_refuses_invalid_parts() {
         E::KnotRange { section: S::QKnots },
     );
     check(&|o| o.q_ctrl[4] = -1.0, E::QNegative { index: 4 });
+    check(
+        &|o| o.q_ctrl[4] = 2.01 * o.limits.vbar * o.limits.vbar,
+        E::QAboveVbar { index: 4 },
+    );
+    check(&|o| o.limits.vbar = 30.0, E::QAboveVbar { index: 1 });
     check(&|o| o.q_ctrl[0] = 1.0, E::QEndNotZero { index: 0 });
     check(&|o| o.q_ctrl[11] = 1e-300, E::QEndNotZero { index: 11 });
     check(&|o| o.q_ctrl[1] = 0.0, E::QFlatEnd { index: 1 });
@@ -919,6 +924,38 @@ fn section_offset(bytes: &[u8], kind: u16) -> usize {
         .find(|&e| u16::from_le_bytes([bytes[e], bytes[e + 1]]) == kind)
         .map(|e| u32::from_le_bytes(bytes[e + 8..e + 12].try_into().unwrap()) as usize)
         .unwrap()
+}
+
+#[test]
+fn lowered_vbar_behind_a_fresh_crc_is_refused() {
+    // Fuzzing (table_mutate) found this: vbar overwritten with a small value
+    // and the CRC recomputed parsed, and the motion then ran far above the
+    // table's own tangential limit. q is now bounded by Q_VBAR_SLACK · vbar².
+    use crate::dryrun::{dry_run, Outcome};
+    use crate::table::Q_VBAR_SLACK;
+    let bytes = good().encode().unwrap();
+    let q_max = good().q_ctrl.iter().fold(0.0f64, |a, &b| a.max(b));
+    let at = section_offset(&bytes, 1);
+    let with_vbar = |vbar: f64| {
+        let mut b = bytes.clone();
+        b[at..at + 8].copy_from_slice(&vbar.to_le_bytes());
+        fix_crc(&mut b);
+        b
+    };
+    for vbar in [1e-3, 0.33, 10.0, 0.99 * libm::sqrt(q_max / Q_VBAR_SLACK)] {
+        let b = with_vbar(vbar);
+        assert!(
+            matches!(Table::parse(&b), Err(TableError::QAboveVbar { .. })),
+            "vbar {vbar}"
+        );
+        assert!(matches!(
+            dry_run(&b, 250e-6, 100_000).unwrap().outcome,
+            Outcome::Refused(_)
+        ));
+    }
+    // Just inside the slack: accepted, and the motion keeps the dry-run bounds.
+    let b = with_vbar(1.01 * libm::sqrt(q_max / Q_VBAR_SLACK));
+    assert_eq!(dry_run(&b, 250e-6, 100_000).unwrap().outcome, Outcome::Done);
 }
 
 #[test]
