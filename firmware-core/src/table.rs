@@ -7,7 +7,7 @@
 //! same validation on what it wrote, so encode either errs or produces bytes
 //! that parse.
 //!
-//! # Byte layout (format version 2)
+//! # Byte layout (format version 3)
 //!
 //! All integers and floats little-endian; offsets from the start of the table.
 //!

@@ -274,11 +274,13 @@ impl EndRows {
                 basis: BasisRow::at(knots, s)?,
             })
         };
-        Some(EndRows {
-            start: join(s1, s1, false, q1)?,
-            stop: join(s2, length - s2, true, q2)?,
-            length,
-        })
+        let (start, stop) = (join(s1, s1, false, q1)?, join(s2, length - s2, true, q2)?);
+        // each join fixes three consecutive control points: they must not
+        // overlap (a short path at a coarse sampling)
+        if stop.basis.first < start.basis.first + ORDER - 1 {
+            return None;
+        }
+        Some(EndRows { start, stop, length })
     }
 
     /// `true` if q is executed at `s` (s₁ ≤ s ≤ s₂), `false` inside a segment.
