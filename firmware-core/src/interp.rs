@@ -259,7 +259,9 @@ impl Views<'_> {
             .ok()?;
         let word = |i: usize| {
             let mut b = [0u8; 8];
-            b.copy_from_slice(&w[8 * i..8 * i + 8]);
+            if let Some(src) = w.get(8 * i..8 * i + 8) {
+                b.copy_from_slice(src);
+            }
             i64::from_le_bytes(b)
         };
         let last = idx >= self.q_last;

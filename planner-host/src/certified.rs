@@ -187,6 +187,16 @@ fn static_cap(lp: &FeedLp, p: &EvalPoint) -> f64 {
     c
 }
 
+/// The share of the jerk limit the continuous jerk may use at `s`: 1 − β
+/// within 1e-6 mm of a curvature jump in `caps` ([`crate::junction`]), else 1.
+fn jerk_share(s: f64, caps: &[(f64, f64)]) -> f64 {
+    if caps.iter().any(|&(c, _)| (s - c).abs() <= 1e-6) {
+        1.0 - crate::junction::JUMP_JERK_SHARE
+    } else {
+        1.0
+    }
+}
+
 /// Indices of the candidate points `cand` (executed ones) where the plan
 /// `ctrl` exceeds any limit by more than the factor `limit` (exact
 /// kinematics, the jerk held to (1 − β)·J within 1e-6 mm of a curvature jump
@@ -198,19 +208,12 @@ pub fn violations(
     caps: &[(f64, f64)],
     limit: f64,
 ) -> Vec<usize> {
-    let share = |s: f64| {
-        if caps.iter().any(|&(c, _)| (s - c).abs() <= 1e-6) {
-            1.0 - crate::junction::JUMP_JERK_SHARE
-        } else {
-            1.0
-        }
-    };
     cand.iter()
         .enumerate()
         .filter(|(_, p)| lp.executes(p.s))
         .filter(|(_, p)| {
             let v = values(lp, p, lp.q_max(&p.geo), ctrl);
-            let sh = share(p.s);
+            let sh = jerk_share(p.s, caps);
             v[0] > limit * limit
                 || v[1..5].iter().any(|x| x.abs() > limit)
                 || v[5..].iter().any(|x| x.abs() / sh > limit)
@@ -243,16 +246,7 @@ pub fn solve(
     let lp = &relaxed;
     let pts = lp.points;
     // jerk limit share at each check point: 1 − β next to a curvature jump
-    let jerk_share: Vec<f64> = pts
-        .iter()
-        .map(|p| {
-            if caps.iter().any(|&(s, _)| (p.s - s).abs() <= 1e-6) {
-                1.0 - crate::junction::JUMP_JERK_SHARE
-            } else {
-                1.0
-            }
-        })
-        .collect();
+    let jerk_share: Vec<f64> = pts.iter().map(|p| jerk_share(p.s, caps)).collect();
     let cap_rows: Vec<Row> = caps
         .iter()
         .filter_map(|&(s, cap)| Some(Row::q_at(&crate::lp::BasisRow::at(lp.knots, s)?, cap)))
