@@ -13,14 +13,20 @@
 //! - [`sim`]: [`sim::run_table`], table bytes → [`sim::SimResult`].
 //! - [`csv`]: one row per tick, full precision, written atomically.
 //! - [`plot`]: feedrate against arc length as PNG (font embedded).
+//! - [`scenario`]: operator, host and link in front of the interpolator:
+//!   feedrate overrides (paper §4), feed hold, link faults.
+//! - [`override_report`]: the override scenarios (Figs 13–15, storm, holds,
+//!   faults) as CSV, PNG and a Markdown table.
 //! - [`report`]: the sampling study PAR/LEN/ADA as a Markdown report with figures.
 //!
 //! Units: mm, s, mm/s, mm/s², mm/s³; forces N, masses kg.
 
 pub mod csv;
 pub mod metrics;
+pub mod override_report;
 pub mod plot;
 pub mod report;
+pub mod scenario;
 pub mod servo;
 pub mod sim;
 

@@ -65,6 +65,9 @@ pub struct FeedPlot<'a> {
     pub actual: Option<&'a [(f64, f64)]>,
     /// Tangential velocity limit v̄, mm/s, drawn as a dashed line.
     pub vbar_mm_s: Option<f64>,
+    /// Further labelled series (e.g. the override's limiting profile), drawn
+    /// in their own colours.
+    pub extra: &'a [(&'a str, &'a [(f64, f64)])],
 }
 
 /// Image size, pixels.
@@ -111,6 +114,7 @@ fn draw(path: &Path, p: &FeedPlot) -> Result<(), String> {
         finite(p.planned)
             .chain(finite(p.commanded))
             .chain(p.actual.into_iter().flat_map(finite))
+            .chain(p.extra.iter().flat_map(|(_, e)| finite(e)))
     };
     let s_max = all().map(|(s, _)| s).fold(0.0, f64::max).max(1e-9);
     let s_min = all()
@@ -168,6 +172,20 @@ fn draw(path: &Path, p: &FeedPlot) -> Result<(), String> {
             .label("simulated, actual (servo) positions")
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], style));
     }
+    const EXTRA: [RGBColor; 4] = [
+        RGBColor(200, 0, 160),
+        RGBColor(220, 30, 30),
+        RGBColor(120, 120, 120),
+        RGBColor(0, 170, 200),
+    ];
+    for (k, (label, series)) in p.extra.iter().enumerate() {
+        let style = EXTRA[k % EXTRA.len()].stroke_width(2);
+        chart
+            .draw_series(LineSeries::new(finite(series), style))
+            .map_err(|e| e.to_string())?
+            .label(label.to_string())
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], style));
+    }
     let style = RGBColor(0, 150, 60).stroke_width(2);
     chart
         .draw_series(LineSeries::new(finite(p.commanded), style))
@@ -216,6 +234,7 @@ mod tests {
             commanded: &commanded,
             actual: Some(&commanded),
             vbar_mm_s: Some(166.7),
+            extra: &[("limiting profile", &commanded)],
         };
         plot_feed(&path, &p).unwrap();
         let bytes = std::fs::read(&path).unwrap();

@@ -94,6 +94,28 @@ enum Cmd {
         #[arg(long)]
         quiet: bool,
     },
+    /// Override scenarios (issue 6): the paper's Figs 13-15, an override storm, feed holds and link
+    /// faults, each planned with its override levels and simulated with a host-firmware link model;
+    /// writes DIR/README.md, a CSV and a feed plot per scenario.
+    Override {
+        /// Scenarios (default all): fig13, fig14, fig15, storm, holds, faults.
+        scenarios: Vec<String>,
+        /// Output directory.
+        #[arg(long, default_value = "docs/override")]
+        out: PathBuf,
+        /// One-way link latency host <-> firmware, milliseconds.
+        #[arg(long, default_value_t = 5.0)]
+        latency_ms: f64,
+        /// Host compute budget in the timeline, milliseconds (measured times are reported beside it).
+        #[arg(long, default_value_t = 10.0)]
+        compute_ms: f64,
+        /// The Fig. 15 curve (default ../shared/curves/trident.json).
+        #[arg(long)]
+        trident: Option<PathBuf>,
+        /// Servo period, microseconds.
+        #[arg(long, default_value_t = 250.0)]
+        period_us: f64,
+    },
 }
 
 type BoxError = Box<dyn std::error::Error>;
@@ -163,6 +185,14 @@ fn run(cli: Cli) -> Result<(), BoxError> {
             Ok(())
         }
         Cmd::Demo { out } => demo(&out),
+        Cmd::Override {
+            scenarios,
+            out,
+            latency_ms,
+            compute_ms,
+            trident,
+            period_us,
+        } => override_report(&scenarios, &out, latency_ms, compute_ms, trident, period_us),
         Cmd::Report {
             curves,
             densities,
@@ -270,6 +300,7 @@ fn write_plot(path: &Path, res: &SimResult, name: &str) -> Result<(), BoxError> 
             commanded: &commanded,
             actual: Some(&actual),
             vbar_mm_s: Some(res.limits.vbar),
+            extra: &[],
         },
     )?;
     Ok(())
@@ -308,5 +339,73 @@ fn demo(out: &Path) -> Result<(), BoxError> {
     let png = out.join("butterfly_feed.png");
     write_plot(&png, &res, "Butterfly")?;
     println!("== wrote {}, {}, {}", bin.display(), csv.display(), png.display());
+    Ok(())
+}
+
+fn override_report(
+    names: &[String],
+    out: &Path,
+    latency_ms: f64,
+    compute_ms: f64,
+    trident: Option<PathBuf>,
+    period_us: f64,
+) -> Result<(), BoxError> {
+    use sim_harness::override_report as orep;
+    std::fs::create_dir_all(out).map_err(|e| format!("cannot create {}: {e}", out.display()))?;
+    let butterfly = builtin::butterfly()?;
+    let trident_path = trident.unwrap_or_else(|| PathBuf::from("../shared/curves/trident.json"));
+    let trident = planner_host::curve::Nurbs::load(&trident_path).ok();
+    let link = sim_harness::scenario::LinkConfig {
+        down_latency_s: latency_ms * 1e-3,
+        up_latency_s: latency_ms * 1e-3,
+        compute_budget_s: compute_ms * 1e-3,
+        ..Default::default()
+    };
+    let all = orep::catalogue(&butterfly, trident.as_ref(), link);
+    for n in names {
+        if !all.iter().any(|s| s.name == n) {
+            return Err(format!(
+                "unknown scenario {n:?} (known: {})",
+                all.iter().map(|s| s.name).collect::<Vec<_>>().join(", ")
+            )
+            .into());
+        }
+    }
+    let mut md = format!(
+        "# Feedrate override and feed hold scenarios\n\nMade by `cargo run --release -p sim-harness --bin feedsim -- override{}` \
+         (one-way link latency {latency_ms} ms, host compute budget {compute_ms} ms in the timeline, servo period {period_us} us). \
+         Ratios are the commanded setpoints' largest ratio to each limit with the machine at rest before and after \
+         (`--pad-rest`), by feedsim's own stencils; `.ci/check-traj.sh` runs `shared/checks/check_traj.py --pad-rest 50` on the CSVs.\n\n{}\n",
+        names.iter().map(|n| format!(" {n}")).collect::<String>(),
+        orep::TABLE_HEAD
+    );
+    let mut notes = String::new();
+    for spec in all.iter().filter(|s| names.is_empty() || names.iter().any(|n| n == s.name)) {
+        eprintln!("feedsim override: {} ...", spec.name);
+        let run = orep::run_spec(spec, period_us * 1e-6)?;
+        let (row, files) = orep::write_run(out, &run)?;
+        println!("{row}");
+        md.push_str(&row);
+        md.push('\n');
+        notes.push_str(&format!(
+            "- **{}**: {} Plan with {} level(s) {:.2} s, override context {:.1} ms; files {}.\n",
+            spec.name,
+            spec.what,
+            spec.levels.len(),
+            run.plan_time_s,
+            run.context_time_s * 1e3,
+            files
+                .iter()
+                .filter_map(|f| f.file_name().map(|n| format!("`{}`", n.to_string_lossy())))
+                .collect::<Vec<_>>()
+                .join(", ")
+        ));
+        let json = serde_json::to_string_pretty(&run.result.overrides)?;
+        sim_harness::csv::write_atomic(&out.join(format!("{}_overrides.json", spec.name)), json.as_bytes())?;
+    }
+    md.push_str("\n");
+    md.push_str(&notes);
+    sim_harness::csv::write_atomic(&out.join("README.md"), md.as_bytes())?;
+    println!("wrote {}", out.join("README.md").display());
     Ok(())
 }

@@ -1,0 +1,696 @@
+//! Override and feed-hold scenarios (issue 6): an operator, a host and a
+//! link in front of firmware-core's interpolator, tick by tick.
+//!
+//! Per servo tick k (t = kT):
+//!
+//! 1. downlink messages due by t reach the firmware
+//!    ([`Interpolator::offer_override`]); each reply (accepted, or the typed
+//!    refusal) goes up the link;
+//! 2. the interpolator ticks, the servos follow, and a status (s, feed, the
+//!    active profile) goes up the link;
+//! 3. uplink messages due by t reach the host;
+//! 4. operator events due by t act: feed hold and resume on the firmware
+//!    directly (a local input: the firmware stops on its own), an override on
+//!    the host, which computes the transition profile (paper §4,
+//!    `planner_host::feed_override`) for the position it predicts the
+//!    machine at when the profile arrives, and sends it down.
+//!
+//! The host's compute time enters the timeline as a fixed budget
+//! ([`LinkConfig::compute_budget_s`]) so that a scenario replays the same
+//! way on any machine; the real wall time of every computation is measured
+//! and reported beside it. Faults: lost downlink messages (the host resends
+//! after [`LinkConfig::ack_timeout_s`]), a host restart (it forgets what it
+//! sent and resynchronises from the firmware's status), refusals (late,
+//! stale context, queue full: the host recomputes from the new position).
+
+use std::collections::VecDeque;
+use std::time::Instant;
+
+use firmware_core::interp::Interpolator;
+use firmware_core::qspline::QSpline;
+use firmware_core::splice::{OverrideError, OverrideProfile as FwProfile};
+use firmware_core::table::Table;
+use planner_host::feed_override::{OverrideContext, OverrideOutcome};
+
+use crate::metrics::{self, Metrics, Tick, Toolpath};
+use crate::servo::{Axis, ServoConfig};
+use crate::sim::{CurveGeometry, SimError};
+
+/// The link between host and firmware.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct LinkConfig {
+    /// Host → firmware latency, s.
+    pub down_latency_s: f64,
+    /// Firmware → host latency (status and replies), s.
+    pub up_latency_s: f64,
+    /// Time the host's computation takes in the timeline, s.
+    pub compute_budget_s: f64,
+    /// Every n-th override message sent down is lost (0: none).
+    pub drop_every: usize,
+    /// The host resends when no reply came this long after the expected one, s.
+    pub ack_timeout_s: f64,
+    /// Ticks of margin the host adds to its predicted splice position.
+    pub margin_ticks: f64,
+}
+
+impl Default for LinkConfig {
+    fn default() -> Self {
+        LinkConfig {
+            down_latency_s: 0.005,
+            up_latency_s: 0.005,
+            compute_budget_s: 0.010,
+            drop_every: 0,
+            ack_timeout_s: 0.020,
+            margin_ticks: 8.0,
+        }
+    }
+}
+
+/// What the operator does.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub enum Command {
+    /// Feed override to this level id (0: the plan, k: table level k).
+    Override {
+        /// Level id.
+        level: u16,
+    },
+    /// Feed hold (0 %).
+    Hold,
+    /// Resume after a hold.
+    Resume,
+    /// The host process restarts: it forgets everything it sent.
+    HostRestart,
+}
+
+/// An operator event.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct Event {
+    /// When, s.
+    pub t_s: f64,
+    /// What.
+    pub cmd: Command,
+}
+
+/// A scenario.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct ScenarioConfig {
+    /// Servo period T, s.
+    pub period_s: f64,
+    /// Servo model of the x, y and z axes.
+    pub servo: [ServoConfig; 3],
+    /// The link.
+    pub link: LinkConfig,
+    /// Operator events, by time.
+    pub events: Vec<Event>,
+    /// Give up after this many ticks.
+    pub max_ticks: usize,
+    /// Sends per override command before the host gives up.
+    pub max_attempts: u32,
+}
+
+impl Default for ScenarioConfig {
+    fn default() -> Self {
+        ScenarioConfig {
+            period_s: crate::sim::DEFAULT_PERIOD_S,
+            servo: [ServoConfig::default(); 3],
+            link: LinkConfig::default(),
+            events: Vec::new(),
+            max_ticks: 5_000_000,
+            max_attempts: 8,
+        }
+    }
+}
+
+/// What became of an override command.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Fate {
+    /// Not settled when the path ended.
+    Open,
+    /// Accepted and executed from its splice point on.
+    Active,
+    /// Accepted, then superseded by a newer command before its splice.
+    Superseded,
+    /// A newer command came before this one was sent.
+    Replaced,
+    /// The host skipped it (paper §4: end of path, final deceleration, …).
+    Skipped(String),
+    /// Could not be computed or was refused for good.
+    Failed(String),
+}
+
+/// One override command, end to end.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct OverrideRecord {
+    /// Command time, s.
+    pub t_cmd_s: f64,
+    /// Setpoint arc length at the command, mm.
+    pub s_cmd_mm: f64,
+    /// Target level id and its percentage.
+    pub level: u16,
+    /// Percent of the programmed feed.
+    pub percent: f64,
+    /// What became of it.
+    pub fate: Fate,
+    /// Messages sent for it.
+    pub sends: u32,
+    /// Refusals and timeouts on the way, as text.
+    pub refusals: Vec<String>,
+    /// Measured wall time of each host computation, s.
+    pub compute_s: Vec<f64>,
+    /// The paper's case of the profile executed (accel, decel-i, decel-ii).
+    pub case: Option<String>,
+    /// LP retries: grown windows and Algorithm 2 restarts.
+    pub retries_grow: u32,
+    /// Algorithm 2 restarts.
+    pub retries_extreme: u32,
+    /// ArcLen's estimate of the transition, mm.
+    pub arclen_estimate_mm: Option<f64>,
+    /// The transition's arc length, mm.
+    pub transition_len_mm: Option<f64>,
+    /// Splice and merge points of the profile sent last, mm.
+    pub splice_s_mm: Option<f64>,
+    /// Merge point, mm.
+    pub merge_s_mm: Option<f64>,
+    /// When the firmware accepted it, s.
+    pub t_accepted_s: Option<f64>,
+    /// When it became active (the tick entering its splice span), s.
+    pub t_active_s: Option<f64>,
+    /// The profile equals the active one bitwise up to the splice (host side).
+    pub prefix_identical: Option<bool>,
+    /// Largest |executed feed − the target level's √q| between the merge
+    /// and the next splice (or the end), mm/s; `None` if that stretch is empty.
+    pub feed_err_after_merge_mm_s: Option<f64>,
+    /// The sequence number that was accepted.
+    #[serde(skip)]
+    pub seq: Option<u32>,
+}
+
+impl OverrideRecord {
+    /// Command to the start of the transition, s.
+    pub fn latency_s(&self) -> Option<f64> {
+        self.t_active_s.map(|t| t - self.t_cmd_s)
+    }
+}
+
+/// One feed hold, end to end.
+#[derive(Debug, Clone, Copy, serde::Serialize)]
+pub struct HoldRecord {
+    /// Hold command time, s, and arc length, mm.
+    pub t_hold_s: f64,
+    /// Arc length at the command, mm.
+    pub s_hold_mm: f64,
+    /// First tick with zero feed, s.
+    pub t_stopped_s: Option<f64>,
+    /// Where it stopped, mm.
+    pub s_stopped_mm: Option<f64>,
+    /// Resume command time, s.
+    pub t_resume_s: Option<f64>,
+}
+
+/// Everything a scenario produced.
+#[derive(Debug, Clone)]
+pub struct ScenarioResult {
+    /// One record per servo tick.
+    pub ticks: Vec<Tick>,
+    /// Measurements of the setpoints.
+    pub metrics: Metrics,
+    /// Override commands.
+    pub overrides: Vec<OverrideRecord>,
+    /// Feed holds.
+    pub holds: Vec<HoldRecord>,
+    /// Largest position step between two ticks, mm.
+    pub max_step_mm: f64,
+    /// Largest axis speed limit times T, mm (a step above it is a jump).
+    pub jump_limit_mm: f64,
+    /// Whether the last setpoint is the path's end point exactly.
+    pub ended_at_end: bool,
+}
+
+#[derive(Debug, Clone)]
+enum Down {
+    Profile {
+        rec: usize,
+        seq: u32,
+        level: u16,
+        first: u32,
+        ctrl: Vec<f64>,
+    },
+}
+
+#[derive(Debug, Clone)]
+enum Up {
+    Reply {
+        rec: usize,
+        seq: u32,
+        result: Result<f64, OverrideError>,
+        superseded: u8,
+    },
+    Status(Status),
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Status {
+    t_s: f64,
+    s_mm: f64,
+    feed_mm_s: f64,
+    active_seq: Option<u32>,
+    active_level: u16,
+}
+
+/// A profile the host has sent: what it needs to compute the next one.
+#[derive(Debug, Clone)]
+struct Sent {
+    rec: usize,
+    seq: u32,
+    level: u16,
+    ctrl: Vec<f64>,
+    /// When the reply is overdue, s.
+    deadline_s: f64,
+}
+
+struct Host<'c> {
+    ctx: &'c OverrideContext,
+    /// The profile the host believes is scheduled last: level and control points.
+    base_level: u16,
+    base_ctrl: Vec<f64>,
+    in_flight: Option<Sent>,
+    /// An override command waiting to be sent (the newest wins).
+    waiting: Option<usize>,
+    retry_at_s: Option<f64>,
+    status: Option<Status>,
+    next_seq: u32,
+    sends: usize,
+    /// Accepted records not yet active, with their splice points.
+    scheduled: Vec<(usize, u32, f64)>,
+}
+
+impl<'c> Host<'c> {
+    fn forget(&mut self) {
+        self.in_flight = None;
+        self.waiting = None;
+        self.retry_at_s = None;
+        self.scheduled.clear();
+        // resynchronise from the firmware's last status: its active level's profile
+        let level = self.status.map_or(0, |s| s.active_level);
+        self.base_level = level;
+        self.base_ctrl = self.ctx.level_ctrl(level).map(<[f64]>::to_vec).unwrap_or_default();
+    }
+}
+
+fn fate_failed(e: impl std::fmt::Display) -> Fate {
+    Fate::Failed(e.to_string())
+}
+
+/// Run a scenario on `table_bytes` (a table with the override levels of
+/// `ctx`), with the host computing through `ctx`.
+pub fn run_scenario(
+    table_bytes: &[u8],
+    ctx: &OverrideContext,
+    geometry: Option<&CurveGeometry>,
+    cfg: &ScenarioConfig,
+) -> Result<ScenarioResult, SimError> {
+    let table = Table::parse(table_bytes).map_err(SimError::Table)?;
+    let limits = table.limits();
+    let t = cfg.period_s;
+    let last_point = table.nurbs_points().get(table.nurbs_points().len().saturating_sub(1));
+    let mut ip: Interpolator = Interpolator::new(table, t).map_err(SimError::Interp)?;
+    let mut events = cfg.events.clone();
+    events.sort_by(|a, b| a.t_s.total_cmp(&b.t_s));
+    let mut events: VecDeque<Event> = events.into();
+    let mut down: VecDeque<(f64, Down)> = VecDeque::new();
+    let mut up: VecDeque<(f64, Up)> = VecDeque::new();
+    let mut host = Host {
+        ctx,
+        base_level: 0,
+        base_ctrl: ctx.level_ctrl(0).map(<[f64]>::to_vec).unwrap_or_default(),
+        in_flight: None,
+        waiting: None,
+        retry_at_s: None,
+        status: None,
+        next_seq: 1,
+        sends: 0,
+        scheduled: Vec::new(),
+    };
+    let mut recs: Vec<OverrideRecord> = Vec::new();
+    let mut holds: Vec<HoldRecord> = Vec::new();
+    let mut ticks: Vec<Tick> = Vec::new();
+    let mut axes: Option<[Axis; 3]> = None;
+    let mut active_seq: Option<u32> = None;
+    let link = cfg.link;
+
+    let mut k: u64 = 0;
+    while !ip.is_done() {
+        if ticks.len() >= cfg.max_ticks {
+            return Err(SimError::TooLong {
+                max_ticks: cfg.max_ticks,
+                seconds: cfg.max_ticks as f64 * t,
+                predicted_s: ip.table().predicted_time_s(),
+            });
+        }
+        let now = k as f64 * t;
+        // 1. downlink → firmware
+        while down.front().is_some_and(|(at, _)| *at <= now + 1e-12) {
+            let Some((_, Down::Profile { rec, seq, level, first, ctrl })) = down.pop_front() else {
+                break;
+            };
+            let msg = FwProfile {
+                seq,
+                level,
+                first,
+                ctrl: &ctrl,
+            };
+            let (result, superseded) = match ip.offer_override(&msg) {
+                Ok(a) => (Ok(a.splice_s_mm), a.superseded),
+                Err(e) => (Err(e), 0),
+            };
+            up.push_back((
+                now + link.up_latency_s,
+                Up::Reply {
+                    rec,
+                    seq,
+                    result,
+                    superseded,
+                },
+            ));
+        }
+        // 2. tick
+        let sp = ip.tick().map_err(|fault| SimError::Fault {
+            fault,
+            ticks: ticks.len(),
+        })?;
+        let ax = match &mut axes {
+            Some(a) => a,
+            None => {
+                let [c0, c1, c2] = &cfg.servo;
+                axes.insert([
+                    Axis::new(*c0, t, sp.pos_mm[0])?,
+                    Axis::new(*c1, t, sp.pos_mm[1])?,
+                    Axis::new(*c2, t, sp.pos_mm[2])?,
+                ])
+            }
+        };
+        let act_mm = [
+            ax[0].step(sp.pos_mm[0]),
+            ax[1].step(sp.pos_mm[1]),
+            ax[2].step(sp.pos_mm[2]),
+        ];
+        ticks.push(Tick {
+            t_s: sp.t_s,
+            cmd_mm: sp.pos_mm,
+            s_mm: sp.s_mm,
+            u: sp.u,
+            feed_mm_s: sp.feed_mm_s,
+            act_mm,
+        });
+        let (seq_now, level_now) = ip.active_profile();
+        if seq_now != active_seq {
+            if let Some(r) = recs.iter_mut().find(|r| r.seq.is_some() && r.seq == seq_now) {
+                r.t_active_s = Some(sp.t_s);
+                r.fate = Fate::Active;
+            }
+            active_seq = seq_now;
+        }
+        for h in holds.iter_mut() {
+            if h.t_stopped_s.is_none() && sp.feed_mm_s == 0.0 && !ip.is_done() {
+                h.t_stopped_s = Some(sp.t_s);
+                h.s_stopped_mm = Some(sp.s_mm);
+            }
+        }
+        up.push_back((
+            now + link.up_latency_s,
+            Up::Status(Status {
+                t_s: sp.t_s,
+                s_mm: sp.s_mm,
+                feed_mm_s: sp.feed_mm_s,
+                active_seq: seq_now,
+                active_level: level_now,
+            }),
+        ));
+        // 3. uplink → host
+        while up.front().is_some_and(|(at, _)| *at <= now + 1e-12) {
+            let Some((_, msg)) = up.pop_front() else { break };
+            match msg {
+                Up::Status(s) => host.status = Some(s),
+                Up::Reply {
+                    rec,
+                    seq,
+                    result,
+                    superseded,
+                } => {
+                    let Some(sent) = host.in_flight.take_if(|s| s.seq == seq) else {
+                        continue; // a reply to a message the host gave up on or forgot
+                    };
+                    match result {
+                        Ok(splice) => {
+                            let r = &mut recs[rec];
+                            r.t_accepted_s = Some(now);
+                            r.seq = Some(seq);
+                            if superseded > 0 {
+                                for &(other, _, _) in host.scheduled.iter().filter(|(_, _, s)| *s >= splice) {
+                                    recs[other].fate = Fate::Superseded;
+                                }
+                                host.scheduled.retain(|&(_, _, s)| s < splice);
+                            }
+                            host.scheduled.push((rec, seq, splice));
+                            host.base_level = sent.level;
+                            host.base_ctrl = sent.ctrl;
+                        }
+                        Err(e) => {
+                            recs[rec].refusals.push(format!("{e:?}"));
+                            if matches!(e, OverrideError::ContextMismatch { .. }) {
+                                host.forget();
+                            }
+                            if recs[rec].sends >= cfg.max_attempts {
+                                recs[rec].fate = fate_failed(format!("refused {} times, last {e:?}", recs[rec].sends));
+                            } else if host.waiting.is_none() {
+                                host.waiting = Some(rec);
+                                host.retry_at_s = Some(
+                                    now + if matches!(e, OverrideError::QueueFull) {
+                                        0.02
+                                    } else {
+                                        0.0
+                                    },
+                                );
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        // a lost message: resend
+        if let Some(sent) = host.in_flight.as_ref().filter(|s| now > s.deadline_s) {
+            let rec = sent.rec;
+            host.in_flight = None;
+            recs[rec].refusals.push("no reply (message lost?)".into());
+            if host.waiting.is_none() && recs[rec].sends < cfg.max_attempts {
+                host.waiting = Some(rec);
+            } else if recs[rec].sends >= cfg.max_attempts {
+                recs[rec].fate = fate_failed("no reply");
+            }
+        }
+        // 4. operator
+        while events.front().is_some_and(|e| e.t_s <= now + 1e-12) {
+            let Some(ev) = events.pop_front() else { break };
+            match ev.cmd {
+                Command::Hold => {
+                    ip.hold();
+                    holds.push(HoldRecord {
+                        t_hold_s: now,
+                        s_hold_mm: sp.s_mm,
+                        t_stopped_s: None,
+                        s_stopped_mm: None,
+                        t_resume_s: None,
+                    });
+                }
+                Command::Resume => {
+                    ip.resume();
+                    if let Some(h) = holds.last_mut() {
+                        h.t_resume_s = Some(now);
+                    }
+                }
+                Command::HostRestart => host.forget(),
+                Command::Override { level } => {
+                    let rec = recs.len();
+                    recs.push(OverrideRecord {
+                        t_cmd_s: now,
+                        s_cmd_mm: sp.s_mm,
+                        level,
+                        percent: ctx.level_percent(level).unwrap_or(f64::NAN),
+                        fate: Fate::Open,
+                        sends: 0,
+                        refusals: Vec::new(),
+                        compute_s: Vec::new(),
+                        case: None,
+                        retries_grow: 0,
+                        retries_extreme: 0,
+                        arclen_estimate_mm: None,
+                        transition_len_mm: None,
+                        splice_s_mm: None,
+                        merge_s_mm: None,
+                        t_accepted_s: None,
+                        t_active_s: None,
+                        prefix_identical: None,
+                        feed_err_after_merge_mm_s: None,
+                        seq: None,
+                    });
+                    if let Some(old) = host.waiting.replace(rec) {
+                        if recs[old].fate == Fate::Open && recs[old].seq.is_none() {
+                            recs[old].fate = Fate::Replaced;
+                        }
+                    }
+                    host.retry_at_s = None;
+                }
+            }
+        }
+        // the host sends what waits, one message in flight at a time
+        if host.in_flight.is_none() && host.retry_at_s.is_none_or(|at| now >= at) {
+            if let Some(rec) = host.waiting.take() {
+                host.retry_at_s = None;
+                dispatch(&mut host, &mut recs, rec, now, t, &link, &mut down);
+            }
+        }
+        k += 1;
+    }
+
+    // the executed feed against the target level after each merge
+    let mut active: Vec<usize> = (0..recs.len()).filter(|&i| recs[i].t_active_s.is_some()).collect();
+    active.sort_by(|&a, &b| recs[a].t_active_s.total_cmp(&recs[b].t_active_s));
+    let table = ip.table();
+    for (n, &i) in active.iter().enumerate() {
+        let (Some(merge), Some(ctrl)) = (recs[i].merge_s_mm, ctx.level_ctrl(recs[i].level)) else {
+            continue;
+        };
+        let until = active
+            .get(n + 1)
+            .and_then(|&j| recs[j].splice_s_mm)
+            .unwrap_or(f64::INFINITY);
+        let Some(q) = QSpline::new(table.q_knots(), ctrl) else {
+            continue;
+        };
+        let stop_from = ctx.level_stop_s(recs[i].level).unwrap_or(f64::INFINITY);
+        let t_from = recs[i].t_active_s.unwrap_or(0.0);
+        let held = |t: f64| holds.iter().any(|h| t >= h.t_hold_s && h.t_resume_s.is_none_or(|r| t <= r + 2.0));
+        let err = ticks
+            .iter()
+            .filter(|tk| tk.t_s >= t_from && tk.s_mm >= merge && tk.s_mm < until.min(stop_from) && !held(tk.t_s))
+            .filter_map(|tk| Some((tk.feed_mm_s - q.eval(tk.s_mm)?[0].max(0.0).sqrt()).abs()))
+            .fold(None, |m: Option<f64>, e| Some(m.map_or(e, |m| m.max(e))));
+        recs[i].feed_err_after_merge_mm_s = err;
+    }
+    for r in recs.iter_mut().filter(|r| r.fate == Fate::Open && r.seq.is_some()) {
+        r.fate = Fate::Superseded;
+    }
+
+    let max_step_mm = ticks
+        .windows(2)
+        .map(|w| {
+            (0..3)
+                .map(|i| (w[1].cmd_mm[i] - w[0].cmd_mm[i]).abs())
+                .fold(0.0, f64::max)
+        })
+        .fold(0.0, f64::max);
+    let jump_limit_mm = limits.v.iter().cloned().fold(0.0, f64::max) * t;
+    let ended_at_end = match (ticks.last(), last_point) {
+        (Some(tk), Some(p)) => tk.cmd_mm == [p[0] / p[3], p[1] / p[3], p[2] / p[3]] || tk.cmd_mm == [p[0], p[1], p[2]],
+        _ => false,
+    };
+    let metrics = metrics::compute(&ticks, t, &limits, geometry.map(|g| g as &dyn Toolpath));
+    Ok(ScenarioResult {
+        ticks,
+        metrics,
+        overrides: recs,
+        holds,
+        max_step_mm,
+        jump_limit_mm,
+        ended_at_end,
+    })
+}
+
+/// The host computes the profile for record `rec` and sends it.
+fn dispatch(
+    host: &mut Host,
+    recs: &mut [OverrideRecord],
+    rec: usize,
+    now: f64,
+    period_s: f64,
+    link: &LinkConfig,
+    down: &mut VecDeque<(f64, Down)>,
+) {
+    let (s_seen, feed_seen, t_seen) = host.status.map_or((0.0, 0.0, now), |s| (s.s_mm, s.feed_mm_s, s.t_s));
+    // where the machine will be when the profile arrives, plus a margin
+    let ahead = (now - t_seen) + link.compute_budget_s + link.down_latency_s + link.margin_ticks * period_s;
+    let s_at = s_seen + feed_seen * ahead;
+    let target = recs[rec].level;
+    let t0 = Instant::now();
+    let outcome = host.ctx.compute(host.base_level, &host.base_ctrl, s_at, target);
+    let r = &mut recs[rec];
+    r.compute_s.push(t0.elapsed().as_secs_f64());
+    match outcome {
+        Err(e) => r.fate = fate_failed(e),
+        Ok(OverrideOutcome::Skipped(why)) => r.fate = Fate::Skipped(format!("{why:?}")),
+        Ok(OverrideOutcome::Profile(p)) => {
+            let seq = host.next_seq;
+            host.next_seq += 1;
+            host.sends += 1;
+            r.sends += 1;
+            r.case = Some(format!("{:?}", p.case));
+            r.retries_grow += p.retries_grow;
+            r.retries_extreme += p.retries_extreme;
+            r.arclen_estimate_mm = p.arclen_estimate_mm;
+            r.transition_len_mm = p.transition_len_mm;
+            r.splice_s_mm = Some(p.splice_s_mm);
+            r.merge_s_mm = Some(p.merge_s_mm);
+            let cut = (p.first as usize + 3).min(p.full_ctrl.len());
+            r.prefix_identical = Some(
+                host.base_ctrl.len() == p.full_ctrl.len()
+                    && host.base_ctrl[..cut]
+                        .iter()
+                        .zip(&p.full_ctrl[..cut])
+                        .all(|(a, b)| a.to_bits() == b.to_bits()),
+            );
+            let depart = now + link.compute_budget_s;
+            let arrive = depart + link.down_latency_s;
+            host.in_flight = Some(Sent {
+                rec,
+                seq,
+                level: target,
+                ctrl: p.full_ctrl.clone(),
+                deadline_s: arrive + link.up_latency_s + link.ack_timeout_s,
+            });
+            let lost = link.drop_every > 0 && host.sends % link.drop_every == 0;
+            if !lost {
+                let at = down.partition_point(|(a, _)| *a <= arrive);
+                down.insert(
+                    at,
+                    (
+                        arrive,
+                        Down::Profile {
+                            rec,
+                            seq,
+                            level: target,
+                            first: p.first,
+                            ctrl: p.ctrl,
+                        },
+                    ),
+                );
+            }
+        }
+    }
+}
+
+/// Order statistics of a sample: (median, max); `None` if empty.
+pub fn median_max(v: &[f64]) -> Option<(f64, f64)> {
+    let mut v: Vec<f64> = v.iter().copied().filter(|x| x.is_finite()).collect();
+    if v.is_empty() {
+        return None;
+    }
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    let med = if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    };
+    Some((med, v[n - 1]))
+}
