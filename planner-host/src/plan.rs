@@ -623,6 +623,7 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
         q_knots: &knots,
         q_ctrl: &ctrl,
         ends,
+        levels: &[],
     };
     let mut bytes = vec![0u8; table::encoded_len(&parts)];
     let written = table::encode(&parts, &mut bytes).map_err(PlanError::Table)?;
