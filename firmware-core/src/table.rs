@@ -62,8 +62,25 @@
 //! |   14 | end segments  | 0 or 6| f64 s₁, J₁, t₁, s₂, J₂, t₂ (optional)    |
 //! |   15 | q fixed       | 5(N−3)| i64 C0..C3 (Q32 (mm/s)²), shift 21 − e   |
 //! |      |               |       | per q span (`fast`)                      |
+//! |   16 | level meta    |     K | per level 8 f64: α, v̄_level = α·v̄, then  |
+//! |      |               |       | s₁, J₁, t₁, s₂, J₂, t₂ (all 0 without 14)|
+//! |   17 | level ctrl    |   K·N | f64, level k's a_0 … a_{N−1} at [k·N …]  |
+//! |   18 | level q local |K·5(N−3)| f32, as section 10, per level           |
+//! |   19 | level q fixed |K·5(N−3)| i64, as section 15, per level           |
 //! +------+---------------+-------+------------------------------------------+
 //! ```
+//!
+//! Sections 16–19 (optional, all four or none; a table without override
+//! levels has none and is byte-identical to one written before they
+//! existed) hold K feedrate-override *levels* (`docs/override-design.md`):
+//! whole plans on the same q knots with v̄ replaced by α·v̄, level id k + 1
+//! for table level k (id 0 is the base plan, sections 9/10/14/15). Parse
+//! checks each level exactly as the base q (finite, ≥ 0, first and last 0,
+//! ≤ [`Q_VBAR_SLACK`]`·v̄_level²`, q′ ≠ 0 at the ends without section 14,
+//! local and fixed forms against the f64 data, end segments joined C² as
+//! section 14's, present exactly when the base has them), and 0 < α ≠ 1,
+//! α strictly increasing, v̄_level = α·v̄; errors name the level
+//! ([`TableError::Level`]). [`Table::level`] gives a [`Level`] view.
 //!
 //! Section 14 (optional; missing or empty: the plan starts and stops with
 //! an acceleration step, q′(0) > 0 and q′(L) < 0) holds the time-domain
@@ -87,7 +104,7 @@
 //! skip: they are bounds-, alignment- and overlap-checked, then ignored.
 //! `0x8000 + k` ([`OVERRIDE_PROFILE_BASE`]) is reserved for feedrate-override
 //! profile k (§4 of the paper: alternative q control points on the q knots).
-//! Any other unknown kind (0, 16 ..= 0x7FFF) is refused: a change a reader
+//! Any other unknown kind (0, 20 ..= 0x7FFF) is refused: a change a reader
 //! must understand takes a new kind below the base or a new version.
 //!
 //! The s → u map must cover the curve: the first segment starts at `U[p]`,
@@ -142,6 +159,9 @@ pub const Q_VBAR_SLACK: f64 = 2.0;
 pub const END_TOL_REL: f64 = 1e-6;
 /// f64 values in the end-segment section when present.
 pub const END_LEN: usize = 6;
+/// f64 values per level in the level meta section (α, v̄_level, then the
+/// [`END_LEN`] end-segment values).
+pub const LEVEL_META_LEN: usize = 2 + END_LEN;
 
 const CRC: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
 
@@ -343,6 +363,23 @@ pub struct TableParts<'a> {
     pub q_ctrl: &'a [f64],
     /// Jerk-limited start and stop segments; `None`: acceleration steps.
     pub ends: Option<EndSegments>,
+    /// Feedrate-override levels (sections 16–19), sorted by α; empty: no
+    /// level sections (the table is byte-identical to one without them).
+    pub levels: &'a [LevelParts<'a>],
+}
+
+/// One override level as the host writes it: a whole plan on the base q
+/// knots with the tangential feed limit α·v̄ ([`encode`] derives its local
+/// and fixed forms and v̄_level = α·v̄).
+#[derive(Clone, Copy, Debug)]
+pub struct LevelParts<'a> {
+    /// α = percent / 100: > 0, ≠ 1.
+    pub alpha: f64,
+    /// The level's q control points, N (as [`TableParts::q_ctrl`]).
+    pub ctrl: &'a [f64],
+    /// The level's start and stop segments: `Some` exactly when the base
+    /// plan has them.
+    pub ends: Option<EndSegments>,
 }
 
 /// A known section kind.
@@ -382,11 +419,20 @@ pub enum Section {
     Ends = 14,
     /// q span-local fixed-point cubics, i64 (kind 15).
     QFixed = 15,
+    /// Override levels: α, v̄_level and end segments, [`LEVEL_META_LEN`]
+    /// f64 per level (kind 16, optional with 17–19).
+    LevelMeta = 16,
+    /// Override levels: q control points, N per level (kind 17).
+    LevelCtrl = 17,
+    /// Override levels: q span-local f32 forms, as kind 10 per level (kind 18).
+    LevelQLocal = 18,
+    /// Override levels: q fixed-point cubics, as kind 15 per level (kind 19).
+    LevelQFixed = 19,
 }
 
 impl Section {
     /// Every known kind, in the order [`encode`] writes them.
-    pub const ALL: [Section; 15] = [
+    pub const ALL: [Section; 19] = [
         Section::Limits,
         Section::Meta,
         Section::NurbsKnots,
@@ -402,6 +448,18 @@ impl Section {
         Section::PieceF32,
         Section::Ends,
         Section::QFixed,
+        Section::LevelMeta,
+        Section::LevelCtrl,
+        Section::LevelQLocal,
+        Section::LevelQFixed,
+    ];
+
+    /// The override-level sections 16–19 (all four or none).
+    pub const LEVELS: [Section; 4] = [
+        Section::LevelMeta,
+        Section::LevelCtrl,
+        Section::LevelQLocal,
+        Section::LevelQFixed,
     ];
 
     /// The kind code in the directory.
@@ -419,6 +477,7 @@ impl Section {
         match self {
             Section::Limits => 8,
             Section::Meta => META_LEN,
+            Section::LevelMeta => 8 * LEVEL_META_LEN,
             Section::NurbsPoints => 32,
             Section::SuSpans => 4,
             Section::SuCoeffs => 8 * SU_COEFFS,
@@ -429,8 +488,10 @@ impl Section {
             | Section::PieceBreaks
             | Section::PieceF64
             | Section::QFixed
-            | Section::Ends => 8,
-            Section::QLocal | Section::PieceF32 => 4,
+            | Section::Ends
+            | Section::LevelCtrl
+            | Section::LevelQFixed => 8,
+            Section::QLocal | Section::PieceF32 | Section::LevelQLocal => 4,
         }
     }
 
@@ -441,6 +502,8 @@ impl Section {
 
 const META_LEN: usize = 24;
 const N_KNOWN: usize = Section::ALL.len();
+/// Sections of a table without override levels (kinds 1–15).
+const N_BASE: usize = N_KNOWN - Section::LEVELS.len();
 
 /// Why a byte string is not a valid table. Every variant names the problem
 /// and, where there is one, the section and element index.
@@ -661,6 +724,93 @@ pub enum TableError {
         /// Segment index.
         segment: usize,
     },
+    /// Override level `level` (sections 16–19) is invalid.
+    Level {
+        /// Level id (1-based: table level k is id k + 1; id 0 is the base).
+        level: usize,
+        /// What is wrong with it.
+        fault: LevelFault,
+    },
+}
+
+/// What is wrong with an override level ([`TableError::Level`]). The q
+/// checks are the base plan's, with v̄ replaced by the level's v̄.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum LevelFault {
+    /// α is not > 0 or is exactly 1 (100 % is the base plan, id 0).
+    Alpha,
+    /// α is not above the previous level's (levels sorted strictly increasing).
+    Unsorted,
+    /// v̄_level is not α·v̄ (within [`MATCH_TOL_REL`]).
+    Vbar,
+    /// Control point `index` is negative.
+    QNegative {
+        /// Control point index within the level.
+        index: usize,
+    },
+    /// Control point `index` exceeds [`Q_VBAR_SLACK`]` · v̄_level²`.
+    QAboveVbar {
+        /// Control point index within the level.
+        index: usize,
+    },
+    /// The first or last control point is not exactly 0.
+    QEndNotZero {
+        /// Control point index within the level.
+        index: usize,
+    },
+    /// Without end segments: the second or second-to-last control point is 0.
+    QFlatEnd {
+        /// Control point index within the level.
+        index: usize,
+    },
+    /// End segments present though the base has none, or missing (all 0)
+    /// though the base has them.
+    EndsPresence,
+    /// The level's end segments do not fit or do not join its q C² (as
+    /// [`TableError::EndSegment`]).
+    EndSegment {
+        /// Which segment.
+        stop: bool,
+    },
+    /// A local (section 18) or fixed (section 19) form disagrees with the
+    /// level's f64 data at q span `index` (within the level).
+    FastMismatch {
+        /// [`Section::LevelQLocal`] or [`Section::LevelQFixed`].
+        section: Section,
+        /// q span index within the level.
+        index: usize,
+    },
+}
+
+impl fmt::Display for LevelFault {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        use LevelFault as F;
+        match *self {
+            F::Alpha => f.write_str("α is not > 0 or is 1"),
+            F::Unsorted => f.write_str("α not above the previous level's"),
+            F::Vbar => f.write_str("v̄_level is not α·v̄"),
+            F::QNegative { index } => write!(f, "q control point {index} is negative"),
+            F::QAboveVbar { index } => {
+                write!(f, "q control point {index} is above {Q_VBAR_SLACK} v̄_level²")
+            }
+            F::QEndNotZero { index } => write!(f, "q control point {index} must be exactly 0"),
+            F::QFlatEnd { index } => write!(f, "q control point {index} is 0: q' vanishes at an end"),
+            F::EndsPresence => f.write_str("end segments present exactly when the base has them"),
+            F::EndSegment { stop } => write!(
+                f,
+                "{} segment does not fit the path or does not join q",
+                if stop { "stop" } else { "start" }
+            ),
+            F::FastMismatch { section, index } => {
+                write!(
+                    f,
+                    "section {section:?}, span {index}: form disagrees with the f64 data"
+                )
+            }
+        }
+    }
 }
 
 impl fmt::Display for TableError {
@@ -742,6 +892,7 @@ impl fmt::Display for TableError {
                     "section {section:?}, span {index}: local f32 form disagrees with the f64 data"
                 )
             }
+            E::Level { level, fault } => write!(f, "override level {level}: {fault}"),
         }
     }
 }
@@ -867,7 +1018,35 @@ fn section_sizes(parts: &TableParts) -> [(Section, usize, usize); N_KNOWN] {
         ),
         sz(Section::Ends, if parts.ends.is_some() { END_LEN } else { 0 }),
         sz(Section::QFixed, q_spans(parts).saturating_mul(Q_FX_LEN)),
+        sz(Section::LevelMeta, parts.levels.len()),
+        sz(
+            Section::LevelCtrl,
+            parts
+                .levels
+                .iter()
+                .fold(0usize, |n, l| n.saturating_add(l.ctrl.len())),
+        ),
+        sz(Section::LevelQLocal, level_forms(parts, Q_LOCAL_LEN)),
+        sz(Section::LevelQFixed, level_forms(parts, Q_FX_LEN)),
     ]
+}
+
+/// Values of a level form section: `per` per q span per level.
+fn level_forms(parts: &TableParts, per: usize) -> usize {
+    parts
+        .levels
+        .len()
+        .saturating_mul(q_spans(parts))
+        .saturating_mul(per)
+}
+
+/// Sections [`encode`] writes: kinds 1–15, and 16–19 with levels.
+fn n_sections(parts: &TableParts) -> usize {
+    if parts.levels.is_empty() {
+        N_BASE
+    } else {
+        N_KNOWN
+    }
 }
 
 /// q knot spans 3 ..= N − 1 (N control points).
@@ -969,20 +1148,54 @@ fn wr_f32s<I: IntoIterator<Item = f32>>(b: &mut [u8], off: usize, vals: I) -> Re
     Ok(at)
 }
 
-fn data_start() -> usize {
-    HEADER_LEN + N_KNOWN * DIR_ENTRY_LEN
+fn data_start(n_sec: usize) -> usize {
+    HEADER_LEN + n_sec * DIR_ENTRY_LEN
 }
 
 /// Bytes [`encode`] writes for `parts` (saturates at `usize::MAX`).
 pub fn encoded_len(parts: &TableParts) -> usize {
-    total_len(&section_sizes(parts))
+    total_len(&section_sizes(parts), n_sections(parts))
 }
 
-fn total_len(sizes: &[(Section, usize, usize); N_KNOWN]) -> usize {
+fn total_len(sizes: &[(Section, usize, usize); N_KNOWN], n_sec: usize) -> usize {
     sizes
         .iter()
-        .fold(data_start(), |acc, &(_, _, len)| acc.saturating_add(pad8(len)))
+        .take(n_sec)
+        .fold(data_start(n_sec), |acc, &(_, _, len)| {
+            acc.saturating_add(pad8(len))
+        })
         .saturating_add(CRC_LEN)
+}
+
+/// Writes the q local (`fixed` false) or fixed forms of `ctrl` on the
+/// table's q knots from `off`, as sections 10 and 15 (zeros if `ctrl` does
+/// not make a spline: parse then refuses the counts); returns the end.
+fn wr_q_forms(
+    parts: &TableParts,
+    ctrl: &[f64],
+    fixed: bool,
+    b: &mut [u8],
+    off: usize,
+) -> Result<usize, EncodeError> {
+    let n = q_spans(parts);
+    let q = QSpline::new(parts.q_knots, ctrl).filter(|_| ctrl.len() == parts.q_ctrl.len());
+    let mut at = off;
+    for i in 0..n {
+        let span = i + Q_ORDER as usize - 1;
+        if fixed {
+            let c = q.as_ref().map_or([0; Q_FX_LEN], |q| fast::q_fixed(q, span));
+            for w in c {
+                wr(b, at, &w.to_le_bytes())?;
+                at = at.saturating_add(8);
+            }
+        } else {
+            let c = q
+                .as_ref()
+                .map_or([0.0; Q_LOCAL_LEN], |q| fast::q_local(q, span, i + 1 == n));
+            at = wr_f32s(b, at, c)?;
+        }
+    }
+    Ok(at)
 }
 
 /// Write `parts` as a table into `out` and return its length. The result is
@@ -990,7 +1203,8 @@ fn total_len(sizes: &[(Section, usize, usize); N_KNOWN]) -> usize {
 /// [`Table::parse`] accepts; on error the contents of `out` are unspecified.
 pub fn encode(parts: &TableParts, out: &mut [u8]) -> Result<usize, EncodeError> {
     let sizes = section_sizes(parts);
-    let total = total_len(&sizes);
+    let n_sec = n_sections(parts);
+    let total = total_len(&sizes, n_sec);
     let total32 = u32::try_from(total).map_err(|_| EncodeError::TooLarge)?;
     let available = out.len();
     let buf = out.get_mut(..total).ok_or(EncodeError::BufferTooSmall {
@@ -1003,11 +1217,11 @@ pub fn encode(parts: &TableParts, out: &mut [u8]) -> Result<usize, EncodeError> 
     wr(buf, 4, &VERSION.to_le_bytes())?;
     wr(buf, 6, &(HEADER_LEN as u16).to_le_bytes())?;
     wr(buf, 8, &total32.to_le_bytes())?;
-    wr(buf, 12, &(N_KNOWN as u16).to_le_bytes())?;
+    wr(buf, 12, &(n_sec as u16).to_le_bytes())?;
 
-    let mut offset = data_start();
+    let mut offset = data_start(n_sec);
     let mut offsets = [0usize; N_KNOWN];
-    for (idx, &(section, count, len)) in sizes.iter().enumerate() {
+    for (idx, &(section, count, len)) in sizes.iter().enumerate().take(n_sec) {
         let e = HEADER_LEN + idx * DIR_ENTRY_LEN;
         let count32 = u32::try_from(count).map_err(|_| EncodeError::TooLarge)?;
         let off32 = u32::try_from(offset).map_err(|_| EncodeError::TooLarge)?;
@@ -1021,8 +1235,25 @@ pub fn encode(parts: &TableParts, out: &mut [u8]) -> Result<usize, EncodeError> 
         }
         offset = offset.saturating_add(pad8(len));
     }
-    for (&(section, _, _), &off) in sizes.iter().zip(offsets.iter()) {
+    for (&(section, _, _), &off) in sizes.iter().zip(offsets.iter()).take(n_sec) {
         match section {
+            Section::LevelMeta => {
+                let mut at = off;
+                for l in parts.levels {
+                    let e = l.ends.map_or([0.0; END_LEN], |e| e.to_array());
+                    at = wr_f64s(buf, at, [l.alpha, l.alpha * parts.limits.vbar])?;
+                    at = wr_f64s(buf, at, e)?;
+                }
+            }
+            Section::LevelCtrl => {
+                wr_f64s(buf, off, parts.levels.iter().flat_map(|l| l.ctrl.iter().copied()))?;
+            }
+            Section::LevelQLocal | Section::LevelQFixed => {
+                let mut at = off;
+                for l in parts.levels {
+                    at = wr_q_forms(parts, l.ctrl, section == Section::LevelQFixed, buf, at)?;
+                }
+            }
             Section::Limits => {
                 wr_f64s(buf, off, parts.limits.to_array())?;
             }
@@ -1149,6 +1380,96 @@ pub struct Table<'a> {
     piece_f64: LeF64<'a>,
     piece_f32: LeF32<'a>,
     ends: Option<EndSegments>,
+    levels: LevelSections<'a>,
+}
+
+/// The override-level sections 16–19 (empty views without levels).
+#[derive(Clone, Copy, Debug)]
+struct LevelSections<'a> {
+    meta: LeF64<'a>,
+    ctrl: LeF64<'a>,
+    local: LeF32<'a>,
+    fixed: LeF64<'a>,
+    count: usize,
+}
+
+impl<'a> LevelSections<'a> {
+    /// Level `id` (1 ..= count) for N = `nq` control points and `nq_spans`
+    /// q spans; `None` out of range.
+    fn level(&self, id: usize, nq: usize, nq_spans: usize) -> Option<Level<'a>> {
+        let k = id.checked_sub(1).filter(|&k| k < self.count)?;
+        let m = k.checked_mul(LEVEL_META_LEN)?;
+        let mut e = [0.0; END_LEN];
+        for (i, v) in e.iter_mut().enumerate() {
+            *v = self.meta.get(m.checked_add(2 + i)?)?;
+        }
+        let sub64 = |v: &LeF64<'a>, per: usize| {
+            let a = k.checked_mul(per)?.checked_mul(8)?;
+            LeF64::new(v.as_bytes().get(a..a.checked_add(per.checked_mul(8)?)?)?)
+        };
+        let local = {
+            let per = nq_spans.checked_mul(Q_LOCAL_LEN)?;
+            let a = k.checked_mul(per)?.checked_mul(4)?;
+            LeF32::new(
+                self.local
+                    .as_bytes()
+                    .get(a..a.checked_add(per.checked_mul(4)?)?)?,
+            )?
+        };
+        Some(Level {
+            id: u16::try_from(id).ok()?,
+            alpha: self.meta.get(m)?,
+            vbar: self.meta.get(m.checked_add(1)?)?,
+            ctrl: sub64(&self.ctrl, nq)?,
+            q_local: local,
+            q_fixed: sub64(&self.fixed, nq_spans.checked_mul(Q_FX_LEN)?)?,
+            ends: (e != [0.0; END_LEN]).then(|| EndSegments::from_array(e)),
+        })
+    }
+}
+
+/// One plan of a table: the base (id 0) or an override level (id ≥ 1),
+/// zero-copy views into the validated table ([`Table::level`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Level<'a> {
+    id: u16,
+    alpha: f64,
+    vbar: f64,
+    ctrl: LeF64<'a>,
+    q_local: LeF32<'a>,
+    q_fixed: LeF64<'a>,
+    ends: Option<EndSegments>,
+}
+
+impl<'a> Level<'a> {
+    /// Level id (0 the base plan).
+    pub fn id(&self) -> u16 {
+        self.id
+    }
+    /// α (1 for the base plan).
+    pub fn alpha(&self) -> f64 {
+        self.alpha
+    }
+    /// The level's tangential feed limit α·v̄, mm/s.
+    pub fn vbar(&self) -> f64 {
+        self.vbar
+    }
+    /// q control points a_0 … a_{N−1}, (mm/s)².
+    pub fn ctrl(&self) -> LeF64<'a> {
+        self.ctrl
+    }
+    /// q span-local f32 forms, as [`Table::q_local`].
+    pub fn q_local(&self) -> LeF32<'a> {
+        self.q_local
+    }
+    /// q fixed-point cubics, as [`Table::q_fixed`].
+    pub fn q_fixed(&self) -> LeF64<'a> {
+        self.q_fixed
+    }
+    /// The level's start and stop segments.
+    pub fn ends(&self) -> Option<EndSegments> {
+        self.ends
+    }
 }
 
 #[derive(Clone, Copy)]
@@ -1398,18 +1719,7 @@ impl<'a> Table<'a> {
                 section: Section::QKnots,
             });
         }
-        if let Some(index) = q_ctrl.iter().position(|a| a < 0.0) {
-            return Err(TableError::QNegative { index });
-        }
-        let q_cap = Q_VBAR_SLACK * limits.vbar * limits.vbar;
-        if let Some(index) = q_ctrl.iter().position(|a| !(a <= q_cap)) {
-            return Err(TableError::QAboveVbar { index });
-        }
-        for index in [0, nq - 1] {
-            if q_ctrl.get(index) != Some(0.0) {
-                return Err(TableError::QEndNotZero { index });
-            }
-        }
+        check_q_values(&q_ctrl, limits.vbar).map_err(base_fault)?;
         // End segments (optional): present, they start and stop the motion;
         // absent, q′(0) > 0 and q′(L) < 0 must.
         let ends = match found.get(Section::Ends.slot()).copied().flatten() {
@@ -1428,11 +1738,7 @@ impl<'a> Table<'a> {
                 Some(ends)
             }
             _ => {
-                for index in [1, nq - 2] {
-                    if !(q_ctrl.get(index).unwrap_or(0.0) > 0.0) {
-                        return Err(TableError::QFlatEnd { index });
-                    }
-                }
+                check_q_flat_ends(&q_ctrl).map_err(base_fault)?;
                 None
             }
         };
@@ -1569,32 +1875,13 @@ impl<'a> Table<'a> {
         let q = QSpline::new(q_knots, q_ctrl).ok_or(TableError::KnotRange {
             section: Section::QKnots,
         })?;
-        let q_scale = q_ctrl.iter().fold(0.0f64, f64::max);
-        for i in 0..nq_spans {
-            let local = q_local
-                .get_array::<Q_LOCAL_LEN>(i.saturating_mul(Q_LOCAL_LEN))
-                .map(QLocal::from_array)
-                .ok_or(mismatch(Section::QLocal, i))?;
-            if !fast::check_q(&q, i + Q_ORDER as usize - 1, &local, q_scale, i + 1 == nq_spans) {
-                return Err(mismatch(Section::QLocal, i));
-            }
-        }
+        check_q_local(&q, &q_local, nq_spans, Section::QLocal).map_err(base_fault)?;
         // The fixed-point q (i64, any bit pattern: no finiteness check).
         let q_fixed = LeF64::new(sec(Section::QFixed)?).ok_or(TableError::SectionLength {
             section: Section::QFixed,
         })?;
         expect_count(Section::QFixed, nq_spans.saturating_mul(Q_FX_LEN), q_fixed.len())?;
-        for i in 0..nq_spans {
-            let mut c = [0i64; Q_FX_LEN];
-            for (k, ck) in c.iter_mut().enumerate() {
-                *ck = q_fixed
-                    .get_i64(i * Q_FX_LEN + k)
-                    .ok_or(mismatch(Section::QFixed, i))?;
-            }
-            if !fast::check_q_fx(&q, i + Q_ORDER as usize - 1, c, q_scale) {
-                return Err(mismatch(Section::QFixed, i));
-            }
-        }
+        check_q_fixed(&q, &q_fixed, nq_spans, Section::QFixed).map_err(base_fault)?;
         let piece_breaks = f64s(Section::PieceBreaks)?;
         let piece_f64 = LeF64::new(sec(Section::PieceF64)?).ok_or(TableError::SectionLength {
             section: Section::PieceF64,
@@ -1664,7 +1951,72 @@ impl<'a> Table<'a> {
             return Err(mismatch(Section::PieceBreaks, np));
         }
 
+        // Override levels (sections 16–19): all four or none, each checked
+        // as the base q.
+        let present = Section::LEVELS.map(|s| found.get(s.slot()).copied().flatten().is_some());
+        let levels = if present.iter().any(|&p| p) {
+            if let Some(section) = Section::LEVELS
+                .iter()
+                .zip(present)
+                .find(|(_, p)| !p)
+                .map(|(s, _)| *s)
+            {
+                return Err(TableError::MissingSection { section });
+            }
+            let meta = f64s(Section::LevelMeta)?;
+            let nl = meta.len() / LEVEL_META_LEN;
+            if nl > usize::from(u16::MAX) {
+                return Err(TableError::Count {
+                    section: Section::LevelMeta,
+                    expected: usize::from(u16::MAX),
+                    found: nl,
+                });
+            }
+            let ctrl = f64s(Section::LevelCtrl)?;
+            expect_count(Section::LevelCtrl, nl.saturating_mul(nq), ctrl.len())?;
+            let local = f32s(Section::LevelQLocal)?;
+            let n_forms = nl.saturating_mul(nq_spans);
+            expect_count(
+                Section::LevelQLocal,
+                n_forms.saturating_mul(Q_LOCAL_LEN),
+                local.len(),
+            )?;
+            let fixed = LeF64::new(sec(Section::LevelQFixed)?).ok_or(TableError::SectionLength {
+                section: Section::LevelQFixed,
+            })?;
+            expect_count(
+                Section::LevelQFixed,
+                n_forms.saturating_mul(Q_FX_LEN),
+                fixed.len(),
+            )?;
+            let lv = LevelSections {
+                meta,
+                ctrl,
+                local,
+                fixed,
+                count: nl,
+            };
+            let mut prev_alpha = 0.0f64;
+            for id in 1..=nl {
+                let bad = |fault| TableError::Level { level: id, fault };
+                let level = lv.level(id, nq, nq_spans).ok_or(bad(LevelFault::Alpha))?;
+                check_level(&level, prev_alpha, &limits, ends.is_some(), q_knots, len_l).map_err(bad)?;
+                prev_alpha = level.alpha;
+            }
+            lv
+        } else {
+            let none = bytes.get(..0).unwrap_or(&[]);
+            LevelSections {
+                meta: LeF64::new(none).ok_or(TableError::BadHeader)?,
+                ctrl: LeF64::new(none).ok_or(TableError::BadHeader)?,
+                local: LeF32::new(none).ok_or(TableError::BadHeader)?,
+                fixed: LeF64::new(none).ok_or(TableError::BadHeader)?,
+                count: 0,
+            }
+        };
+
         Ok(Table {
+            levels,
             bytes,
             limits,
             path_length_mm,
@@ -1689,6 +2041,31 @@ impl<'a> Table<'a> {
     /// The jerk-limited start and stop segments, if the plan has them.
     pub fn ends(&self) -> Option<EndSegments> {
         self.ends
+    }
+
+    /// Override levels in the table (sections 16–19): ids 1 ..= this count
+    /// are valid for [`Table::level`], besides the base plan, id 0.
+    pub fn level_count(&self) -> usize {
+        self.levels.count
+    }
+
+    /// Plan `id`: 0 the base plan (sections 9, 10, 14, 15, α = 1), k ≥ 1
+    /// override level k (sorted by α); `None` past [`Table::level_count`].
+    pub fn level(&self, id: u16) -> Option<Level<'a>> {
+        if id == 0 {
+            return Some(Level {
+                id,
+                alpha: 1.0,
+                vbar: self.limits.vbar,
+                ctrl: self.q_ctrl,
+                q_local: self.q_local,
+                q_fixed: self.q_fixed,
+                ends: self.ends,
+            });
+        }
+        let nq = self.q_ctrl.len();
+        self.levels
+            .level(usize::from(id), nq, nq.saturating_sub(Q_ORDER as usize - 1))
     }
 
     /// The whole table, as parsed (CRC included).
@@ -1801,6 +2178,129 @@ impl SegmentArray for LeSuSegments<'_> {
         }
         Some(SuSegment { span, coeffs })
     }
+}
+
+/// The base plan's errors for the q checks shared with the levels.
+fn base_fault(f: LevelFault) -> TableError {
+    match f {
+        LevelFault::QNegative { index } => TableError::QNegative { index },
+        LevelFault::QAboveVbar { index } => TableError::QAboveVbar { index },
+        LevelFault::QEndNotZero { index } => TableError::QEndNotZero { index },
+        LevelFault::QFlatEnd { index } => TableError::QFlatEnd { index },
+        LevelFault::EndSegment { stop } => TableError::EndSegment { stop },
+        LevelFault::FastMismatch { section, index } => TableError::FastMismatch { section, index },
+        fault => TableError::Level { level: 0, fault },
+    }
+}
+
+/// q control points (finite already): ≥ 0, ≤ [`Q_VBAR_SLACK`]`·vbar²`,
+/// first and last exactly 0 (N ≥ 4 checked before).
+fn check_q_values<A: F64Array>(ctrl: &A, vbar: f64) -> Result<(), LevelFault> {
+    let n = ctrl.len();
+    let vals = || (0..n).map(|i| ctrl.get(i).unwrap_or(f64::NAN));
+    if let Some(index) = vals().position(|a| a < 0.0) {
+        return Err(LevelFault::QNegative { index });
+    }
+    let cap = Q_VBAR_SLACK * vbar * vbar;
+    if let Some(index) = vals().position(|a| !(a <= cap)) {
+        return Err(LevelFault::QAboveVbar { index });
+    }
+    for index in [0, n.saturating_sub(1)] {
+        if ctrl.get(index) != Some(0.0) {
+            return Err(LevelFault::QEndNotZero { index });
+        }
+    }
+    Ok(())
+}
+
+/// Without end segments: q′(0) > 0 and q′(L) < 0 (second and
+/// second-to-last control point > 0).
+fn check_q_flat_ends<A: F64Array>(ctrl: &A) -> Result<(), LevelFault> {
+    for index in [1, ctrl.len().saturating_sub(2)] {
+        if !(ctrl.get(index).unwrap_or(0.0) > 0.0) {
+            return Err(LevelFault::QFlatEnd { index });
+        }
+    }
+    Ok(())
+}
+
+/// The f32 local forms (count checked) against q.
+fn check_q_local<A: F64Array>(
+    q: &QSpline<A>,
+    local: &LeF32,
+    nq_spans: usize,
+    section: Section,
+) -> Result<(), LevelFault> {
+    let ctrl = q.ctrl();
+    let q_scale = (0..ctrl.len()).fold(0.0f64, |m, i| m.max(ctrl.get(i).unwrap_or(0.0)));
+    for i in 0..nq_spans {
+        let bad = LevelFault::FastMismatch { section, index: i };
+        let l = local
+            .get_array::<Q_LOCAL_LEN>(i.saturating_mul(Q_LOCAL_LEN))
+            .map(QLocal::from_array)
+            .ok_or(bad)?;
+        if !fast::check_q(q, i + Q_ORDER as usize - 1, &l, q_scale, i + 1 == nq_spans) {
+            return Err(bad);
+        }
+    }
+    Ok(())
+}
+
+/// The fixed-point forms (count checked) against q.
+fn check_q_fixed<A: F64Array>(
+    q: &QSpline<A>,
+    fixed: &LeF64,
+    nq_spans: usize,
+    section: Section,
+) -> Result<(), LevelFault> {
+    let ctrl = q.ctrl();
+    let q_scale = (0..ctrl.len()).fold(0.0f64, |m, i| m.max(ctrl.get(i).unwrap_or(0.0)));
+    for i in 0..nq_spans {
+        let bad = LevelFault::FastMismatch { section, index: i };
+        let mut c = [0i64; Q_FX_LEN];
+        for (k, ck) in c.iter_mut().enumerate() {
+            *ck = fixed.get_i64(i * Q_FX_LEN + k).ok_or(bad)?;
+        }
+        if !fast::check_q_fx(q, i + Q_ORDER as usize - 1, c, q_scale) {
+            return Err(bad);
+        }
+    }
+    Ok(())
+}
+
+/// One override level (views of the right lengths, values finite) checked
+/// as the base plan, plus its α (after `prev_alpha`) and v̄.
+fn check_level(
+    level: &Level,
+    prev_alpha: f64,
+    limits: &Limits,
+    base_ends: bool,
+    q_knots: LeF64,
+    len_l: f64,
+) -> Result<(), LevelFault> {
+    let alpha = level.alpha;
+    if !(alpha > 0.0) || alpha == 1.0 {
+        return Err(LevelFault::Alpha);
+    }
+    if !(alpha > prev_alpha) {
+        return Err(LevelFault::Unsorted);
+    }
+    let vbar = alpha * limits.vbar;
+    if !near(level.vbar, vbar, vbar) {
+        return Err(LevelFault::Vbar);
+    }
+    check_q_values(&level.ctrl, level.vbar)?;
+    let q = QSpline::new(q_knots, level.ctrl).ok_or(LevelFault::QEndNotZero { index: 0 })?;
+    match (level.ends, base_ends) {
+        (Some(e), true) => check_ends(&e, &q, len_l).map_err(|e| LevelFault::EndSegment {
+            stop: e == TableError::EndSegment { stop: true },
+        })?,
+        (None, false) => check_q_flat_ends(&level.ctrl)?,
+        _ => return Err(LevelFault::EndsPresence),
+    }
+    let nq_spans = level.ctrl.len().saturating_sub(Q_ORDER as usize - 1);
+    check_q_local(&q, &level.q_local, nq_spans, Section::LevelQLocal)?;
+    check_q_fixed(&q, &level.q_fixed, nq_spans, Section::LevelQFixed)
 }
 
 /// Section 14 against the path length and q (see [`EndSegments`]).

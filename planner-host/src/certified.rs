@@ -234,6 +234,121 @@ pub fn solve(
     caps: &[(f64, f64)],
     cfg: &CertifiedConfig,
 ) -> Result<CertifiedPlan, LpError> {
+    solve_with(lp, is_knot, caps, cfg, None)
+}
+
+/// The window of [`solve_window`]: fixed control points and the first
+/// linearisation point q̄₀ at each check point.
+struct Window<'w> {
+    fixed: &'w [Option<f64>],
+    qbar0: Vec<f64>,
+    /// Σ N_j over the free control points j at each check point: how much
+    /// of q the LP can move there.
+    free_weight: Vec<f64>,
+}
+
+/// The certified sequence restricted to a window (the feedrate override,
+/// [`crate::feed_override`]): control points with `fixed[i] = Some(x)` are
+/// fixed to x ([`FeedLp::solve_rows`] moves them to the right-hand side),
+/// the others are free; `lp.points` are the check points of the spans that
+/// touch a free control point, with `lp.ends = None` (the window must not
+/// reach a join of the end segments).
+///
+/// With fixed control points q = 0 is no longer feasible, so the static
+/// caps cannot start the sequence. Instead a first LP without jerk rows —
+/// the pseudo-jerk LP of §2.1 / (22), rows (8)(9)(11)(12) at every check
+/// point — gives q̂ ≥ any feasible q in the window, and the sequence starts
+/// linearised at q̄₀ = q̂: next to the fixed ends q̂ follows the fixed
+/// profiles, where the jerk rows (14)(15) with q̂ := q are what those
+/// profiles already hold. Every row is in every LP (a window is small), the
+/// trust region grows each point's q̄ by its free weight Σ_{j free} N_j only,
+/// and an LP that fails after an accepted iterate ends the sequence.
+/// Errors: the pseudo-jerk LP (the window cannot be feasible) or no iterate
+/// held every limit at every check point to 1 + `tol`.
+pub fn solve_window(
+    lp: &FeedLp,
+    caps: &[(f64, f64)],
+    cfg: &CertifiedConfig,
+    fixed: &[Option<f64>],
+) -> Result<CertifiedPlan, LpError> {
+    let t0 = Instant::now();
+    let relaxed = FeedLp {
+        settings: SolverSettings {
+            tol_gap: lp.settings.tol_gap.max(LP_TOL),
+            tol_feas: lp.settings.tol_feas.max(LP_TOL),
+            ..lp.settings
+        },
+        ..lp.clone()
+    };
+    let lp = &relaxed;
+    let n = lp.n_ctrl();
+    let mut rows = Vec::with_capacity(lp.points.len() * 11);
+    for p in lp.points {
+        rows.push(Row::q_at(&p.basis, lp.q_max(&p.geo)));
+        for kind in [RowKind::Acc(0), RowKind::Acc(1), RowKind::Acc(2), RowKind::TAcc] {
+            let start = rows.len();
+            lp.kind_rows(p, kind, 1.0, &mut rows);
+            let r = rows[start];
+            rows.push(Row {
+                val: r.val.map(|c| -c),
+                ..r
+            });
+        }
+    }
+    rows.extend(
+        caps.iter()
+            .filter_map(|&(s, cap)| Some(Row::q_at(&crate::lp::BasisRow::at(lp.knots, s)?, cap))),
+    );
+    let upper = vec![lp.limits.vbar * lp.limits.vbar; n];
+    let pseudo = lp.solve_rows(
+        Stage::PseudoJerk,
+        &rows,
+        Some(&upper),
+        &lp.weights(),
+        t0,
+        None,
+        Some(fixed),
+    )?;
+    let qbar0: Vec<f64> = lp
+        .points
+        .iter()
+        .map(|p| p.basis.apply(0, &pseudo.ctrl).max(0.0))
+        .collect();
+    let free_weight: Vec<f64> = lp
+        .points
+        .iter()
+        .map(|p| {
+            (0..ORDER)
+                .filter(|&j| fixed.get(p.basis.first + j).is_some_and(|f| f.is_none()))
+                .map(|j| p.basis.d[0][j])
+                .sum::<f64>()
+                .clamp(0.0, 1.0)
+        })
+        .collect();
+    let is_knot = vec![true; lp.points.len()];
+    let mut plan = solve_with(
+        lp,
+        &is_knot,
+        caps,
+        cfg,
+        Some(Window {
+            fixed,
+            qbar0,
+            free_weight,
+        }),
+    )?;
+    plan.lps.insert(0, pseudo.stats);
+    plan.chosen += 1;
+    Ok(plan)
+}
+
+fn solve_with(
+    lp: &FeedLp,
+    is_knot: &[bool],
+    caps: &[(f64, f64)],
+    cfg: &CertifiedConfig,
+    win: Option<Window>,
+) -> Result<CertifiedPlan, LpError> {
     // every iterate is checked exactly, so the LPs need not be solved to 1e-8
     let relaxed = FeedLp {
         settings: SolverSettings {
@@ -254,9 +369,15 @@ pub fn solve(
     let n = lp.n_ctrl();
     let lim = lp.limits;
     let qmax: Vec<f64> = pts.iter().map(|p| lp.q_max(&p.geo)).collect();
-    let mut qbar: Vec<f64> = pts.iter().map(|p| static_cap(lp, p)).collect();
+    let mut qbar: Vec<f64> = match &win {
+        None => pts.iter().map(|p| static_cap(lp, p)).collect(),
+        Some(w) => w.qbar0.iter().zip(&qmax).map(|(&q, &m)| q.min(m)).collect(),
+    };
     // Row masks: bit 2k = +row of KINDS[k], bit 2k+1 = −row, bit 16 = the q ≤ q̄ row.
-    let mut mask: Vec<u32> = is_knot.iter().map(|&k| if k { KNOT_ROWS } else { 0 }).collect();
+    let mut mask: Vec<u32> = match &win {
+        None => is_knot.iter().map(|&k| if k { KNOT_ROWS } else { 0 }).collect(),
+        Some(_) => vec![Q_ROW | 0xffff; pts.len()],
+    };
     // the control-point bound a_i ≤ v̄² makes the feed (11) hold everywhere (convex hull)
     let upper = vec![lim.vbar * lim.vbar; n];
     let floor = (FLOOR_FEED_REL * lim.vbar).powi(2);
@@ -391,7 +512,15 @@ pub fn solve(
             &weights,
             t0,
             warm.as_deref(),
-        )?;
+            win.as_ref().map(|w| w.fixed),
+        );
+        let sol = match sol {
+            Ok(s) => s,
+            // a window LP linearised around an accepted iterate may be
+            // infeasible next to the fixed ends: keep the best
+            Err(_) if win.is_some() && best.is_some() => break,
+            Err(e) => return Err(e),
+        };
         lps.push(sol.stats);
         last_ctrl.clone_from(&sol.ctrl);
         warm = Some(sol.ctrl.clone());
@@ -458,8 +587,18 @@ pub fn solve(
         }
         // next linearisation point: trust region around q_k
         let delta = rho * 0.05;
-        for i in 0..pts.len() {
-            qbar[i] = qmax[i].min((q_now[i] * (1.0 + rho)).max(q_now[i] + delta * qmax[i]));
+        match &win {
+            None => {
+                for i in 0..pts.len() {
+                    qbar[i] = qmax[i].min((q_now[i] * (1.0 + rho)).max(q_now[i] + delta * qmax[i]));
+                }
+            }
+            Some(w) => {
+                for i in 0..pts.len() {
+                    let grow = (q_now[i] * rho).max(delta * qmax[i]) * w.free_weight[i];
+                    qbar[i] = qmax[i].min(q_now[i] + grow);
+                }
+            }
         }
         qk = Some(q_now);
         rho = (rho * cfg.rho_shrink).max(cfg.rho_min);

@@ -420,7 +420,7 @@ impl<'a> FeedLp<'a> {
             }
         }
         let upper = qhat.filter(|_| self.qhat_bound == QhatBound::ControlPoints);
-        self.solve_rows(stage, &rows, upper, &self.weights(), t0, None)
+        self.solve_rows(stage, &rows, upper, &self.weights(), t0, None, None)
     }
 
     /// Rows of one kind of limit at one evaluation point, for the certified
@@ -460,6 +460,15 @@ impl<'a> FeedLp<'a> {
     /// outer two become fixed multiples of the middle one (the LP keeps its
     /// band of width 4 for [`crate::ipm`]). The one place every LP goes
     /// through.
+    ///
+    /// `fixed[i] = Some(x)` fixes control point i to x (the override window
+    /// of [`crate::feed_override`]): it is no variable, its contribution
+    /// moves to the right-hand side of every row, and a row left with no
+    /// free variable (or free coefficients below 1e-12 of its largest) is
+    /// dropped. A join of the end segments must then be wholly fixed or
+    /// wholly free (`FixedSplitsJoin` otherwise). With `fixed = None` the LP
+    /// is exactly the one without the argument.
+    #[allow(clippy::too_many_arguments)]
     pub(crate) fn solve_rows(
         &self,
         stage: Stage,
@@ -468,6 +477,7 @@ impl<'a> FeedLp<'a> {
         c: &[f64],
         t0: Instant,
         warm: Option<&[f64]>,
+        fixed: Option<&[Option<f64>]>,
     ) -> Result<LpSolution, LpError> {
         let n = self.n_ctrl();
         let fail = |status: &str, iterations| LpError {
@@ -482,10 +492,24 @@ impl<'a> FeedLp<'a> {
         let nv = n - 2;
         let scale = (self.limits.vbar * self.limits.vbar).max(f64::MIN_POSITIVE);
         // Join equalities: variable v_e = f · v_keep (None: not eliminated).
-        let subst = match self.ends {
+        let mut subst = match self.ends {
             Some(e) => join_substitution(e, n).ok_or_else(|| fail("EndJoinSingular", 0))?,
             None => vec![None; nv],
         };
+        // fixed control points (variable v = i − 1); a_0 and a_{n−1} are 0 anyway
+        let fix_at = |i: usize| fixed.and_then(|f| f.get(i).copied().flatten());
+        let is_fixed = |v: usize| fix_at(v + 1).is_some();
+        if fixed.is_some() {
+            for v in 0..nv {
+                if let Some((k, _)) = subst[v] {
+                    match (is_fixed(v), is_fixed(k)) {
+                        (true, true) => subst[v] = None,
+                        (false, false) => {}
+                        _ => return Err(fail("FixedSplitsJoin", 0)),
+                    }
+                }
+            }
+        }
         let end_rows: Vec<Row> = self.ends.map_or(Vec::new(), |e| {
             e.ineq_rows()
                 .into_iter()
@@ -503,24 +527,52 @@ impl<'a> FeedLp<'a> {
             let norm = if row.rhs > 0.0 { row.rhs } else { 1.0 };
             let r = b.len();
             let mut any = false;
+            let mut rhs = row.rhs;
+            if fixed.is_some() {
+                // fixed control points: onto the right-hand side; a row whose
+                // free part is negligible says nothing about the variables
+                let big = row.val.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+                let mut free_big = 0.0f64;
+                for (&i, &v) in row.idx.iter().zip(&row.val) {
+                    if i == 0 || i == n - 1 || v == 0.0 {
+                        continue;
+                    }
+                    match fix_at(i) {
+                        Some(x) => rhs -= v * x,
+                        None => free_big = free_big.max(v.abs()),
+                    }
+                }
+                if free_big <= 1e-12 * big {
+                    continue;
+                }
+            }
             for (&i, &v) in row.idx.iter().zip(&row.val) {
                 if i == 0 || i == n - 1 || v == 0.0 {
                     continue; // fixed to zero
+                }
+                if fixed.is_some() && fix_at(i).is_some() {
+                    continue;
                 }
                 trip.push((r, i - 1, v * scale / norm));
                 any = true;
             }
             if any {
-                b.push(row.rhs / norm);
+                b.push(rhs / norm);
             }
         }
         // Bounds: −x ≤ 0, and x ≤ upper/scale when given.
         for v in 0..nv {
+            if fixed.is_some() && is_fixed(v) {
+                continue;
+            }
             trip.push((b.len(), v, -1.0));
             b.push(0.0);
         }
         if let Some(a) = upper {
             for v in 0..nv {
+                if fixed.is_some() && is_fixed(v) {
+                    continue;
+                }
                 trip.push((b.len(), v, 1.0));
                 b.push(a.get(v + 1).copied().unwrap_or(0.0).max(0.0) / scale);
             }
@@ -531,7 +583,7 @@ impl<'a> FeedLp<'a> {
         let mut col_new = vec![usize::MAX; nv];
         let mut kept = 0usize;
         for (v, sub) in subst.iter().enumerate() {
-            if sub.is_none() {
+            if sub.is_none() && !(fixed.is_some() && is_fixed(v)) {
                 col_new[v] = kept;
                 kept += 1;
             }
@@ -562,17 +614,22 @@ impl<'a> FeedLp<'a> {
         let nv = kept;
         let cmax = c.iter().cloned().fold(0.0, f64::max).max(f64::MIN_POSITIVE);
         let q: Vec<f64> = (0..full_nv)
-            .filter(|&v| subst[v].is_none())
+            .filter(|&v| subst[v].is_none() && !(fixed.is_some() && is_fixed(v)))
             .map(|v| -c[v + 1] / cmax)
             .collect();
         let mut banded = None;
         if self.settings.banded {
             banded = Some(band_rows(&trip, m, nv)).and_then(|rows| {
                 // a warm start: the control points of a previous plan, as variables
-                let x0 = warm.map(|a| {
-                    (0..nv)
+                let x0 = warm.map(|a| match fixed {
+                    None => (0..nv)
                         .map(|v| a.get(v + 1).copied().unwrap_or(0.0) / scale)
-                        .collect::<Vec<_>>()
+                        .collect::<Vec<_>>(),
+                    // the kept columns by their control points
+                    Some(_) => (0..full_nv)
+                        .filter(|&v| col_new[v] != usize::MAX)
+                        .map(|v| a.get(v + 1).copied().unwrap_or(0.0) / scale)
+                        .collect(),
                 });
                 let r = crate::ipm::solve(
                     nv,
@@ -617,6 +674,12 @@ impl<'a> FeedLp<'a> {
         let nonzeros = trip.len();
         let mut ctrl = vec![0.0; n];
         for v in 0..full_nv {
+            if fixed.is_some() {
+                if let Some(x) = fix_at(v + 1) {
+                    ctrl[v + 1] = x;
+                    continue;
+                }
+            }
             if subst[v].is_some() {
                 continue;
             }
@@ -633,7 +696,9 @@ impl<'a> FeedLp<'a> {
             }
         }
         if let Some(e) = self.ends {
-            e.enforce(&mut ctrl);
+            if fixed.is_none() {
+                e.enforce(&mut ctrl);
+            }
         }
         Ok(LpSolution {
             ctrl,

@@ -82,6 +82,12 @@ pub struct PlanConfig {
     /// Servo period T the table is planned for, s: the feed cap at curvature
     /// jumps ([`crate::junction`]) depends on it (certified formulation).
     pub servo_period_s: f64,
+    /// Feedrate override levels, percent of v̄ (docs/override-design.md):
+    /// each is planned as a whole plan with v̄ × percent/100 on the base
+    /// plan's knot vector and check points ([`PlanOutput::levels`], sorted by
+    /// percent). 100 is skipped; every entry must be finite, > 0 and distinct.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub override_levels: Vec<f64>,
 }
 
 fn display<S: serde::Serializer, T: std::fmt::Display>(v: &T, s: S) -> Result<S::Ok, S::Error> {
@@ -105,6 +111,7 @@ impl Default for PlanConfig {
             su_tol_mm: sumap::DEFAULT_TOL_MM,
             ends: EndMode::Jerk,
             servo_period_s: 250e-6,
+            override_levels: Vec::new(),
         }
     }
 }
@@ -155,6 +162,22 @@ pub enum PlanError {
     },
     #[error("table encoding failed: {0:?}")]
     Table(table::EncodeError),
+    /// An override level is not finite, not > 0, or given twice.
+    #[error("override level {percent} %: {why}")]
+    OverrideLevel {
+        /// The level as given, percent.
+        percent: f64,
+        /// What is wrong with it.
+        why: &'static str,
+    },
+    /// The plan of an override level failed.
+    #[error("override level {percent} %: {source}")]
+    Level {
+        /// The level, percent.
+        percent: f64,
+        /// Why its plan failed.
+        source: Box<PlanError>,
+    },
     /// Writing the table failed.
     #[error("cannot write {path}: {source}")]
     Io {
@@ -213,6 +236,39 @@ pub struct PlanOutput {
     /// The encoded firmware table.
     #[serde(skip)]
     pub table_bytes: Vec<u8>,
+    /// The final check points `(s, forced)` of the plan (certified: every
+    /// check point with the refinement rounds' forced points; paper: the
+    /// Greville points). Override levels and the override window LP
+    /// ([`crate::feed_override`]) reuse exactly these.
+    #[serde(skip)]
+    pub check_points: Vec<(f64, bool)>,
+    /// Refinement rounds the base plan ran (certified).
+    pub refine_rounds: usize,
+    /// The override levels of [`PlanConfig::override_levels`], sorted by
+    /// percent (level id k ≥ 1 of docs/override-design.md is `levels[k − 1]`).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub levels: Vec<LevelPlan>,
+}
+
+/// One override level: a whole plan with v̄ × α on the base plan's knot
+/// vector and check points (docs/override-design.md).
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct LevelPlan {
+    /// The level, percent (α = percent/100).
+    pub percent: f64,
+    /// Its tangential feed limit α·v̄, mm/s.
+    pub vbar_mm_s: f64,
+    /// Control points of its q on the base knot vector, (mm/s)².
+    #[serde(skip)]
+    pub ctrl: Vec<f64>,
+    /// Its jerk-limited start and stop segments (when the base has them).
+    pub ends: Option<EndSegments>,
+    /// Its predicted machining time, s.
+    pub time_s: f64,
+    /// Its LPs.
+    pub lp: Vec<LpStats>,
+    /// Certified: largest exact ratio to each limit over the check points.
+    pub check: Option<Ratios>,
 }
 
 impl PlanOutput {
@@ -455,6 +511,7 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
     let t0 = Instant::now();
     curve.validate()?;
     limits::validate(&cfg.limits)?;
+    validate_levels(&cfg.override_levels)?;
     let arc = ArcLength::new(curve);
     let dbg_t = |what: &str| {
         if std::env::var_os("FEEDLP_TIME_DEBUG").is_some() {
@@ -519,96 +576,29 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
     let geometry_time_s = t0.elapsed().as_secs_f64();
     dbg_t("check points");
 
-    let end_rows = match cfg.ends {
-        EndMode::Jerk => EndRows::new(&knots, &cfg.limits, &|s| path_derivs_at(curve, &arc, s)),
-        EndMode::Step => None,
-    };
-    let feed_lp = FeedLp {
+    let stage = LpStage {
+        curve,
+        arc: &arc,
         knots: &knots,
-        points: &points,
-        limits: cfg.limits,
-        objective: cfg.objective,
-        qhat_bound: cfg.qhat_bound,
-        // the paper formulation is reproduced with Clarabel, as it always was
-        settings: match cfg.formulation {
-            Formulation::Paper => SolverSettings {
-                banded: false,
-                ..cfg.solver
-            },
-            Formulation::Certified => cfg.solver,
-        },
-        ends: end_rows.as_ref(),
+        cfg,
+        length,
     };
-    let (ctrl, qhat_ctrl, lp_stats, check) = match cfg.formulation {
-        Formulation::Paper => {
-            let pseudo = feed_lp.solve_pseudo_jerk()?;
-            let plan = feed_lp.solve_plan(&pseudo.ctrl)?;
-            (plan.ctrl, pseudo.ctrl, vec![pseudo.stats, plan.stats], None)
-        }
-        Formulation::Certified => {
-            let caps: Vec<(f64, f64)> = jumps.iter().map(|j| (j.s_mm, j.q_cap)).collect();
-            // Refinement rounds (cutting planes): the plan is re-evaluated at
-            // REFINE_PER_SPAN points per knot span; where it exceeds a limit by
-            // more than REFINE_TRIGGER (narrow curvature spikes, fast changes
-            // of q between check points) those points join the check points
-            // with every row, and the sequence runs again.
-            let dense: Vec<EvalPoint> = knots
-                .windows(2)
-                .filter(|w| w[1] > w[0])
-                .flat_map(|w| {
-                    (1..REFINE_PER_SPAN)
-                        .map(move |k| w[0] + (w[1] - w[0]) * k as f64 / REFINE_PER_SPAN as f64)
-                })
-                .filter_map(eval)
-                .collect();
-            let (mut pts, mut forced) = (points.clone(), is_knot.clone());
-            let mut lps = Vec::new();
-            let mut round = 0;
-            loop {
-                let lp = FeedLp {
-                    points: &pts,
-                    ..feed_lp.clone()
-                };
-                // a refinement round may need more LPs to reach an iterate
-                // that holds every limit at the added points
-                let ccfg = CertifiedConfig {
-                    max_lps: cfg.certified.max_lps * (1 + round),
-                    ..cfg.certified
-                };
-                let c = certified::solve(&lp, &forced, &caps, &ccfg)?;
-                lps.extend(c.lps);
-                let bad = certified::violations(&lp, &c.ctrl, &dense, &caps, REFINE_TRIGGER);
-                if bad.is_empty() || round == REFINE_ROUNDS {
-                    break (c.ctrl, Vec::new(), lps, Some(c.check));
-                }
-                round += 1;
-                let mut merged: Vec<(EvalPoint, bool)> = pts.drain(..).zip(forced.drain(..)).collect();
-                merged.extend(bad.iter().map(|&i| (dense[i], true)));
-                merged.sort_by(|a, b| a.0.s.total_cmp(&b.0.s));
-                (pts, forced) = merged.into_iter().unzip();
-            }
-        }
-    };
-    let ends = end_rows.as_ref().and_then(|e| e.segments(&ctrl));
-    let stall = match (&end_rows, ends) {
-        (None, _) => find_stall(&knots, &ctrl, &cfg.limits),
-        (Some(_), Some(e)) => find_stall_between(&knots, &ctrl, &cfg.limits, e.s_start, e.s_stop),
-        (Some(e), None) => Some(StallAt::Interior {
-            s_mm: e.start.s,
-            feed_mm_s: 0.0,
-        }),
-    };
+    let base = stage.solve(&cfg.limits, &jumps, points, is_knot, Refine::Rounds)?;
     dbg_t("LPs");
-    if let Some(at) = stall {
-        return Err(PlanError::Stall {
-            at,
-            length_mm: length,
-        });
-    }
-    let predicted_time_s = match ends {
-        Some(e) => e.t_start + machining_time_between(&knots, &ctrl, e.s_start, e.s_stop) + e.t_stop,
-        None => machining_time(&knots, &ctrl),
-    };
+    let levels = stage.levels(&base)?;
+    dbg_t("levels");
+    let Solved {
+        ctrl,
+        qhat_ctrl,
+        lps: lp_stats,
+        check,
+        pts,
+        forced,
+        rounds,
+        ends,
+        predicted_time_s,
+    } = base;
+    let check_points: Vec<(f64, bool)> = pts.iter().zip(&forced).map(|(p, &f)| (p.s, f)).collect();
 
     let homogeneous = curve.to_homogeneous_table();
     let parts = TableParts {
@@ -623,6 +613,7 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
         q_knots: &knots,
         q_ctrl: &ctrl,
         ends,
+        levels: &[],
     };
     let mut bytes = vec![0u8; table::encoded_len(&parts)];
     let written = table::encode(&parts, &mut bytes).map_err(PlanError::Table)?;
@@ -649,7 +640,288 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
         q_ctrl: ctrl,
         qhat_ctrl,
         table_bytes: bytes,
+        check_points,
+        refine_rounds: rounds,
+        levels,
     })
+}
+
+/// How [`LpStage::solve`] treats the check points.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Refine {
+    /// The base plan: refinement rounds add forced check points.
+    Rounds,
+    /// An override level: the base plan's final check points, as they are,
+    /// with the LP budget of its last round.
+    Fixed {
+        /// Refinement rounds the base ran.
+        rounds: usize,
+    },
+}
+
+/// The LP stage of [`plan_curve`] with the geometry fixed: the knot vector
+/// and the path; [`LpStage::solve`] runs for any limits (the base, or an
+/// override level's v̄ × α) on given check points.
+struct LpStage<'a> {
+    curve: &'a Nurbs,
+    arc: &'a ArcLength,
+    knots: &'a [f64],
+    cfg: &'a PlanConfig,
+    length: f64,
+}
+
+/// A plan from [`LpStage::solve`].
+struct Solved {
+    ctrl: Vec<f64>,
+    qhat_ctrl: Vec<f64>,
+    lps: Vec<LpStats>,
+    check: Option<Ratios>,
+    /// The final check points and whether each is forced (carries rows).
+    pts: Vec<EvalPoint>,
+    forced: Vec<bool>,
+    rounds: usize,
+    ends: Option<EndSegments>,
+    predicted_time_s: f64,
+}
+
+impl LpStage<'_> {
+    fn eval(&self, s: f64) -> Option<EvalPoint> {
+        Some(EvalPoint {
+            s,
+            geo: path_derivs_at(self.curve, self.arc, s),
+            basis: BasisRow::at(self.knots, s)?,
+        })
+    }
+
+    /// Plan with `limits` on the check points `points` (`is_knot`: forced).
+    fn solve(
+        &self,
+        limits: &Limits,
+        jumps: &[Jump],
+        points: Vec<EvalPoint>,
+        is_knot: Vec<bool>,
+        refine: Refine,
+    ) -> Result<Solved, PlanError> {
+        let (cfg, knots, curve, arc) = (self.cfg, self.knots, self.curve, self.arc);
+        let end_rows = match cfg.ends {
+            EndMode::Jerk => EndRows::new(knots, limits, &|s| path_derivs_at(curve, arc, s)),
+            EndMode::Step => None,
+        };
+        let feed_lp = FeedLp {
+            knots,
+            points: &points,
+            limits: *limits,
+            objective: cfg.objective,
+            qhat_bound: cfg.qhat_bound,
+            // the paper formulation is reproduced with Clarabel, as it always was
+            settings: match cfg.formulation {
+                Formulation::Paper => SolverSettings {
+                    banded: false,
+                    ..cfg.solver
+                },
+                Formulation::Certified => cfg.solver,
+            },
+            ends: end_rows.as_ref(),
+        };
+        let (ctrl, qhat_ctrl, lp_stats, check, pts, forced, rounds) = match cfg.formulation {
+            Formulation::Paper => {
+                let pseudo = feed_lp.solve_pseudo_jerk()?;
+                let plan = feed_lp.solve_plan(&pseudo.ctrl)?;
+                let rounds = 0;
+                (
+                    plan.ctrl,
+                    pseudo.ctrl,
+                    vec![pseudo.stats, plan.stats],
+                    None,
+                    points.clone(),
+                    is_knot,
+                    rounds,
+                )
+            }
+            Formulation::Certified => {
+                let caps: Vec<(f64, f64)> = jumps.iter().map(|j| (j.s_mm, j.q_cap)).collect();
+                // Refinement rounds (cutting planes): the plan is re-evaluated at
+                // REFINE_PER_SPAN points per knot span; where it exceeds a limit by
+                // more than REFINE_TRIGGER (narrow curvature spikes, fast changes
+                // of q between check points) those points join the check points
+                // with every row, and the sequence runs again.
+                let dense: Vec<EvalPoint> = match refine {
+                    Refine::Rounds => knots
+                        .windows(2)
+                        .filter(|w| w[1] > w[0])
+                        .flat_map(|w| {
+                            (1..REFINE_PER_SPAN)
+                                .map(move |k| w[0] + (w[1] - w[0]) * k as f64 / REFINE_PER_SPAN as f64)
+                        })
+                        .filter_map(|s| self.eval(s))
+                        .collect(),
+                    Refine::Fixed { .. } => Vec::new(),
+                };
+                let (mut pts, mut forced) = (points.clone(), is_knot.clone());
+                let mut lps = Vec::new();
+                let mut round = match refine {
+                    Refine::Rounds => 0,
+                    Refine::Fixed { rounds } => rounds,
+                };
+                loop {
+                    let lp = FeedLp {
+                        points: &pts,
+                        ..feed_lp.clone()
+                    };
+                    // a refinement round may need more LPs to reach an iterate
+                    // that holds every limit at the added points
+                    let ccfg = CertifiedConfig {
+                        max_lps: cfg.certified.max_lps * (1 + round),
+                        ..cfg.certified
+                    };
+                    let c = certified::solve(&lp, &forced, &caps, &ccfg)?;
+                    lps.extend(c.lps);
+                    if let Refine::Fixed { .. } = refine {
+                        break (c.ctrl, Vec::new(), lps, Some(c.check), pts, forced, round);
+                    }
+                    let bad = certified::violations(&lp, &c.ctrl, &dense, &caps, REFINE_TRIGGER);
+                    if bad.is_empty() || round == REFINE_ROUNDS {
+                        break (c.ctrl, Vec::new(), lps, Some(c.check), pts, forced, round);
+                    }
+                    round += 1;
+                    let mut merged: Vec<(EvalPoint, bool)> = pts.drain(..).zip(forced.drain(..)).collect();
+                    merged.extend(bad.iter().map(|&i| (dense[i], true)));
+                    merged.sort_by(|a, b| a.0.s.total_cmp(&b.0.s));
+                    (pts, forced) = merged.into_iter().unzip();
+                }
+            }
+        };
+        let ends = end_rows.as_ref().and_then(|e| e.segments(&ctrl));
+        let stall = match (&end_rows, ends) {
+            (None, _) => find_stall(knots, &ctrl, limits),
+            (Some(_), Some(e)) => find_stall_between(knots, &ctrl, limits, e.s_start, e.s_stop),
+            (Some(e), None) => Some(StallAt::Interior {
+                s_mm: e.start.s,
+                feed_mm_s: 0.0,
+            }),
+        };
+        if let Some(at) = stall {
+            return Err(PlanError::Stall {
+                at,
+                length_mm: self.length,
+            });
+        }
+        let predicted_time_s = match ends {
+            Some(e) => e.t_start + machining_time_between(knots, &ctrl, e.s_start, e.s_stop) + e.t_stop,
+            None => machining_time(knots, &ctrl),
+        };
+        Ok(Solved {
+            ctrl,
+            qhat_ctrl,
+            lps: lp_stats,
+            check,
+            pts,
+            forced,
+            rounds,
+            ends,
+            predicted_time_s,
+        })
+    }
+
+    /// The override levels of the configuration, each planned with v̄ × α on
+    /// the base plan's final check points, two at a time.
+    fn levels(&self, base: &Solved) -> Result<Vec<LevelPlan>, PlanError> {
+        let percents = validate_levels(&self.cfg.override_levels)?;
+        if percents.is_empty() {
+            return Ok(Vec::new());
+        }
+        let one = |percent: f64| -> Result<LevelPlan, PlanError> {
+            let alpha = percent / 100.0;
+            let limits = Limits {
+                vbar: self.cfg.limits.vbar * alpha,
+                ..self.cfg.limits
+            };
+            let jumps = match self.cfg.formulation {
+                Formulation::Paper => Vec::new(),
+                Formulation::Certified => {
+                    junction::curvature_jumps(self.curve, self.arc, &limits, self.cfg.servo_period_s)
+                }
+            };
+            let refine = Refine::Fixed {
+                rounds: base.rounds,
+            };
+            let s = self
+                .solve(&limits, &jumps, base.pts.clone(), base.forced.clone(), refine)
+                .map_err(|e| PlanError::Level {
+                    percent,
+                    source: Box::new(e),
+                })?;
+            // the level lives on the base's knot vector and check points
+            assert_eq!(s.ctrl.len(), base.ctrl.len());
+            assert!(s.pts.iter().zip(&base.pts).all(|(a, b)| a.s.to_bits() == b.s.to_bits()));
+            Ok(LevelPlan {
+                percent,
+                vbar_mm_s: limits.vbar,
+                ctrl: s.ctrl,
+                ends: s.ends,
+                time_s: s.predicted_time_s,
+                lp: s.lps,
+                check: s.check,
+            })
+        };
+        // two threads: the levels alternate between them
+        let results: Vec<(usize, Result<LevelPlan, PlanError>)> = std::thread::scope(|sc| {
+            let one = &one;
+            let percents = &percents;
+            let handles: Vec<_> = (0..2)
+                .map(|t| {
+                    sc.spawn(move || {
+                        percents
+                            .iter()
+                            .enumerate()
+                            .skip(t)
+                            .step_by(2)
+                            .map(|(i, &p)| (i, one(p)))
+                            .collect::<Vec<_>>()
+                    })
+                })
+                .collect();
+            handles
+                .into_iter()
+                .flat_map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
+                .collect()
+        });
+        let mut out: Vec<Option<LevelPlan>> = (0..percents.len()).map(|_| None).collect();
+        for (i, r) in results {
+            out[i] = Some(r?);
+        }
+        Ok(out.into_iter().flatten().collect())
+    }
+}
+
+/// The override levels to plan: every entry finite, > 0 and distinct, 100
+/// dropped, sorted ascending.
+pub fn validate_levels(levels: &[f64]) -> Result<Vec<f64>, PlanError> {
+    let mut v = Vec::with_capacity(levels.len());
+    for &p in levels {
+        if !p.is_finite() {
+            return Err(PlanError::OverrideLevel {
+                percent: p,
+                why: "not finite",
+            });
+        }
+        if p <= 0.0 {
+            return Err(PlanError::OverrideLevel {
+                percent: p,
+                why: "must be > 0",
+            });
+        }
+        if v.contains(&p) {
+            return Err(PlanError::OverrideLevel {
+                percent: p,
+                why: "given twice",
+            });
+        }
+        v.push(p);
+    }
+    v.retain(|&p| p != 100.0);
+    v.sort_by(f64::total_cmp);
+    Ok(v)
 }
 
 /// Points per knot span of q at which a certified plan is re-evaluated for
