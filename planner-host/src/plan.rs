@@ -601,6 +601,14 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
     let check_points: Vec<(f64, bool)> = pts.iter().zip(&forced).map(|(p, &f)| (p.s, f)).collect();
 
     let homogeneous = curve.to_homogeneous_table();
+    let level_parts: Vec<table::LevelParts> = levels
+        .iter()
+        .map(|l| table::LevelParts {
+            alpha: l.percent / 100.0,
+            ctrl: &l.ctrl,
+            ends: l.ends,
+        })
+        .collect();
     let parts = TableParts {
         limits: cfg.limits,
         path_length_mm: length,
@@ -613,7 +621,7 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
         q_knots: &knots,
         q_ctrl: &ctrl,
         ends,
-        levels: &[],
+        levels: &level_parts,
     };
     let mut bytes = vec![0u8; table::encoded_len(&parts)];
     let written = table::encode(&parts, &mut bytes).map_err(PlanError::Table)?;

@@ -80,7 +80,45 @@ enum Cmd {
         /// Points per knot span of q in the dense re-evaluation of the plan.
         #[arg(long, default_value_t = 20)]
         dense: usize,
+        /// Feedrate override levels to plan into the table, percent of the programmed feed:
+        /// a list (30,50,125) and/or ranges FROM:TO:STEP (10:200:10); 100 is the plan itself.
+        /// Each level costs a whole plan and about 8·N + 60·(N−3) bytes of table
+        /// (docs/override-design.md).
+        #[arg(long, value_parser = parse_levels)]
+        override_levels: Option<Levels>,
     },
+}
+
+/// Override levels, percent.
+#[derive(Debug, Clone)]
+struct Levels(Vec<f64>);
+
+/// `30,50,125`, `10:200:10` or a mixture; 100 dropped, duplicates refused
+/// later by the planner's validation.
+fn parse_levels(text: &str) -> Result<Levels, String> {
+    let mut v = Vec::new();
+    for part in text.split(',').map(str::trim).filter(|p| !p.is_empty()) {
+        let num = |x: &str| {
+            x.trim()
+                .parse::<f64>()
+                .map_err(|_| format!("{x:?} is not a number (levels: 30,50,125 or FROM:TO:STEP)"))
+        };
+        let f: Vec<&str> = part.split(':').collect();
+        match f.as_slice() {
+            [x] => v.push(num(x)?),
+            [a, b, st] => {
+                let (a, b, st) = (num(a)?, num(b)?, num(st)?);
+                if !(st > 0.0) || !(b >= a) || (b - a) / st > 1000.0 {
+                    return Err(format!("range {part:?}: need FROM <= TO and STEP > 0 (at most 1000 levels)"));
+                }
+                let n = ((b - a) / st + 1e-9).floor() as usize;
+                v.extend((0..=n).map(|k| a + st * k as f64));
+            }
+            _ => return Err(format!("{part:?}: expected a number or FROM:TO:STEP")),
+        }
+    }
+    v.retain(|&p| p != 100.0);
+    Ok(Levels(v))
 }
 
 fn main() -> ExitCode {
@@ -109,6 +147,7 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             checks_per_span,
             ends,
             servo_period_us,
+            override_levels,
         } => {
             if formulation != Formulation::Paper && (objective.is_some() || qhat_bound.is_some()) {
                 return Err("--objective and --qhat-bound go with --formulation paper".into());
@@ -130,6 +169,7 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                     Formulation::Certified => EndMode::Jerk,
                 }),
                 servo_period_s: servo_period_us * 1e-6,
+                override_levels: override_levels.map(|l| l.0).unwrap_or_default(),
                 ..PlanConfig::default()
             };
             if let Some(c) = checks_per_span {
