@@ -440,6 +440,31 @@ fn solve_with(
                     r.rhs *= jerk_share[i];
                 }
                 rows.truncate(start);
+                let jerk = matches!(kind, RowKind::Jerk(_) | RowKind::TJerk);
+                if win.is_some() && jerk && qbar[i] > 0.0 {
+                    // window: the tangent of J/√q at q̄ instead of the
+                    // constant J/√q̄ (J/√q is convex, so ±L(q) + J q /(2 q̄^{3/2})
+                    // ≤ 3J/(2√q̄) implies |L(q)|·√q ≤ J for every q > 0, and is
+                    // looser than ±L ≤ J/√q̄ wherever q ≤ q̄)
+                    let t = r.rhs / (2.0 * qbar[i]);
+                    let tq: [f64; ORDER] = core::array::from_fn(|j| t * p.basis.d[0][j]);
+                    let rhs = 1.5 * r.rhs;
+                    if m & 1 != 0 {
+                        rows.push(Row {
+                            val: core::array::from_fn(|j| r.val[j] + tq[j]),
+                            idx: r.idx,
+                            rhs,
+                        });
+                    }
+                    if m & 2 != 0 {
+                        rows.push(Row {
+                            val: core::array::from_fn(|j| -r.val[j] + tq[j]),
+                            idx: r.idx,
+                            rhs,
+                        });
+                    }
+                    continue;
+                }
                 if m & 1 != 0 {
                     rows.push(r);
                 }

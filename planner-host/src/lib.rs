@@ -17,6 +17,8 @@
 //! - [`verify`]: dense re-evaluation of a plan against every limit.
 //! - [`transition`]: ArcLen (Appendix C), the length of a jerk-limited
 //!   feed transition, for the override (§4).
+//! - [`feed_override`]: the feedrate override (§4): override levels reused,
+//!   the window LP between the active profile and the target level.
 //! - [`limits`]: Table 1 and the limits file; [`builtin`]: built-in curves.
 
 pub mod arclength;
@@ -24,6 +26,7 @@ pub mod builtin;
 pub mod certified;
 pub mod curve;
 pub mod ends;
+pub mod feed_override;
 mod ipm;
 pub mod junction;
 pub mod limits;

@@ -500,10 +500,10 @@ impl<'a> FeedLp<'a> {
         let fix_at = |i: usize| fixed.and_then(|f| f.get(i).copied().flatten());
         let is_fixed = |v: usize| fix_at(v + 1).is_some();
         if fixed.is_some() {
-            for v in 0..nv {
-                if let Some((k, _)) = subst[v] {
+            for (v, sub) in subst.iter_mut().enumerate() {
+                if let Some((k, _)) = *sub {
                     match (is_fixed(v), is_fixed(k)) {
-                        (true, true) => subst[v] = None,
+                        (true, true) => *sub = None,
                         (false, false) => {}
                         _ => return Err(fail("FixedSplitsJoin", 0)),
                     }

@@ -850,9 +850,7 @@ impl LpStage<'_> {
                     junction::curvature_jumps(self.curve, self.arc, &limits, self.cfg.servo_period_s)
                 }
             };
-            let refine = Refine::Fixed {
-                rounds: base.rounds,
-            };
+            let refine = Refine::Fixed { rounds: base.rounds };
             let s = self
                 .solve(&limits, &jumps, base.pts.clone(), base.forced.clone(), refine)
                 .map_err(|e| PlanError::Level {
@@ -861,7 +859,11 @@ impl LpStage<'_> {
                 })?;
             // the level lives on the base's knot vector and check points
             assert_eq!(s.ctrl.len(), base.ctrl.len());
-            assert!(s.pts.iter().zip(&base.pts).all(|(a, b)| a.s.to_bits() == b.s.to_bits()));
+            assert!(s
+                .pts
+                .iter()
+                .zip(&base.pts)
+                .all(|(a, b)| a.s.to_bits() == b.s.to_bits()));
             Ok(LevelPlan {
                 percent,
                 vbar_mm_s: limits.vbar,
