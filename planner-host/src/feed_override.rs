@@ -264,6 +264,16 @@ struct Profile {
     caps: Vec<(f64, f64)>,
 }
 
+/// The plan settings a context needs.
+struct Settings {
+    limits: Limits,
+    certified: CertifiedConfig,
+    solver: SolverSettings,
+    /// Cap the feed at curvature jumps (certified formulation).
+    caps: bool,
+    servo_period_s: f64,
+}
+
 /// Everything an override reuses (see the module docs); built once.
 #[derive(Debug, Clone)]
 pub struct OverrideContext {
@@ -295,13 +305,91 @@ impl OverrideContext {
     /// Build the context of `plan` (made by [`crate::plan::plan_curve`] from
     /// `curve`; `arc` its arc length).
     pub fn new(curve: &Nurbs, arc: &ArcLength, plan: &PlanOutput) -> Result<Self, OverrideError> {
-        let knots = plan.q_knots.clone();
-        let n = plan.q_ctrl.len();
-        if n < 2 * ORDER || knots.len() != n + ORDER {
-            return Err(OverrideError::Plan("too few control points"));
-        }
         if plan.check_points.is_empty() {
             return Err(OverrideError::Plan("no check points recorded"));
+        }
+        let cfg = &plan.config;
+        let mut levels = vec![(100.0, cfg.limits.vbar, plan.q_ctrl.clone(), plan.ends)];
+        for l in &plan.levels {
+            levels.push((l.percent, l.vbar_mm_s, l.ctrl.clone(), l.ends));
+        }
+        Self::build(
+            curve,
+            arc,
+            plan.q_knots.clone(),
+            &plan.check_points,
+            Settings {
+                limits: cfg.limits,
+                certified: cfg.certified,
+                solver: cfg.solver,
+                caps: cfg.formulation == Formulation::Certified,
+                servo_period_s: cfg.servo_period_s,
+            },
+            levels,
+        )
+    }
+
+    /// Build the context from a firmware table alone (`feedplan override`):
+    /// the toolpath, q, its levels and limits from the table; the check
+    /// points [`crate::plan::check_points`] at the default density (the
+    /// plan's forced refinement points are not in the table); the certified
+    /// formulation's settings, with curvature-jump caps for `servo_period_s`.
+    pub fn from_table(
+        table: &firmware_core::table::Table,
+        servo_period_s: f64,
+    ) -> Result<Self, OverrideError> {
+        let knots: Vec<f64> = table.nurbs_knots().iter().collect();
+        let flat: Vec<f64> = table.nurbs_points().flat().iter().collect();
+        let points = flat.chunks_exact(4).map(|p| [p[0], p[1], p[2]]).collect();
+        let weights = flat.chunks_exact(4).map(|p| p[3]).collect();
+        let curve = Nurbs::new(table.nurbs_degree() as usize, knots, weights, points)
+            .map_err(|_| OverrideError::Plan("the table's NURBS is not usable"))?;
+        let arc = ArcLength::new(&curve);
+        let q_knots: Vec<f64> = table.q_knots().iter().collect();
+        let certified = CertifiedConfig::default();
+        let checks = crate::plan::check_points(&q_knots, certified.checks_per_span);
+        let mut levels = Vec::new();
+        for id in 0..=table.level_count() {
+            let lv = table
+                .level(id as u16)
+                .ok_or(OverrideError::Plan("a level of the table is unreadable"))?;
+            levels.push((
+                100.0 * lv.alpha(),
+                lv.vbar(),
+                lv.ctrl().iter().collect(),
+                lv.ends(),
+            ));
+        }
+        Self::build(
+            &curve,
+            &arc,
+            q_knots,
+            &checks,
+            Settings {
+                limits: table.limits(),
+                certified,
+                solver: SolverSettings {
+                    banded: true,
+                    ..SolverSettings::default()
+                },
+                caps: true,
+                servo_period_s,
+            },
+            levels,
+        )
+    }
+
+    fn build(
+        curve: &Nurbs,
+        arc: &ArcLength,
+        knots: Vec<f64>,
+        check_points: &[(f64, bool)],
+        set: Settings,
+        levels: Vec<(f64, f64, Vec<f64>, Option<EndSegments>)>,
+    ) -> Result<Self, OverrideError> {
+        let n = levels.first().map_or(0, |l| l.2.len());
+        if n < 2 * ORDER || knots.len() != n + ORDER || levels.iter().any(|l| l.2.len() != n) {
+            return Err(OverrideError::Plan("too few control points"));
         }
         let length = *knots.last().unwrap_or(&0.0);
         let greville = lp::greville(&knots);
@@ -309,8 +397,7 @@ impl OverrideContext {
             .iter()
             .map(|&g| BasisRow::at(&knots, g).ok_or(OverrideError::Plan("a Greville point has no span")))
             .collect::<Result<_, _>>()?;
-        let points: Vec<EvalPoint> = plan
-            .check_points
+        let points: Vec<EvalPoint> = check_points
             .iter()
             .filter_map(|&(s, _)| {
                 Some(EvalPoint {
@@ -320,41 +407,38 @@ impl OverrideContext {
                 })
             })
             .collect();
-        let cfg = &plan.config;
-        let make = |percent: f64, vbar: f64, ctrl: &[f64], ends: Option<EndSegments>| -> Profile {
-            let lim = Limits { vbar, ..cfg.limits };
-            let caps = match cfg.formulation {
-                Formulation::Paper => Vec::new(),
-                Formulation::Certified => junction::curvature_jumps(curve, arc, &lim, cfg.servo_period_s)
+        let make = |percent: f64, vbar: f64, ctrl: Vec<f64>, ends: Option<EndSegments>| -> Profile {
+            let lim = Limits { vbar, ..set.limits };
+            let caps = if set.caps {
+                junction::curvature_jumps(curve, arc, &lim, set.servo_period_s)
                     .iter()
                     .map(|j| (j.s_mm, j.q_cap))
-                    .collect(),
+                    .collect()
+            } else {
+                Vec::new()
             };
             Profile {
                 percent,
                 vbar,
-                ctrl: ctrl.to_vec(),
-                ends,
                 start_join_last: ends.and_then(|e| join_ctrl(&knots, e.s_start)).map(|j| j.1),
                 stop_join_first: ends.and_then(|e| join_ctrl(&knots, e.s_stop)).map(|j| j.0),
-                q_g: grev_basis.iter().map(|b| b.apply(0, ctrl)).collect(),
-                a_g: grev_basis.iter().map(|b| 0.5 * b.apply(1, ctrl)).collect(),
+                q_g: grev_basis.iter().map(|b| b.apply(0, &ctrl)).collect(),
+                a_g: grev_basis.iter().map(|b| 0.5 * b.apply(1, &ctrl)).collect(),
+                ctrl,
+                ends,
                 caps,
             }
         };
-        let mut profiles = vec![make(100.0, cfg.limits.vbar, &plan.q_ctrl, plan.ends)];
-        for l in &plan.levels {
-            profiles.push(make(l.percent, l.vbar_mm_s, &l.ctrl, l.ends));
-        }
+        let profiles = levels.into_iter().map(|(p, v, c, e)| make(p, v, c, e)).collect();
         Ok(OverrideContext {
             knots,
             length,
             greville,
             grev_basis,
             points,
-            limits: cfg.limits,
-            certified: cfg.certified,
-            solver: cfg.solver,
+            limits: set.limits,
+            certified: set.certified,
+            solver: set.solver,
             profiles,
             config: OverrideConfig::default(),
         })

@@ -294,7 +294,11 @@ impl<'c> Host<'c> {
         // resynchronise from the firmware's last status: its active level's profile
         let level = self.status.map_or(0, |s| s.active_level);
         self.base_level = level;
-        self.base_ctrl = self.ctx.level_ctrl(level).map(<[f64]>::to_vec).unwrap_or_default();
+        self.base_ctrl = self
+            .ctx
+            .level_ctrl(level)
+            .map(<[f64]>::to_vec)
+            .unwrap_or_default();
     }
 }
 
@@ -313,7 +317,9 @@ pub fn run_scenario(
     let table = Table::parse(table_bytes).map_err(SimError::Table)?;
     let limits = table.limits();
     let t = cfg.period_s;
-    let last_point = table.nurbs_points().get(table.nurbs_points().len().saturating_sub(1));
+    let last_point = table
+        .nurbs_points()
+        .get(table.nurbs_points().len().saturating_sub(1));
     let mut ip: Interpolator = Interpolator::new(table, t).map_err(SimError::Interp)?;
     let mut events = cfg.events.clone();
     events.sort_by(|a, b| a.t_s.total_cmp(&b.t_s));
@@ -351,7 +357,17 @@ pub fn run_scenario(
         let now = k as f64 * t;
         // 1. downlink → firmware
         while down.front().is_some_and(|(at, _)| *at <= now + 1e-12) {
-            let Some((_, Down::Profile { rec, seq, level, first, ctrl })) = down.pop_front() else {
+            let Some((
+                _,
+                Down::Profile {
+                    rec,
+                    seq,
+                    level,
+                    first,
+                    ctrl,
+                },
+            )) = down.pop_front()
+            else {
                 break;
             };
             let msg = FwProfile {
@@ -462,7 +478,8 @@ pub fn run_scenario(
                                 host.forget();
                             }
                             if recs[rec].sends >= cfg.max_attempts {
-                                recs[rec].fate = fate_failed(format!("refused {} times, last {e:?}", recs[rec].sends));
+                                recs[rec].fate =
+                                    fate_failed(format!("refused {} times, last {e:?}", recs[rec].sends));
                             } else if host.waiting.is_none() {
                                 host.waiting = Some(rec);
                                 host.retry_at_s = Some(
@@ -554,7 +571,9 @@ pub fn run_scenario(
     }
 
     // the executed feed against the target level after each merge
-    let mut active: Vec<usize> = (0..recs.len()).filter(|&i| recs[i].t_active_s.is_some()).collect();
+    let mut active: Vec<usize> = (0..recs.len())
+        .filter(|&i| recs[i].t_active_s.is_some())
+        .collect();
     active.sort_by(|&a, &b| recs[a].t_active_s.total_cmp(&recs[b].t_active_s));
     let table = ip.table();
     for (n, &i) in active.iter().enumerate() {
@@ -570,15 +589,24 @@ pub fn run_scenario(
         };
         let stop_from = ctx.level_stop_s(recs[i].level).unwrap_or(f64::INFINITY);
         let t_from = recs[i].t_active_s.unwrap_or(0.0);
-        let held = |t: f64| holds.iter().any(|h| t >= h.t_hold_s && h.t_resume_s.is_none_or(|r| t <= r + 2.0));
+        let held = |t: f64| {
+            holds
+                .iter()
+                .any(|h| t >= h.t_hold_s && h.t_resume_s.is_none_or(|r| t <= r + 2.0))
+        };
         let err = ticks
             .iter()
-            .filter(|tk| tk.t_s >= t_from && tk.s_mm >= merge && tk.s_mm < until.min(stop_from) && !held(tk.t_s))
+            .filter(|tk| {
+                tk.t_s >= t_from && tk.s_mm >= merge && tk.s_mm < until.min(stop_from) && !held(tk.t_s)
+            })
             .filter_map(|tk| Some((tk.feed_mm_s - q.eval(tk.s_mm)?[0].max(0.0).sqrt()).abs()))
             .fold(None, |m: Option<f64>, e| Some(m.map_or(e, |m| m.max(e))));
         recs[i].feed_err_after_merge_mm_s = err;
     }
-    for r in recs.iter_mut().filter(|r| r.fate == Fate::Open && r.seq.is_some()) {
+    for r in recs
+        .iter_mut()
+        .filter(|r| r.fate == Fate::Open && r.seq.is_some())
+    {
         r.fate = Fate::Superseded;
     }
 
@@ -592,7 +620,9 @@ pub fn run_scenario(
         .fold(0.0, f64::max);
     let jump_limit_mm = limits.v.iter().cloned().fold(0.0, f64::max) * t;
     let ended_at_end = match (ticks.last(), last_point) {
-        (Some(tk), Some(p)) => tk.cmd_mm == [p[0] / p[3], p[1] / p[3], p[2] / p[3]] || tk.cmd_mm == [p[0], p[1], p[2]],
+        (Some(tk), Some(p)) => {
+            tk.cmd_mm == [p[0] / p[3], p[1] / p[3], p[2] / p[3]] || tk.cmd_mm == [p[0], p[1], p[2]]
+        }
         _ => false,
     };
     let metrics = metrics::compute(&ticks, t, &limits, geometry.map(|g| g as &dyn Toolpath));
@@ -617,7 +647,9 @@ fn dispatch(
     link: &LinkConfig,
     down: &mut VecDeque<(f64, Down)>,
 ) {
-    let (s_seen, feed_seen, t_seen) = host.status.map_or((0.0, 0.0, now), |s| (s.s_mm, s.feed_mm_s, s.t_s));
+    let (s_seen, feed_seen, t_seen) = host
+        .status
+        .map_or((0.0, 0.0, now), |s| (s.s_mm, s.feed_mm_s, s.t_s));
     // where the machine will be when the profile arrives, plus a margin
     let ahead = (now - t_seen) + link.compute_budget_s + link.down_latency_s + link.margin_ticks * period_s;
     let s_at = s_seen + feed_seen * ahead;

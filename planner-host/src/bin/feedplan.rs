@@ -3,6 +3,8 @@
 //! ```text
 //! feedplan plan CURVE.json [--sampling len] [--density P] [--limits FILE] -o TABLE.bin [--json]
 //!               [--formulation certified|paper [--objective O] [--qhat-bound B]]
+//!               [--override-levels 30,50,125 | 10:200:10]
+//! feedplan override TABLE.bin --at S_MM --to PERCENT [--from PERCENT] [-o PROFILE.json]
 //! ```
 
 use std::path::PathBuf;
@@ -87,6 +89,28 @@ enum Cmd {
         #[arg(long, value_parser = parse_levels)]
         override_levels: Option<Levels>,
     },
+    /// Compute one feedrate-override transition profile (paper §4) for inspection: the table's
+    /// plan (or level --from) overridden at --at to level --to; the table must hold that level
+    /// (feedplan plan --override-levels).
+    Override {
+        /// The firmware table (with override levels).
+        table: PathBuf,
+        /// Arc length of the override command, mm.
+        #[arg(long)]
+        at: f64,
+        /// Target feed, percent of the programmed feed (a level of the table, or 100).
+        #[arg(long)]
+        to: f64,
+        /// Active level, percent (default 100: the plan itself).
+        #[arg(long, default_value_t = 100.0)]
+        from: f64,
+        /// Servo period, µs (feed caps at curvature jumps).
+        #[arg(long, default_value_t = 250.0)]
+        servo_period_us: f64,
+        /// Write the profile (the firmware message: level, first, ctrl; and the whole q) as JSON here.
+        #[arg(short = 'o', long = "output")]
+        output: Option<PathBuf>,
+    },
 }
 
 /// Override levels, percent.
@@ -109,7 +133,9 @@ fn parse_levels(text: &str) -> Result<Levels, String> {
             [a, b, st] => {
                 let (a, b, st) = (num(a)?, num(b)?, num(st)?);
                 if !(st > 0.0) || !(b >= a) || (b - a) / st > 1000.0 {
-                    return Err(format!("range {part:?}: need FROM <= TO and STEP > 0 (at most 1000 levels)"));
+                    return Err(format!(
+                        "range {part:?}: need FROM <= TO and STEP > 0 (at most 1000 levels)"
+                    ));
                 }
                 let n = ((b - a) / st + 1e-9).floor() as usize;
                 v.extend((0..=n).map(|k| a + st * k as f64));
@@ -198,5 +224,91 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             }
             Ok(())
         }
+        Cmd::Override {
+            table,
+            at,
+            to,
+            from,
+            servo_period_us,
+            output,
+        } => override_cmd(&table, at, from, to, servo_period_us, output.as_deref()),
     }
+}
+
+/// `feedplan override`.
+fn override_cmd(
+    path: &std::path::Path,
+    at: f64,
+    from: f64,
+    to: f64,
+    servo_period_us: f64,
+    output: Option<&std::path::Path>,
+) -> Result<(), Box<dyn std::error::Error>> {
+    use planner_host::feed_override::{OverrideContext, OverrideOutcome};
+    let bytes = std::fs::read(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+    let table = firmware_core::table::Table::parse(&bytes)
+        .map_err(|e| format!("{}: table refused: {e:?}", path.display()))?;
+    let ctx = OverrideContext::from_table(&table, servo_period_us * 1e-6)?;
+    let id_of = |pct: f64| -> Result<u16, String> {
+        (0..ctx.level_count() as u16)
+            .find(|&id| ctx.level_percent(id).is_some_and(|p| (p - pct).abs() < 1e-9))
+            .ok_or_else(|| {
+                let have: Vec<String> = (0..ctx.level_count() as u16)
+                    .filter_map(|id| ctx.level_percent(id).map(|p| format!("{p}")))
+                    .collect();
+                format!(
+                    "no {pct} % level in {} (it has {} %)",
+                    path.display(),
+                    have.join(", ")
+                )
+            })
+    };
+    let (a, t) = (id_of(from)?, id_of(to)?);
+    let active = ctx.level_ctrl(a).ok_or("no active level")?.to_vec();
+    match ctx.compute(a, &active, at, t)? {
+        OverrideOutcome::Skip(why) => {
+            println!("override at s = {at} mm from {from} % to {to} %: skipped ({why:?}); the active profile stays");
+        }
+        OverrideOutcome::Profile(p) => {
+            println!(
+                "override at s = {at} mm from {from} % to {to} %: {:?}\n  splice s = {:.4} mm (first changed span {}), merge s = {:.4} mm\n  \
+                 transition {:.3} mm (ArcLen estimate {}), {} new control points, {} LPs, retries {} (window) + {} (Algorithm 2)\n  \
+                 override point used {:.4} mm, computed in {:.2} ms",
+                p.case,
+                p.splice_s_mm,
+                p.first,
+                p.merge_s_mm,
+                p.transition_len_mm,
+                p.arclen_estimate_mm.map_or("-".into(), |x| format!("{x:.3} mm")),
+                p.ctrl.len().saturating_sub(3),
+                p.lp_count,
+                p.retries_grow,
+                p.retries_extreme,
+                p.override_s_mm,
+                p.compute_time_s * 1e3
+            );
+            if let Some(out) = output {
+                let v = serde_json::json!({
+                    "level": p.level,
+                    "percent": to,
+                    "from_percent": from,
+                    "first": p.first,
+                    "ctrl": p.ctrl,
+                    "splice_s_mm": p.splice_s_mm,
+                    "merge_s_mm": p.merge_s_mm,
+                    "case": format!("{:?}", p.case),
+                    "transition_len_mm": p.transition_len_mm,
+                    "arclen_estimate_mm": p.arclen_estimate_mm,
+                    "retries_grow": p.retries_grow,
+                    "retries_extreme": p.retries_extreme,
+                    "override_s_mm": p.override_s_mm,
+                    "q_knots": ctx.knots(),
+                    "q_ctrl": p.full_ctrl,
+                });
+                plan::write_atomic(out, serde_json::to_string_pretty(&v)?.as_bytes())?;
+                println!("  profile written to {}", out.display());
+            }
+        }
+    }
+    Ok(())
 }

@@ -380,7 +380,10 @@ fn override_report(
         orep::TABLE_HEAD
     );
     let mut notes = String::new();
-    for spec in all.iter().filter(|s| names.is_empty() || names.iter().any(|n| n == s.name)) {
+    for spec in all
+        .iter()
+        .filter(|s| names.is_empty() || names.iter().any(|n| n == s.name))
+    {
         eprintln!("feedsim override: {} ...", spec.name);
         let run = orep::run_spec(spec, period_us * 1e-6)?;
         let (row, files) = orep::write_run(out, &run)?;
@@ -401,7 +404,10 @@ fn override_report(
                 .join(", ")
         ));
         let json = serde_json::to_string_pretty(&run.result.overrides)?;
-        sim_harness::csv::write_atomic(&out.join(format!("{}_overrides.json", spec.name)), json.as_bytes())?;
+        sim_harness::csv::write_atomic(
+            &out.join(format!("{}_overrides.json", spec.name)),
+            json.as_bytes(),
+        )?;
     }
     md.push_str("\n");
     md.push_str(&notes);
