@@ -57,7 +57,8 @@ use crate::fast::{
 };
 use crate::log;
 use crate::output::SetpointSink;
-use crate::table::{EndSegments, Table, MATCH_TOL_REL};
+use crate::splice::{Accepted, Now, OverrideError, OverrideProfile, Overrides};
+use crate::table::{EndSegments, Level, Table, MATCH_TOL_REL};
 
 /// A step shorter than `STALL_REL · L` counts as no progress.
 pub const STALL_REL: f64 = 1e-14;
@@ -249,7 +250,6 @@ impl Views<'_> {
     /// Moves `qc` to q span `idx` starting at `start` (Q40) in place.
     #[inline]
     fn fill_q(&self, qc: &mut QCur, idx: usize, start: i64) -> Option<()> {
-        let end = to_fx(self.q_knots.get(idx.checked_add(4)?)?);
         let at = idx.checked_mul(8 * Q_FX_LEN)?;
         let w: &[u8; 8 * Q_FX_LEN] = self
             .q_fixed
@@ -264,10 +264,20 @@ impl Views<'_> {
             }
             i64::from_le_bytes(b)
         };
+        let c = [word(0), word(1), word(2), word(3), word(4)];
+        self.put_q(qc, idx, start, c, self.q_poly(idx)?)
+    }
+
+    /// Moves `qc` to q span `idx` starting at `start` (Q40) with the fixed
+    /// form `c` (cubic and shift) and the f32 form `poly`.
+    #[inline(always)]
+    fn put_q(&self, qc: &mut QCur, idx: usize, start: i64, c: [i64; Q_FX_LEN], poly: QLocal) -> Option<()> {
+        let end = to_fx(self.q_knots.get(idx.checked_add(4)?)?);
+        let [c0, c1, c2, c3, shift] = c;
         let last = idx >= self.q_last;
-        qc.shift = u32::try_from(word(4)).ok()?;
-        qc.poly = self.q_poly(idx)?;
-        qc.c = [word(0), word(1), word(2), word(3)];
+        qc.shift = u32::try_from(shift).ok()?;
+        qc.poly = poly;
+        qc.c = [c0, c1, c2, c3];
         qc.idx = idx;
         qc.start = start;
         qc.next = if last { i64::MAX } else { end };
@@ -352,8 +362,12 @@ fn q_eval(qc: &QCur, poly: &QLocal, s: i64, tq: f32, guess: f32) -> QState {
 /// The fast path of [`crate::fast`]: s accumulates in Q40 fixed point; q and
 /// √q are fixed point (Q32) with f32 estimates, the higher Taylor terms f32,
 /// the position a fixed-point polynomial per piece (Q40), u(s) f32 local.
+///
+/// With override levels in the table, [`Interpolator::offer_override`]
+/// queues transition profiles ([`crate::splice`]): up to `Q` waiting, each
+/// with up to `W` control points (RAM: `Q + 1` windows of ~68·W bytes).
 #[derive(Clone, Debug)]
-pub struct Interpolator<'a> {
+pub struct Interpolator<'a, const Q: usize = 4, const W: usize = 32> {
     table: Table<'a>,
     views: Views<'a>,
     period_s: f64,
@@ -400,9 +414,42 @@ pub struct Interpolator<'a> {
     /// The end segment being executed: s in Q80 and its forward
     /// differences (exact integer recurrences, [`SegRun`]).
     seg: SegRun,
-    /// Constants of the segments for T (zeros without segments).
+    /// Constants of the segments for T (zeros without segments); the stop
+    /// part is the active level's.
     segk: SegConsts,
     phase: Phase,
+    /// Override profiles: the queue and the active one.
+    ov: Overrides<'a, Q, W>,
+}
+
+/// What running on a level needs beyond its spans: its forms (sections
+/// 10/15 or 18/19), its stop segment and constants for T, precomputed so
+/// that a splice costs a copy on the tick.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct LevelRun<'a> {
+    pub(crate) id: u16,
+    q_local: LeF32<'a>,
+    q_fixed: LeF64<'a>,
+    ends: Option<EndSegments>,
+    /// s₂ (or L without segments), Q40.
+    stop_at: i64,
+    segk: SegConsts,
+}
+
+impl<'a> LevelRun<'a> {
+    pub(crate) fn new(level: &Level<'a>, length_mm: f64, period_s: f64) -> Self {
+        let ends = level.ends();
+        LevelRun {
+            id: level.id(),
+            q_local: level.q_local(),
+            q_fixed: level.q_fixed(),
+            ends,
+            stop_at: ends.map_or(to_fx(length_mm), |e| to_fx(e.s_stop)),
+            segk: ends
+                .map(|e| SegConsts::new(&e, length_mm, period_s))
+                .unwrap_or_default(),
+        }
+    }
 }
 
 /// An end segment as a cubic in the tick index, run by forward differences
@@ -430,7 +477,7 @@ struct SegRun {
 
 /// Precomputed constants of the end segments for the period T.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
-struct SegConsts {
+pub(crate) struct SegConsts {
     /// Start: d₁, d₂, d₃ at tick 0 of s = D k³, D = J₁T³/6 (Q80).
     start_d: [i128; 3],
     /// 0.5 J₁ T² (f32): the start feed is this · k².
@@ -507,8 +554,18 @@ impl SegConsts {
 }
 
 impl<'a> Interpolator<'a> {
-    /// An interpolator at the start of `table`, ticking every `period_s` seconds.
+    /// An interpolator at the start of `table`, ticking every `period_s`
+    /// seconds, with the default override capacities (4 queued profiles of
+    /// up to 32 control points; [`Interpolator::new_sized`] for others).
     pub fn new(table: Table<'a>, period_s: f64) -> Result<Self, InterpError> {
+        Self::new_sized(table, period_s)
+    }
+}
+
+impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
+    /// As [`Interpolator::new`], with room for `Q` queued override profiles
+    /// of up to `W` control points each (`Interpolator::<2, 16>::new_sized`).
+    pub fn new_sized(table: Table<'a>, period_s: f64) -> Result<Self, InterpError> {
         let ip = Self::build(table, period_s);
         match &ip {
             Ok(ip) => log::info!(
@@ -594,7 +651,9 @@ impl<'a> Interpolator<'a> {
             }
             None => (to_fx(length_mm), QState::default()),
         };
+        let base = LevelRun::new(&table.level(0).ok_or(bad)?, length_mm, period_s);
         Ok(Interpolator {
+            ov: Overrides::new(&table, base),
             ends,
             stop_at,
             k_join,
@@ -651,6 +710,68 @@ impl<'a> Interpolator<'a> {
         self.period_s
     }
 
+    /// Offer a feedrate-override profile ([`crate::splice`],
+    /// `docs/override-design.md`): checked, its window forms computed, and
+    /// queued to become active at the tick that enters q span `p.first`; or
+    /// refused with nothing changed. Not for the tick context: it costs two
+    /// f64 span evaluations per window span.
+    pub fn offer_override(&mut self, p: &OverrideProfile) -> Result<Accepted, OverrideError> {
+        let now = Now {
+            span: self.qc.idx,
+            s: self.s,
+            done: self.phase == Phase::Done,
+            faulted: matches!(self.phase, Phase::Faulted(_)),
+            length_mm: self.length_mm,
+            period_s: self.period_s,
+        };
+        let r = self.ov.offer(&self.table, p, now);
+        match &r {
+            Ok(a) => log::info!(
+                "override {=u32} to level {=u16} accepted: splice at {=f64} mm, {=u8} superseded",
+                a.seq,
+                p.level,
+                a.splice_s_mm,
+                a.superseded
+            ),
+            Err(e) => log::warn!("override {=u32} refused: {}", p.seq, e),
+        }
+        r
+    }
+
+    /// The active override profile's sequence number (`None`: none since the
+    /// start or reset) and the level being run (0 the base plan).
+    pub fn active_profile(&self) -> (Option<u32>, u16) {
+        self.ov.active()
+    }
+
+    /// Accepted override profiles not yet active.
+    pub fn pending_overrides(&self) -> usize {
+        self.ov.pending()
+    }
+
+    /// Run on `run`'s level from the next q span entry on.
+    fn use_level(&mut self, run: &LevelRun<'a>) {
+        self.views.q_local = run.q_local;
+        self.views.q_fixed = run.q_fixed;
+        self.ends = run.ends;
+        self.stop_at = run.stop_at;
+        self.segk = run.segk;
+    }
+
+    /// Entering q span `idx` where an override matters: the queue front
+    /// splicing here becomes active; the span's forms from the active window
+    /// if it has them, else from the active level.
+    #[inline(never)]
+    fn enter_override_span(&mut self, idx: usize, start: i64) -> Option<()> {
+        if let Some(run) = self.ov.activate(idx) {
+            self.use_level(&run);
+        }
+        match self.ov.form(idx) {
+            Some((c, poly)) => self.views.put_q(&mut self.qc, idx, start, c, poly),
+            None => self.views.fill_q(&mut self.qc, idx, start),
+        }
+    }
+
     /// Arc length reached, mm.
     pub fn s_mm(&self) -> f64 {
         fx_to_f64(self.s)
@@ -666,8 +787,13 @@ impl<'a> Interpolator<'a> {
         self.phase == Phase::Done
     }
 
-    /// Back to the start (also clears a fault).
+    /// Back to the start (also clears a fault and every override: the base
+    /// plan again, queue empty, sequence numbers forgotten).
     pub fn reset(&mut self) {
+        self.ov.clear();
+        if let Some(base) = self.table.level(0) {
+            self.use_level(&LevelRun::new(&base, self.length_mm, self.period_s));
+        }
         self.k = 0;
         self.s = 0;
         if let (Some(qc), Some(pc)) = (self.views.q(0), self.views.piece(0)) {
@@ -1008,14 +1134,18 @@ impl<'a> Interpolator<'a> {
     /// span converts its breaks to Q40 and reads its words.
     #[inline]
     fn seek(&mut self, s: i64) -> Option<(f32, f32, QLocal)> {
-        let v = &self.views;
-        while self.pc.idx < v.p_last && s >= self.pc.next {
+        while self.pc.idx < self.views.p_last && s >= self.pc.next {
             let (idx, start) = (self.pc.idx.checked_add(1)?, self.pc.next);
-            v.fill_piece(&mut self.pc, idx, start)?;
+            self.views.fill_piece(&mut self.pc, idx, start)?;
         }
-        while self.qc.idx < v.q_last && s >= self.qc.next {
+        while self.qc.idx < self.views.q_last && s >= self.qc.next {
             let (idx, start) = (self.qc.idx.checked_add(1)?, self.qc.next);
-            v.fill_q(&mut self.qc, idx, start)?;
+            // Overrides: one range compare (n = 0 without any).
+            if idx.wrapping_sub(self.ov.lo) < self.ov.n {
+                self.enter_override_span(idx, start)?;
+            } else {
+                self.views.fill_q(&mut self.qc, idx, start)?;
+            }
         }
         let tp = fx_small_f32(s.wrapping_sub(self.pc.start), 16);
         let tq = fx_small_f32(s.wrapping_sub(self.qc.anchor), 20);

@@ -88,6 +88,7 @@ mod log;
 pub mod nurbs;
 pub mod output;
 pub mod qspline;
+pub mod splice;
 pub mod sumap;
 pub mod table;
 

@@ -1,0 +1,461 @@
+//! Feedrate override: splicing host-planned transition profiles into the
+//! running plan (paper §4; the contract is `docs/override-design.md`).
+//!
+//! The table holds precomputed *levels* (sections 16–19, [`Level`]): whole
+//! plans on the base q knots with v̄ scaled by α. To change the feed the host
+//! sends an [`OverrideProfile`]: new control points a_first … a_{first+len−1}
+//! of q, whose first [`CONTEXT`] entries must equal (bitwise) the control
+//! points of the plan the firmware will be running at the splice, the rest a
+//! transition into level `level`, whose own control points follow from
+//! a_{first+len} on. q is unchanged up to the splice point
+//! s_splice = U_{first+3}, so the splice is C² by construction.
+//!
+//! [`crate::interp::Interpolator::offer_override`] checks a profile
+//! ([`OverrideError`] names every refusal), computes the local and fixed
+//! forms of the window's q spans first … first+len−1 (`fast::q_local`,
+//! `fast::q_fixed`, as [`crate::table::encode`] does for the table) and
+//! queues it (capacity `Q`, window capacity `W` control points, both const
+//! generics of the interpolator). A profile supersedes the queued ones whose
+//! splice is at or after its own (reported in [`Accepted::superseded`]).
+//! The tick that enters q span `first` makes the queue front active: from
+//! then on a span entry reads its forms from the active window where the
+//! span is inside it, else from the active level's sections, and the stop
+//! hands over to the active level's end segments. Nothing of this runs on
+//! the tick except one range compare on q span entry and, at the splice, a
+//! copy of the level's precomputed stop constants.
+//!
+//! Acceptance costs two f64 span evaluations per window span (soft float on
+//! the M4F): call it between ticks, from the task that owns the interpolator.
+
+use core::fmt;
+
+use crate::array::{F64Array, LeF64};
+use crate::fast::{self, to_fx, QLocal, Q_FX_LEN};
+use crate::interp::LevelRun;
+use crate::qspline::QSpline;
+use crate::table::{Level, Table, Q_VBAR_SLACK};
+
+/// Leading entries of [`OverrideProfile::ctrl`] that must repeat the running
+/// plan's control points (the spans before the splice use them).
+pub const CONTEXT: usize = 3;
+
+/// A transition profile from the host: `ctrl[i]` is the new q control point
+/// a_{first+i}, (mm/s)²; the first [`CONTEXT`] are context, from
+/// a_{first+ctrl.len()} on the plan is level `level`'s.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OverrideProfile<'m> {
+    /// Sequence number, increasing with every new command.
+    pub seq: u32,
+    /// Target level id (0 the base plan, k table level k).
+    pub level: u16,
+    /// Index of the first control point given (the first changed span).
+    pub first: u32,
+    /// The control points a_first … a_{first+len−1}.
+    pub ctrl: &'m [f64],
+}
+
+/// A profile was queued.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Accepted {
+    /// Its sequence number.
+    pub seq: u32,
+    /// Where it takes over: U_{first+3}, mm.
+    pub splice_s_mm: f64,
+    /// Queued profiles it replaced (their splice was at or after its own).
+    pub superseded: u8,
+}
+
+/// Why a profile was refused (nothing changed).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum OverrideError {
+    /// The interpolator is already in span ≥ `first` (or at or past the
+    /// splice point), or the window touches the start segment's join.
+    Late,
+    /// The queue holds `Q` profiles splicing before this one.
+    QueueFull,
+    /// More control points than the window capacity `W`.
+    TooLong {
+        /// Control points given.
+        len: usize,
+        /// The capacity W.
+        capacity: usize,
+    },
+    /// No such level in the table.
+    UnknownLevel {
+        /// The level asked for.
+        level: u16,
+    },
+    /// A context entry differs from the plan running at the splice.
+    ContextMismatch {
+        /// Control point index (a_index).
+        index: usize,
+    },
+    /// A control point is NaN, negative or above `Q_VBAR_SLACK · max v̄²`.
+    BadControlPoint {
+        /// Control point index (a_index).
+        index: usize,
+    },
+    /// first + len > N, or fewer than `CONTEXT + 1` control points.
+    OutOfRange,
+    /// The window reaches the control points of the level's stop join (with
+    /// end segments: the span containing s₂; without: a_{N−2}, a_{N−1}).
+    InStop,
+    /// `seq` is not above every sequence number accepted since the reset.
+    Duplicate {
+        /// The sequence number.
+        seq: u32,
+    },
+    /// The motion has ended.
+    Done,
+    /// The interpolator is faulted.
+    Faulted,
+}
+
+impl fmt::Display for OverrideError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        use OverrideError as E;
+        match *self {
+            E::Late => f.write_str("too late: the splice point is not ahead"),
+            E::QueueFull => f.write_str("override queue full"),
+            E::TooLong { len, capacity } => write!(f, "{len} control points, window holds {capacity}"),
+            E::UnknownLevel { level } => write!(f, "no override level {level}"),
+            E::ContextMismatch { index } => write!(f, "context a_{index} differs from the plan"),
+            E::BadControlPoint { index } => write!(f, "control point a_{index} out of range"),
+            E::OutOfRange => f.write_str("window outside the control points"),
+            E::InStop => f.write_str("window reaches the stop join"),
+            E::Duplicate { seq } => write!(f, "sequence number {seq} already used"),
+            E::Done => f.write_str("motion done"),
+            E::Faulted => f.write_str("interpolator faulted"),
+        }
+    }
+}
+
+/// The control points of a profile over its level's: `win` at
+/// `first … first + win.len() − 1`, `base` elsewhere (also serves the knots,
+/// with `win` empty, so both arrays of the spline have one type).
+#[derive(Clone, Copy, Debug)]
+struct Spliced<'p, 'a> {
+    win: &'p [f64],
+    first: usize,
+    base: LeF64<'a>,
+}
+
+impl F64Array for Spliced<'_, '_> {
+    fn len(&self) -> usize {
+        self.base.len()
+    }
+    fn get(&self, i: usize) -> Option<f64> {
+        match i.checked_sub(self.first).and_then(|k| self.win.get(k)) {
+            Some(&v) => Some(v),
+            None => self.base.get(i),
+        }
+    }
+}
+
+/// One accepted profile: its control points, the forms of its window spans
+/// and what its level needs when it becomes active.
+#[derive(Clone, Debug)]
+pub(crate) struct Window<'a, const W: usize> {
+    pub(crate) seq: u32,
+    /// Control point (and first changed q span) index.
+    pub(crate) first: usize,
+    /// Control points held.
+    pub(crate) len: usize,
+    /// Window q spans with forms (first … first + spans − 1).
+    pub(crate) spans: usize,
+    /// The splice point U_{first+3}, Q40.
+    pub(crate) splice: i64,
+    pub(crate) ctrl: [f64; W],
+    pub(crate) fixed: [[i64; Q_FX_LEN]; W],
+    pub(crate) local: [QLocal; W],
+    pub(crate) run: LevelRun<'a>,
+}
+
+impl<'a, const W: usize> Window<'a, W> {
+    fn empty(run: LevelRun<'a>) -> Self {
+        Window {
+            seq: 0,
+            first: 0,
+            len: 0,
+            spans: 0,
+            splice: 0,
+            ctrl: [0.0; W],
+            fixed: [[0; Q_FX_LEN]; W],
+            local: [QLocal::default(); W],
+            run,
+        }
+    }
+
+    /// Its control point `i` (window, else its level's).
+    fn ctrl_at(&self, level: &Level, i: usize) -> Option<f64> {
+        match i.checked_sub(self.first).filter(|&k| k < self.len) {
+            Some(k) => self.ctrl.get(k).copied(),
+            None => level.ctrl().get(i),
+        }
+    }
+}
+
+/// The interpolator's state when a profile is offered.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Now {
+    /// Current q span.
+    pub(crate) span: usize,
+    /// s, Q40.
+    pub(crate) s: i64,
+    pub(crate) done: bool,
+    pub(crate) faulted: bool,
+    pub(crate) length_mm: f64,
+    pub(crate) period_s: f64,
+}
+
+/// The queue and the active profile: `Q + 1` window slots (`Q` queued, one
+/// active), addressed by id (`Q` is `spare`), so activation moves no window.
+#[derive(Clone, Debug)]
+pub(crate) struct Overrides<'a, const Q: usize, const W: usize> {
+    slots: [Window<'a, W>; Q],
+    spare: Window<'a, W>,
+    /// Slot ids of the queued profiles, by splice point.
+    queue: heapless::Vec<usize, Q>,
+    /// Slot of the active profile; `None`: the base plan, no profile yet.
+    active: Option<usize>,
+    last_seq: Option<u32>,
+    /// q span containing the base start segment's join s₁, if any.
+    start_join: Option<usize>,
+    /// q spans `lo .. lo + n` take the slow path on entry (active window,
+    /// queue front); `n = 0`: none.
+    pub(crate) lo: usize,
+    pub(crate) n: usize,
+}
+
+/// The q span containing `s` (the last one at or past L).
+fn span_of(table: &Table, s: f64) -> usize {
+    let knots = table.q_knots();
+    let spans = table.q_ctrl().len().saturating_sub(CONTEXT);
+    (1..spans)
+        .take_while(|&j| knots.get(j + CONTEXT).is_some_and(|u| u <= s))
+        .last()
+        .unwrap_or(0)
+}
+
+impl<'a, const Q: usize, const W: usize> Overrides<'a, Q, W> {
+    pub(crate) fn new(table: &Table<'a>, base: LevelRun<'a>) -> Self {
+        Overrides {
+            slots: core::array::from_fn(|_| Window::empty(base)),
+            spare: Window::empty(base),
+            queue: heapless::Vec::new(),
+            active: None,
+            last_seq: None,
+            start_join: table.ends().map(|e| span_of(table, e.s_start)),
+            lo: 0,
+            n: 0,
+        }
+    }
+
+    pub(crate) fn clear(&mut self) {
+        self.queue.clear();
+        self.active = None;
+        self.last_seq = None;
+        self.lo = 0;
+        self.n = 0;
+    }
+
+    fn slot(&self, id: usize) -> Option<&Window<'a, W>> {
+        if id == Q {
+            Some(&self.spare)
+        } else {
+            self.slots.get(id)
+        }
+    }
+
+    fn slot_mut(&mut self, id: usize) -> Option<&mut Window<'a, W>> {
+        if id == Q {
+            Some(&mut self.spare)
+        } else {
+            self.slots.get_mut(id)
+        }
+    }
+
+    /// Profiles waiting for their splice.
+    pub(crate) fn pending(&self) -> usize {
+        self.queue.len()
+    }
+
+    /// The active profile's sequence number and level id.
+    pub(crate) fn active(&self) -> (Option<u32>, u16) {
+        match self.active.and_then(|id| self.slot(id)) {
+            Some(w) => (Some(w.seq), w.run.id),
+            None => (None, 0),
+        }
+    }
+
+    /// Entering q span `idx`: if the queue front splices here, it becomes
+    /// active and its level's run data is returned.
+    pub(crate) fn activate(&mut self, idx: usize) -> Option<LevelRun<'a>> {
+        let id = *self.queue.first()?;
+        let w = self.slot(id)?;
+        if w.first != idx {
+            return None;
+        }
+        let run = w.run;
+        self.queue.remove(0);
+        self.active = Some(id);
+        self.update_range();
+        Some(run)
+    }
+
+    /// The active window's forms of q span `idx`, if it has them.
+    #[inline]
+    pub(crate) fn form(&self, idx: usize) -> Option<([i64; Q_FX_LEN], QLocal)> {
+        let w = self.slot(self.active?)?;
+        let k = idx.checked_sub(w.first).filter(|&k| k < w.spans)?;
+        Some((*w.fixed.get(k)?, *w.local.get(k)?))
+    }
+
+    fn update_range(&mut self) {
+        let win = self
+            .active
+            .and_then(|id| self.slot(id))
+            .map(|w| (w.first, w.first.saturating_add(w.spans)));
+        let front = self
+            .queue
+            .first()
+            .and_then(|&id| self.slot(id))
+            .map(|w| (w.first, w.first.saturating_add(1)));
+        let (lo, hi) = match (win, front) {
+            (Some(a), Some(b)) => (a.0.min(b.0), a.1.max(b.1)),
+            (Some(a), None) | (None, Some(a)) => a,
+            (None, None) => (0, 0),
+        };
+        self.lo = lo;
+        self.n = hi.saturating_sub(lo);
+    }
+
+    /// The checks of the contract, then the window forms, then the queue.
+    pub(crate) fn offer(
+        &mut self,
+        table: &Table<'a>,
+        p: &OverrideProfile,
+        now: Now,
+    ) -> Result<Accepted, OverrideError> {
+        use OverrideError as E;
+        if now.faulted {
+            return Err(E::Faulted);
+        }
+        if now.done {
+            return Err(E::Done);
+        }
+        if self.last_seq.is_some_and(|l| p.seq <= l) {
+            return Err(E::Duplicate { seq: p.seq });
+        }
+        let level = table.level(p.level).ok_or(E::UnknownLevel { level: p.level })?;
+        let len = p.ctrl.len();
+        if len > W {
+            return Err(E::TooLong { len, capacity: W });
+        }
+        let first = p.first as usize;
+        let n = level.ctrl().len();
+        let end = first.checked_add(len).ok_or(E::OutOfRange)?;
+        if len <= CONTEXT || end > n {
+            return Err(E::OutOfRange);
+        }
+        let vmax = (0..=table.level_count())
+            .filter_map(|id| table.level(u16::try_from(id).ok()?))
+            .fold(0.0f64, |m, l| m.max(l.vbar()));
+        let cap = Q_VBAR_SLACK * vmax * vmax;
+        if let Some(k) = p.ctrl.iter().position(|&c| !(c >= 0.0 && c <= cap)) {
+            return Err(E::BadControlPoint { index: first + k });
+        }
+        let stop_first = match level.ends() {
+            Some(e) => span_of(table, e.s_stop),
+            None => n.saturating_sub(2),
+        };
+        if end > stop_first {
+            return Err(E::InStop);
+        }
+        let splice_mm = table.q_knots().get(first + CONTEXT).ok_or(E::OutOfRange)?;
+        let splice = to_fx(splice_mm);
+        if now.span >= first || splice <= now.s || self.start_join.is_some_and(|j| first <= j) {
+            return Err(E::Late);
+        }
+        // Queued profiles splicing at or after this one are superseded.
+        let keep = self
+            .queue
+            .iter()
+            .position(|&id| self.slot(id).map_or(true, |w| w.splice >= splice))
+            .unwrap_or(self.queue.len());
+        if keep >= Q {
+            return Err(E::QueueFull);
+        }
+        // The context: the plan scheduled at the splice.
+        let prev = match keep.checked_sub(1).and_then(|k| self.queue.get(k)) {
+            Some(&id) => Some(id),
+            None => self.active,
+        };
+        let prev_win = prev.and_then(|id| self.slot(id));
+        let prev_level = table
+            .level(prev_win.map_or(0, |w| w.run.id))
+            .ok_or(E::UnknownLevel { level: p.level })?;
+        for (k, c) in p.ctrl.iter().take(CONTEXT).enumerate() {
+            let i = first + k;
+            let want = match prev_win {
+                Some(w) => w.ctrl_at(&prev_level, i),
+                None => prev_level.ctrl().get(i),
+            };
+            if want.map(f64::to_bits) != Some(c.to_bits()) {
+                return Err(E::ContextMismatch { index: i });
+            }
+        }
+        // Accepted: supersede, take a free slot, fill it.
+        let superseded = self.queue.len() - keep;
+        self.queue.truncate(keep);
+        let used = |id: usize| self.active == Some(id) || self.queue.contains(&id);
+        let id = (0..=Q).find(|&id| !used(id)).ok_or(E::QueueFull)?;
+        let run = LevelRun::new(&level, now.length_mm, now.period_s);
+        let knots = Spliced {
+            win: &[],
+            first: 0,
+            base: table.q_knots(),
+        };
+        let ctrl = Spliced {
+            win: p.ctrl,
+            first,
+            base: level.ctrl(),
+        };
+        let q_spans = n - CONTEXT;
+        let w = self.slot_mut(id).ok_or(E::QueueFull)?;
+        w.seq = p.seq;
+        w.first = first;
+        w.len = len;
+        w.spans = len.min(q_spans - first);
+        w.splice = splice;
+        w.run = run;
+        for (dst, &src) in w.ctrl.iter_mut().zip(p.ctrl) {
+            *dst = src;
+        }
+        if let Some(q) = QSpline::new(knots, ctrl) {
+            for (k, (fx, lo)) in w
+                .fixed
+                .iter_mut()
+                .zip(w.local.iter_mut())
+                .take(w.spans)
+                .enumerate()
+            {
+                let span = first + k + CONTEXT;
+                *fx = fast::q_fixed(&q, span);
+                *lo = QLocal::from_array(fast::q_local(&q, span, first + k + 1 == q_spans));
+            }
+        }
+        // (cannot fail: `keep < Q` entries are left)
+        let _ = self.queue.push(id);
+        self.last_seq = Some(p.seq);
+        self.update_range();
+        Ok(Accepted {
+            seq: p.seq,
+            splice_s_mm: splice_mm,
+            superseded: u8::try_from(superseded).unwrap_or(u8::MAX),
+        })
+    }
+}
