@@ -366,7 +366,10 @@ fn q_eval(qc: &QCur, poly: &QLocal, s: i64, tq: f32, guess: f32) -> QState {
 /// With override levels in the table, [`Interpolator::offer_override`]
 /// queues transition profiles ([`crate::splice`]): up to `Q` waiting, each
 /// with up to `W` control points (RAM: `Q + 1` windows of ~68·W bytes).
+// repr(C), override storage last: the tick's fields stay at small offsets
+// (Thumb-2 loads reach 4 KiB from a base register; the windows are ~13 KiB).
 #[derive(Clone, Debug)]
+#[repr(C)]
 pub struct Interpolator<'a, const Q: usize = 4, const W: usize = 32> {
     table: Table<'a>,
     views: Views<'a>,
@@ -758,6 +761,22 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         self.segk = run.segk;
     }
 
+    /// Moves the q cursor to the span containing `s` (out of line: the
+    /// tick path only compares s with the span end).
+    #[inline(never)]
+    fn next_q_spans(&mut self, s: i64) -> Option<()> {
+        while self.qc.idx < self.views.q_last && s >= self.qc.next {
+            let (idx, start) = (self.qc.idx.checked_add(1)?, self.qc.next);
+            // Overrides: one range compare (n = 0 without any).
+            if idx.wrapping_sub(self.ov.lo) < self.ov.n {
+                self.enter_override_span(idx, start)?;
+            } else {
+                self.views.fill_q(&mut self.qc, idx, start)?;
+            }
+        }
+        Some(())
+    }
+
     /// Entering q span `idx` where an override matters: the queue front
     /// splicing here becomes active; the span's forms from the active window
     /// if it has them, else from the active level.
@@ -1134,18 +1153,13 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
     /// span converts its breaks to Q40 and reads its words.
     #[inline]
     fn seek(&mut self, s: i64) -> Option<(f32, f32, QLocal)> {
-        while self.pc.idx < self.views.p_last && s >= self.pc.next {
+        let v = &self.views;
+        while self.pc.idx < v.p_last && s >= self.pc.next {
             let (idx, start) = (self.pc.idx.checked_add(1)?, self.pc.next);
-            self.views.fill_piece(&mut self.pc, idx, start)?;
+            v.fill_piece(&mut self.pc, idx, start)?;
         }
-        while self.qc.idx < self.views.q_last && s >= self.qc.next {
-            let (idx, start) = (self.qc.idx.checked_add(1)?, self.qc.next);
-            // Overrides: one range compare (n = 0 without any).
-            if idx.wrapping_sub(self.ov.lo) < self.ov.n {
-                self.enter_override_span(idx, start)?;
-            } else {
-                self.views.fill_q(&mut self.qc, idx, start)?;
-            }
+        if s >= self.qc.next {
+            self.next_q_spans(s)?;
         }
         let tp = fx_small_f32(s.wrapping_sub(self.pc.start), 16);
         let tq = fx_small_f32(s.wrapping_sub(self.qc.anchor), 20);

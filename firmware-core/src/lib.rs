@@ -28,6 +28,10 @@
 //!   operations.
 //! - [`interp`]: [`interp::Interpolator::tick`] — one order-4 Taylor step of
 //!   s(t) from q (eqs. 1, 4, 5), then u(s), then r(u): a [`interp::Setpoint`].
+//! - [`splice`]: feedrate override — host transition profiles into the
+//!   table's override levels, checked and queued by
+//!   [`interp::Interpolator::offer_override`], spliced in C² on q span entry
+//!   (paper §4, `docs/override-design.md`).
 //! - [`output`]: [`output::SetpointSink`], the trait setpoints leave through;
 //!   with the `embedded-hal` feature, `output::hal`: an SPI frame sink and a
 //!   sync-strobe sink on embedded-hal 1.0 traits (examples).
