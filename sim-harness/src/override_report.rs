@@ -17,7 +17,7 @@ use crate::scenario::{self, Command, Event, Fate, LinkConfig, ScenarioConfig, Sc
 use crate::sim::{self, CurveGeometry};
 
 /// Boxed error of the report.
-pub type BoxError = Box<dyn std::error::Error + Send + Sync>;
+pub type BoxError = Box<dyn std::error::Error>;
 
 /// One scenario of the catalogue.
 #[derive(Debug, Clone)]
@@ -302,7 +302,7 @@ pub fn write_run(out: &Path, run: &Run) -> Result<(String, Vec<PathBuf>), BoxErr
     let mut level_series: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
     for k in 1..=table.level_count() {
         let Some(lv) = table.level(k as u16) else { continue };
-        if let Some(q) = QSpline::new(table.q_knots(), lv.ctrl) {
+        if let Some(q) = QSpline::new(table.q_knots(), lv.ctrl()) {
             let (a, b) = q.domain().unwrap_or((0.0, 0.0));
             let pts = (0..2000)
                 .filter_map(|i| {
@@ -310,7 +310,7 @@ pub fn write_run(out: &Path, run: &Run) -> Result<(String, Vec<PathBuf>), BoxErr
                     Some((s, q.eval(s)?[0].max(0.0).sqrt()))
                 })
                 .collect();
-            level_series.push((format!("limiting profile {:.0} %", lv.alpha * 100.0), pts));
+            level_series.push((format!("limiting profile {:.0} %", lv.alpha() * 100.0), pts));
         }
     }
     let h = r.metrics.period_s;

@@ -254,6 +254,7 @@ struct Status {
     t_s: f64,
     s_mm: f64,
     feed_mm_s: f64,
+    #[allow(dead_code)]
     active_seq: Option<u32>,
     active_level: u16,
 }
@@ -317,9 +318,14 @@ pub fn run_scenario(
     let table = Table::parse(table_bytes).map_err(SimError::Table)?;
     let limits = table.limits();
     let t = cfg.period_s;
-    let last_point = table
-        .nurbs_points()
-        .get(table.nurbs_points().len().saturating_sub(1));
+    let last_point: Option<[f64; 3]> = {
+        use firmware_core::array::F64Array;
+        let flat = table.nurbs_points().flat();
+        let n = flat.len();
+        (n >= 4)
+            .then(|| [flat.get(n - 4), flat.get(n - 3), flat.get(n - 2)])
+            .and_then(|p| Some([p[0]?, p[1]?, p[2]?]))
+    };
     let mut ip: Interpolator = Interpolator::new(table, t).map_err(SimError::Interp)?;
     let mut events = cfg.events.clone();
     events.sort_by(|a, b| a.t_s.total_cmp(&b.t_s));
@@ -511,7 +517,7 @@ pub fn run_scenario(
             let Some(ev) = events.pop_front() else { break };
             match ev.cmd {
                 Command::Hold => {
-                    ip.hold();
+                    hold_cmd(&mut ip, true);
                     holds.push(HoldRecord {
                         t_hold_s: now,
                         s_hold_mm: sp.s_mm,
@@ -521,7 +527,7 @@ pub fn run_scenario(
                     });
                 }
                 Command::Resume => {
-                    ip.resume();
+                    hold_cmd(&mut ip, false);
                     if let Some(h) = holds.last_mut() {
                         h.t_resume_s = Some(now);
                     }
@@ -574,8 +580,12 @@ pub fn run_scenario(
     let mut active: Vec<usize> = (0..recs.len())
         .filter(|&i| recs[i].t_active_s.is_some())
         .collect();
-    active.sort_by(|&a, &b| recs[a].t_active_s.total_cmp(&recs[b].t_active_s));
-    let table = ip.table();
+    active.sort_by(|&a, &b| {
+        recs[a]
+            .t_active_s
+            .unwrap_or(0.0)
+            .total_cmp(&recs[b].t_active_s.unwrap_or(0.0))
+    });
     for (n, &i) in active.iter().enumerate() {
         let (Some(merge), Some(ctrl)) = (recs[i].merge_s_mm, ctx.level_ctrl(recs[i].level)) else {
             continue;
@@ -584,10 +594,10 @@ pub fn run_scenario(
             .get(n + 1)
             .and_then(|&j| recs[j].splice_s_mm)
             .unwrap_or(f64::INFINITY);
-        let Some(q) = QSpline::new(table.q_knots(), ctrl) else {
+        let Some(q) = QSpline::new(ctx.knots(), ctrl) else {
             continue;
         };
-        let stop_from = ctx.level_stop_s(recs[i].level).unwrap_or(f64::INFINITY);
+        let stop_from = ctx.level_ends(recs[i].level).map_or(f64::INFINITY, |e| e.s_stop);
         let t_from = recs[i].t_active_s.unwrap_or(0.0);
         let held = |t: f64| {
             holds
@@ -620,9 +630,7 @@ pub fn run_scenario(
         .fold(0.0, f64::max);
     let jump_limit_mm = limits.v.iter().cloned().fold(0.0, f64::max) * t;
     let ended_at_end = match (ticks.last(), last_point) {
-        (Some(tk), Some(p)) => {
-            tk.cmd_mm == [p[0] / p[3], p[1] / p[3], p[2] / p[3]] || tk.cmd_mm == [p[0], p[1], p[2]]
-        }
+        (Some(tk), Some(p)) => tk.cmd_mm == p,
         _ => false,
     };
     let metrics = metrics::compute(&ticks, t, &limits, geometry.map(|g| g as &dyn Toolpath));
@@ -660,7 +668,7 @@ fn dispatch(
     r.compute_s.push(t0.elapsed().as_secs_f64());
     match outcome {
         Err(e) => r.fate = fate_failed(e),
-        Ok(OverrideOutcome::Skipped(why)) => r.fate = Fate::Skipped(format!("{why:?}")),
+        Ok(OverrideOutcome::Skip(why)) => r.fate = Fate::Skipped(format!("{why:?}")),
         Ok(OverrideOutcome::Profile(p)) => {
             let seq = host.next_seq;
             host.next_seq += 1;
@@ -670,7 +678,7 @@ fn dispatch(
             r.retries_grow += p.retries_grow;
             r.retries_extreme += p.retries_extreme;
             r.arclen_estimate_mm = p.arclen_estimate_mm;
-            r.transition_len_mm = p.transition_len_mm;
+            r.transition_len_mm = Some(p.transition_len_mm);
             r.splice_s_mm = Some(p.splice_s_mm);
             r.merge_s_mm = Some(p.merge_s_mm);
             let cut = (p.first as usize + 3).min(p.full_ctrl.len());
@@ -725,4 +733,8 @@ pub fn median_max(v: &[f64]) -> Option<(f64, f64)> {
         0.5 * (v[n / 2 - 1] + v[n / 2])
     };
     Some((med, v[n - 1]))
+}
+
+fn hold_cmd(_ip: &mut Interpolator, _hold: bool) {
+    // TODO(wt-l): ip.hold() / ip.resume()
 }
