@@ -357,6 +357,12 @@ fn q_eval(qc: &QCur, poly: &QLocal, s: i64, tq: f32, guess: f32) -> QState {
     }
 }
 
+/// Queued override profiles the sim and the host's defaults assume.
+pub const OVERRIDE_Q: usize = 3;
+/// Control points per override window (3 of context included) the host's
+/// override planner keeps to by default.
+pub const OVERRIDE_W: usize = 64;
+
 /// The servo-rate interpolator over one validated table.
 ///
 /// The fast path of [`crate::fast`]: s accumulates in Q40 fixed point; q and
@@ -370,7 +376,7 @@ fn q_eval(qc: &QCur, poly: &QLocal, s: i64, tq: f32, guess: f32) -> QState {
 // (Thumb-2 loads reach 4 KiB from a base register; the windows are ~13 KiB).
 #[derive(Clone, Debug)]
 #[repr(C)]
-pub struct Interpolator<'a, const Q: usize = 4, const W: usize = 32> {
+pub struct Interpolator<'a, const Q: usize = 0, const W: usize = 0> {
     table: Table<'a>,
     views: Views<'a>,
     period_s: f64,
@@ -558,8 +564,12 @@ impl SegConsts {
 
 impl<'a> Interpolator<'a> {
     /// An interpolator at the start of `table`, ticking every `period_s`
-    /// seconds, with the default override capacities (4 queued profiles of
-    /// up to 32 control points; [`Interpolator::new_sized`] for others).
+    /// seconds, without room for override profiles (every offer is refused
+    /// with [`crate::splice::OverrideError::QueueFull`]; no RAM spent on
+    /// windows). [`Interpolator::new_sized`] gives room for `Q` queued
+    /// profiles of up to `W` control points, e.g.
+    /// `Interpolator::<3, 64>::new_sized` ([`OVERRIDE_Q`], [`OVERRIDE_W`]:
+    /// the capacities the host's override planner assumes by default).
     pub fn new(table: Table<'a>, period_s: f64) -> Result<Self, InterpError> {
         Self::new_sized(table, period_s)
     }

@@ -1657,7 +1657,7 @@ fn override_splices_c2_and_runs_the_level_to_the_end() {
     const T: f64 = 250e-6;
     for (o, levels, bytes) in override_plans() {
         let t = Table::parse(&bytes).unwrap();
-        let reference = run_all(&mut Interpolator::new(t, T).unwrap());
+        let reference = run_all(&mut Interpolator::<3, 64>::new_sized(t, T).unwrap());
         let (first, len) = (8usize, 7usize);
         let (lvl, lvl_ends) = (&levels[0].1, levels[0].2);
         let ctrl = transition(&o.q_ctrl, lvl, first, len);
@@ -1670,7 +1670,7 @@ fn override_splices_c2_and_runs_the_level_to_the_end() {
             ctrl: &ctrl,
         };
         // offered mid-run, 10 mm before the splice
-        let mut ip = Interpolator::new(t, T).unwrap();
+        let mut ip = Interpolator::<3, 64>::new_sized(t, T).unwrap();
         let mut sps = Vec::new();
         while ip.s_mm() < splice - 10.0 {
             sps.push(ip.tick().unwrap());
@@ -1681,7 +1681,7 @@ fn override_splices_c2_and_runs_the_level_to_the_end() {
         sps.extend(run_all(&mut ip));
         assert_eq!((ip.active_profile(), ip.pending_overrides()), ((Some(7), 1), 0));
         // offered before the start: the same motion, bit for bit
-        let mut ip0 = Interpolator::new(t, T).unwrap();
+        let mut ip0 = Interpolator::<3, 64>::new_sized(t, T).unwrap();
         ip0.offer_override(&p).unwrap();
         let sps0 = run_all(&mut ip0);
         assert_eq!(sps0.len(), sps.len());

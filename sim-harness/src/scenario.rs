@@ -15,10 +15,10 @@
 //!    `planner_host::feed_override`) for the position it predicts the
 //!    machine at when the profile arrives, and sends it down.
 //!
-//! The host's compute time enters the timeline as a fixed budget
-//! ([`LinkConfig::compute_budget_s`]) so that a scenario replays the same
-//! way on any machine; the real wall time of every computation is measured
-//! and reported beside it. Faults: lost downlink messages (the host resends
+//! The host predicts the splice position with a compute allowance
+//! ([`LinkConfig::compute_budget_s`]); the message leaves when the
+//! computation really ended (its measured wall time, at least the allowance),
+//! so a slow computation shows up as a late splice or a `Late` refusal. Faults: lost downlink messages (the host resends
 //! after [`LinkConfig::ack_timeout_s`]), a host restart (it forgets what it
 //! sent and resynchronises from the firmware's status), refusals (late,
 //! stale context, queue full: the host recomputes from the new position).
@@ -26,7 +26,10 @@
 use std::collections::VecDeque;
 use std::time::Instant;
 
-use firmware_core::interp::Interpolator;
+use firmware_core::interp::{Interpolator, OVERRIDE_Q, OVERRIDE_W};
+
+/// The interpolator with the default override capacities.
+type Fw<'a> = Interpolator<'a, OVERRIDE_Q, OVERRIDE_W>;
 use firmware_core::qspline::QSpline;
 use firmware_core::splice::{OverrideError, OverrideProfile as FwProfile};
 use firmware_core::table::Table;
@@ -184,6 +187,9 @@ pub struct OverrideRecord {
     /// The sequence number that was accepted.
     #[serde(skip)]
     pub seq: Option<u32>,
+    /// Every sequence number sent for it.
+    #[serde(skip)]
+    pub sent_seqs: Vec<u32>,
 }
 
 impl OverrideRecord {
@@ -326,7 +332,7 @@ pub fn run_scenario(
             .then(|| [flat.get(n - 4), flat.get(n - 3), flat.get(n - 2)])
             .and_then(|p| Some([p[0]?, p[1]?, p[2]?]))
     };
-    let mut ip: Interpolator = Interpolator::new(table, t).map_err(SimError::Interp)?;
+    let mut ip = Fw::new_sized(table, t).map_err(SimError::Interp)?;
     let mut events = cfg.events.clone();
     events.sort_by(|a, b| a.t_s.total_cmp(&b.t_s));
     let mut events: VecDeque<Event> = events.into();
@@ -427,8 +433,9 @@ pub fn run_scenario(
         });
         let (seq_now, level_now) = ip.active_profile();
         if seq_now != active_seq {
-            if let Some(r) = recs.iter_mut().find(|r| r.seq.is_some() && r.seq == seq_now) {
+            if let Some(r) = seq_now.and_then(|q| recs.iter_mut().find(|r| r.sent_seqs.contains(&q))) {
                 r.t_active_s = Some(sp.t_s);
+                r.seq = seq_now;
                 r.fate = Fate::Active;
             }
             active_seq = seq_now;
@@ -468,6 +475,9 @@ pub fn run_scenario(
                             let r = &mut recs[rec];
                             r.t_accepted_s = Some(now);
                             r.seq = Some(seq);
+                            if r.fate == Fate::Open && r.t_active_s.is_some() {
+                                r.fate = Fate::Active;
+                            }
                             if superseded > 0 {
                                 for &(other, _, _) in host.scheduled.iter().filter(|(_, _, s)| *s >= splice) {
                                     recs[other].fate = Fate::Superseded;
@@ -486,7 +496,9 @@ pub fn run_scenario(
                             if recs[rec].sends >= cfg.max_attempts {
                                 recs[rec].fate =
                                     fate_failed(format!("refused {} times, last {e:?}", recs[rec].sends));
-                            } else if host.waiting.is_none() {
+                            } else if host.waiting.is_some() {
+                                recs[rec].fate = Fate::Replaced;
+                            } else {
                                 host.waiting = Some(rec);
                                 host.retry_at_s = Some(
                                     now + if matches!(e, OverrideError::QueueFull) {
@@ -506,10 +518,12 @@ pub fn run_scenario(
             let rec = sent.rec;
             host.in_flight = None;
             recs[rec].refusals.push("no reply (message lost?)".into());
-            if host.waiting.is_none() && recs[rec].sends < cfg.max_attempts {
-                host.waiting = Some(rec);
-            } else if recs[rec].sends >= cfg.max_attempts {
+            if recs[rec].sends >= cfg.max_attempts {
                 recs[rec].fate = fate_failed("no reply");
+            } else if host.waiting.is_some() {
+                recs[rec].fate = Fate::Replaced;
+            } else {
+                host.waiting = Some(rec);
             }
         }
         // 4. operator
@@ -556,9 +570,10 @@ pub fn run_scenario(
                         prefix_identical: None,
                         feed_err_after_merge_mm_s: None,
                         seq: None,
+                        sent_seqs: Vec::new(),
                     });
                     if let Some(old) = host.waiting.replace(rec) {
-                        if recs[old].fate == Fate::Open && recs[old].seq.is_none() {
+                        if recs[old].fate == Fate::Open {
                             recs[old].fate = Fate::Replaced;
                         }
                     }
@@ -660,12 +675,18 @@ fn dispatch(
         .map_or((0.0, 0.0, now), |s| (s.s_mm, s.feed_mm_s, s.t_s));
     // where the machine will be when the profile arrives, plus a margin
     let ahead = (now - t_seen) + link.compute_budget_s + link.down_latency_s + link.margin_ticks * period_s;
-    let s_at = s_seen + feed_seen * ahead;
     let target = recs[rec].level;
+    let length = host.ctx.knots().last().copied().unwrap_or(0.0);
+    let s_at = s_seen + feed_seen * ahead;
+    if s_at >= length {
+        recs[rec].fate = Fate::Skipped("EndOfPath (the machine is there before the profile)".into());
+        return;
+    }
     let t0 = Instant::now();
     let outcome = host.ctx.compute(host.base_level, &host.base_ctrl, s_at, target);
+    let took = t0.elapsed().as_secs_f64();
     let r = &mut recs[rec];
-    r.compute_s.push(t0.elapsed().as_secs_f64());
+    r.compute_s.push(took);
     match outcome {
         Err(e) => r.fate = fate_failed(e),
         Ok(OverrideOutcome::Skip(why)) => r.fate = Fate::Skipped(format!("{why:?}")),
@@ -674,6 +695,7 @@ fn dispatch(
             host.next_seq += 1;
             host.sends += 1;
             r.sends += 1;
+            r.sent_seqs.push(seq);
             r.case = Some(format!("{:?}", p.case));
             r.retries_grow += p.retries_grow;
             r.retries_extreme += p.retries_extreme;
@@ -689,7 +711,8 @@ fn dispatch(
                         .zip(&p.full_ctrl[..cut])
                         .all(|(a, b)| a.to_bits() == b.to_bits()),
             );
-            let depart = now + link.compute_budget_s;
+            // the message leaves when the computation really ended
+            let depart = now + took.max(link.compute_budget_s);
             let arrive = depart + link.down_latency_s;
             host.in_flight = Some(Sent {
                 rec,
@@ -735,6 +758,6 @@ pub fn median_max(v: &[f64]) -> Option<(f64, f64)> {
     Some((med, v[n - 1]))
 }
 
-fn hold_cmd(_ip: &mut Interpolator, _hold: bool) {
+fn hold_cmd(_ip: &mut Fw, _hold: bool) {
     // TODO(wt-l): ip.hold() / ip.resume()
 }
