@@ -721,7 +721,7 @@ fn dispatch(
                 ctrl: p.full_ctrl.clone(),
                 deadline_s: arrive + link.up_latency_s + link.ack_timeout_s,
             });
-            let lost = link.drop_every > 0 && host.sends % link.drop_every == 0;
+            let lost = link.drop_every > 0 && host.sends.is_multiple_of(link.drop_every);
             if !lost {
                 let at = down.partition_point(|(a, _)| *a <= arrive);
                 down.insert(

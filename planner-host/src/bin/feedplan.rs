@@ -132,7 +132,8 @@ fn parse_levels(text: &str) -> Result<Levels, String> {
             [x] => v.push(num(x)?),
             [a, b, st] => {
                 let (a, b, st) = (num(a)?, num(b)?, num(st)?);
-                if !(st > 0.0) || !(b >= a) || (b - a) / st > 1000.0 {
+                let ok = st > 0.0 && b >= a && (b - a) / st <= 1000.0; // false for NaN
+                if !ok {
                     return Err(format!(
                         "range {part:?}: need FROM <= TO and STEP > 0 (at most 1000 levels)"
                     ));

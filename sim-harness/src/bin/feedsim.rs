@@ -409,7 +409,7 @@ fn override_report(
             json.as_bytes(),
         )?;
     }
-    md.push_str("\n");
+    md.push('\n');
     md.push_str(&notes);
     sim_harness::csv::write_atomic(&out.join("README.md"), md.as_bytes())?;
     println!("wrote {}", out.join("README.md").display());
