@@ -996,7 +996,17 @@ mod tests {
         .unwrap();
         let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
         assert_eq!(bits(&without.q_ctrl), bits(&fx.plan.q_ctrl));
-        assert_eq!(without.table_bytes, fx.plan.table_bytes);
+        // the base sections are the same bytes; the levels add sections 16-19
+        let (a, b) = (
+            firmware_core::table::Table::parse(&without.table_bytes).unwrap(),
+            firmware_core::table::Table::parse(&fx.plan.table_bytes).unwrap(),
+        );
+        assert_eq!(a.level_count(), 0);
+        assert_eq!(b.level_count(), 2);
+        let (qa, qb) = (a.level(0).unwrap(), b.level(0).unwrap());
+        assert_eq!(qa.ctrl().as_bytes(), qb.ctrl().as_bytes());
+        assert_eq!(qa.q_fixed().as_bytes(), qb.q_fixed().as_bytes());
+        assert!(b.as_bytes().len() > a.as_bytes().len());
         assert_eq!(fx.plan.levels.len(), 2);
         let n = fx.plan.q_ctrl.len();
         for (l, want) in fx.plan.levels.iter().zip([30.0, 125.0]) {
