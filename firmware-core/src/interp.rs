@@ -59,6 +59,8 @@ use crate::log;
 use crate::output::SetpointSink;
 use crate::table::{EndSegments, Table, MATCH_TOL_REL};
 
+mod hold_tick;
+
 /// A step shorter than `STALL_REL · L` counts as no progress.
 pub const STALL_REL: f64 = 1e-14;
 /// Feed floor, relative to `vbar`: a falling feed below `STALL_FEED_REL · vbar`
@@ -75,7 +77,8 @@ pub struct Setpoint {
     pub s_mm: f64,
     /// NURBS parameter u.
     pub u: f64,
-    /// Feedrate ṡ = √q(s), mm/s.
+    /// Feedrate ṡ = √q(s), mm/s (λ√q(s) during a feed hold or resume,
+    /// [`crate::hold`]; 0 when held).
     pub feed_mm_s: f64,
     /// Position r(u), mm (x, y, z).
     pub pos_mm: [f64; 3],
@@ -403,6 +406,8 @@ pub struct Interpolator<'a> {
     /// Constants of the segments for T (zeros without segments).
     segk: SegConsts,
     phase: Phase,
+    /// Feed hold and resume (issue 6, [`crate::hold`]).
+    fh: hold_tick::HoldRun,
 }
 
 /// An end segment as a cubic in the tick index, run by forward differences
@@ -638,6 +643,7 @@ impl<'a> Interpolator<'a> {
             stall_ds: (STALL_REL * length_mm) as f32,
             end_tol: (MATCH_TOL_REL * length_mm) as f32,
             phase: Phase::Start,
+            fh: hold_tick::HoldRun::new(&table.limits()),
         })
     }
 
@@ -679,6 +685,7 @@ impl<'a> Interpolator<'a> {
             ..SegRun::default()
         };
         self.phase = Phase::Start;
+        self.fh.reset();
     }
 
     /// t = k·T, correctly rounded (the same bits as `k as f64 * T`): the
@@ -723,6 +730,9 @@ impl<'a> Interpolator<'a> {
 
     /// The next setpoint (see the module docs for start, end and faults).
     pub fn tick(&mut self) -> Result<Setpoint, Fault> {
+        if self.fh.engaged() && self.phase == Phase::Run {
+            return self.hold_tick();
+        }
         let t_s = self.now();
         let (h, tk) = match self.phase {
             Phase::Start => {
