@@ -923,3 +923,42 @@ pub fn check_piece<K: F64Array, P: Point4Array>(
             .all(|(&r, &x)| (fx_to_f64(x) - r).abs() <= pos_tol)
     })
 }
+
+/// r′, r″, r‴ of a piece's position polynomial (Σ b_k τ^k per axis, b_k
+/// Q40 mm) with respect to arc length at τ (Q61), f32: `[r′, r″, r‴]`, each
+/// `[x, y, z]` (mm/mm, 1/mm, 1/mm²). With τ = (s − c)/2^e, d/ds = 2^−e d/dτ
+/// (2^−e = 2^(shift − 21)). For the feed-hold constraints ([`crate::hold`]),
+/// not on the normal tick path. A constant axis (bit of `constant`) has zero
+/// derivatives.
+pub fn pos_derivs(b: &[u8; POS_BYTES], tau: i64, shift: u32, constant: u32) -> [[f32; 3]; 3] {
+    let t = tau as f32 * f32::from_bits((127 - TAU_FRAC) << 23);
+    // 2^(shift − 21): shift ≤ 61 for a parsed table, a normal f32.
+    let g = f32::from_bits((127 + shift.min(100)).saturating_sub(21) << 23);
+    let unit = f32::from_bits((127 - FX_FRAC) << 23);
+    let mut d = [[0.0f32; 3]; 3];
+    for a in 0..3usize {
+        if constant & (1 << a) != 0 {
+            continue;
+        }
+        let base = 8 * POS_COEFFS * a;
+        let (mut d1, mut d2, mut d3) = (0.0f32, 0.0f32, 0.0f32);
+        for k in (1..POS_COEFFS).rev() {
+            let c = rd_i64(b, base + 8 * k) as f32 * unit;
+            let kf = k as f32;
+            d1 = d1 * t + kf * c;
+            if k >= 2 {
+                d2 = d2 * t + kf * (kf - 1.0) * c;
+            }
+            if k >= 3 {
+                d3 = d3 * t + kf * (kf - 1.0) * (kf - 2.0) * c;
+            }
+        }
+        let [r1, r2, r3] = &mut d;
+        if let (Some(x1), Some(x2), Some(x3)) = (r1.get_mut(a), r2.get_mut(a), r3.get_mut(a)) {
+            *x1 = d1 * g;
+            *x2 = d2 * g * g;
+            *x3 = d3 * g * g * g;
+        }
+    }
+    d
+}

@@ -60,6 +60,8 @@ use crate::output::SetpointSink;
 use crate::splice::{Accepted, Now, OverrideError, OverrideProfile, Overrides};
 use crate::table::{EndSegments, Level, Table, MATCH_TOL_REL};
 
+mod hold_tick;
+
 /// A step shorter than `STALL_REL · L` counts as no progress.
 pub const STALL_REL: f64 = 1e-14;
 /// Feed floor, relative to `vbar`: a falling feed below `STALL_FEED_REL · vbar`
@@ -76,7 +78,8 @@ pub struct Setpoint {
     pub s_mm: f64,
     /// NURBS parameter u.
     pub u: f64,
-    /// Feedrate ṡ = √q(s), mm/s.
+    /// Feedrate ṡ = √q(s), mm/s (λ√q(s) during a feed hold or resume,
+    /// [`crate::hold`]; 0 when held).
     pub feed_mm_s: f64,
     /// Position r(u), mm (x, y, z).
     pub pos_mm: [f64; 3],
@@ -427,6 +430,8 @@ pub struct Interpolator<'a, const Q: usize = 0, const W: usize = 0> {
     /// part is the active level's.
     segk: SegConsts,
     phase: Phase,
+    /// Feed hold and resume (issue 6, [`crate::hold`]).
+    fh: hold_tick::HoldRun,
     /// Override profiles: the queue and the active one.
     ov: Overrides<'a, Q, W>,
 }
@@ -710,6 +715,7 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
             stall_ds: (STALL_REL * length_mm) as f32,
             end_tol: (MATCH_TOL_REL * length_mm) as f32,
             phase: Phase::Start,
+            fh: hold_tick::HoldRun::new(&table.limits()),
         })
     }
 
@@ -834,6 +840,7 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
             ..SegRun::default()
         };
         self.phase = Phase::Start;
+        self.fh.reset();
     }
 
     /// t = k·T, correctly rounded (the same bits as `k as f64 * T`): the
@@ -878,6 +885,9 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
 
     /// The next setpoint (see the module docs for start, end and faults).
     pub fn tick(&mut self) -> Result<Setpoint, Fault> {
+        if self.fh.engaged() && self.phase == Phase::Run {
+            return self.hold_tick();
+        }
         let t_s = self.now();
         let (h, tk) = match self.phase {
             Phase::Start => {

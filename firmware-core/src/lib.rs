@@ -87,6 +87,7 @@ pub mod basis;
 pub mod digest;
 pub mod dryrun;
 pub mod fast;
+pub mod hold;
 pub mod interp;
 mod log;
 pub mod nurbs;

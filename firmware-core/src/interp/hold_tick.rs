@@ -1,0 +1,185 @@
+//! Feed hold on the tick (issue 6): [`crate::hold`]'s controller driving
+//! the interpolator.
+//!
+//! While a hold or resume is in progress, [`Interpolator::tick`] hands the
+//! tick to [`Interpolator::hold_tick`]: the plan's ṡ_p, s̈_p, s⃛_p, s⁗_p at
+//! s (from q, or from the stop segment's cubic), the path's r′, r″, r‴
+//! from the piece polynomial ([`crate::fast::pos_derivs`]), one controller
+//! step (ν), then s advances by the scaled order-4 Taylor step in f64
+//! ([`crate::hold::scaled_step`]; never backwards) and the position comes
+//! from the same fixed-point piece polynomial as on the normal tick. The
+//! stall checks do not run on these ticks; held, the tick returns the same
+//! position with feed 0 and the clock advancing.
+//!
+//! - Start segment: a hold requested before the join at s₁ (or before the
+//!   first tick) takes effect at the first tick after it (a delay of at
+//!   most t₁ + T; the state reads `Stopping` meanwhile).
+//! - Stop segment: entered at full speed it is already a stop and runs to
+//!   the end (a hold then ends `Held` at L). If the scaled motion reaches
+//!   s₂, the segment is followed in its own time θ (τ = t₂ − θ time to go,
+//!   s = L − J₂τ³/6, dθ/dt = λ) with the same controller: ṡ_p = J₂τ²/2,
+//!   s̈_p = −J₂τ, s⃛_p = J₂, so a hold can stop, and a resume restart, inside
+//!   it, and the path still ends at rest at L.
+//! - After the end, or after a fault, [`Interpolator::hold`] and
+//!   [`Interpolator::resume`] return a [`HoldError`] and change nothing.
+
+use super::{q_eval, tau_of, Fault, Interpolator, Phase, Setpoint};
+use crate::fast::{fx_small_f32, fx_to_f64, pos_derivs, to_fx, Q_ONE};
+use crate::hold::{scaled_step, FeedHold, HoldError, HoldLimits, HoldState, HoldStats, Kin};
+use crate::table::Limits;
+
+/// The interpolator's feed-hold state.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub(super) struct HoldRun {
+    ctl: FeedHold,
+    lim: HoldLimits,
+    /// In the stop segment under scaling: τ, the segment's time to go, s.
+    seg_tau: Option<f64>,
+}
+
+impl HoldRun {
+    pub(super) fn new(l: &Limits) -> Self {
+        HoldRun {
+            lim: HoldLimits::new(l),
+            ..HoldRun::default()
+        }
+    }
+
+    /// A hold or resume is in progress (or the scaled stop segment runs).
+    #[inline(always)]
+    pub(super) fn engaged(&self) -> bool {
+        self.ctl.state() != HoldState::Running || self.seg_tau.is_some()
+    }
+
+    pub(super) fn reset(&mut self) {
+        self.ctl.clear();
+        self.seg_tau = None;
+    }
+}
+
+impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
+    /// Request a feed hold: decelerate to rest on the path within the
+    /// acceleration and jerk limits (see [`crate::hold`]). Idempotent; a
+    /// no-op while stopping or held.
+    pub fn hold(&mut self) -> Result<(), HoldError> {
+        self.hold_allowed()?;
+        self.fh.ctl.hold();
+        Ok(())
+    }
+
+    /// Resume after a hold: accelerate back onto the plan (λ → 1, landing
+    /// with no acceleration left). Idempotent; a no-op while running.
+    pub fn resume(&mut self) -> Result<(), HoldError> {
+        self.hold_allowed()?;
+        self.fh.ctl.resume();
+        Ok(())
+    }
+
+    fn hold_allowed(&self) -> Result<(), HoldError> {
+        match self.phase {
+            Phase::Done => Err(HoldError::Done),
+            Phase::Faulted(_) => Err(HoldError::Faulted),
+            _ => Ok(()),
+        }
+    }
+
+    /// The feed-hold state (`Held` once a path held in its stop segment
+    /// has ended).
+    pub fn hold_state(&self) -> HoldState {
+        let s = self.fh.ctl.state();
+        if self.phase == Phase::Done && s != HoldState::Running {
+            HoldState::Held
+        } else {
+            s
+        }
+    }
+
+    /// The time scale λ (1: the plan, 0: at rest) and λ̇ (1/s).
+    pub fn hold_scale(&self) -> (f64, f64) {
+        (self.fh.ctl.lambda(), self.fh.ctl.mu())
+    }
+
+    /// Counters of the hold/resume ticks ([`HoldStats`]).
+    pub fn hold_stats(&self) -> HoldStats {
+        self.fh.ctl.stats()
+    }
+
+    /// One tick under time-scaling (module docs); `phase` is `Run`.
+    #[inline(never)]
+    pub(super) fn hold_tick(&mut self) -> Result<Setpoint, Fault> {
+        let t_s = self.now();
+        self.k = self.k.saturating_add(1);
+        let s = self.s;
+        if self.fh.ctl.state() == HoldState::Held {
+            return self.place(t_s, (fx_to_f64(s), s), 0.0);
+        }
+        let h = self.period_s;
+        let j2 = self.ends.map_or(0.0, |e| e.jerk_stop);
+        // The plan's ṡ_p, s̈_p, s⃛_p, s⁗_p at s.
+        let plan = match self.fh.seg_tau {
+            Some(tau) => [0.5 * j2 * tau * tau, -j2 * tau, j2, 0.0],
+            None => {
+                let [_, dq, ddq, dddq] = self.qs.qd.map(f64::from);
+                let v = self.qs.v_fx as f64 * (1.0 / Q_ONE);
+                [v, 0.5 * dq, 0.5 * ddq * v, 0.5 * dddq * v * v + 0.25 * ddq * dq]
+            }
+        };
+        let Some(coeffs) = self.views.coeffs(&self.pc) else {
+            return self.fault(Fault::Eval { s_mm: fx_to_f64(s) });
+        };
+        let dr = pos_derivs(
+            coeffs,
+            tau_of(s, self.pc.centre, self.pc.shift),
+            self.pc.shift,
+            self.pc.constant,
+        );
+        let [p1, p2, p3, _] = plan;
+        let kin = Kin::new(dr, [p1 as f32, p2 as f32, p3 as f32]);
+        let ts = self.fh.ctl.control(&kin, &self.fh.lim, h);
+        let lam = self.fh.ctl.lambda();
+        if let Some(tau) = self.fh.seg_tau {
+            // dθ = ∫λ dt over the tick (exact: λ is a quadratic in t).
+            let dth = h * (ts.lam + h * (0.5 * ts.mu + h * ts.nu / 6.0));
+            let tau1 = tau - dth.max(0.0);
+            if !tau1.is_finite() {
+                return self.fault(Fault::NonFinite { s_mm: fx_to_f64(s) });
+            }
+            if tau1 <= 0.0 {
+                self.fh.seg_tau = None;
+                return Ok(self.finish(t_s));
+            }
+            self.fh.seg_tau = Some(tau1);
+            let s_new = self
+                .len_fx
+                .wrapping_sub(to_fx(j2 * tau1 * tau1 * tau1 / 6.0))
+                .max(s);
+            let feed = (lam * 0.5 * j2 * tau1 * tau1) as f32;
+            return self.place(t_s, (fx_to_f64(s_new), s_new), feed);
+        }
+        let ds = scaled_step(plan, &ts, h);
+        if !ds.is_finite() {
+            return self.fault(Fault::NonFinite { s_mm: fx_to_f64(s) });
+        }
+        let s_new = s.saturating_add(to_fx(ds));
+        if s_new >= self.stop_at {
+            let rest = fx_to_f64(self.len_fx.wrapping_sub(s_new));
+            if self.ends.is_none() || !(rest > 0.0) || !(j2 > 0.0) {
+                return Ok(self.finish(t_s));
+            }
+            // Into the stop segment at its own time to go τ (L − s = J₂τ³/6).
+            let tau = libm::cbrt(6.0 * rest / j2);
+            self.fh.seg_tau = Some(tau);
+            let feed = (lam * 0.5 * j2 * tau * tau) as f32;
+            return self.place(t_s, (fx_to_f64(s_new), s_new), feed);
+        }
+        let guess = self.qs.v;
+        let sp = self.place(t_s, (fx_to_f64(s_new), s_new), 0.0)?;
+        let tq = fx_small_f32(s_new.wrapping_sub(self.qc.anchor), 20);
+        let poly = self.qc.poly;
+        self.qs = q_eval(&self.qc, &poly, s_new, tq, guess);
+        Ok(Setpoint {
+            feed_mm_s: lam * f64::from(self.qs.v),
+            ..sp
+        })
+    }
+}
