@@ -158,7 +158,9 @@ pub fn events(kind: Kind, t_pred: f64, levels: usize) -> Vec<Event> {
 /// holds, faults. `trident` is the Fig. 15 stand-in curve, if available.
 pub fn catalogue(butterfly: &Nurbs, trident: Option<&Nurbs>, link: LinkConfig) -> Vec<Spec> {
     let mm_min = |f: f64| f / 60.0;
-    let vbar = planner_host::limits::TABLE1.vbar;
+    // Table 1's v̄ is the machine's top feed: the storm programs 6000 mm/min,
+    // so that its 150 % level (150 mm/s) stays under it.
+    let vbar = mm_min(6000.0);
     let storm_levels = vec![30.0, 50.0, 70.0, 120.0, 150.0];
     let mut v = vec![
         Spec {
@@ -194,7 +196,7 @@ pub fn catalogue(butterfly: &Nurbs, trident: Option<&Nurbs>, link: LinkConfig) -
     v.extend([
         Spec {
             name: "storm",
-            what: "Butterfly, a new override every 50 ms to a random level (100, 30, 50, 70, 120, 150 %) all path long"
+            what: "Butterfly at 6000 mm/min, a new override every 50 ms to a random level (100, 30, 50, 70, 120, 150 %) all path long"
                 .into(),
             curve: butterfly.clone(),
             vbar_mm_s: vbar,
@@ -207,7 +209,7 @@ pub fn catalogue(butterfly: &Nurbs, trident: Option<&Nurbs>, link: LinkConfig) -
         },
         Spec {
             name: "holds",
-            what: "Butterfly, 12 feed holds at random points, each resumed after 0.2 s".into(),
+            what: "Butterfly at 6000 mm/min, 12 feed holds at random points, each resumed after 0.2 s".into(),
             curve: butterfly.clone(),
             vbar_mm_s: vbar,
             levels: Vec::new(),
@@ -220,7 +222,7 @@ pub fn catalogue(butterfly: &Nurbs, trident: Option<&Nurbs>, link: LinkConfig) -
         },
         Spec {
             name: "faults",
-            what: "Butterfly, the storm with every 3rd message lost, a host restart at mid-path and two holds".into(),
+            what: "Butterfly at 6000 mm/min, the storm with every 3rd message lost, a host restart at mid-path and two holds".into(),
             curve: butterfly.clone(),
             vbar_mm_s: vbar,
             levels: storm_levels,

@@ -758,6 +758,8 @@ pub fn median_max(v: &[f64]) -> Option<(f64, f64)> {
     Some((med, v[n - 1]))
 }
 
-fn hold_cmd(_ip: &mut Fw, _hold: bool) {
-    // TODO(wt-l): ip.hold() / ip.resume()
+/// Feed hold or resume on the firmware (a local input, no link). After the
+/// end or a fault both are refused, which changes nothing.
+fn hold_cmd(ip: &mut Fw, hold: bool) {
+    let _ = if hold { ip.hold() } else { ip.resume() };
 }
