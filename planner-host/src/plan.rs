@@ -139,6 +139,16 @@ pub enum PlanError {
         /// Path length.
         length_mm: f64,
     },
+    /// Jerk-limited start and stop segments were asked for, but even with
+    /// knots added near the ends their joins do not fit (the path is too
+    /// short for them); no table is written.
+    #[error("no room for jerk-limited start and stop segments on this {length_mm:.4} mm path (their joins overlap even with {added} knots added near the ends); use --ends step for an acceleration-step start and stop, or a longer path")]
+    EndSegments {
+        /// Path length, mm.
+        length_mm: f64,
+        /// Knots added near the ends before giving up.
+        added: usize,
+    },
     /// The plan would stall the machine (q ≈ 0 where it must not be); no
     /// table is written.
     #[error("the plan would stall the machine on this {length_mm:.3} mm path: it {at}; the constraint rows are too tight for this sampling, try another density or sampling")]
@@ -501,6 +511,38 @@ pub fn check_points(knots: &[f64], per_span: usize) -> Vec<(f64, bool)> {
     v
 }
 
+/// Samples whose knot vector leaves room for the joins of the jerk-limited
+/// end segments ([`EndRows::new`]): if it does not (a short path or a coarse
+/// sampling), the first and last sample intervals are halved, up to 8
+/// times; then [`PlanError::EndSegments`] (never a silent acceleration step).
+fn end_room(
+    mut samples: Vec<f64>,
+    limits: &Limits,
+    length: f64,
+    geo: &dyn Fn(f64) -> PathDerivs,
+) -> Result<Vec<f64>, PlanError> {
+    let mut added = 0;
+    for _ in 0..8 {
+        if EndRows::new(&lp::knot_vector(&samples), limits, geo).is_some() {
+            return Ok(samples);
+        }
+        let n = samples.len();
+        if n < 2 {
+            break;
+        }
+        let (a, b) = (0.5 * (samples[0] + samples[1]), 0.5 * (samples[n - 2] + samples[n - 1]));
+        samples.insert(1, a);
+        let n = samples.len();
+        samples.insert(n - 1, b);
+        samples.dedup();
+        added += 2;
+    }
+    if EndRows::new(&lp::knot_vector(&samples), limits, geo).is_some() {
+        return Ok(samples);
+    }
+    Err(PlanError::EndSegments { length_mm: length, added })
+}
+
 /// r, r′, r″, r‴ with respect to arc length at arc length `s`.
 pub fn path_derivs_at(curve: &Nurbs, arc: &ArcLength, s: f64) -> PathDerivs {
     arc.derivs_s(curve, arc.u_of_s(s))
@@ -551,6 +593,10 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
         }
     };
     dbg_t("refine");
+    let samples = match cfg.ends {
+        EndMode::Jerk => end_room(samples, &cfg.limits, length, &|s| path_derivs_at(curve, &arc, s))?,
+        EndMode::Step => samples,
+    };
     let knots = lp::knot_vector(&samples);
     let eval = |s: f64| {
         Some(EvalPoint {
