@@ -279,6 +279,37 @@ pub struct LevelPlan {
     pub lp: Vec<LpStats>,
     /// Certified: largest exact ratio to each limit over the check points.
     pub check: Option<Ratios>,
+    /// Its final check points `(s, forced)`: the base plan's, and the points
+    /// its own refinement rounds forced (certified).
+    #[serde(skip)]
+    pub check_points: Vec<(f64, bool)>,
+    /// Refinement rounds the level ran on top of the base's check points.
+    pub refine_rounds: usize,
+}
+
+impl LevelPlan {
+    /// The dense re-evaluation of this level ([`crate::verify::dense_check_ends`])
+    /// on the plan's knot vector, with its feed limit and end segments.
+    pub fn dense_check(
+        &self,
+        plan: &PlanOutput,
+        curve: &Nurbs,
+        arc: &ArcLength,
+        per_span: usize,
+    ) -> crate::verify::DenseReport {
+        crate::verify::dense_check_ends(
+            curve,
+            arc,
+            &plan.q_knots,
+            &self.ctrl,
+            self.ends.as_ref(),
+            &Limits {
+                vbar: self.vbar_mm_s,
+                ..plan.config.limits
+            },
+            per_span,
+        )
+    }
 }
 
 impl PlanOutput {
@@ -628,6 +659,7 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
         knots: &knots,
         cfg,
         length,
+        dense: std::sync::OnceLock::new(),
     };
     let base = stage.solve(&cfg.limits, &jumps, points, is_knot, Refine::Rounds)?;
     dbg_t("LPs");
@@ -705,9 +737,12 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
 enum Refine {
     /// The base plan: refinement rounds add forced check points.
     Rounds,
-    /// An override level: the base plan's final check points, as they are,
-    /// with the LP budget of its last round.
-    Fixed {
+    /// An override level: starts from the base plan's final check points
+    /// with the LP budget of its last round, then runs refinement rounds of
+    /// its own exactly as the base did (dense re-evaluation on the same
+    /// knot vector, violated points forced, re-solve), at most
+    /// [`REFINE_ROUNDS`] more.
+    Level {
         /// Refinement rounds the base ran.
         rounds: usize,
     },
@@ -722,6 +757,8 @@ struct LpStage<'a> {
     knots: &'a [f64],
     cfg: &'a PlanConfig,
     length: f64,
+    /// [`LpStage::dense`], computed on first use.
+    dense: std::sync::OnceLock<Vec<EvalPoint>>,
 }
 
 /// A plan from [`LpStage::solve`].
@@ -739,6 +776,22 @@ struct Solved {
 }
 
 impl LpStage<'_> {
+    /// The refinement rounds' re-evaluation points: REFINE_PER_SPAN − 1
+    /// inner points per knot span, evaluated once for the base and every level.
+    fn dense(&self) -> &[EvalPoint] {
+        self.dense.get_or_init(|| {
+            self.knots
+                .windows(2)
+                .filter(|w| w[1] > w[0])
+                .flat_map(|w| {
+                    (1..REFINE_PER_SPAN)
+                        .map(move |k| w[0] + (w[1] - w[0]) * k as f64 / REFINE_PER_SPAN as f64)
+                })
+                .filter_map(|s| self.eval(s))
+                .collect()
+        })
+    }
+
     fn eval(&self, s: f64) -> Option<EvalPoint> {
         Some(EvalPoint {
             s,
@@ -799,24 +852,16 @@ impl LpStage<'_> {
                 // more than REFINE_TRIGGER (narrow curvature spikes, fast changes
                 // of q between check points) those points join the check points
                 // with every row, and the sequence runs again.
-                let dense: Vec<EvalPoint> = match refine {
-                    Refine::Rounds => knots
-                        .windows(2)
-                        .filter(|w| w[1] > w[0])
-                        .flat_map(|w| {
-                            (1..REFINE_PER_SPAN)
-                                .map(move |k| w[0] + (w[1] - w[0]) * k as f64 / REFINE_PER_SPAN as f64)
-                        })
-                        .filter_map(|s| self.eval(s))
-                        .collect(),
-                    Refine::Fixed { .. } => Vec::new(),
-                };
+                let dense = self.dense();
                 let (mut pts, mut forced) = (points.clone(), is_knot.clone());
                 let mut lps = Vec::new();
-                let mut round = match refine {
-                    Refine::Rounds => 0,
-                    Refine::Fixed { rounds } => rounds,
+                // the round counter sets the LP budget; a level starts at the
+                // base's last round and may run REFINE_ROUNDS more
+                let (mut round, last_round) = match refine {
+                    Refine::Rounds => (0, REFINE_ROUNDS),
+                    Refine::Level { rounds } => (rounds, rounds + REFINE_ROUNDS),
                 };
+                let first_round = round;
                 loop {
                     let lp = FeedLp {
                         points: &pts,
@@ -830,12 +875,10 @@ impl LpStage<'_> {
                     };
                     let c = certified::solve(&lp, &forced, &caps, &ccfg)?;
                     lps.extend(c.lps);
-                    if let Refine::Fixed { .. } = refine {
-                        break (c.ctrl, Vec::new(), lps, Some(c.check), pts, forced, round);
-                    }
-                    let bad = certified::violations(&lp, &c.ctrl, &dense, &caps, REFINE_TRIGGER);
-                    if bad.is_empty() || round == REFINE_ROUNDS {
-                        break (c.ctrl, Vec::new(), lps, Some(c.check), pts, forced, round);
+                    let bad = certified::violations(&lp, &c.ctrl, dense, &caps, REFINE_TRIGGER);
+                    if bad.is_empty() || round == last_round {
+                        let rounds = round - first_round;
+                        break (c.ctrl, Vec::new(), lps, Some(c.check), pts, forced, rounds);
                     }
                     round += 1;
                     let mut merged: Vec<(EvalPoint, bool)> = pts.drain(..).zip(forced.drain(..)).collect();
@@ -896,20 +939,20 @@ impl LpStage<'_> {
                     junction::curvature_jumps(self.curve, self.arc, &limits, self.cfg.servo_period_s)
                 }
             };
-            let refine = Refine::Fixed { rounds: base.rounds };
+            let refine = Refine::Level { rounds: base.rounds };
             let s = self
                 .solve(&limits, &jumps, base.pts.clone(), base.forced.clone(), refine)
                 .map_err(|e| PlanError::Level {
                     percent,
                     source: Box::new(e),
                 })?;
-            // the level lives on the base's knot vector and check points
+            // the level lives on the base's knot vector; its check points are
+            // the base's and those its own refinement rounds forced
             assert_eq!(s.ctrl.len(), base.ctrl.len());
-            assert!(s
+            debug_assert!(base
                 .pts
                 .iter()
-                .zip(&base.pts)
-                .all(|(a, b)| a.s.to_bits() == b.s.to_bits()));
+                .all(|b| s.pts.iter().any(|a| a.s.to_bits() == b.s.to_bits())));
             Ok(LevelPlan {
                 percent,
                 vbar_mm_s: limits.vbar,
@@ -918,6 +961,8 @@ impl LpStage<'_> {
                 time_s: s.predicted_time_s,
                 lp: s.lps,
                 check: s.check,
+                check_points: s.pts.iter().zip(&s.forced).map(|(p, &f)| (p.s, f)).collect(),
+                refine_rounds: s.rounds,
             })
         };
         // two threads: the levels alternate between them

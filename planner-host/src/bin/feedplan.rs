@@ -132,8 +132,9 @@ fn parse_levels(text: &str) -> Result<Levels, String> {
             [x] => v.push(num(x)?),
             [a, b, st] => {
                 let (a, b, st) = (num(a)?, num(b)?, num(st)?);
-                let ok = st > 0.0 && b >= a && (b - a) / st <= 1000.0; // false for NaN
-                if !ok {
+                // NaN fails both comparisons
+                let ordered = st > 0.0 && b >= a;
+                if !ordered || (b - a) / st > 1000.0 {
                     return Err(format!(
                         "range {part:?}: need FROM <= TO and STEP > 0 (at most 1000 levels)"
                     ));
