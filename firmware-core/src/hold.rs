@@ -95,12 +95,18 @@ pub const RHO_A: f32 = 0.985;
 pub const RHO_M: f32 = 0.5;
 /// Fraction of the braking capacity the braking curve plans with.
 pub const THETA: f64 = 0.7;
-/// A resume within this of λ = 1 lands (the μ left, ≤ κ·X_SNAP, makes an
-/// acceleration step ≤ κ·X_SNAP·|V|, ~1e-3 mm/s²).
-pub const X_SNAP: f64 = 1e-6;
-/// Constraints per tick: jerk and end acceleration for 3 axes and the
-/// tangent, and the cap on |μ| ([`mu_cap`]).
-pub const N_CONS: usize = 9;
+/// A resume within this of λ = 1 lands (rounding only: snapping λ by x
+/// steps the velocity by x·|V|, a finite-difference jerk of ~x|V|/T²,
+/// so the landing itself must be exact).
+pub const X_SNAP: f64 = 1e-12;
+/// Below this 1 − λ a resume leaves the exponential tail and lands by the
+/// landing law (ν ≈ −κ²x/2, a jerk of ~1e-3 mm/s³ here; the tail alone
+/// would never reach λ = 1).
+pub const X_TAIL: f64 = 1e-5;
+/// Constraints per tick: jerk (for the plan's J and for −J, see
+/// [`constraints`]) and end acceleration for 3 axes and the tangent, and
+/// the cap on |μ| ([`mu_cap`]).
+pub const N_CONS: usize = 13;
 
 /// The feed-hold state.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -295,10 +301,18 @@ impl Kin {
     /// stays within the (1 − λ³)j the plan leaves even at its own jerk and
     /// acceleration limits: κ²|V| + 3κa ≤ 3 RHO_J j on every axis and the
     /// tangent.
+    /// |V| is taken at its limit ([`HoldLimits::v`], where known): the
+    /// tail must hold along the path it still covers, not only here.
     pub fn tail_rate(&self, lim: &HoldLimits) -> f32 {
         let mut k = f32::INFINITY;
-        for ((v, a), j) in self.v.iter().zip(lim.a.iter()).zip(lim.j.iter()) {
-            let (v, c) = (v.abs(), 3.0 * RHO_J * j);
+        for (((v, vl), a), j) in self
+            .v
+            .iter()
+            .zip(lim.v.iter())
+            .zip(lim.a.iter())
+            .zip(lim.j.iter())
+        {
+            let (v, c) = (v.abs().max(*vl), 3.0 * RHO_J * j);
             let r = 2.0 * c / (3.0 * a + libm::sqrtf(9.0 * a * a + 4.0 * v * c));
             k = k.min(r);
         }
@@ -326,6 +340,8 @@ impl Kin {
 /// and, index 3, tangential (f32).
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
 pub struct HoldLimits {
+    /// v_x, v_y, v_z, v̄ (mm/s; 0: unknown, the current |V| is used).
+    pub v: [f32; 4],
     /// a_x, a_y, a_z, ā (mm/s²).
     pub a: [f32; 4],
     /// j_x, j_y, j_z, j̄ (mm/s³).
@@ -336,6 +352,7 @@ impl HoldLimits {
     /// From the table's limits.
     pub fn new(l: &Limits) -> Self {
         HoldLimits {
+            v: [l.v[0] as f32, l.v[1] as f32, l.v[2] as f32, l.vbar as f32],
             a: [l.a[0] as f32, l.a[1] as f32, l.a[2] as f32, l.abar as f32],
             j: [l.j[0] as f32, l.j[1] as f32, l.j[2] as f32, l.jbar as f32],
         }
@@ -386,11 +403,21 @@ pub fn constraints(
             continue;
         };
         let jd = l3 * j + 3.0 * lam * mu * a;
+        // The plan's own scaled jerk λ³|J| (it may sit at the limit) plus
+        // the slack (1 − λ³)·RHO_J·j the scaling may use.
+        let jm_ = (RHO_J * jm).max(l3 * j.abs() + (1.0 - l3) * RHO_J * jm);
+        if let Some(s) = slots.next() {
+            *s = Lin { c: v, d: jd, m: jm_ };
+        }
+        // The same with the plan's J reversed: J jumps at the q knots (the
+        // plan's jerk may switch from −j to +j within a tick), so the
+        // scaling's part 3λμA + νV keeps within jm_ − λ³|J| whatever the
+        // sign J takes next.
         if let Some(s) = slots.next() {
             *s = Lin {
                 c: v,
-                d: jd,
-                m: RHO_J * jm,
+                d: jd - 2.0 * l3 * j,
+                m: jm_,
             };
         }
         let acc = l2 * a + mu * v;
@@ -579,7 +606,7 @@ impl FeedHold {
             (1.0 - self.lam, self.mu, lo, hi)
         };
         let b = b0.min(THETA * (-ulo).max(0.25 * cap));
-        let kappa = if hold {
+        let kappa = if hold || x < X_TAIL {
             f64::INFINITY
         } else {
             f64::from(kin.tail_rate(lim))
@@ -641,6 +668,7 @@ mod tests {
     use super::*;
 
     const LIM: HoldLimits = HoldLimits {
+        v: [0.0; 4],
         a: [1500.0; 4],
         j: [16000.0; 4],
     };

@@ -14,6 +14,12 @@
 //! - Start segment: a hold requested before the join at s₁ (or before the
 //!   first tick) takes effect at the first tick after it (a delay of at
 //!   most t₁ + T; the state reads `Stopping` meanwhile).
+//! - Near the end: a hold requested in the stop segment, or (running at
+//!   λ = 1) within [`END_FACTOR`] × the tangential jerk-limited stopping
+//!   distance of L, does not scale: the plan's own stop (already jerk-
+//!   limited, and no longer than about the hold's) runs to L, where the
+//!   state reads `Held`; meanwhile it reads `Stopping`. Scaling the plan's
+//!   hard deceleration into the stop segment broke the limits by ~40×.
 //! - Stop segment: entered at full speed it is already a stop and runs to
 //!   the end (a hold then ends `Held` at L). If the scaled motion reaches
 //!   s₂, the segment is followed in its own time θ (τ = t₂ − θ time to go,
@@ -28,6 +34,11 @@ use crate::fast::{fx_small_f32, fx_to_f64, pos_derivs, to_fx, Q_ONE};
 use crate::hold::{scaled_step, FeedHold, HoldError, HoldLimits, HoldState, HoldStats, Kin};
 use crate::table::Limits;
 
+/// A hold requested within this many times the tangential stopping
+/// distance of the end ([`HoldRun::stop_distance`]) lets the plan's own
+/// stop run.
+const END_FACTOR: f32 = 1.0;
+
 /// The interpolator's feed-hold state.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
 pub(super) struct HoldRun {
@@ -35,6 +46,8 @@ pub(super) struct HoldRun {
     lim: HoldLimits,
     /// In the stop segment under scaling: τ, the segment's time to go, s.
     seg_tau: Option<f64>,
+    /// A hold requested near the end: the plan's own stop runs (λ = 1).
+    to_end: bool,
 }
 
 impl HoldRun {
@@ -54,6 +67,21 @@ impl HoldRun {
     pub(super) fn reset(&mut self) {
         self.ctl.clear();
         self.seg_tau = None;
+        self.to_end = false;
+    }
+
+    /// The distance a tangential jerk-limited stop from `v` (mm/s) needs
+    /// with ā, j̄ (mm): v√(v/j̄) below v = ā²/j̄, else v(v/ā + ā/j̄)/2.
+    fn stop_distance(&self, v: f32) -> f32 {
+        let (a, j) = (self.lim.a[3], self.lim.j[3]);
+        if !(a > 0.0 && j > 0.0 && v > 0.0) {
+            return 0.0;
+        }
+        if v * j <= a * a {
+            v * libm::sqrtf(v / j)
+        } else {
+            0.5 * v * (v / a + a / j)
+        }
     }
 }
 
@@ -63,7 +91,23 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
     /// no-op while stopping or held.
     pub fn hold(&mut self) -> Result<(), HoldError> {
         self.hold_allowed()?;
-        self.fh.ctl.hold();
+        if self.fh.to_end {
+            return Ok(());
+        }
+        let running = self.fh.ctl.state() == HoldState::Running && self.fh.seg_tau.is_none();
+        let near_end = match self.phase {
+            Phase::StopSeg => true,
+            Phase::Run => {
+                let rest = fx_to_f64(self.len_fx.wrapping_sub(self.s)) as f32;
+                rest <= END_FACTOR * self.fh.stop_distance(self.qs.v)
+            }
+            _ => false,
+        };
+        if running && near_end {
+            self.fh.to_end = true;
+        } else {
+            self.fh.ctl.hold();
+        }
         Ok(())
     }
 
@@ -71,6 +115,7 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
     /// with no acceleration left). Idempotent; a no-op while running.
     pub fn resume(&mut self) -> Result<(), HoldError> {
         self.hold_allowed()?;
+        self.fh.to_end = false;
         self.fh.ctl.resume();
         Ok(())
     }
@@ -87,8 +132,11 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
     /// has ended).
     pub fn hold_state(&self) -> HoldState {
         let s = self.fh.ctl.state();
-        if self.phase == Phase::Done && s != HoldState::Running {
+        let held = s != HoldState::Running || self.fh.to_end;
+        if self.phase == Phase::Done && held {
             HoldState::Held
+        } else if self.fh.to_end {
+            HoldState::Stopping
         } else {
             s
         }
