@@ -12,10 +12,16 @@ FEEDPLAN=${FEEDPLAN:-./target/release/feedplan}
 if [ ! -x "$FEEDPLAN" ]; then
   cargo build --release -q -p planner-host --bin feedplan
 fi
-plan() { # curve density
-  "$FEEDPLAN" plan "$1" --density "$2" -o "fuzz/seeds/$(basename "$1" .json).bin" >/dev/null
+plan() { # curve density [more feedplan arguments]
+  local curve=$1 density=$2 name
+  name=$(basename "$curve" .json)
+  shift 2
+  [ $# -gt 0 ] && name=${name}_levels
+  "$FEEDPLAN" plan "$curve" --density "$density" -o "fuzz/seeds/$name.bin" "$@" >/dev/null
 }
 plan fuzz/seeds/line.json 1
+# override levels (table sections 16-19, issue 6)
+plan fuzz/seeds/line.json 1 --override-levels 50,125
 plan fuzz/seeds/arc.json 0.5
 plan "$SHARED/curves/trident.json" 0.5
 cp fuzz/seeds/*.bin fuzz/corpus/table_parse/

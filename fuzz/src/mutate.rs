@@ -28,10 +28,12 @@ pub const MAX_TICKS: u64 = 20_000;
 /// Most corruption ops applied per input.
 pub const MAX_OPS: usize = 16;
 
-/// The valid seed tables (`feedplan plan fuzz/seeds/line.json --density 0.5`,
-/// the same for `arc.json` and `shared/curves/trident.json`).
-pub const SEEDS: [&[u8]; 3] = [
+/// The valid seed tables (`fuzz/seeds/make.sh`: the line, the line with
+/// override levels 50 % and 125 % (sections 16–19), the arc and the
+/// Trident).
+pub const SEEDS: [&[u8]; 4] = [
     include_bytes!("../seeds/line.bin"),
+    include_bytes!("../seeds/line_levels.bin"),
     include_bytes!("../seeds/arc.bin"),
     include_bytes!("../seeds/trident.bin"),
 ];
@@ -252,7 +254,7 @@ fn op(t: &mut Vec<u8>, r: &mut Reader, seal: &mut bool) -> Option<()> {
         }
         9 => {
             // An i64 value (fixed-point piece words and q cubics, sections
-            // 12 and 15: Q40 mm, Q32 (mm/s)², shifts).
+            // 12, 15 and 19: Q40 mm, Q32 (mm/s)², shifts).
             let at = locate(t, r, 8)?;
             let old = i64::from_le_bytes(rd(t, at)?);
             let v = special_i64(old, r)?;
