@@ -31,7 +31,11 @@
 //! - [`splice`]: feedrate override — host transition profiles into the
 //!   table's override levels, checked and queued by
 //!   [`interp::Interpolator::offer_override`], spliced in C² on q span entry
-//!   (paper §4, `docs/override-design.md`).
+//!   (paper §4, `docs/override-design.md`); capacities are const generics
+//!   (`Interpolator::<3, 64>::new_sized`; [`interp::Interpolator::new`] has none).
+//! - [`hold`]: feed hold and resume — the firmware time-scales the active
+//!   profile (ṡ = λ√q) to a stop and back without the host
+//!   ([`interp::Interpolator::hold`], [`interp::Interpolator::resume`]).
 //! - [`output`]: [`output::SetpointSink`], the trait setpoints leave through;
 //!   with the `embedded-hal` feature, `output::hal`: an SPI frame sink and a
 //!   sync-strobe sink on embedded-hal 1.0 traits (examples).
