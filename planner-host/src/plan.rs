@@ -561,7 +561,10 @@ fn end_room(
         if n < 2 {
             break;
         }
-        let (a, b) = (0.5 * (samples[0] + samples[1]), 0.5 * (samples[n - 2] + samples[n - 1]));
+        let (a, b) = (
+            0.5 * (samples[0] + samples[1]),
+            0.5 * (samples[n - 2] + samples[n - 1]),
+        );
         samples.insert(1, a);
         let n = samples.len();
         samples.insert(n - 1, b);
@@ -571,7 +574,10 @@ fn end_room(
     if EndRows::new(&lp::knot_vector(&samples), limits, geo).is_some() {
         return Ok(samples);
     }
-    Err(PlanError::EndSegments { length_mm: length, added })
+    Err(PlanError::EndSegments {
+        length_mm: length,
+        added,
+    })
 }
 
 /// r, r′, r″, r‴ with respect to arc length at arc length `s`.
