@@ -165,8 +165,8 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
     /// planned braking rate times the plan's feed `v`, × [`AHEAD_FACTOR`]),
     /// pieces and q spans read from the views (the current q span from its
     /// cursor). Hold and resume ticks only.
-    fn ahead_acc(&self, s: i64, kin: &Kin, v: f64) -> [[f32; 4]; 2] {
-        let mut out = [[0.0f32; 4]; 2];
+    fn ahead_acc(&self, s: i64, kin: &Kin, v: f64) -> [[f32; 4]; 3] {
+        let mut out = [[0.0f32; 4]; 3];
         let b = FeedHold::braking(kin, &self.fh.lim);
         let (lam, mu) = (self.fh.ctl.lambda(), self.fh.ctl.mu());
         let x = lam;
@@ -218,7 +218,10 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
             let qs = q_eval(&qc, &qc.poly, sk, tq, self.qs.v);
             let [_, dq, ddq, _] = qs.qd;
             let k = Kin::new(dr, [qs.v, 0.5 * dq, 0.5 * ddq * qs.v]);
-            let [oa, ov] = &mut out;
+            let [oa, ov, oj] = &mut out;
+            for (o, a) in oj.iter_mut().zip(k.j.iter()) {
+                *o = o.max(a.abs());
+            }
             for (o, a) in oa.iter_mut().zip(k.a.iter()) {
                 *o = o.max(a.abs());
             }
@@ -261,7 +264,7 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
         let [p1, p2, p3, _] = plan;
         let kin = Kin::new(dr, [p1 as f32, p2 as f32, p3 as f32]);
         let ahead = match self.fh.seg_tau {
-            Some(_) => [[0.0; 4]; 2],
+            Some(_) => [[0.0; 4]; 3],
             None => self.ahead_acc(s, &kin, p1),
         };
         let ts = self.fh.ctl.control_ahead(&kin, &ahead, &self.fh.lim, h);
