@@ -49,9 +49,14 @@
 //! - a cap on |μ₁| = |μ + νh| ([`mu_cap`]): the jerk 3λμA the braking
 //!   rate drives through the plan's acceleration (centripetal included)
 //!   stays within [`RHO_M`]·j while μ is brought back to 0, with A allowed
-//!   to grow at the plan's jerk bound meanwhile (a worst-case stand-in for
-//!   a look-ahead along the path; λ taken as 1 while resuming). Above the
-//!   cap |μ| may only shrink.
+//!   to grow at the plan's jerk bound meanwhile (λ taken as 1 while
+//!   resuming); while stopping, |A| is also taken as no less than the
+//!   largest |A| of the plan over the arc length the stop can still cover
+//!   (sampled ahead by the tick), and μV must leave the plan's λ²|A| ahead
+//!   room within [`RHO_AHEAD`]·a ([`mu_cap_ahead`]). Above the cap |μ| may
+//!   only shrink; while stopping, if the jerk and acceleration constraints
+//!   are feasible without the cap it yields, and if not even they are, the
+//!   relaxed ν still keeps |μ| within the cap.
 //!
 //! and intersects them ([`interval`]). If the intersection is empty it
 //! takes the ν that minimises the largest relative violation (exactly: the
@@ -93,6 +98,14 @@ pub const RHO_J: f32 = 0.985;
 pub const RHO_A: f32 = 0.985;
 /// Margin on the jerk part the braking rate drives normal to the path.
 pub const RHO_M: f32 = 0.5;
+/// Fraction of the acceleration limits the braking acceleration and the
+/// plan's acceleration ahead may use together ([`mu_cap_ahead`]).
+pub const RHO_AHEAD: f32 = 0.8;
+/// Smallest μ cap (1/s) the acceleration look-ahead leaves (a hold always
+/// makes progress).
+pub const MU_FLOOR: f32 = 0.5;
+/// Smallest μ cap (1/s) the jerk look-ahead leaves.
+pub const MU_FLOOR_J: f32 = 2.0;
 /// Fraction of the braking capacity the braking curve plans with.
 pub const THETA: f64 = 0.7;
 /// A resume within this of λ = 1 lands (rounding only: snapping λ by x
@@ -365,10 +378,38 @@ impl HoldLimits {
 /// grows at up to λ·j meanwhile (the plan's jerk bound; no look-ahead along
 /// the path is needed): the root of 3λμ(|A| + λjμ/ν_r) = RHO_M·j.
 pub fn mu_cap(k: &Kin, lim: &HoldLimits, lam: f32, nu_r: f32) -> f32 {
+    mu_cap_ahead(k, &[[0.0; 4]; 3], lim, lam, nu_r)
+}
+
+/// [`mu_cap`] with a look-ahead: `ahead` = [max |A|, max |V|] per axis and
+/// tangentially of the plan over the arc length the stop can still cover
+/// (all 0: none). |A| is taken as no less than its max ahead, and the
+/// braking acceleration μV must leave the plan's λ²|A| ahead room within
+/// [`RHO_AHEAD`]·a (else the end-of-tick acceleration constraint, one tick
+/// deep, meets the plan's growing A too late and the jerk limit cannot
+/// unwind μ in time).
+pub fn mu_cap_ahead(k: &Kin, ahead: &[[f32; 4]; 3], lim: &HoldLimits, lam: f32, nu_r: f32) -> f32 {
     let mut cap = f32::INFINITY;
-    for (a, j) in k.a.iter().zip(lim.j.iter()) {
+    let [a_ah, v_ah, j_ah] = ahead;
+    for (i, (a, j)) in k.a.iter().zip(lim.j.iter()).enumerate() {
+        let (aa, va, am) = (
+            a_ah.get(i).copied().unwrap_or(0.0),
+            v_ah.get(i).copied().unwrap_or(0.0),
+            lim.a.get(i).copied().unwrap_or(0.0),
+        );
+        if va > 0.0 {
+            let room = RHO_AHEAD * am - lam * lam * aa;
+            cap = cap.min((room / va).max(MU_FLOOR));
+            // The jerk the plan's λ³|J| ahead leaves for 3λμA.
+            let ja = j_ah.get(i).copied().unwrap_or(0.0);
+            let room = RHO_AHEAD * (RHO_J * j - lam * lam * lam * ja);
+            if aa > 0.0 && lam > 0.0 {
+                cap = cap.min((room / (3.0 * lam * aa)).max(MU_FLOOR_J));
+            }
+        }
+        let a = a.abs().max(aa);
         let c2 = 3.0 * lam * lam * j / nu_r;
-        let c1 = 3.0 * lam * a.abs();
+        let c1 = 3.0 * lam * a;
         let c0 = RHO_M * j;
         let m = if c2 > 0.0 && c2.is_finite() {
             2.0 * c0 / (c1 + libm::sqrtf(c1 * c1 + 4.0 * c2 * c0))
@@ -392,6 +433,7 @@ pub fn constraints(
     h: f32,
     nu_r: f32,
     lam_cap: f32,
+    ahead: &[[f32; 4]; 3],
 ) -> [Lin; N_CONS] {
     let mut out = [Lin::default(); N_CONS];
     let (l2, l3) = (lam * lam, lam * lam * lam);
@@ -429,7 +471,7 @@ pub fn constraints(
             };
         }
     }
-    let cap = mu_cap(k, lim, lam_cap, nu_r);
+    let cap = mu_cap_ahead(k, ahead, lim, lam_cap, nu_r);
     if let Some(s) = slots.next() {
         *s = Lin {
             c: h,
@@ -568,6 +610,19 @@ impl FeedHold {
     /// state (`kin` at the current s), advances λ and μ, and returns the
     /// tick's (λ, μ, ν) for the step of s.
     pub fn control(&mut self, kin: &Kin, lim: &HoldLimits, h: f64) -> TickScale {
+        self.control_ahead(kin, &[[0.0; 4]; 3], lim, h)
+    }
+
+    /// The braking deceleration of λ (1/s²) the controller plans with at
+    /// `kin` ([`THETA`] × the jerk-limited ν at λ = 0).
+    pub fn braking(kin: &Kin, lim: &HoldLimits) -> f64 {
+        THETA * f64::from(kin.nu_cap(lim)).min(1e9)
+    }
+
+    /// [`FeedHold::control`] with a look-ahead: `ahead` the largest |A| and
+    /// |V| per axis and tangentially the plan reaches over the arc length
+    /// the stop can still cover (the μ cap, [`mu_cap_ahead`]).
+    pub fn control_ahead(&mut self, kin: &Kin, ahead: &[[f32; 4]; 3], lim: &HoldLimits, h: f64) -> TickScale {
         let now = TickScale {
             lam: self.lam,
             mu: self.mu,
@@ -588,8 +643,30 @@ impl FeedHold {
             h as f32,
             b0 as f32,
             lam_cap as f32,
+            ahead,
         );
-        let iv = interval(&cons);
+        let mut iv = interval(&cons);
+        if hold && iv.relax > 1.0 {
+            // The μ cap (last) is a planning bound, the jerk and
+            // acceleration limits are not: if they are feasible without
+            // it, it yields (a cap that dropped under |μ| as the plan's A
+            // grew would otherwise force ν against the jerk limit).
+            let rest = interval(cons.get(..N_CONS - 1).unwrap_or(&[]));
+            if rest.relax <= 1.0 {
+                iv = rest;
+            } else if let Some(k) = cons.last() {
+                // Infeasible even so: |μ| does not grow past the cap (the
+                // relaxation would otherwise let it grow with the
+                // violation, and 3λμA with it).
+                if k.c > 0.0 {
+                    let (cl, ch) = ((-k.m - k.d) / k.c, (k.m - k.d) / k.c);
+                    if cl <= ch {
+                        iv.lo = iv.lo.clamp(cl, ch);
+                        iv.hi = iv.hi.clamp(cl, ch);
+                    }
+                }
+            }
+        }
         let s = &mut self.stats;
         s.ticks = s.ticks.saturating_add(1);
         if iv.relax > 1.0 {

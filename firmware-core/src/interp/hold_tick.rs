@@ -30,6 +30,7 @@
 //!   [`Interpolator::resume`] return a [`HoldError`] and change nothing.
 
 use super::{q_eval, tau_of, Fault, Interpolator, Phase, Setpoint};
+use crate::array::F64Array;
 use crate::fast::{fx_small_f32, fx_to_f64, pos_derivs, to_fx, Q_ONE};
 use crate::hold::{scaled_step, FeedHold, HoldError, HoldLimits, HoldState, HoldStats, Kin};
 use crate::table::Limits;
@@ -38,6 +39,12 @@ use crate::table::Limits;
 /// distance of the end ([`HoldRun::stop_distance`]) lets the plan's own
 /// stop run.
 const END_FACTOR: f32 = 1.0;
+/// Points the μ cap's look-ahead evaluates the plan at.
+const AHEAD_N: usize = 16;
+/// Safety factor on the look-ahead distance.
+const AHEAD_FACTOR: f64 = 1.5;
+/// Longest look-ahead, mm.
+const AHEAD_MAX_MM: f64 = 40.0;
 
 /// The interpolator's feed-hold state.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
@@ -152,6 +159,79 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
         self.fh.ctl.stats()
     }
 
+    /// The look-ahead of the μ cap: the largest |A| per axis and
+    /// tangentially of the plan at [`AHEAD_N`] points over the arc length
+    /// the stop (or resume) can still cover from s (its time to go at the
+    /// planned braking rate times the plan's feed `v`, × [`AHEAD_FACTOR`]),
+    /// pieces and q spans read from the views (the current q span from its
+    /// cursor). Hold and resume ticks only.
+    fn ahead_acc(&self, s: i64, kin: &Kin, v: f64) -> [[f32; 4]; 3] {
+        let mut out = [[0.0f32; 4]; 3];
+        let b = FeedHold::braking(kin, &self.fh.lim);
+        let (lam, mu) = (self.fh.ctl.lambda(), self.fh.ctl.mu());
+        let x = lam;
+        // Stopping only: a resume plans its cap at λ = 1 already, and a
+        // look-ahead cap dropping under μ on its exponential tail forces μ
+        // down against the tail law (measured: up to 1.07× j at landing).
+        if self.fh.ctl.state() != HoldState::Stopping || !(b > 0.0 && v > 0.0) {
+            return out;
+        }
+        let t_go = 2.0 * libm::sqrt(2.0 * x.max(0.0) / b) + mu.abs() / b;
+        let d = (AHEAD_FACTOR * v * t_go).min(AHEAD_MAX_MM);
+        let v_ = &self.views;
+        let (mut pi, mut qi) = (self.pc.idx, self.qc.idx);
+        for k in 0..=AHEAD_N {
+            let sk = s.saturating_add(to_fx(d * k as f64 / AHEAD_N as f64));
+            if sk >= self.stop_at {
+                break;
+            }
+            while pi < v_.p_last
+                && v_
+                    .piece_breaks
+                    .get(pi.wrapping_add(1))
+                    .is_some_and(|b| sk >= to_fx(b))
+            {
+                pi = pi.wrapping_add(1);
+            }
+            let Some(pc) = (if pi == self.pc.idx {
+                Some(self.pc)
+            } else {
+                v_.piece(pi)
+            }) else {
+                break;
+            };
+            let Some(coeffs) = v_.coeffs(&pc) else { break };
+            let dr = pos_derivs(coeffs, tau_of(sk, pc.centre, pc.shift), pc.shift, pc.constant);
+            while sk >= self.qc.next
+                && qi < v_.q_last
+                && v_.q_knots.get(qi.wrapping_add(4)).is_some_and(|e| sk >= to_fx(e))
+            {
+                qi = qi.wrapping_add(1);
+            }
+            let qc = if qi == self.qc.idx {
+                Some(self.qc)
+            } else {
+                v_.q(qi)
+            };
+            let Some(qc) = qc else { break };
+            let tq = fx_small_f32(sk.wrapping_sub(qc.anchor), 20);
+            let qs = q_eval(&qc, &qc.poly, sk, tq, self.qs.v);
+            let [_, dq, ddq, _] = qs.qd;
+            let k = Kin::new(dr, [qs.v, 0.5 * dq, 0.5 * ddq * qs.v]);
+            let [oa, ov, oj] = &mut out;
+            for (o, a) in oj.iter_mut().zip(k.j.iter()) {
+                *o = o.max(a.abs());
+            }
+            for (o, a) in oa.iter_mut().zip(k.a.iter()) {
+                *o = o.max(a.abs());
+            }
+            for (o, a) in ov.iter_mut().zip(k.v.iter()) {
+                *o = o.max(a.abs());
+            }
+        }
+        out
+    }
+
     /// One tick under time-scaling (module docs); `phase` is `Run`.
     #[inline(never)]
     pub(super) fn hold_tick(&mut self) -> Result<Setpoint, Fault> {
@@ -183,7 +263,11 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
         );
         let [p1, p2, p3, _] = plan;
         let kin = Kin::new(dr, [p1 as f32, p2 as f32, p3 as f32]);
-        let ts = self.fh.ctl.control(&kin, &self.fh.lim, h);
+        let ahead = match self.fh.seg_tau {
+            Some(_) => [[0.0; 4]; 3],
+            None => self.ahead_acc(s, &kin, p1),
+        };
+        let ts = self.fh.ctl.control_ahead(&kin, &ahead, &self.fh.lim, h);
         let lam = self.fh.ctl.lambda();
         if let Some(tau) = self.fh.seg_tau {
             // dθ = ∫λ dt over the tick (exact: λ is a quadratic in t).
