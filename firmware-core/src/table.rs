@@ -1792,7 +1792,9 @@ impl<'a> Table<'a> {
                 curve.point_in_span(sa as usize, ua),
                 curve.point_in_span(sb as usize, ub),
             ) {
-                (Some(a), Some(b)) => a.iter().zip(b.iter()).all(|(x, y)| (x - y).abs() <= pos_tol),
+                (Some(a), Some(b)) => a.iter().zip(b.iter()).all(|(x, y)| {
+                    (x - y).abs() <= pos_tol.min(MATCH_TOL_REL * x.abs().max(y.abs()).max(1.0))
+                }),
                 _ => false,
             }
         };
@@ -1935,15 +1937,7 @@ impl<'a> Table<'a> {
                 .get_array::<PIECE_HEAD_LEN>(base)
                 .map(PieceU::from_array)
                 .ok_or(bad)?;
-            if !fast::check_piece(
-                &curve,
-                &seg,
-                (s0, s1),
-                (sa, sb),
-                words,
-                &head,
-                fast::pos_tol_mm(pos_scale),
-            ) {
+            if !fast::check_piece(&curve, &seg, (s0, s1), (sa, sb), words, &head, fast::POS_TOL_MM) {
                 return Err(bad);
             }
         }
