@@ -134,6 +134,19 @@ pub struct CertifiedPlan {
     pub chosen: usize,
 }
 
+/// `lp` with its tolerances relaxed to [`LP_TOL`]: every iterate is checked
+/// exactly, so the LPs of the sequence need not be solved to 1e-8.
+fn relaxed<'a>(lp: &FeedLp<'a>) -> FeedLp<'a> {
+    FeedLp {
+        settings: SolverSettings {
+            tol_gap: lp.settings.tol_gap.max(LP_TOL),
+            tol_feas: lp.settings.tol_feas.max(LP_TOL),
+            ..lp.settings
+        },
+        ..lp.clone()
+    }
+}
+
 /// Signed values of every limit at a check point, each divided by its limit:
 /// [q/q_max, acc x,y,z, tacc, jerk x,y,z, tjerk]. Exact kinematics (eqs. 1–6).
 fn values(lp: &FeedLp, p: &EvalPoint, qmax: f64, ctrl: &[f64]) -> [f64; 9] {
@@ -282,14 +295,7 @@ pub fn solve_window(
     reference: Option<&[f64]>,
 ) -> Result<CertifiedPlan, LpError> {
     let t0 = Instant::now();
-    let relaxed = FeedLp {
-        settings: SolverSettings {
-            tol_gap: lp.settings.tol_gap.max(LP_TOL),
-            tol_feas: lp.settings.tol_feas.max(LP_TOL),
-            ..lp.settings
-        },
-        ..lp.clone()
-    };
+    let relaxed = relaxed(lp);
     let lp = &relaxed;
     let n = lp.n_ctrl();
     let mut rows = Vec::with_capacity(lp.points.len() * 11);
@@ -375,15 +381,7 @@ fn solve_with(
     cfg: &CertifiedConfig,
     win: Option<Window>,
 ) -> Result<CertifiedPlan, LpError> {
-    // every iterate is checked exactly, so the LPs need not be solved to 1e-8
-    let relaxed = FeedLp {
-        settings: SolverSettings {
-            tol_gap: lp.settings.tol_gap.max(LP_TOL),
-            tol_feas: lp.settings.tol_feas.max(LP_TOL),
-            ..lp.settings
-        },
-        ..lp.clone()
-    };
+    let relaxed = relaxed(lp);
     let lp = &relaxed;
     let pts = lp.points;
     // jerk limit share at each check point: 1 − β next to a curvature jump

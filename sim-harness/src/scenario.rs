@@ -37,7 +37,7 @@ use planner_host::feed_override::{OverrideContext, OverrideOutcome};
 
 use crate::metrics::{self, Metrics, Tick, Toolpath};
 use crate::servo::{Axis, ServoConfig};
-use crate::sim::{CurveGeometry, SimError};
+use crate::sim::{servo_tick, CurveGeometry, SimError};
 
 /// The link between host and firmware.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
@@ -407,30 +407,7 @@ pub fn run_scenario(
             fault,
             ticks: ticks.len(),
         })?;
-        let ax = match &mut axes {
-            Some(a) => a,
-            None => {
-                let [c0, c1, c2] = &cfg.servo;
-                axes.insert([
-                    Axis::new(*c0, t, sp.pos_mm[0])?,
-                    Axis::new(*c1, t, sp.pos_mm[1])?,
-                    Axis::new(*c2, t, sp.pos_mm[2])?,
-                ])
-            }
-        };
-        let act_mm = [
-            ax[0].step(sp.pos_mm[0]),
-            ax[1].step(sp.pos_mm[1]),
-            ax[2].step(sp.pos_mm[2]),
-        ];
-        ticks.push(Tick {
-            t_s: sp.t_s,
-            cmd_mm: sp.pos_mm,
-            s_mm: sp.s_mm,
-            u: sp.u,
-            feed_mm_s: sp.feed_mm_s,
-            act_mm,
-        });
+        ticks.push(servo_tick(&mut axes, &cfg.servo, t, &sp)?);
         let (seq_now, level_now) = ip.active_profile();
         if seq_now != active_seq {
             if let Some(r) = seq_now.and_then(|q| recs.iter_mut().find(|r| r.sent_seqs.contains(&q))) {

@@ -321,6 +321,41 @@ pub fn planned_feed(table: &Table, n: usize) -> Series {
         .collect()
 }
 
+/// Drive the three servo axes with setpoint `sp` (created at its position on
+/// the first call) and record the tick: the one step [`run_table`] and the
+/// override scenarios ([`crate::scenario`]) share.
+pub(crate) fn servo_tick(
+    axes: &mut Option<[Axis; 3]>,
+    servo: &[ServoConfig; 3],
+    period_s: f64,
+    sp: &firmware_core::interp::Setpoint,
+) -> Result<Tick, ServoError> {
+    let ax = match axes {
+        Some(a) => a,
+        None => {
+            let [c0, c1, c2] = servo;
+            axes.insert([
+                Axis::new(*c0, period_s, sp.pos_mm[0])?,
+                Axis::new(*c1, period_s, sp.pos_mm[1])?,
+                Axis::new(*c2, period_s, sp.pos_mm[2])?,
+            ])
+        }
+    };
+    let act_mm = [
+        ax[0].step(sp.pos_mm[0]),
+        ax[1].step(sp.pos_mm[1]),
+        ax[2].step(sp.pos_mm[2]),
+    ];
+    Ok(Tick {
+        t_s: sp.t_s,
+        cmd_mm: sp.pos_mm,
+        s_mm: sp.s_mm,
+        u: sp.u,
+        feed_mm_s: sp.feed_mm_s,
+        act_mm,
+    })
+}
+
 /// Run a table through the interpolator and the servo models.
 pub fn run_table(bytes: &[u8], cfg: &SimConfig) -> Result<SimResult, SimError> {
     let table = Table::parse(bytes).map_err(SimError::Table)?;
@@ -370,30 +405,7 @@ pub fn run_table(bytes: &[u8], cfg: &SimConfig) -> Result<SimResult, SimError> {
             fault,
             ticks: ticks.len(),
         })?;
-        let ax = match &mut axes {
-            Some(a) => a,
-            None => {
-                let [c0, c1, c2] = &cfg.servo;
-                axes.insert([
-                    Axis::new(*c0, cfg.period_s, sp.pos_mm[0])?,
-                    Axis::new(*c1, cfg.period_s, sp.pos_mm[1])?,
-                    Axis::new(*c2, cfg.period_s, sp.pos_mm[2])?,
-                ])
-            }
-        };
-        let act_mm = [
-            ax[0].step(sp.pos_mm[0]),
-            ax[1].step(sp.pos_mm[1]),
-            ax[2].step(sp.pos_mm[2]),
-        ];
-        ticks.push(Tick {
-            t_s: sp.t_s,
-            cmd_mm: sp.pos_mm,
-            s_mm: sp.s_mm,
-            u: sp.u,
-            feed_mm_s: sp.feed_mm_s,
-            act_mm,
-        });
+        ticks.push(servo_tick(&mut axes, &cfg.servo, cfg.period_s, &sp)?);
     }
 
     // hold the end point: time until every axis stays in position
