@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Runs shared/checks/check_traj.py on a simulated CSV, plain and with --pad-rest 50, and prints
-# both JSON lines. Exit status: 0 when every check outside the known jerk findings of the paper's
-# formulation passes (endpoints, contour, monotone progress, velocity ratios). Acceleration and jerk ratios are reported: the paper's formulation holds them only at its evaluation points and starts and stops with an acceleration step (issue 5 makes them fatal).
-# STRICT=1 makes any failure (jerk included) fatal.
+# both JSON lines. Exit status: 0 when every check besides the acceleration and jerk ratios passes
+# (endpoints, contour, monotone progress, velocity ratios); acceleration and jerk failures are
+# printed as known open findings. STRICT=1 makes any failure (acceleration and jerk included)
+# fatal; CI runs every plan and override scenario STRICT, only the feed-hold scenario is not (issue 6).
 set -uo pipefail
 csv=$1; curve=$2; shift 2
 here=$(cd "$(dirname "$0")" && pwd)
@@ -20,7 +21,7 @@ bad = [f for f in r["fail"] if f not in known]
 if bad:
     print("  FAILED:", bad); sys.exit(1)
 if r["fail"]:
-    print("  known findings of the paper's formulation (issue 5):", r["fail"])
+    print("  known open findings (not fatal without STRICT=1):", r["fail"])
 PY
 done
 exit $status

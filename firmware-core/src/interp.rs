@@ -1137,7 +1137,9 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         }
         self.seg.left -= 1;
         self.seg.j = self.seg.j.wrapping_add(1);
-        let s = self.seg_advance();
+        // The forward differences may end a few Q40 quanta past L: never
+        // report s beyond L (the end tick reports L itself).
+        let s = self.seg_advance().min(self.len_fx);
         let tau_j = self.seg.tau_f - self.seg.j as f32 * self.h;
         let v = self.segk.stop_v * tau_j * tau_j;
         self.place(t_s, (fx_to_f64(s), s), v)

@@ -13,7 +13,7 @@ use planner_host::feed_override::OverrideContext;
 use planner_host::plan::{self, PlanConfig};
 
 use crate::plot::{self, FeedPlot};
-use crate::scenario::{self, Command, Event, Fate, LinkConfig, ScenarioConfig, ScenarioResult};
+use crate::scenario::{self, Command, Event, Fate, JitterConfig, LinkConfig, ScenarioConfig, ScenarioResult};
 use crate::sim::{self, CurveGeometry};
 
 /// Boxed error of the report.
@@ -36,6 +36,8 @@ pub struct Spec {
     pub kind: Kind,
     /// The link.
     pub link: LinkConfig,
+    /// Interrupt latency of the firmware's tick.
+    pub jitter: JitterConfig,
 }
 
 /// What the operator does in a scenario.
@@ -59,7 +61,8 @@ pub enum Kind {
         /// Seed.
         seed: u64,
     },
-    /// A storm with holds, lost messages and a host restart in mid-path.
+    /// A storm with lost messages and a host restart in mid-path (the
+    /// jitter is the spec's).
     Faults {
         /// Seed.
         seed: u64,
@@ -137,17 +140,6 @@ pub fn events(kind: Kind, t_pred: f64, levels: usize) -> Vec<Event> {
                 t_s: 0.5 * t_pred,
                 cmd: Command::HostRestart,
             });
-            for f in [0.25, 0.7] {
-                let at = f * t_pred + 0.013;
-                ev.push(Event {
-                    t_s: at,
-                    cmd: Command::Hold,
-                });
-                ev.push(Event {
-                    t_s: at + 0.25,
-                    cmd: Command::Resume,
-                });
-            }
         }
     }
     ev.sort_by(|a, b| a.t_s.total_cmp(&b.t_s));
@@ -171,6 +163,7 @@ pub fn catalogue(butterfly: &Nurbs, trident: Option<&Nurbs>, link: LinkConfig) -
             levels: vec![125.0],
             kind: Kind::Single(0.3),
             link,
+            jitter: JitterConfig::default(),
         },
         Spec {
             name: "fig14",
@@ -180,6 +173,7 @@ pub fn catalogue(butterfly: &Nurbs, trident: Option<&Nurbs>, link: LinkConfig) -
             levels: vec![30.0],
             kind: Kind::Single(0.3),
             link,
+            jitter: JitterConfig::default(),
         },
     ];
     if let Some(t) = trident {
@@ -191,6 +185,7 @@ pub fn catalogue(butterfly: &Nurbs, trident: Option<&Nurbs>, link: LinkConfig) -
             levels: vec![35.0],
             kind: Kind::Single(0.3),
             link,
+            jitter: JitterConfig::default(),
         });
     }
     v.extend([
@@ -206,6 +201,7 @@ pub fn catalogue(butterfly: &Nurbs, trident: Option<&Nurbs>, link: LinkConfig) -
                 seed: 7,
             },
             link,
+            jitter: JitterConfig::default(),
         },
         Spec {
             name: "holds",
@@ -219,10 +215,11 @@ pub fn catalogue(butterfly: &Nurbs, trident: Option<&Nurbs>, link: LinkConfig) -
                 seed: 11,
             },
             link,
+            jitter: JitterConfig::default(),
         },
         Spec {
             name: "faults",
-            what: "Butterfly at 6000 mm/min, the storm with every 3rd message lost, a host restart at mid-path and two holds".into(),
+            what: "Butterfly at 6000 mm/min, the storm with every 3rd message lost, a host restart at mid-path and a tick interrupt latency of up to 60 % of T".into(),
             curve: butterfly.clone(),
             vbar_mm_s: vbar,
             levels: storm_levels,
@@ -230,6 +227,10 @@ pub fn catalogue(butterfly: &Nurbs, trident: Option<&Nurbs>, link: LinkConfig) -
             link: LinkConfig {
                 drop_every: 3,
                 ..link
+            },
+            jitter: JitterConfig {
+                isr_latency_frac: 0.6,
+                seed: 17,
             },
         },
     ]);
@@ -273,6 +274,7 @@ pub fn run_spec(spec: &Spec, period_s: f64) -> Result<Run, BoxError> {
     let sc = ScenarioConfig {
         period_s,
         link: spec.link,
+        jitter: spec.jitter,
         events: events(spec.kind, planned.predicted_time_s, spec.levels.len()),
         ..ScenarioConfig::default()
     };
@@ -383,4 +385,4 @@ pub fn write_run(out: &Path, run: &Run) -> Result<(String, Vec<PathBuf>), BoxErr
 }
 
 /// The Markdown header of the report table.
-pub const TABLE_HEAD: &str = "| scenario | time s | active/superseded/skipped/failed/commands | refusals | latency ms (median / max) | host compute ms (median / max) | transition / ArcLen (median / max) | Case II / retries | feed err after merge mm/s | acc / jerk / tacc / tjerk (pad-rest) | max step / v·T | ends at r(1) |\n|---|---|---|---|---|---|---|---|---|---|---|---|";
+pub const TABLE_HEAD: &str = "| scenario | time s | active/superseded/skipped/failed/commands | refusals | latency ms (median / max) | host compute ms (median / max) | Case II / retries | transition / ArcLen (median / max) | feed err after merge mm/s | acc / jerk / tacc / tjerk (pad-rest) | max step / v·T | ends at r(1) |\n|---|---|---|---|---|---|---|---|---|---|---|---|";

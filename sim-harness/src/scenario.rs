@@ -85,6 +85,24 @@ pub enum Command {
     HostRestart,
 }
 
+/// Servo-period jitter of the firmware's tick interrupt.
+///
+/// The interpolator is clocked by one [`Interpolator::tick`] per servo
+/// period and has no notion of wall time: its setpoint for tick k is the
+/// plan at t = kT, written to a double-buffered output that the drives
+/// latch at the period boundary (as CSP drives on a distributed clock do).
+/// The interrupt itself starts late by a random latency each tick, so what
+/// the jitter changes is which tick a downlink message lands on (operator
+/// holds and resumes keep their tick); the setpoints stay on the nominal grid as long as each
+/// tick ends before its boundary ([`ScenarioResult::deadline_misses`]).
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
+pub struct JitterConfig {
+    /// Largest interrupt latency as a fraction of T (uniform in [0, this]).
+    pub isr_latency_frac: f64,
+    /// Seed of the latencies.
+    pub seed: u64,
+}
+
 /// An operator event.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct Event {
@@ -109,6 +127,8 @@ pub struct ScenarioConfig {
     pub max_ticks: usize,
     /// Sends per override command before the host gives up.
     pub max_attempts: u32,
+    /// Interrupt latency of the firmware's tick.
+    pub jitter: JitterConfig,
 }
 
 impl Default for ScenarioConfig {
@@ -120,6 +140,7 @@ impl Default for ScenarioConfig {
             events: Vec::new(),
             max_ticks: 5_000_000,
             max_attempts: 8,
+            jitter: JitterConfig::default(),
         }
     }
 }
@@ -231,6 +252,10 @@ pub struct ScenarioResult {
     pub jump_limit_mm: f64,
     /// Whether the last setpoint is the path's end point exactly.
     pub ended_at_end: bool,
+    /// Largest interrupt latency drawn, s ([`JitterConfig`]).
+    pub max_isr_latency_s: f64,
+    /// Downlink messages that reached the firmware a tick earlier than they would have without the latency.
+    pub shifted_by_jitter: u64,
 }
 
 #[derive(Debug, Clone)]
@@ -356,6 +381,9 @@ pub fn run_scenario(
     let mut axes: Option<[Axis; 3]> = None;
     let mut active_seq: Option<u32> = None;
     let link = cfg.link;
+    let jit = cfg.jitter;
+    let mut rng = crate::override_report::Rng::new(jit.seed);
+    let (mut max_isr_latency_s, mut shifted_by_jitter) = (0.0f64, 0u64);
 
     let mut k: u64 = 0;
     while !ip.is_done() {
@@ -367,10 +395,18 @@ pub fn run_scenario(
             });
         }
         let now = k as f64 * t;
+        // the tick's interrupt starts this late: what arrived by then is seen
+        let latency = if jit.isr_latency_frac > 0.0 {
+            jit.isr_latency_frac * t * rng.next_f64()
+        } else {
+            0.0
+        };
+        max_isr_latency_s = max_isr_latency_s.max(latency);
+        let isr = now + latency;
         // 1. downlink → firmware
-        while down.front().is_some_and(|(at, _)| *at <= now + 1e-12) {
+        while down.front().is_some_and(|(at, _)| *at <= isr + 1e-12) {
             let Some((
-                _,
+                at,
                 Down::Profile {
                     rec,
                     seq,
@@ -382,6 +418,9 @@ pub fn run_scenario(
             else {
                 break;
             };
+            if at > now + 1e-12 {
+                shifted_by_jitter += 1;
+            }
             let msg = FwProfile {
                 seq,
                 level,
@@ -634,6 +673,8 @@ pub fn run_scenario(
         max_step_mm,
         jump_limit_mm,
         ended_at_end,
+        max_isr_latency_s,
+        shifted_by_jitter,
     })
 }
 

@@ -2,7 +2,7 @@
 //! ticks, feed hold and resume, override profiles from the host (paper §4),
 //! and hostile ones — early, late, duplicated, replayed, with a wrong
 //! context, out of range, garbage values — on a table with override levels,
-//! at servo periods from 100 µs to 1 ms.
+//! at servo periods from 80 µs to 1.2 ms.
 //!
 //! Whatever the sequence: no panic; every tick either gives a setpoint or a
 //! typed fault, and after a fault only faults; no setpoint moves farther in
@@ -235,8 +235,14 @@ fn run(period: f64, cmds: &[Cmd]) -> Result<(), TestCaseError> {
             }
             Cmd::Replay { back } => {
                 if let Some((s, level, first, ctrl)) = sent.iter().rev().nth(*back).cloned() {
+                    // a number at or below one accepted is refused; a message
+                    // refused before (queue full, late, …) may be accepted now
+                    let stale = book.accepted.iter().any(|&a| a >= s);
                     let r = offer(&mut ip, &mut book, s, level, first, &ctrl);
-                    prop_assert!(r.is_err(), "a replayed sequence number {s} was accepted again");
+                    prop_assert!(
+                        !stale || r.is_err(),
+                        "a replayed sequence number {s} was accepted again"
+                    );
                 }
             }
             Cmd::Raw {
@@ -316,6 +322,30 @@ fn run(period: f64, cmds: &[Cmd]) -> Result<(), TestCaseError> {
     Ok(())
 }
 
+/// Found by the property test: the stop segment's forward differences ended
+/// two Q40 quanta past L (s then stepped back to L on the end tick); s is
+/// now clamped to L.
+#[test]
+fn regression_stop_segment_never_passes_the_end() {
+    let cmds = [
+        Cmd::Hold,
+        Cmd::Host {
+            level: 2,
+            ahead_mm: 18.696474637721174,
+        },
+        Cmd::Ticks(925),
+        Cmd::Host {
+            level: 1,
+            ahead_mm: 9.719329750335095,
+        },
+        Cmd::Host {
+            level: 0,
+            ahead_mm: 17.959860401344443,
+        },
+    ];
+    run(333.3e-6, &cmds).unwrap();
+}
+
 proptest! {
     // a fixed seed: CI runs the same 48 cases every time (PROPTEST_RNG_SEED
     // is ignored); change the seed to explore
@@ -328,7 +358,11 @@ proptest! {
 
     #[test]
     fn random_command_sequences_never_break_the_motion(
-        period_us in prop_oneof![Just(100.0f64), Just(250.0), Just(333.3), Just(1000.0)],
+        // the common periods, and any period in between (the interpolator is
+        // clocked by its tick, so a servo clock off the plan's period is
+        // just another T; per-tick interrupt jitter is in the `faults`
+        // scenario of sim-harness)
+        period_us in prop_oneof![Just(100.0f64), Just(250.0), Just(333.3), Just(1000.0), 80.0f64..1200.0],
         cmds in prop::collection::vec(cmd(), 1..40),
     ) {
         run(period_us * 1e-6, &cmds)?;

@@ -390,8 +390,18 @@ fn override_report(
         println!("{row}");
         md.push_str(&row);
         md.push('\n');
+        let jitter = if spec.jitter.isr_latency_frac > 0.0 {
+            format!(
+                " Tick interrupt latency up to {:.0} us drawn per tick (largest {:.1} us); {} downlink message(s) reached the firmware one tick earlier for it.",
+                spec.jitter.isr_latency_frac * period_us,
+                run.result.max_isr_latency_s * 1e6,
+                run.result.shifted_by_jitter
+            )
+        } else {
+            String::new()
+        };
         notes.push_str(&format!(
-            "- **{}**: {} Plan with {} level(s) {:.2} s, override context {:.1} ms; files {}.\n",
+            "- **{}**: {}{jitter} Plan with {} level(s) {:.2} s, override context {:.1} ms; files {}.\n",
             spec.name,
             spec.what,
             spec.levels.len(),
