@@ -682,20 +682,37 @@ impl FeedHold {
         } else {
             (1.0 - self.lam, self.mu, lo, hi)
         };
-        let b = b0.min(THETA * (-ulo).max(0.25 * cap));
-        let kappa = if hold || x < X_TAIL {
+        // Resuming past λ = 1 (x < 0: the tail was broken by an infeasible
+        // tick and λ overshot by ~w²/2|u|, a speed of a fraction 1e-7 over
+        // the plan): the mirrored approach brings it back and lands, rather
+        // than a snap that would step the acceleration by μV.
+        let mirror = !hold && x < 0.0;
+        let (xa, wa, la, ha) = if mirror {
+            (-x, -w, -uhi, -ulo)
+        } else {
+            (x, w, ulo, uhi)
+        };
+        let b = b0.min(THETA * (-la).max(0.25 * cap));
+        let kappa = if hold || mirror || xa < X_TAIL {
             f64::INFINITY
         } else {
             f64::from(kin.tail_rate(lim))
         };
-        let (u, lands) = approach(x, w, (ulo, uhi), b, kappa, h);
-        // Resuming: the exponential tail lands within X_SNAP; either way a
-        // state at the target up to rounding lands.
-        let lands = lands || (!hold && x < X_SNAP) || (x < 1e-12 && w.abs() < 1e-6);
+        let (ua, lands) = approach(xa, wa, (la, ha), b, kappa, h);
+        let u = if mirror { -ua } else { ua };
+        // Resuming: the exponential tail lands within X_SNAP (unless μ is
+        // still large: then it crosses and comes back, see above); either
+        // way a state at the target up to rounding lands.
+        let lands = lands || (!hold && xa < X_SNAP && wa.abs() < 1e-4) || (xa < 1e-12 && wa.abs() < 1e-6);
         let nu = if hold { -u } else { u };
         let x1 = x - w * h - 0.5 * u * h * h;
         let w1 = w + u * h;
-        let (x1, w1) = if lands || x1 <= 0.0 {
+        // A resume's landing that the constraints clamped does not land
+        // (it crosses and comes back); a hold's does (λ < 0 would run
+        // backwards).
+        let lands = lands && (hold || w1.abs() < 1e-4);
+        let crossed = x1 <= 0.0 && (hold || (w1.abs() < 1e-4 && x1 > -1e-9));
+        let (x1, w1) = if lands || crossed {
             if w1.abs() > 1e-4 || x1 < -1e-12 {
                 self.stats.forced = self.stats.forced.saturating_add(1);
             }

@@ -34,7 +34,12 @@ fn plan() -> &'static Plan {
     static P: OnceLock<Plan> = OnceLock::new();
     P.get_or_init(|| {
         let curve = builtin::butterfly().unwrap();
-        let out = plan::plan_curve(&curve, &PlanConfig::default()).unwrap();
+        // HOLD_VBAR (mm/s) plans at another programmed feed (diagnosis)
+        let mut cfg = PlanConfig::default();
+        if let Some(v) = std::env::var("HOLD_VBAR").ok().and_then(|v| v.parse().ok()) {
+            cfg.limits.vbar = v;
+        }
+        let out = plan::plan_curve(&curve, &cfg).unwrap();
         let bytes = out.table_bytes;
         let mut it = Interpolator::new(Table::parse(&bytes).unwrap(), PERIOD_S).unwrap();
         let mut base = Vec::new();
@@ -219,6 +224,16 @@ fn diag(run: &Run, lim: &Limits) {
                     "    {name} {what} {r:.3} at tick {k} t {:.5} s {:.4} {st:?} λ {l:.6} μ {mu:.4} since {since:?}",
                     run.pts[k].t_s, run.pts[k].s_mm
                 );
+                if std::env::var("HOLD_DIAG").as_deref() == Ok("2") {
+                    for kk in k.saturating_sub(14)..(k + 6).min(run.pts.len() - 1) {
+                        let (st, l, mu) = run.scale[kk];
+                        let fdj = arr.get(kk.wrapping_sub(off)).map_or(f64::NAN, |v| v / *m);
+                        eprintln!(
+                            "      tick {kk} {st:?} λ-1 {:.3e} μ {mu:.5} ratio {fdj:.4}",
+                            l - 1.0
+                        );
+                    }
+                }
             }
         }
     }
