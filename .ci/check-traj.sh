@@ -3,7 +3,7 @@
 # both JSON lines. Exit status: 0 when every check besides the acceleration and jerk ratios passes
 # (endpoints, contour, monotone progress, velocity ratios); acceleration and jerk failures are
 # printed as known open findings. STRICT=1 makes any failure (acceleration and jerk included)
-# fatal; CI runs every plan and override scenario STRICT, only the feed-hold scenario is not (issue 6).
+# fatal; CI runs every plan and override scenario STRICT.
 set -uo pipefail
 csv=$1; curve=$2; shift 2
 here=$(cd "$(dirname "$0")" && pwd)

@@ -53,10 +53,13 @@
 //!   resuming); while stopping, |A| is also taken as no less than the
 //!   largest |A| of the plan over the arc length the stop can still cover
 //!   (sampled ahead by the tick), and μV must leave the plan's λ²|A| ahead
-//!   room within [`RHO_AHEAD`]·a ([`mu_cap_ahead`]). Above the cap |μ| may
-//!   only shrink; while stopping, if the jerk and acceleration constraints
-//!   are feasible without the cap it yields, and if not even they are, the
-//!   relaxed ν still keeps |μ| within the cap.
+//!   room within [`RHO_AHEAD`]·a ([`mu_cap_ahead`]); the stop segment
+//!   ahead counts with its entry. Above the cap |μ| may only shrink, and
+//!   the cap is hard: a relaxed ν (infeasible tick) still keeps |μ| within
+//!   it. (Letting the cap yield to the jerk and acceleration constraints of
+//!   the tick, as before, let μ grow where the plan decelerates — braking
+//!   there is self-reinforcing: 3λμA adds to a J against A, and the ν that
+//!   compensates brakes harder — up to 1.2× j before the end.)
 //!
 //! and intersects them ([`interval`]). If the intersection is empty it
 //! takes the ν that minimises the largest relative violation (exactly: the
@@ -102,10 +105,14 @@ pub const RHO_M: f32 = 0.5;
 /// plan's acceleration ahead may use together ([`mu_cap_ahead`]).
 pub const RHO_AHEAD: f32 = 0.8;
 /// Smallest μ cap (1/s) the acceleration look-ahead leaves (a hold always
-/// makes progress).
-pub const MU_FLOOR: f32 = 0.5;
-/// Smallest μ cap (1/s) the jerk look-ahead leaves.
-pub const MU_FLOOR_J: f32 = 2.0;
+/// makes progress: 1 − λ then grows at least exponentially, at the rate
+/// the plan's slack (1 − λ²)a, (1 − λ³)j opens). Small: μ_f·|V| is an
+/// acceleration the plan's may not leave room for (0.5 before gave 1.07× j
+/// at some hold points; 0.02 × 166 mm/s is 0.2 % of 1500 mm/s²).
+pub const MU_FLOOR: f32 = 0.02;
+/// Smallest μ cap (1/s) the jerk look-ahead leaves (the same; 3μ_f|A| is
+/// 0.9 % of 16000 mm/s³ at |A| = 1000 mm/s², 2.0 before).
+pub const MU_FLOOR_J: f32 = 0.05;
 /// Fraction of the braking capacity the braking curve plans with.
 pub const THETA: f64 = 0.7;
 /// A resume within this of λ = 1 lands (rounding only: snapping λ by x
@@ -651,10 +658,7 @@ impl FeedHold {
             // acceleration limits are not: if they are feasible without
             // it, it yields (a cap that dropped under |μ| as the plan's A
             // grew would otherwise force ν against the jerk limit).
-            let rest = interval(cons.get(..N_CONS - 1).unwrap_or(&[]));
-            if rest.relax <= 1.0 {
-                iv = rest;
-            } else if let Some(k) = cons.last() {
+            if let Some(k) = cons.last() {
                 // Infeasible even so: |μ| does not grow past the cap (the
                 // relaxation would otherwise let it grow with the
                 // violation, and 3λμA with it).

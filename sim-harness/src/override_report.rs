@@ -13,7 +13,9 @@ use planner_host::feed_override::OverrideContext;
 use planner_host::plan::{self, PlanConfig};
 
 use crate::plot::{self, FeedPlot};
-use crate::scenario::{self, Command, Event, Fate, JitterConfig, LinkConfig, ScenarioConfig, ScenarioResult};
+use crate::scenario::{
+    self, Command, Event, Fate, HoldPoint, JitterConfig, LinkConfig, ScenarioConfig, ScenarioResult,
+};
 use crate::sim::{self, CurveGeometry};
 
 /// Boxed error of the report.
@@ -52,7 +54,7 @@ pub enum Kind {
         /// Seed of the level choice.
         seed: u64,
     },
-    /// Feed holds at `n` random times, each resumed after `held_s`.
+    /// Feed holds at `n` random points of the path ([`hold_points`]).
     Holds {
         /// How many.
         n: usize,
@@ -112,27 +114,8 @@ pub fn events(kind: Kind, t_pred: f64, levels: usize) -> Vec<Event> {
             cmd: Command::Override { level: 1 },
         }),
         Kind::Storm { every_s, seed } => storm(&mut ev, every_s, &mut Rng::new(seed)),
-        Kind::Holds { n, held_s, seed } => {
-            let mut rng = Rng::new(seed);
-            let mut ts: Vec<f64> = (0..n).map(|_| (0.02 + 0.93 * rng.next_f64()) * t_pred).collect();
-            ts.sort_by(f64::total_cmp);
-            // holds in sequence: each one's time is shifted by the time already spent held
-            let mut spent = 0.0;
-            let mut last_end = 0.0;
-            for t in ts {
-                let at = (t + spent).max(last_end + 0.05);
-                ev.push(Event {
-                    t_s: at,
-                    cmd: Command::Hold,
-                });
-                ev.push(Event {
-                    t_s: at + held_s,
-                    cmd: Command::Resume,
-                });
-                spent += held_s + 0.3;
-                last_end = at + held_s + 0.3;
-            }
-        }
+        // holds are at points of the path ([`hold_points`])
+        Kind::Holds { .. } => {}
         Kind::Faults { seed } => {
             let mut rng = Rng::new(seed);
             storm(&mut ev, 0.05, &mut rng);
@@ -144,6 +127,26 @@ pub fn events(kind: Kind, t_pred: f64, levels: usize) -> Vec<Event> {
     }
     ev.sort_by(|a, b| a.t_s.total_cmp(&b.t_s));
     ev
+}
+
+/// The feed holds of `kind` on a path of `length_mm`: `n` points, one drawn
+/// uniformly in each n-th of 2–98 % of the length, resumed `held_s` after coming to
+/// rest (even ones) or after the hold (odd ones, so often while still
+/// stopping).
+pub fn hold_points(kind: Kind, length_mm: f64) -> Vec<HoldPoint> {
+    let Kind::Holds { n, held_s, seed } = kind else {
+        return Vec::new();
+    };
+    let mut rng = Rng::new(seed);
+    (0..n)
+        .map(|i| (0.02 + 0.96 * (i as f64 + rng.next_f64()) / n as f64) * length_mm)
+        .enumerate()
+        .map(|(i, s_mm)| HoldPoint {
+            s_mm,
+            resume_after_s: held_s,
+            after_rest: i % 2 == 0,
+        })
+        .collect()
 }
 
 /// The catalogue: Figs 13–15 (captions read in mm/min, ERRATA), the storm,
@@ -205,12 +208,12 @@ pub fn catalogue(butterfly: &Nurbs, trident: Option<&Nurbs>, link: LinkConfig) -
         },
         Spec {
             name: "holds",
-            what: "Butterfly at 6000 mm/min, 12 feed holds at random points, each resumed after 0.2 s".into(),
+            what: "Butterfly at 6000 mm/min, 8 feed holds at random points of the path (one in each eighth), resumed 0.2 s after coming to rest (even ones) or 0.2 s after the hold (odd ones, so often while still stopping)".into(),
             curve: butterfly.clone(),
             vbar_mm_s: vbar,
             levels: Vec::new(),
             kind: Kind::Holds {
-                n: 12,
+                n: 8,
                 held_s: 0.2,
                 seed: 11,
             },
@@ -276,6 +279,7 @@ pub fn run_spec(spec: &Spec, period_s: f64) -> Result<Run, BoxError> {
         link: spec.link,
         jitter: spec.jitter,
         events: events(spec.kind, planned.predicted_time_s, spec.levels.len()),
+        hold_points: hold_points(spec.kind, planned.path_length_mm),
         ..ScenarioConfig::default()
     };
     let result = scenario::run_scenario(&planned.table_bytes, &ctx, Some(&geometry), &sc)?;

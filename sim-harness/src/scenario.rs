@@ -26,6 +26,7 @@
 use std::collections::VecDeque;
 use std::time::Instant;
 
+use firmware_core::hold::HoldState;
 use firmware_core::interp::{Interpolator, OVERRIDE_Q, OVERRIDE_W};
 
 /// The interpolator with the default override capacities.
@@ -112,6 +113,21 @@ pub struct Event {
     pub cmd: Command,
 }
 
+/// A feed hold at a point of the path, and its resume.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct HoldPoint {
+    /// The hold is pressed when the setpoint passes this arc length, mm
+    /// (while running or resuming; a point passed while stopping or held
+    /// waits for the resume).
+    pub s_mm: f64,
+    /// Resume this long after the machine came to rest (or, if
+    /// `after_rest` is false, after the hold was pressed: often while
+    /// still stopping), s.
+    pub resume_after_s: f64,
+    /// See `resume_after_s`.
+    pub after_rest: bool,
+}
+
 /// A scenario.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct ScenarioConfig {
@@ -129,6 +145,8 @@ pub struct ScenarioConfig {
     pub max_attempts: u32,
     /// Interrupt latency of the firmware's tick.
     pub jitter: JitterConfig,
+    /// Feed holds at points of the path, by arc length.
+    pub hold_points: Vec<HoldPoint>,
 }
 
 impl Default for ScenarioConfig {
@@ -141,6 +159,7 @@ impl Default for ScenarioConfig {
             max_ticks: 5_000_000,
             max_attempts: 8,
             jitter: JitterConfig::default(),
+            hold_points: Vec::new(),
         }
     }
 }
@@ -385,6 +404,11 @@ pub fn run_scenario(
     let mut rng = crate::override_report::Rng::new(jit.seed);
     let (mut max_isr_latency_s, mut shifted_by_jitter) = (0.0f64, 0u64);
 
+    let mut resume_when_held: Option<f64> = None;
+    let mut resume_at: Option<f64> = None;
+    let mut hold_points = cfg.hold_points.clone();
+    hold_points.sort_by(|a, b| a.s_mm.total_cmp(&b.s_mm));
+    let mut hold_points: VecDeque<HoldPoint> = hold_points.into();
     let mut k: u64 = 0;
     while !ip.is_done() {
         if ticks.len() >= cfg.max_ticks {
@@ -456,8 +480,9 @@ pub fn run_scenario(
             }
             active_seq = seq_now;
         }
-        for h in holds.iter_mut() {
-            if h.t_stopped_s.is_none() && sp.feed_mm_s == 0.0 && !ip.is_done() {
+        // (a hold resumed before it came to rest never gets a stop time)
+        if let Some(h) = holds.last_mut() {
+            if h.t_stopped_s.is_none() && h.t_resume_s.is_none() && sp.feed_mm_s == 0.0 && !ip.is_done() {
                 h.t_stopped_s = Some(sp.t_s);
                 h.s_stopped_mm = Some(sp.s_mm);
             }
@@ -541,6 +566,41 @@ pub fn run_scenario(
             } else {
                 host.waiting = Some(rec);
             }
+        }
+        // holds at points of the path, and their resumes
+        // (pressed again while still resuming is fine: the hold takes over)
+        let running = matches!(ip.hold_state(), HoldState::Running | HoldState::Resuming)
+            && resume_when_held.is_none()
+            && resume_at.is_none();
+        if running && hold_points.front().is_some_and(|hp| sp.s_mm >= hp.s_mm) {
+            if let Some(hp) = hold_points.pop_front() {
+                hold_cmd(&mut ip, true);
+                holds.push(HoldRecord {
+                    t_hold_s: now,
+                    s_hold_mm: sp.s_mm,
+                    t_stopped_s: None,
+                    s_stopped_mm: None,
+                    t_resume_s: None,
+                });
+                if hp.after_rest {
+                    resume_when_held = Some(hp.resume_after_s);
+                } else {
+                    resume_at = Some(now + hp.resume_after_s);
+                }
+            }
+        }
+        let rest_since = holds.last().and_then(|h| h.t_stopped_s);
+        let due = resume_at.is_some_and(|t| now >= t)
+            || resume_when_held.is_some_and(|after| {
+                ip.hold_state() == HoldState::Held && rest_since.is_some_and(|t0| now >= t0 + after)
+            });
+        if due {
+            hold_cmd(&mut ip, false);
+            if let Some(h) = holds.last_mut() {
+                h.t_resume_s = Some(now);
+            }
+            resume_when_held = None;
+            resume_at = None;
         }
         // 4. operator
         while events.front().is_some_and(|e| e.t_s <= now + 1e-12) {
@@ -664,6 +724,11 @@ pub fn run_scenario(
         (Some(tk), Some(p)) => tk.cmd_mm == p,
         _ => false,
     };
+    if std::env::var_os("SCENARIO_DEBUG").is_some() {
+        for h in &holds {
+            eprintln!("{h:?}");
+        }
+    }
     let metrics = metrics::compute(&ticks, t, &limits, geometry.map(|g| g as &dyn Toolpath));
     Ok(ScenarioResult {
         ticks,

@@ -180,10 +180,20 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
         let d = (AHEAD_FACTOR * v * t_go).min(AHEAD_MAX_MM);
         let v_ = &self.views;
         let (mut pi, mut qi) = (self.pc.idx, self.qc.idx);
+        let mut into_stop = false;
         for k in 0..=AHEAD_N {
-            let sk = s.saturating_add(to_fx(d * k as f64 / AHEAD_N as f64));
+            let mut sk = s.saturating_add(to_fx(d * k as f64 / AHEAD_N as f64));
             if sk >= self.stop_at {
-                break;
+                // The stop segment ahead: its entry (the largest |A| of the
+                // segment, J = J₂ at the jerk limit all along) with the
+                // path's derivatives just before s₂.
+                match self.ends {
+                    Some(_) if !into_stop && self.stop_at > s => {
+                        into_stop = true;
+                        sk = self.stop_at.wrapping_sub(1);
+                    }
+                    _ => break,
+                }
             }
             while pi < v_.p_last
                 && v_
@@ -214,10 +224,18 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
                 v_.q(qi)
             };
             let Some(qc) = qc else { break };
-            let tq = fx_small_f32(sk.wrapping_sub(qc.anchor), 20);
-            let qs = q_eval(&qc, &qc.poly, sk, tq, self.qs.v);
-            let [_, dq, ddq, _] = qs.qd;
-            let k = Kin::new(dr, [qs.v, 0.5 * dq, 0.5 * ddq * qs.v]);
+            let k = match (into_stop, self.ends) {
+                (true, Some(e)) => {
+                    let (j2, t2) = (e.jerk_stop as f32, e.t_stop as f32);
+                    Kin::new(dr, [0.5 * j2 * t2 * t2, -j2 * t2, j2])
+                }
+                _ => {
+                    let tq = fx_small_f32(sk.wrapping_sub(qc.anchor), 20);
+                    let qs = q_eval(&qc, &qc.poly, sk, tq, self.qs.v);
+                    let [_, dq, ddq, _] = qs.qd;
+                    Kin::new(dr, [qs.v, 0.5 * dq, 0.5 * ddq * qs.v])
+                }
+            };
             let [oa, ov, oj] = &mut out;
             for (o, a) in oj.iter_mut().zip(k.j.iter()) {
                 *o = o.max(a.abs());
@@ -227,6 +245,9 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
             }
             for (o, a) in ov.iter_mut().zip(k.v.iter()) {
                 *o = o.max(a.abs());
+            }
+            if into_stop {
+                break;
             }
         }
         out

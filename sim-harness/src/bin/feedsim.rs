@@ -401,7 +401,7 @@ fn override_report(
             String::new()
         };
         notes.push_str(&format!(
-            "- **{}**: {}{jitter} Plan with {} level(s) {:.2} s, override context {:.1} ms; files {}.\n",
+            "- **{}**: {}.{jitter} Plan with {} level(s) {:.2} s, override context {:.1} ms; files {}.\n",
             spec.name,
             spec.what,
             spec.levels.len(),
@@ -413,6 +413,29 @@ fn override_report(
                 .collect::<Vec<_>>()
                 .join(", ")
         ));
+        let h = &run.result.holds;
+        if !h.is_empty() {
+            let dist: Vec<f64> = h
+                .iter()
+                .filter_map(|r| Some(r.s_stopped_mm? - r.s_hold_mm))
+                .collect();
+            let time: Vec<f64> = h
+                .iter()
+                .filter_map(|r| Some(r.t_stopped_s? - r.t_hold_s))
+                .collect();
+            notes.push_str(&format!(
+                "  Holds: {} pressed, {} came to rest (the others were resumed while stopping); hold to rest {} mm and {} s (median / max); `{}_holds.json`.\n",
+                h.len(),
+                dist.len(),
+                sim_harness::scenario::median_max(&dist).map_or("–".into(), |(a, b)| format!("{a:.1} / {b:.1}")),
+                sim_harness::scenario::median_max(&time).map_or("–".into(), |(a, b)| format!("{a:.2} / {b:.2}")),
+                spec.name
+            ));
+            sim_harness::csv::write_atomic(
+                &out.join(format!("{}_holds.json", spec.name)),
+                serde_json::to_string_pretty(h)?.as_bytes(),
+            )?;
+        }
         let json = serde_json::to_string_pretty(&run.result.overrides)?;
         sim_harness::csv::write_atomic(
             &out.join(format!("{}_overrides.json", spec.name)),
