@@ -385,7 +385,7 @@ impl HoldLimits {
 /// grows at up to λ·j meanwhile (the plan's jerk bound; no look-ahead along
 /// the path is needed): the root of 3λμ(|A| + λjμ/ν_r) = RHO_M·j.
 pub fn mu_cap(k: &Kin, lim: &HoldLimits, lam: f32, nu_r: f32) -> f32 {
-    mu_cap_ahead(k, &[[0.0; 4]; 3], lim, lam, nu_r)
+    mu_cap_ahead(k, &[[0.0; 4]; 6], lim, lam, nu_r)
 }
 
 /// [`mu_cap`] with a look-ahead: `ahead` = [max |A|, max |V|] per axis and
@@ -395,9 +395,9 @@ pub fn mu_cap(k: &Kin, lim: &HoldLimits, lam: f32, nu_r: f32) -> f32 {
 /// [`RHO_AHEAD`]·a (else the end-of-tick acceleration constraint, one tick
 /// deep, meets the plan's growing A too late and the jerk limit cannot
 /// unwind μ in time).
-pub fn mu_cap_ahead(k: &Kin, ahead: &[[f32; 4]; 3], lim: &HoldLimits, lam: f32, nu_r: f32) -> f32 {
+pub fn mu_cap_ahead(k: &Kin, ahead: &[[f32; 4]; 6], lim: &HoldLimits, lam: f32, nu_r: f32) -> f32 {
     let mut cap = f32::INFINITY;
-    let [a_ah, v_ah, j_ah] = ahead;
+    let [a_ah, v_ah, j_all, a_acc, j_opp, a_opp] = ahead;
     for (i, (a, j)) in k.a.iter().zip(lim.j.iter()).enumerate() {
         let (aa, va, am) = (
             a_ah.get(i).copied().unwrap_or(0.0),
@@ -405,13 +405,30 @@ pub fn mu_cap_ahead(k: &Kin, ahead: &[[f32; 4]; 3], lim: &HoldLimits, lam: f32, 
             lim.a.get(i).copied().unwrap_or(0.0),
         );
         if va > 0.0 {
-            let room = RHO_AHEAD * am - lam * lam * aa;
+            // (braking adds to the plan's acceleration only where A is
+            // against V)
+            let room = RHO_AHEAD * am - lam * lam * a_acc.get(i).copied().unwrap_or(0.0);
             cap = cap.min((room / va).max(MU_FLOOR));
             // The jerk the plan's λ³|J| ahead leaves for 3λμA.
-            let ja = j_ah.get(i).copied().unwrap_or(0.0);
+            // On the axes, 3λμA adds to the plan's jerk only where J is
+            // against A (tangentially, where the stop segment and the q
+            // knots switch J's sign within a tick, all of the largest |J|
+            // is taken).
+            let (ja, aj) = if i < 3 {
+                (
+                    j_opp.get(i).copied().unwrap_or(0.0),
+                    a_opp.get(i).copied().unwrap_or(0.0),
+                )
+            } else {
+                (j_all.get(i).copied().unwrap_or(0.0), aa)
+            };
             let room = RHO_AHEAD * (RHO_J * j - lam * lam * lam * ja);
+            if aj > 0.0 && lam > 0.0 {
+                cap = cap.min((room / (3.0 * lam * aj)).max(MU_FLOOR_J));
+            }
             if aa > 0.0 && lam > 0.0 {
-                cap = cap.min((room / (3.0 * lam * aa)).max(MU_FLOOR_J));
+                // (and not overshooting the limit the other way)
+                cap = cap.min(RHO_AHEAD * RHO_J * j / (3.0 * lam * aa));
             }
         }
         let a = a.abs().max(aa);
@@ -440,7 +457,7 @@ pub fn constraints(
     h: f32,
     nu_r: f32,
     lam_cap: f32,
-    ahead: &[[f32; 4]; 3],
+    ahead: &[[f32; 4]; 6],
 ) -> [Lin; N_CONS] {
     let mut out = [Lin::default(); N_CONS];
     let (l2, l3) = (lam * lam, lam * lam * lam);
@@ -617,7 +634,7 @@ impl FeedHold {
     /// state (`kin` at the current s), advances λ and μ, and returns the
     /// tick's (λ, μ, ν) for the step of s.
     pub fn control(&mut self, kin: &Kin, lim: &HoldLimits, h: f64) -> TickScale {
-        self.control_ahead(kin, &[[0.0; 4]; 3], lim, h)
+        self.control_ahead(kin, &[[0.0; 4]; 6], lim, h)
     }
 
     /// The braking deceleration of λ (1/s²) the controller plans with at
@@ -629,7 +646,7 @@ impl FeedHold {
     /// [`FeedHold::control`] with a look-ahead: `ahead` the largest |A| and
     /// |V| per axis and tangentially the plan reaches over the arc length
     /// the stop can still cover (the μ cap, [`mu_cap_ahead`]).
-    pub fn control_ahead(&mut self, kin: &Kin, ahead: &[[f32; 4]; 3], lim: &HoldLimits, h: f64) -> TickScale {
+    pub fn control_ahead(&mut self, kin: &Kin, ahead: &[[f32; 4]; 6], lim: &HoldLimits, h: f64) -> TickScale {
         let now = TickScale {
             lam: self.lam,
             mu: self.mu,

@@ -270,7 +270,12 @@ fn all_holds() -> (metrics::Ratios, metrics::Ratios, usize) {
         "tightest curve at s = {:.3} mm, feed {:.2} mm/s",
         tight.s_mm, tight.feed_mm_s
     );
-    let mut at: Vec<f64> = lcg(6, 20).into_iter().map(|x| x * p.len).collect();
+    // HOLD_N (diagnosis): this many random points instead of 20
+    let n = std::env::var("HOLD_N")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(20);
+    let mut at: Vec<f64> = lcg(6, n).into_iter().map(|x| x * p.len).collect();
     at.extend([
         0.5 * ends.s_start,
         ends.s_start + 0.01,

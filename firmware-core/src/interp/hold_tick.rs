@@ -165,8 +165,8 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
     /// planned braking rate times the plan's feed `v`, × [`AHEAD_FACTOR`]),
     /// pieces and q spans read from the views (the current q span from its
     /// cursor). Hold and resume ticks only.
-    fn ahead_acc(&self, s: i64, kin: &Kin, v: f64) -> [[f32; 4]; 3] {
-        let mut out = [[0.0f32; 4]; 3];
+    fn ahead_acc(&self, s: i64, kin: &Kin, v: f64) -> [[f32; 4]; 6] {
+        let mut out = [[0.0f32; 4]; 6];
         let b = FeedHold::braking(kin, &self.fh.lim);
         let (lam, mu) = (self.fh.ctl.lambda(), self.fh.ctl.mu());
         let x = lam;
@@ -236,7 +236,22 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
                     Kin::new(dr, [qs.v, 0.5 * dq, 0.5 * ddq * qs.v])
                 }
             };
-            let [oa, ov, oj] = &mut out;
+            let [oa, ov, oj, oacc, ojo, oao] = &mut out;
+            for i in 0..4 {
+                if let (Some(o1), Some(o2), Some(a), Some(j)) =
+                    (ojo.get_mut(i), oao.get_mut(i), k.a.get(i), k.j.get(i))
+                {
+                    if a * j < 0.0 {
+                        *o1 = o1.max(j.abs());
+                        *o2 = o2.max(a.abs());
+                    }
+                }
+            }
+            for ((o, a), v) in oacc.iter_mut().zip(k.a.iter()).zip(k.v.iter()) {
+                if a * v < 0.0 {
+                    *o = o.max(a.abs());
+                }
+            }
             for (o, a) in oj.iter_mut().zip(k.j.iter()) {
                 *o = o.max(a.abs());
             }
@@ -285,7 +300,7 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
         let [p1, p2, p3, _] = plan;
         let kin = Kin::new(dr, [p1 as f32, p2 as f32, p3 as f32]);
         let ahead = match self.fh.seg_tau {
-            Some(_) => [[0.0; 4]; 3],
+            Some(_) => [[0.0; 4]; 6],
             None => self.ahead_acc(s, &kin, p1),
         };
         let ts = self.fh.ctl.control_ahead(&kin, &ahead, &self.fh.lim, h);
