@@ -122,11 +122,11 @@ pub const X_SNAP: f64 = 1e-12;
 /// Below this 1 − λ a resume leaves the exponential tail and lands by the
 /// landing law (ν ≈ −κ²x/2, a jerk of ~1e-3 mm/s³ here; the tail alone
 /// would never reach λ = 1).
-pub const X_TAIL: f64 = 1e-5;
-/// Constraints per tick: jerk (for the plan's J and for −J, see
-/// [`constraints`]) and end acceleration for 3 axes and the tangent, and
+pub const X_TAIL: f64 = 1e-12;
+/// Constraints per tick: jerk (for the plan's J, for −J and for J grown
+/// by its last change, see [`constraints`]) and end acceleration for 3 axes and the tangent, and
 /// the cap on |μ| ([`mu_cap`]).
-pub const N_CONS: usize = 13;
+pub const N_CONS: usize = 17;
 
 /// The feed-hold state.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -170,6 +170,12 @@ pub struct HoldStats {
     pub worst_relax: f32,
     /// Landings snapped to λ = 0 or 1 with a residual |μ| > 1e-4 /s.
     pub forced: u64,
+    /// The last tick's largest |d + cν|/m over the jerk and acceleration
+    /// constraints (with the margins: 1 is the margin, not the limit).
+    pub last_ratio: f32,
+    /// Which constraint that was (4 per axis and the tangent: jerk, jerk
+    /// with J reversed, jerk with J grown, end acceleration).
+    pub last_binding: u8,
 }
 
 /// One linear constraint |d + c ν| ≤ m.
@@ -283,6 +289,9 @@ pub struct Kin {
     pub an: [f32; 3],
     /// Normal part of J per axis.
     pub jn: [f32; 3],
+    /// Change of J expected over the next tick (the last tick's change),
+    /// mm/s³: J may grow within a tick, and ν is chosen at its start.
+    pub dj: [f32; 4],
 }
 
 fn dot([a0, a1, a2]: [f32; 3], [b0, b1, b2]: [f32; 3]) -> f32 {
@@ -313,6 +322,7 @@ impl Kin {
             j: [jx_, jy_, jz_, j],
             an: [ax_ - pa * x1, ay_ - pa * y1, az_ - pa * z1],
             jn: [jx_ - pj * x1, jy_ - pj * y1, jz_ - pj * z1],
+            dj: [0.0; 4],
         }
     }
 
@@ -486,12 +496,26 @@ pub fn constraints(
                 m: jm_,
             };
         }
+        // The same at the end of the tick, J grown by the last tick's change.
+        let je = j + k.dj.get(i).copied().unwrap_or(0.0);
+        if let Some(s) = slots.next() {
+            *s = Lin {
+                c: v,
+                d: l3 * je + 3.0 * lam * mu * a,
+                m: (RHO_J * jm).max(l3 * je.abs() + (1.0 - l3) * RHO_J * jm),
+            };
+        }
+        // (bound: the margin, or the plan's own scaled acceleration at the
+        // end of the tick where it is above that, never above a; bounding
+        // it by the acceleration now instead made ν cancel the plan's jerk
+        // wherever the plan's acceleration was still growing above RHO_A·a)
         let acc = l2 * a + mu * v;
+        let own = l2 * a + h * l3 * j;
         if let Some(s) = slots.next() {
             *s = Lin {
                 c: h * v,
                 d: acc + h * jd,
-                m: (RHO_A * am).max(acc.abs().min(am)),
+                m: (RHO_A * am).max(own.abs().min(am)),
             };
         }
     }
@@ -670,15 +694,12 @@ impl FeedHold {
             ahead,
         );
         let mut iv = interval(&cons);
-        if hold && iv.relax > 1.0 {
-            // The μ cap (last) is a planning bound, the jerk and
-            // acceleration limits are not: if they are feasible without
-            // it, it yields (a cap that dropped under |μ| as the plan's A
-            // grew would otherwise force ν against the jerk limit).
+        if iv.relax > 1.0 {
+            // Infeasible: |μ| still does not grow past the cap (the
+            // relaxation would otherwise let it grow with the violation,
+            // and 3λμA with it: braking, or resuming, where the plan's
+            // acceleration works against it is self-reinforcing).
             if let Some(k) = cons.last() {
-                // Infeasible even so: |μ| does not grow past the cap (the
-                // relaxation would otherwise let it grow with the
-                // violation, and 3λμA with it).
                 if k.c > 0.0 {
                     let (cl, ch) = ((-k.m - k.d) / k.c, (k.m - k.d) / k.c);
                     if cl <= ch {
@@ -726,6 +747,15 @@ impl FeedHold {
         // way a state at the target up to rounding lands.
         let lands = lands || (!hold && xa < X_SNAP && wa.abs() < 1e-4) || (xa < 1e-12 && wa.abs() < 1e-6);
         let nu = if hold { -u } else { u };
+        let (mut r, mut at) = (0.0f32, 0u8);
+        for (i, k) in cons.iter().enumerate() {
+            let x = libm::fabsf(k.d + k.c * nu as f32) / k.m;
+            if x > r && i < N_CONS - 1 {
+                (r, at) = (x, i as u8);
+            }
+        }
+        self.stats.last_ratio = r;
+        self.stats.last_binding = at;
         let x1 = x - w * h - 0.5 * u * h * h;
         let w1 = w + u * h;
         // A resume's landing that the constraints clamped does not land

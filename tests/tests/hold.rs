@@ -68,6 +68,9 @@ struct Run {
     pts: Vec<Setpoint>,
     /// Per tick: the hold state, λ and μ after it.
     scale: Vec<(HoldState, f64, f64)>,
+    /// Per tick: the controller's own largest constraint ratio and which
+    /// constraint (`HoldStats::last_ratio`, `last_binding`).
+    model: Vec<(f32, u8)>,
     holds: Vec<HoldRec>,
     stats: firmware_core::hold::HoldStats,
 }
@@ -86,6 +89,7 @@ fn run_with_holds(at: &[f64]) -> Run {
     let mut held_for = 0usize;
     let mut pending: Option<(f64, f64, f64)> = None; // s, feed, t of the request
     let mut scale = Vec::new();
+    let mut model = Vec::new();
     while !it.is_done() {
         assert!(
             pts.len() < 200_000,
@@ -100,6 +104,7 @@ fn run_with_holds(at: &[f64]) -> Run {
             .unwrap_or_else(|f| panic!("fault {f:?} after {} holds", holds.len()));
         let (l, m) = it.hold_scale();
         scale.push((it.hold_state(), l, m));
+        model.push((it.hold_stats().last_ratio, it.hold_stats().last_binding));
         if let Some(prev) = pts.last() {
             let d = (0..3)
                 .map(|k| (sp.pos_mm[k] - prev.pos_mm[k]).powi(2))
@@ -163,6 +168,7 @@ fn run_with_holds(at: &[f64]) -> Run {
     Run {
         pts,
         scale,
+        model,
         holds,
         stats,
     }
@@ -229,8 +235,10 @@ fn diag(run: &Run, lim: &Limits) {
                         let (st, l, mu) = run.scale[kk];
                         let fdj = arr.get(kk.wrapping_sub(off)).map_or(f64::NAN, |v| v / *m);
                         eprintln!(
-                            "      tick {kk} {st:?} λ-1 {:.3e} μ {mu:.5} ratio {fdj:.4}",
-                            l - 1.0
+                            "      tick {kk} {st:?} λ-1 {:.3e} μ {mu:.5} ratio {fdj:.4} model {:.4} (constraint {})",
+                            l - 1.0,
+                            run.model[kk].0,
+                            run.model[kk].1
                         );
                     }
                 }
@@ -276,15 +284,23 @@ fn all_holds() -> (metrics::Ratios, metrics::Ratios, usize) {
         .and_then(|v| v.parse().ok())
         .unwrap_or(20);
     let mut at: Vec<f64> = lcg(6, n).into_iter().map(|x| x * p.len).collect();
-    at.extend([
-        0.5 * ends.s_start,
-        ends.s_start + 0.01,
-        tight.s_mm - 2.0,
-        tight.s_mm - 0.2,
-        ends.s_stop - 1.0,
-        ends.s_stop - 0.01,
-        p.len - 0.3 * (p.len - ends.s_stop),
-    ]);
+    at.extend(if std::env::var_os("HOLD_AT").is_some() {
+        vec![]
+    } else {
+        vec![
+            0.5 * ends.s_start,
+            ends.s_start + 0.01,
+            tight.s_mm - 2.0,
+            tight.s_mm - 0.2,
+            ends.s_stop - 1.0,
+            ends.s_stop - 0.01,
+            p.len - 0.3 * (p.len - ends.s_stop),
+        ]
+    });
+    // HOLD_AT (diagnosis): these points only
+    if let Ok(v) = std::env::var("HOLD_AT") {
+        at = v.split(',').filter_map(|x| x.parse().ok()).collect();
+    }
     at.sort_by(f64::total_cmp);
     let mut worst = metrics::Ratios::default();
     let mut worst_rest = metrics::Ratios::default();
@@ -353,12 +369,12 @@ fn hold_runs_within_the_limits() {
     }
 }
 
-/// One hold/resume run (hold at 355 mm, near full feed) as a CSV for
+/// One hold/resume run (hold at 300 mm, near full feed) as a CSV for
 /// `shared/checks/check_traj.py --pad-rest 50`: written to
 /// `$CARGO_TARGET_TMPDIR/hold_butterfly.csv`.
 #[test]
 fn hold_run_as_csv() {
-    let run = run_with_holds(&[355.0]);
+    let run = run_with_holds(&[300.0]);
     assert_eq!(run.holds.len(), 1);
     let path = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("hold_butterfly.csv");
     sim_harness::csv::write_csv(&path, &ticks(&run.pts)).unwrap();

@@ -38,7 +38,7 @@ use crate::table::Limits;
 /// A hold requested within this many times the tangential stopping
 /// distance of the end ([`HoldRun::stop_distance`]) lets the plan's own
 /// stop run.
-const END_FACTOR: f32 = 1.0;
+const END_FACTOR: f32 = 2.0;
 /// Points the μ cap's look-ahead evaluates the plan at.
 const AHEAD_N: usize = 16;
 /// Safety factor on the look-ahead distance.
@@ -55,6 +55,8 @@ pub(super) struct HoldRun {
     seg_tau: Option<f64>,
     /// A hold requested near the end: the plan's own stop runs (λ = 1).
     to_end: bool,
+    /// The plan's J (per axis, tangent) at the last hold tick.
+    prev_j: Option<[f32; 4]>,
 }
 
 impl HoldRun {
@@ -75,6 +77,7 @@ impl HoldRun {
         self.ctl.clear();
         self.seg_tau = None;
         self.to_end = false;
+        self.prev_j = None;
     }
 
     /// The distance a tangential jerk-limited stop from `v` (mm/s) needs
@@ -298,13 +301,40 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
             self.pc.constant,
         );
         let [p1, p2, p3, _] = plan;
-        let kin = Kin::new(dr, [p1 as f32, p2 as f32, p3 as f32]);
+        let mut kin = Kin::new(dr, [p1 as f32, p2 as f32, p3 as f32]);
+        if let Some(pj) = self.fh.prev_j {
+            for ((d, j), p) in kin.dj.iter_mut().zip(kin.j.iter()).zip(pj.iter()) {
+                *d = j - p;
+            }
+        }
+        self.fh.prev_j = Some(kin.j);
+        // A piece break within the next two ticks: the path's r‴ (so the
+        // plan's axis jerk) jumps there; the jump counts as J's change.
+        let reach = s.saturating_add(to_fx(2.0 * h * p1.max(0.0) * self.fh.ctl.lambda().max(0.0)));
+        if self.pc.next <= reach && self.pc.idx < self.views.p_last {
+            if let Some(next) = self.views.piece(self.pc.idx.wrapping_add(1)) {
+                if let Some(c) = self.views.coeffs(&next) {
+                    let at = self.pc.next;
+                    let dr_n = pos_derivs(c, tau_of(at, next.centre, next.shift), next.shift, next.constant);
+                    let kin_n = Kin::new(dr_n, [p1 as f32, p2 as f32, p3 as f32]);
+                    for ((d, jn), j) in kin.dj.iter_mut().zip(kin_n.j.iter()).zip(kin.j.iter()) {
+                        let jump = jn - j;
+                        if jump.abs() > d.abs() {
+                            *d = jump;
+                        }
+                    }
+                }
+            }
+        }
         let ahead = match self.fh.seg_tau {
             Some(_) => [[0.0; 4]; 6],
             None => self.ahead_acc(s, &kin, p1),
         };
         let ts = self.fh.ctl.control_ahead(&kin, &ahead, &self.fh.lim, h);
         let lam = self.fh.ctl.lambda();
+        if self.fh.ctl.state() == HoldState::Running {
+            self.fh.prev_j = None;
+        }
         if let Some(tau) = self.fh.seg_tau {
             // dθ = ∫λ dt over the tick (exact: λ is a quadratic in t).
             let dth = h * (ts.lam + h * (0.5 * ts.mu + h * ts.nu / 6.0));
