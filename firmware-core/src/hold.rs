@@ -176,6 +176,8 @@ pub struct HoldStats {
     /// Which constraint that was (4 per axis and the tangent: jerk, jerk
     /// with J reversed, jerk with J grown, end acceleration).
     pub last_binding: u8,
+    /// The last tick's bound on |μ| after it (the cap, or |μ| above it).
+    pub last_cap: f32,
 }
 
 /// One linear constraint |d + c ν| ≤ m.
@@ -587,6 +589,7 @@ pub struct FeedHold {
     mu: f64,
     state: HoldState,
     stats: HoldStats,
+    coast: bool,
 }
 
 impl Default for FeedHold {
@@ -596,6 +599,7 @@ impl Default for FeedHold {
             mu: 0.0,
             state: HoldState::Running,
             stats: HoldStats::default(),
+            coast: false,
         }
     }
 }
@@ -630,6 +634,16 @@ impl FeedHold {
     /// The counters.
     pub fn stats(&self) -> HoldStats {
         self.stats
+    }
+
+    /// Coast instead of braking (stopping only): bring μ to 0 as fast as
+    /// the limits allow and keep λ, so the scaled plan (jerk λ³J,
+    /// acceleration λ²A: within the limits by construction) runs on; set
+    /// by the tick when the plan's own stop segment is within what the hold
+    /// would still cover, where braking on top of the plan's deceleration
+    /// is self-reinforcing (3λμA adds to a J against A).
+    pub fn set_coast(&mut self, coast: bool) {
+        self.coast = coast;
     }
 
     /// Request a hold (idempotent).
@@ -746,7 +760,17 @@ impl FeedHold {
         // still large: then it crosses and comes back, see above); either
         // way a state at the target up to rounding lands.
         let lands = lands || (!hold && xa < X_SNAP && wa.abs() < 1e-4) || (xa < 1e-12 && wa.abs() < 1e-6);
-        let nu = if hold { -u } else { u };
+        let mut nu = if hold { -u } else { u };
+        let coast = hold && self.coast;
+        if coast {
+            let lim_iv = interval(cons.get(..N_CONS - 1).unwrap_or(&[]));
+            nu = if lim_iv.relax <= 1.0 {
+                (-self.mu / h).clamp(f64::from(lim_iv.lo), f64::from(lim_iv.hi))
+            } else {
+                f64::from(lim_iv.lo)
+            };
+        }
+        let (u, lands) = if coast { (-nu, false) } else { (u, lands) };
         let (mut r, mut at) = (0.0f32, 0u8);
         for (i, k) in cons.iter().enumerate() {
             let x = libm::fabsf(k.d + k.c * nu as f32) / k.m;
@@ -756,6 +780,7 @@ impl FeedHold {
         }
         self.stats.last_ratio = r;
         self.stats.last_binding = at;
+        self.stats.last_cap = cons.last().map_or(f32::INFINITY, |k| k.m);
         let x1 = x - w * h - 0.5 * u * h * h;
         let w1 = w + u * h;
         // A resume's landing that the constraints clamped does not land

@@ -39,6 +39,9 @@ use crate::table::Limits;
 /// distance of the end ([`HoldRun::stop_distance`]) lets the plan's own
 /// stop run.
 const END_FACTOR: f32 = 2.0;
+/// A stop still above this λ when the plan's stop segment comes within its
+/// reach coasts ([`crate::hold::FeedHold::set_coast`]).
+const COAST_ABOVE: f64 = 0.5;
 /// Points the μ cap's look-ahead evaluates the plan at.
 const AHEAD_N: usize = 16;
 /// Safety factor on the look-ahead distance.
@@ -168,7 +171,7 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
     /// planned braking rate times the plan's feed `v`, × [`AHEAD_FACTOR`]),
     /// pieces and q spans read from the views (the current q span from its
     /// cursor). Hold and resume ticks only.
-    fn ahead_acc(&self, s: i64, kin: &Kin, v: f64) -> [[f32; 4]; 6] {
+    fn ahead_acc(&self, s: i64, kin: &Kin, v: f64) -> ([[f32; 4]; 6], bool) {
         let mut out = [[0.0f32; 4]; 6];
         let b = FeedHold::braking(kin, &self.fh.lim);
         let (lam, mu) = (self.fh.ctl.lambda(), self.fh.ctl.mu());
@@ -177,15 +180,24 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
         // look-ahead cap dropping under μ on its exponential tail forces μ
         // down against the tail law (measured: up to 1.07× j at landing).
         if self.fh.ctl.state() != HoldState::Stopping || !(b > 0.0 && v > 0.0) {
-            return out;
+            return (out, false);
         }
         let t_go = 2.0 * libm::sqrt(2.0 * x.max(0.0) / b) + mu.abs() / b;
         let d = (AHEAD_FACTOR * v * t_go).min(AHEAD_MAX_MM);
         let v_ = &self.views;
         let (mut pi, mut qi) = (self.pc.idx, self.qc.idx);
         let mut into_stop = false;
-        for k in 0..=AHEAD_N {
-            let mut sk = s.saturating_add(to_fx(d * k as f64 / AHEAD_N as f64));
+        let mut in_reach = false;
+        // (and, one more, the stop segment's entry whenever it is within
+        // AHEAD_MAX_MM: where the plan decelerates into it, the stop's
+        // time to go understates what the hold will still cover)
+        let stop_near = self.stop_at.wrapping_sub(s) <= to_fx(AHEAD_MAX_MM);
+        for k in 0..=AHEAD_N + 1 {
+            let mut sk = match k {
+                k if k <= AHEAD_N => s.saturating_add(to_fx(d * k as f64 / AHEAD_N as f64)),
+                _ if stop_near && !into_stop => self.stop_at,
+                _ => break,
+            };
             if sk >= self.stop_at {
                 // The stop segment ahead: its entry (the largest |A| of the
                 // segment, J = J₂ at the jerk limit all along) with the
@@ -193,6 +205,7 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
                 match self.ends {
                     Some(_) if !into_stop && self.stop_at > s => {
                         into_stop = true;
+                        in_reach = k <= AHEAD_N;
                         sk = self.stop_at.wrapping_sub(1);
                     }
                     _ => break,
@@ -268,7 +281,7 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
                 break;
             }
         }
-        out
+        (out, in_reach)
     }
 
     /// One tick under time-scaling (module docs); `phase` is `Run`.
@@ -326,10 +339,15 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
                 }
             }
         }
-        let ahead = match self.fh.seg_tau {
-            Some(_) => [[0.0; 4]; 6],
+        let (ahead, stop_in_reach) = match self.fh.seg_tau {
+            // (in the stop segment: coast through it)
+            Some(_) => ([[0.0; 4]; 6], true),
             None => self.ahead_acc(s, &kin, p1),
         };
+        // (below λ = ½ the plan's λ³J and 3λμA leave room to finish)
+        self.fh
+            .ctl
+            .set_coast(stop_in_reach && self.fh.ctl.lambda() > COAST_ABOVE);
         let ts = self.fh.ctl.control_ahead(&kin, &ahead, &self.fh.lim, h);
         let lam = self.fh.ctl.lambda();
         if self.fh.ctl.state() == HoldState::Running {
