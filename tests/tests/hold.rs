@@ -118,7 +118,12 @@ fn run_with_holds(at: &[f64]) -> Run {
                 .map(|k| (sp.pos_mm[k] - prev.pos_mm[k]).powi(2))
                 .sum::<f64>()
                 .sqrt();
-            assert!(d <= vmax * PERIOD_S, "jump {d} mm at t = {}", sp.t_s);
+            // (a resume that crosses λ = 1 comes back from ~1e-7 above it)
+            assert!(
+                d <= vmax * PERIOD_S * (1.0 + 1e-6),
+                "jump {d} mm at t = {}",
+                sp.t_s
+            );
             assert!(sp.s_mm >= prev.s_mm, "s went back at t = {}", sp.t_s);
         }
         match it.hold_state() {

@@ -194,7 +194,11 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
         let stop_near = self.stop_at.wrapping_sub(s) <= to_fx(AHEAD_MAX_MM);
         for k in 0..=AHEAD_N + 1 {
             let mut sk = match k {
-                k if k <= AHEAD_N => s.saturating_add(to_fx(d * k as f64 / AHEAD_N as f64)),
+                k if k <= AHEAD_N => {
+                    // (denser near: the next millimetres matter most)
+                    let f = k as f64 / AHEAD_N as f64;
+                    s.saturating_add(to_fx(d * f * f))
+                }
                 _ if stop_near && !into_stop => self.stop_at,
                 _ => break,
             };
