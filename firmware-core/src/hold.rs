@@ -113,6 +113,8 @@ pub const MU_FLOOR: f32 = 0.02;
 /// Smallest μ cap (1/s) the jerk look-ahead leaves (the same; 3μ_f|A| is
 /// 0.9 % of 16000 mm/s³ at |A| = 1000 mm/s², 2.0 before).
 pub const MU_FLOOR_J: f32 = 0.05;
+/// Fastest rise of the μ cap while stopping, 1/s².
+pub const CAP_RISE: f32 = 20.0;
 /// Fraction of the braking capacity the braking curve plans with.
 pub const THETA: f64 = 0.7;
 /// A resume within this of λ = 1 lands (rounding only: snapping λ by x
@@ -462,15 +464,7 @@ pub fn mu_cap_ahead(k: &Kin, ahead: &[[f32; 4]; 6], lim: &HoldLimits, lam: f32, 
 /// The [`N_CONS`] constraints on ν at (λ, μ) for a tick of h seconds (see
 /// the module docs); `nu_r` the braking rate planned with, `lam_cap` the
 /// largest λ the μ cap must hold for (λ itself holding, 1 resuming).
-pub fn constraints(
-    k: &Kin,
-    lim: &HoldLimits,
-    (lam, mu): (f32, f32),
-    h: f32,
-    nu_r: f32,
-    lam_cap: f32,
-    ahead: &[[f32; 4]; 6],
-) -> [Lin; N_CONS] {
+pub fn constraints(k: &Kin, lim: &HoldLimits, (lam, mu): (f32, f32), h: f32, cap: f32) -> [Lin; N_CONS] {
     let mut out = [Lin::default(); N_CONS];
     let (l2, l3) = (lam * lam, lam * lam * lam);
     let mut slots = out.iter_mut();
@@ -521,7 +515,6 @@ pub fn constraints(
             };
         }
     }
-    let cap = mu_cap_ahead(k, ahead, lim, lam_cap, nu_r);
     if let Some(s) = slots.next() {
         *s = Lin {
             c: h,
@@ -590,6 +583,8 @@ pub struct FeedHold {
     state: HoldState,
     stats: HoldStats,
     coast: bool,
+    /// The μ cap of the last stopping tick (∞ otherwise).
+    cap_prev: f32,
 }
 
 impl Default for FeedHold {
@@ -600,6 +595,7 @@ impl Default for FeedHold {
             state: HoldState::Running,
             stats: HoldStats::default(),
             coast: false,
+            cap_prev: f32::INFINITY,
         }
     }
 }
@@ -698,15 +694,18 @@ impl FeedHold {
         let cap = f64::from(kin.nu_cap(lim)).min(1e9);
         let b0 = THETA * cap;
         let lam_cap = if hold { self.lam } else { 1.0 };
-        let cons = constraints(
-            kin,
-            lim,
-            (self.lam as f32, self.mu as f32),
-            h as f32,
-            b0 as f32,
-            lam_cap as f32,
-            ahead,
-        );
+        // The μ cap; while stopping it rises at most CAP_RISE per second
+        // (it falls at once): the look-ahead samples the plan at points, and
+        // a tick whose samples straddle a narrow peak of the plan's jerk
+        // would otherwise let μ grow, which the cap never takes back.
+        let cap_now = mu_cap_ahead(kin, ahead, lim, lam_cap as f32, b0 as f32);
+        let mu_max = if hold {
+            cap_now.min(self.cap_prev + CAP_RISE * h as f32)
+        } else {
+            cap_now
+        };
+        self.cap_prev = if hold { mu_max } else { f32::INFINITY };
+        let cons = constraints(kin, lim, (self.lam as f32, self.mu as f32), h as f32, mu_max);
         let mut iv = interval(&cons);
         if iv.relax > 1.0 {
             // Infeasible: |μ| still does not grow past the cap (the

@@ -43,7 +43,7 @@ const END_FACTOR: f32 = 2.0;
 /// reach coasts ([`crate::hold::FeedHold::set_coast`]).
 const COAST_ABOVE: f64 = 0.5;
 /// Points the μ cap's look-ahead evaluates the plan at.
-const AHEAD_N: usize = 16;
+const AHEAD_N: usize = 32;
 /// Safety factor on the look-ahead distance.
 const AHEAD_FACTOR: f64 = 1.5;
 /// Longest look-ahead, mm.
