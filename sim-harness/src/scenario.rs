@@ -254,6 +254,19 @@ pub struct HoldRecord {
     pub t_resume_s: Option<f64>,
 }
 
+impl HoldRecord {
+    /// A hold pressed at `t_s`, the setpoint at `s_mm`.
+    fn pressed(t_s: f64, s_mm: f64) -> Self {
+        HoldRecord {
+            t_hold_s: t_s,
+            s_hold_mm: s_mm,
+            t_stopped_s: None,
+            s_stopped_mm: None,
+            t_resume_s: None,
+        }
+    }
+}
+
 /// Everything a scenario produced.
 #[derive(Debug, Clone)]
 pub struct ScenarioResult {
@@ -575,13 +588,7 @@ pub fn run_scenario(
         if running && hold_points.front().is_some_and(|hp| sp.s_mm >= hp.s_mm) {
             if let Some(hp) = hold_points.pop_front() {
                 hold_cmd(&mut ip, true);
-                holds.push(HoldRecord {
-                    t_hold_s: now,
-                    s_hold_mm: sp.s_mm,
-                    t_stopped_s: None,
-                    s_stopped_mm: None,
-                    t_resume_s: None,
-                });
+                holds.push(HoldRecord::pressed(now, sp.s_mm));
                 if hp.after_rest {
                     resume_when_held = Some(hp.resume_after_s);
                 } else {
@@ -595,10 +602,7 @@ pub fn run_scenario(
                 ip.hold_state() == HoldState::Held && rest_since.is_some_and(|t0| now >= t0 + after)
             });
         if due {
-            hold_cmd(&mut ip, false);
-            if let Some(h) = holds.last_mut() {
-                h.t_resume_s = Some(now);
-            }
+            resume_cmd(&mut ip, &mut holds, now);
             resume_when_held = None;
             resume_at = None;
         }
@@ -608,20 +612,9 @@ pub fn run_scenario(
             match ev.cmd {
                 Command::Hold => {
                     hold_cmd(&mut ip, true);
-                    holds.push(HoldRecord {
-                        t_hold_s: now,
-                        s_hold_mm: sp.s_mm,
-                        t_stopped_s: None,
-                        s_stopped_mm: None,
-                        t_resume_s: None,
-                    });
+                    holds.push(HoldRecord::pressed(now, sp.s_mm));
                 }
-                Command::Resume => {
-                    hold_cmd(&mut ip, false);
-                    if let Some(h) = holds.last_mut() {
-                        h.t_resume_s = Some(now);
-                    }
-                }
+                Command::Resume => resume_cmd(&mut ip, &mut holds, now),
                 Command::HostRestart => host.forget(),
                 Command::Override { level } => {
                     let rec = recs.len();
@@ -845,4 +838,12 @@ pub fn median_max(v: &[f64]) -> Option<(f64, f64)> {
 /// end or a fault both are refused, which changes nothing.
 fn hold_cmd(ip: &mut Fw, hold: bool) {
     let _ = if hold { ip.hold() } else { ip.resume() };
+}
+
+/// Resume on the firmware and note it on the last hold.
+fn resume_cmd(ip: &mut Fw, holds: &mut [HoldRecord], now: f64) {
+    hold_cmd(ip, false);
+    if let Some(h) = holds.last_mut() {
+        h.t_resume_s = Some(now);
+    }
 }
