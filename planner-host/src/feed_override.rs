@@ -539,15 +539,20 @@ impl OverrideContext {
         &self.knots
     }
 
-    /// The limits of the window LP between `active` and `target`: the base
-    /// limits with v̄ = max of both levels' feeds.
-    pub fn window_limits(&self, active: u16, target: u16) -> Option<Limits> {
+    /// The limits of the window LP from `active_ctrl` (the active profile's
+    /// control points near the override point; active at level `active`) to
+    /// `target`: the base limits with v̄ the highest of both levels' feeds
+    /// and of the active profile there — an override of an override can
+    /// still be above its level (a transition from 120 % to 50 % not yet
+    /// merged), and its points fixed before the window must fit the rows.
+    pub fn window_limits(&self, active: u16, active_ctrl: &[f64], target: u16) -> Option<Limits> {
         let (a, t) = (
             self.profiles.get(usize::from(active))?,
             self.profiles.get(usize::from(target))?,
         );
+        let q_max = active_ctrl.iter().fold(0.0f64, |m, &q| m.max(q));
         Some(Limits {
-            vbar: a.vbar.max(t.vbar),
+            vbar: a.vbar.max(t.vbar).max(q_max.sqrt()),
             ..self.limits
         })
     }
@@ -606,9 +611,26 @@ impl OverrideContext {
                 .map(|t| t.length_mm * self.config.arclen_scale)
                 .unwrap_or(f64::INFINITY)
         };
-        let win_limits = Limits {
-            vbar: act.vbar.max(tgt.vbar),
-            ..self.limits
+        // (the active profile's feed near the override point: from its span
+        // over three windows' worth, where Algorithm 2 may still move it)
+        let near = {
+            let span = self
+                .knots
+                .iter()
+                .skip(ORDER - 1)
+                .take_while(|&&u| u <= s_mm)
+                .count();
+            let lo = span.saturating_sub(ORDER).min(active_ctrl.len());
+            let hi = span
+                .saturating_add(3 * self.config.max_window_ctrl)
+                .min(active_ctrl.len());
+            &active_ctrl[lo..hi.max(lo)]
+        };
+        let Some(win_limits) = self.window_limits(active_level, near, target_level) else {
+            return Err(OverrideError::UnknownLevel {
+                level: target_level,
+                count,
+            });
         };
         let caps = if act.vbar > tgt.vbar { &act.caps } else { &tgt.caps };
         let (mut retries_grow, mut retries_extreme, mut lp_count) = (0u32, 0u32, 0u32);
@@ -1032,7 +1054,7 @@ mod tests {
             }
         }
         // every limit, densely, over the window's spans
-        let lim = ctx.window_limits(active, p.level).unwrap();
+        let lim = ctx.window_limits(active, active_ctrl, p.level).unwrap();
         let mut worst: f64 = 0.0;
         let knots = ctx.knots();
         for j in first..first + len {

@@ -764,7 +764,21 @@ fn dispatch(
     let r = &mut recs[rec];
     r.compute_s.push(took);
     match outcome {
-        Err(e) => r.fate = fate_failed(e),
+        Err(e) => {
+            // SCENARIO_DUMP=dir (diagnosis): what the host computed from
+            if let Some(dir) = std::env::var_os("SCENARIO_DUMP") {
+                let dump = serde_json::json!({
+                    "base_level": host.base_level,
+                    "base_ctrl": host.base_ctrl,
+                    "s_at_mm": s_at,
+                    "target": target,
+                    "error": e.to_string(),
+                });
+                let path = std::path::Path::new(&dir).join(format!("override_failure_{rec}.json"));
+                let _ = std::fs::write(path, dump.to_string());
+            }
+            r.fate = fate_failed(e);
+        }
         Ok(OverrideOutcome::Skip(why)) => r.fate = Fate::Skipped(format!("{why:?}")),
         Ok(OverrideOutcome::Profile(p)) => {
             let seq = host.next_seq;
