@@ -16,6 +16,7 @@ use core::hint::black_box;
 use cortex_m_rt::entry;
 use cortex_m_semihosting::hprintln;
 use firmware_core::array::F64Array;
+use firmware_core::hold::HoldState;
 use firmware_core::interp::{Fault, Interpolator, Setpoint};
 use firmware_core::sumap::SegmentArray;
 use firmware_core::table::Table;
@@ -59,6 +60,13 @@ fn main() -> ! {
     }
     calibrate(64);
     let ok = run();
+    // MCU_HOLD_AT_MM=<s> at build time: a second pass with a feed hold there
+    // (held 0.1 s, then resumed), windows grouped by what the tick did.
+    let ok = ok
+        && match option_env!("MCU_HOLD_AT_MM").and_then(|v| v.parse::<f64>().ok()) {
+            Some(at) => run_hold(at),
+            None => true,
+        };
     hprintln!(
         "stack: {} bytes used at most (of {} KiB RAM)",
         stack_high_water(),
@@ -166,4 +174,66 @@ fn run() -> bool {
 #[inline(never)]
 fn servo_tick(ip: &mut Interpolator<'_>) -> Result<Setpoint, Fault> {
     ip.tick()
+}
+
+/// The hold pass: ticks until s ≥ `at_mm`, holds, stays held 400 ticks,
+/// resumes and runs to the end; each maximal run of ticks of one kind
+/// (`tick`, `hold-tick` while stopping or resuming, `held-tick`) is one
+/// bench group.
+fn run_hold(at_mm: f64) -> bool {
+    let Ok(table) = Table::parse(&TABLE.0) else {
+        return false;
+    };
+    let t_pred = table.predicted_time_s();
+    let Ok(mut ip) = Interpolator::new(table, PERIOD_S) else {
+        return false;
+    };
+    let max_ticks = (4.0 * t_pred / PERIOD_S) as u64 + 10_000;
+    let (mut ticks, mut held_for, mut run, mut label) = (0u64, 0u32, 0u32, "tick");
+    let mut pressed = false;
+    let mut resumed = false;
+    while !ip.is_done() && ticks < max_ticks {
+        let kind = match ip.hold_state() {
+            HoldState::Running => "tick",
+            HoldState::Held => "held-tick",
+            _ => "hold-tick",
+        };
+        if kind != label && run > 0 {
+            group(label, run);
+            run = 0;
+        }
+        label = kind;
+        mark_begin();
+        let r = servo_tick(black_box(&mut ip));
+        mark_end();
+        run += 1;
+        ticks += 1;
+        let Ok(sp) = r else {
+            group(label, run);
+            hprintln!("hold pass: FAULT at tick {}", ticks);
+            return false;
+        };
+        if !pressed && sp.s_mm >= at_mm {
+            pressed = ip.hold().is_ok();
+            hprintln!(
+                "hold pass: hold at s_mm={} feed={}",
+                Dec(sp.s_mm),
+                Dec(sp.feed_mm_s)
+            );
+        }
+        if pressed && !resumed && ip.hold_state() == HoldState::Held {
+            held_for += 1;
+            if held_for == 1 {
+                hprintln!("hold pass: held at s_mm={}", Dec(sp.s_mm));
+            }
+            if held_for >= 400 {
+                resumed = ip.resume().is_ok();
+            }
+        }
+    }
+    if run > 0 {
+        group(label, run);
+    }
+    hprintln!("hold pass: {} ticks, done {}", ticks, ip.is_done());
+    ip.is_done()
 }

@@ -44,6 +44,9 @@ const END_FACTOR: f32 = 2.0;
 const COAST_ABOVE: f64 = 0.5;
 /// Points the μ cap's look-ahead evaluates the plan at.
 const AHEAD_N: usize = 32;
+/// Look-ahead points evaluated per hold tick (a whole sweep is
+/// [`AHEAD_N`] + 2 points).
+const AHEAD_PER_TICK: usize = 4;
 /// Safety factor on the look-ahead distance.
 const AHEAD_FACTOR: f64 = 1.5;
 /// Longest look-ahead, mm.
@@ -60,6 +63,61 @@ pub(super) struct HoldRun {
     to_end: bool,
     /// The plan's J (per axis, tangent) at the last hold tick.
     prev_j: Option<[f32; 4]>,
+    /// The look-ahead sweep in progress (stopping).
+    sweep: Option<Sweep>,
+    /// The last complete sweep's maxima, and whether it reached the stop
+    /// segment within the stop's reach.
+    ahead: [[f32; 4]; 6],
+    reach: bool,
+}
+
+/// One pass of the look-ahead over the plan ahead, spread over ticks.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+struct Sweep {
+    /// Where it started (Q40 mm) and how far it looks, mm.
+    base: i64,
+    d: f64,
+    /// The next point.
+    next: usize,
+    /// Maxima so far ([`crate::hold::mu_cap_ahead`]'s rows).
+    part: [[f32; 4]; 6],
+    /// The stop segment's entry is within `d`.
+    reach: bool,
+    into_stop: bool,
+    /// The stop segment's entry is within [`AHEAD_MAX_MM`] of `base`.
+    stop_near: bool,
+    done: bool,
+}
+
+/// Take one plan point into the look-ahead maxima: |A|, |V|, |J| per axis
+/// and tangentially, |A| where A is against V, |J| and |A| where J is
+/// against A.
+fn add_point(out: &mut [[f32; 4]; 6], k: &Kin) {
+    let [oa, ov, oj, oacc, ojo, oao] = out;
+    for i in 0..4 {
+        if let (Some(o1), Some(o2), Some(a), Some(j)) =
+            (ojo.get_mut(i), oao.get_mut(i), k.a.get(i), k.j.get(i))
+        {
+            if a * j < 0.0 {
+                *o1 = o1.max(j.abs());
+                *o2 = o2.max(a.abs());
+            }
+        }
+    }
+    for ((o, a), v) in oacc.iter_mut().zip(k.a.iter()).zip(k.v.iter()) {
+        if a * v < 0.0 {
+            *o = o.max(a.abs());
+        }
+    }
+    for (o, a) in oj.iter_mut().zip(k.j.iter()) {
+        *o = o.max(a.abs());
+    }
+    for (o, a) in oa.iter_mut().zip(k.a.iter()) {
+        *o = o.max(a.abs());
+    }
+    for (o, a) in ov.iter_mut().zip(k.v.iter()) {
+        *o = o.max(a.abs());
+    }
 }
 
 impl HoldRun {
@@ -81,6 +139,8 @@ impl HoldRun {
         self.seg_tau = None;
         self.to_end = false;
         self.prev_j = None;
+        self.sweep = None;
+        self.reach = false;
     }
 
     /// The distance a tangential jerk-limited stop from `v` (mm/s) needs
@@ -119,7 +179,18 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
         if running && near_end {
             self.fh.to_end = true;
         } else {
+            let starting = self.fh.ctl.state() != HoldState::Stopping;
             self.fh.ctl.hold();
+            if starting && self.fh.ctl.state() == HoldState::Stopping {
+                // A whole look-ahead sweep now, outside the tick, over the
+                // longest horizon: the ticks then refresh it a few points
+                // at a time.
+                let mut sw = self.start_sweep(self.s, AHEAD_MAX_MM);
+                self.sweep_points(&mut sw, usize::MAX);
+                self.fh.ahead = sw.part;
+                self.fh.reach = sw.reach;
+                self.fh.sweep = None;
+            }
         }
         Ok(())
     }
@@ -165,56 +236,79 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
         self.fh.ctl.stats()
     }
 
-    /// The look-ahead of the μ cap: the largest |A| per axis and
-    /// tangentially of the plan at [`AHEAD_N`] points over the arc length
-    /// the stop (or resume) can still cover from s (its time to go at the
-    /// planned braking rate times the plan's feed `v`, × [`AHEAD_FACTOR`]),
-    /// pieces and q spans read from the views (the current q span from its
-    /// cursor). Hold and resume ticks only.
-    fn ahead_acc(&self, s: i64, kin: &Kin, v: f64) -> ([[f32; 4]; 6], bool) {
-        let mut out = [[0.0f32; 4]; 6];
+    /// A look-ahead sweep from s (see [`Sweep`]) over `d` mm.
+    fn start_sweep(&self, s: i64, d: f64) -> Sweep {
+        Sweep {
+            base: s,
+            d,
+            next: 0,
+            part: [[0.0; 4]; 6],
+            reach: false,
+            into_stop: false,
+            stop_near: self.ends.is_some() && self.stop_at.wrapping_sub(s) <= to_fx(AHEAD_MAX_MM),
+            done: false,
+        }
+    }
+
+    /// The horizon of a sweep starting now: the arc length the stop can
+    /// still cover (its time to go at the planned braking rate times the
+    /// plan's feed `v`, × [`AHEAD_FACTOR`]), at most [`AHEAD_MAX_MM`].
+    fn sweep_len(&self, kin: &Kin, v: f64) -> f64 {
         let b = FeedHold::braking(kin, &self.fh.lim);
-        let (lam, mu) = (self.fh.ctl.lambda(), self.fh.ctl.mu());
-        let x = lam;
-        // Stopping only: a resume plans its cap at λ = 1 already, and a
-        // look-ahead cap dropping under μ on its exponential tail forces μ
-        // down against the tail law (measured: up to 1.07× j at landing).
-        if self.fh.ctl.state() != HoldState::Stopping || !(b > 0.0 && v > 0.0) {
-            return (out, false);
+        let (x, mu) = (self.fh.ctl.lambda(), self.fh.ctl.mu());
+        if !(b > 0.0 && v > 0.0) {
+            return 0.0;
         }
         let t_go = 2.0 * libm::sqrt(2.0 * x.max(0.0) / b) + mu.abs() / b;
-        let d = (AHEAD_FACTOR * v * t_go).min(AHEAD_MAX_MM);
+        (AHEAD_FACTOR * v * t_go).min(AHEAD_MAX_MM)
+    }
+
+    /// Evaluate up to `count` more points of the sweep `sw` (the look-ahead
+    /// of the μ cap): the plan's |A|, |V|, |J| per axis and tangentially at
+    /// [`AHEAD_N`] + 1 points spaced quadratically over `sw.d` from
+    /// `sw.base` (denser near) and at the stop segment's entry when it is
+    /// within [`AHEAD_MAX_MM`]; points already passed are skipped. Pieces
+    /// and q spans are read from the views (the current ones from their
+    /// cursors).
+    fn sweep_points(&self, sw: &mut Sweep, count: usize) {
+        let s = self.s;
         let v_ = &self.views;
         let (mut pi, mut qi) = (self.pc.idx, self.qc.idx);
-        let mut into_stop = false;
-        let mut in_reach = false;
-        // (and, one more, the stop segment's entry whenever it is within
-        // AHEAD_MAX_MM: where the plan decelerates into it, the stop's
-        // time to go understates what the hold will still cover)
-        let stop_near = self.stop_at.wrapping_sub(s) <= to_fx(AHEAD_MAX_MM);
-        for k in 0..=AHEAD_N + 1 {
+        let mut left = count;
+        while !sw.done && left > 0 {
+            let k = sw.next;
+            sw.next = k.saturating_add(1);
             let mut sk = match k {
                 k if k <= AHEAD_N => {
-                    // (denser near: the next millimetres matter most)
                     let f = k as f64 / AHEAD_N as f64;
-                    s.saturating_add(to_fx(d * f * f))
+                    sw.base.saturating_add(to_fx(sw.d * f * f))
                 }
-                _ if stop_near && !into_stop => self.stop_at,
-                _ => break,
+                _ if sw.stop_near && !sw.into_stop => self.stop_at,
+                _ => {
+                    sw.done = true;
+                    break;
+                }
             };
+            if sk < s {
+                continue; // passed since the sweep began
+            }
             if sk >= self.stop_at {
                 // The stop segment ahead: its entry (the largest |A| of the
                 // segment, J = J₂ at the jerk limit all along) with the
                 // path's derivatives just before s₂.
                 match self.ends {
-                    Some(_) if !into_stop && self.stop_at > s => {
-                        into_stop = true;
-                        in_reach = k <= AHEAD_N;
+                    Some(_) if !sw.into_stop && self.stop_at > s => {
+                        sw.into_stop = true;
+                        sw.reach |= k <= AHEAD_N;
                         sk = self.stop_at.wrapping_sub(1);
                     }
-                    _ => break,
+                    _ => {
+                        sw.done = true;
+                        break;
+                    }
                 }
             }
+            left -= 1;
             while pi < v_.p_last
                 && v_
                     .piece_breaks
@@ -228,9 +322,13 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
             } else {
                 v_.piece(pi)
             }) else {
+                sw.done = true;
                 break;
             };
-            let Some(coeffs) = v_.coeffs(&pc) else { break };
+            let Some(coeffs) = v_.coeffs(&pc) else {
+                sw.done = true;
+                break;
+            };
             let dr = pos_derivs(coeffs, tau_of(sk, pc.centre, pc.shift), pc.shift, pc.constant);
             while sk >= self.qc.next
                 && qi < v_.q_last
@@ -243,8 +341,11 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
             } else {
                 v_.q(qi)
             };
-            let Some(qc) = qc else { break };
-            let k = match (into_stop, self.ends) {
+            let Some(qc) = qc else {
+                sw.done = true;
+                break;
+            };
+            let k = match (sw.into_stop, self.ends) {
                 (true, Some(e)) => {
                     let (j2, t2) = (e.jerk_stop as f32, e.t_stop as f32);
                     Kin::new(dr, [0.5 * j2 * t2 * t2, -j2 * t2, j2])
@@ -256,36 +357,45 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
                     Kin::new(dr, [qs.v, 0.5 * dq, 0.5 * ddq * qs.v])
                 }
             };
-            let [oa, ov, oj, oacc, ojo, oao] = &mut out;
-            for i in 0..4 {
-                if let (Some(o1), Some(o2), Some(a), Some(j)) =
-                    (ojo.get_mut(i), oao.get_mut(i), k.a.get(i), k.j.get(i))
-                {
-                    if a * j < 0.0 {
-                        *o1 = o1.max(j.abs());
-                        *o2 = o2.max(a.abs());
-                    }
-                }
-            }
-            for ((o, a), v) in oacc.iter_mut().zip(k.a.iter()).zip(k.v.iter()) {
-                if a * v < 0.0 {
-                    *o = o.max(a.abs());
-                }
-            }
-            for (o, a) in oj.iter_mut().zip(k.j.iter()) {
-                *o = o.max(a.abs());
-            }
-            for (o, a) in oa.iter_mut().zip(k.a.iter()) {
-                *o = o.max(a.abs());
-            }
-            for (o, a) in ov.iter_mut().zip(k.v.iter()) {
-                *o = o.max(a.abs());
-            }
-            if into_stop {
-                break;
+            add_point(&mut sw.part, &k);
+            if sw.into_stop {
+                sw.done = true;
             }
         }
-        (out, in_reach)
+    }
+
+    /// The look-ahead for this tick (stopping only; zeros otherwise): the
+    /// last complete sweep joined with the one in progress, which advances
+    /// by [`AHEAD_PER_TICK`] points (a new one starts when it is complete).
+    /// A hold request runs a whole sweep at once ([`Interpolator::hold`]),
+    /// outside the tick.
+    fn ahead_acc(&mut self, kin: &Kin, v: f64) -> ([[f32; 4]; 6], bool) {
+        // Stopping only: a resume plans its cap at λ = 1 already, and a
+        // look-ahead cap dropping under μ on its exponential tail forces μ
+        // down against the tail law (measured: up to 1.07× j at landing).
+        if self.fh.ctl.state() != HoldState::Stopping {
+            self.fh.sweep = None;
+            return ([[0.0; 4]; 6], false);
+        }
+        let mut sw = match self.fh.sweep {
+            Some(sw) if !sw.done => sw,
+            done => {
+                if let Some(d) = done {
+                    self.fh.ahead = d.part;
+                    self.fh.reach = d.reach;
+                }
+                self.start_sweep(self.s, self.sweep_len(kin, v))
+            }
+        };
+        self.sweep_points(&mut sw, AHEAD_PER_TICK);
+        self.fh.sweep = Some(sw);
+        let mut out = self.fh.ahead;
+        for (o, p) in out.iter_mut().zip(sw.part.iter()) {
+            for (x, y) in o.iter_mut().zip(p.iter()) {
+                *x = x.max(*y);
+            }
+        }
+        (out, self.fh.reach || sw.reach)
     }
 
     /// One tick under time-scaling (module docs); `phase` is `Run`.
@@ -346,7 +456,7 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
         let (ahead, stop_in_reach) = match self.fh.seg_tau {
             // (in the stop segment: coast through it)
             Some(_) => ([[0.0; 4]; 6], true),
-            None => self.ahead_acc(s, &kin, p1),
+            None => self.ahead_acc(&kin, p1),
         };
         // (below λ = ½ the plan's λ³J and 3λμA leave room to finish)
         self.fh
