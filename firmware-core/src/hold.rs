@@ -121,10 +121,6 @@ pub const THETA: f64 = 0.7;
 /// steps the velocity by x·|V|, a finite-difference jerk of ~x|V|/T²,
 /// so the landing itself must be exact).
 pub const X_SNAP: f64 = 1e-12;
-/// Below this 1 − λ a resume leaves the exponential tail and lands by the
-/// landing law (ν ≈ −κ²x/2, a jerk of ~1e-3 mm/s³ here; the tail alone
-/// would never reach λ = 1).
-pub const X_TAIL: f64 = 1e-12;
 /// Constraints per tick: jerk (for the plan's J, for −J and for J grown
 /// by its last change, see [`constraints`]) and end acceleration for 3 axes and the tangent, and
 /// the cap on |μ| ([`mu_cap`]).
@@ -399,29 +395,25 @@ impl HoldLimits {
 /// grows at up to λ·j meanwhile (the plan's jerk bound; no look-ahead along
 /// the path is needed): the root of 3λμ(|A| + λjμ/ν_r) = RHO_M·j.
 pub fn mu_cap(k: &Kin, lim: &HoldLimits, lam: f32, nu_r: f32) -> f32 {
-    mu_cap_ahead(k, &[[0.0; 4]; 6], lim, lam, nu_r)
+    mu_cap_ahead(k, &Ahead::default(), lim, lam, nu_r)
 }
 
-/// [`mu_cap`] with a look-ahead: `ahead` = [max |A|, max |V|] per axis and
-/// tangentially of the plan over the arc length the stop can still cover
-/// (all 0: none). |A| is taken as no less than its max ahead, and the
-/// braking acceleration μV must leave the plan's λ²|A| ahead room within
-/// [`RHO_AHEAD`]·a (else the end-of-tick acceleration constraint, one tick
-/// deep, meets the plan's growing A too late and the jerk limit cannot
-/// unwind μ in time).
-pub fn mu_cap_ahead(k: &Kin, ahead: &[[f32; 4]; 6], lim: &HoldLimits, lam: f32, nu_r: f32) -> f32 {
+/// [`mu_cap`] with a look-ahead ([`Ahead`]; all 0: none): |A| is taken as
+/// no less than its max ahead; the braking acceleration μV must leave the
+/// plan's λ²|A| ahead (where A is against V) room within [`RHO_AHEAD`]·a
+/// (else the end-of-tick acceleration constraint, one tick deep, meets the
+/// plan's growing A too late and the jerk limit cannot unwind μ in time);
+/// 3λμA must leave the plan's λ³|J| ahead room within [`RHO_AHEAD`] of
+/// RHO_J·j, on the axes only where J is against A.
+pub fn mu_cap_ahead(k: &Kin, ahead: &Ahead, lim: &HoldLimits, lam: f32, nu_r: f32) -> f32 {
     let mut cap = f32::INFINITY;
-    let [a_ah, v_ah, j_all, a_acc, j_opp, a_opp] = ahead;
     for (i, (a, j)) in k.a.iter().zip(lim.j.iter()).enumerate() {
-        let (aa, va, am) = (
-            a_ah.get(i).copied().unwrap_or(0.0),
-            v_ah.get(i).copied().unwrap_or(0.0),
-            lim.a.get(i).copied().unwrap_or(0.0),
-        );
+        let at = |x: &[f32; 4]| x.get(i).copied().unwrap_or(0.0);
+        let (aa, va, am) = (at(&ahead.a), at(&ahead.v), lim.a.get(i).copied().unwrap_or(0.0));
         if va > 0.0 {
             // (braking adds to the plan's acceleration only where A is
             // against V)
-            let room = RHO_AHEAD * am - lam * lam * a_acc.get(i).copied().unwrap_or(0.0);
+            let room = RHO_AHEAD * am - lam * lam * at(&ahead.a_acc);
             cap = cap.min((room / va).max(MU_FLOOR));
             // The jerk the plan's λ³|J| ahead leaves for 3λμA.
             // On the axes, 3λμA adds to the plan's jerk only where J is
@@ -429,12 +421,9 @@ pub fn mu_cap_ahead(k: &Kin, ahead: &[[f32; 4]; 6], lim: &HoldLimits, lam: f32, 
             // knots switch J's sign within a tick, all of the largest |J|
             // is taken).
             let (ja, aj) = if i < 3 {
-                (
-                    j_opp.get(i).copied().unwrap_or(0.0),
-                    a_opp.get(i).copied().unwrap_or(0.0),
-                )
+                (at(&ahead.j_jerk), at(&ahead.a_jerk))
             } else {
-                (j_all.get(i).copied().unwrap_or(0.0), aa)
+                (at(&ahead.j), aa)
             };
             let room = RHO_AHEAD * (RHO_J * j - lam * lam * lam * ja);
             if aj > 0.0 && lam > 0.0 {
@@ -459,6 +448,71 @@ pub fn mu_cap_ahead(k: &Kin, ahead: &[[f32; 4]; 6], lim: &HoldLimits, lam: f32, 
         cap = cap.min(m);
     }
     cap
+}
+
+/// What the plan holds over the arc length a stop can still cover, per
+/// axis and tangentially (index 3), for the μ cap ([`mu_cap_ahead`]). A
+/// stop brakes (μ < 0): μV adds to the plan's acceleration only where A is
+/// against V, and 3λμA to the plan's jerk only where J is against A.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub struct Ahead {
+    /// Largest |A|, mm/s².
+    pub a: [f32; 4],
+    /// Largest |V|, mm/s.
+    pub v: [f32; 4],
+    /// Largest |J|, mm/s³.
+    pub j: [f32; 4],
+    /// Largest |A| where A·V < 0, mm/s².
+    pub a_acc: [f32; 4],
+    /// Largest |J| where J·A < 0, mm/s³.
+    pub j_jerk: [f32; 4],
+    /// Largest |A| where J·A < 0, mm/s².
+    pub a_jerk: [f32; 4],
+}
+
+impl Ahead {
+    /// Take one point of the plan into account.
+    pub fn add(&mut self, k: &Kin) {
+        for i in 0..4 {
+            let (Some(&v), Some(&a), Some(&j)) = (k.v.get(i), k.a.get(i), k.j.get(i)) else {
+                continue;
+            };
+            let up = |x: &mut [f32; 4], y: f32| {
+                if let Some(o) = x.get_mut(i) {
+                    *o = o.max(y.abs());
+                }
+            };
+            up(&mut self.a, a);
+            up(&mut self.v, v);
+            up(&mut self.j, j);
+            if a * v < 0.0 {
+                up(&mut self.a_acc, a);
+            }
+            if j * a < 0.0 {
+                up(&mut self.j_jerk, j);
+                up(&mut self.a_jerk, a);
+            }
+        }
+    }
+
+    /// The larger of both, row by row.
+    pub fn join(&self, o: &Ahead) -> Ahead {
+        let m = |x: [f32; 4], y: [f32; 4]| {
+            let mut r = x;
+            for (a, b) in r.iter_mut().zip(y.iter()) {
+                *a = a.max(*b);
+            }
+            r
+        };
+        Ahead {
+            a: m(self.a, o.a),
+            v: m(self.v, o.v),
+            j: m(self.j, o.j),
+            a_acc: m(self.a_acc, o.a_acc),
+            j_jerk: m(self.j_jerk, o.j_jerk),
+            a_jerk: m(self.a_jerk, o.a_jerk),
+        }
+    }
 }
 
 /// The [`N_CONS`] constraints on ν at (λ, μ) for a tick of h seconds (see
@@ -668,7 +722,7 @@ impl FeedHold {
     /// state (`kin` at the current s), advances λ and μ, and returns the
     /// tick's (λ, μ, ν) for the step of s.
     pub fn control(&mut self, kin: &Kin, lim: &HoldLimits, h: f64) -> TickScale {
-        self.control_ahead(kin, &[[0.0; 4]; 6], lim, h)
+        self.control_ahead(kin, &Ahead::default(), lim, h)
     }
 
     /// The braking deceleration of λ (1/s²) the controller plans with at
@@ -680,7 +734,7 @@ impl FeedHold {
     /// [`FeedHold::control`] with a look-ahead: `ahead` the largest |A| and
     /// |V| per axis and tangentially the plan reaches over the arc length
     /// the stop can still cover (the μ cap, [`mu_cap_ahead`]).
-    pub fn control_ahead(&mut self, kin: &Kin, ahead: &[[f32; 4]; 6], lim: &HoldLimits, h: f64) -> TickScale {
+    pub fn control_ahead(&mut self, kin: &Kin, ahead: &Ahead, lim: &HoldLimits, h: f64) -> TickScale {
         let now = TickScale {
             lam: self.lam,
             mu: self.mu,
@@ -748,7 +802,7 @@ impl FeedHold {
             (x, w, ulo, uhi)
         };
         let b = b0.min(THETA * (-la).max(0.25 * cap));
-        let kappa = if hold || mirror || xa < X_TAIL {
+        let kappa = if hold || mirror || xa < X_SNAP {
             f64::INFINITY
         } else {
             f64::from(kin.tail_rate(lim))

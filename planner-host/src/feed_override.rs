@@ -614,14 +614,9 @@ impl OverrideContext {
         // (the active profile's feed near the override point: from its span
         // over three windows' worth, where Algorithm 2 may still move it)
         let near = {
-            let span = self
-                .knots
-                .iter()
-                .skip(ORDER - 1)
-                .take_while(|&&u| u <= s_mm)
-                .count();
-            let lo = span.saturating_sub(ORDER).min(active_ctrl.len());
-            let hi = span
+            let first = BasisRow::at(&self.knots, s_mm).map_or(0, |b| b.first);
+            let lo = first.saturating_sub(ORDER - 1).min(active_ctrl.len());
+            let hi = (first + 1)
                 .saturating_add(3 * self.config.max_window_ctrl)
                 .min(active_ctrl.len());
             &active_ctrl[lo..hi.max(lo)]

@@ -32,7 +32,7 @@
 use super::{q_eval, tau_of, Fault, Interpolator, Phase, Setpoint};
 use crate::array::F64Array;
 use crate::fast::{fx_small_f32, fx_to_f64, pos_derivs, to_fx, Q_ONE};
-use crate::hold::{scaled_step, FeedHold, HoldError, HoldLimits, HoldState, HoldStats, Kin};
+use crate::hold::{scaled_step, Ahead, FeedHold, HoldError, HoldLimits, HoldState, HoldStats, Kin};
 use crate::table::Limits;
 
 /// A hold requested within this many times the tangential stopping
@@ -67,7 +67,7 @@ pub(super) struct HoldRun {
     sweep: Option<Sweep>,
     /// The last complete sweep's maxima, and whether it reached the stop
     /// segment within the stop's reach.
-    ahead: [[f32; 4]; 6],
+    ahead: Ahead,
     reach: bool,
 }
 
@@ -79,45 +79,14 @@ struct Sweep {
     d: f64,
     /// The next point.
     next: usize,
-    /// Maxima so far ([`crate::hold::mu_cap_ahead`]'s rows).
-    part: [[f32; 4]; 6],
+    /// Maxima so far.
+    part: Ahead,
     /// The stop segment's entry is within `d`.
     reach: bool,
     into_stop: bool,
     /// The stop segment's entry is within [`AHEAD_MAX_MM`] of `base`.
     stop_near: bool,
     done: bool,
-}
-
-/// Take one plan point into the look-ahead maxima: |A|, |V|, |J| per axis
-/// and tangentially, |A| where A is against V, |J| and |A| where J is
-/// against A.
-fn add_point(out: &mut [[f32; 4]; 6], k: &Kin) {
-    let [oa, ov, oj, oacc, ojo, oao] = out;
-    for i in 0..4 {
-        if let (Some(o1), Some(o2), Some(a), Some(j)) =
-            (ojo.get_mut(i), oao.get_mut(i), k.a.get(i), k.j.get(i))
-        {
-            if a * j < 0.0 {
-                *o1 = o1.max(j.abs());
-                *o2 = o2.max(a.abs());
-            }
-        }
-    }
-    for ((o, a), v) in oacc.iter_mut().zip(k.a.iter()).zip(k.v.iter()) {
-        if a * v < 0.0 {
-            *o = o.max(a.abs());
-        }
-    }
-    for (o, a) in oj.iter_mut().zip(k.j.iter()) {
-        *o = o.max(a.abs());
-    }
-    for (o, a) in oa.iter_mut().zip(k.a.iter()) {
-        *o = o.max(a.abs());
-    }
-    for (o, a) in ov.iter_mut().zip(k.v.iter()) {
-        *o = o.max(a.abs());
-    }
 }
 
 impl HoldRun {
@@ -242,7 +211,7 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
             base: s,
             d,
             next: 0,
-            part: [[0.0; 4]; 6],
+            part: Ahead::default(),
             reach: false,
             into_stop: false,
             stop_near: self.ends.is_some() && self.stop_at.wrapping_sub(s) <= to_fx(AHEAD_MAX_MM),
@@ -357,7 +326,7 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
                     Kin::new(dr, [qs.v, 0.5 * dq, 0.5 * ddq * qs.v])
                 }
             };
-            add_point(&mut sw.part, &k);
+            sw.part.add(&k);
             if sw.into_stop {
                 sw.done = true;
             }
@@ -369,13 +338,13 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
     /// by [`AHEAD_PER_TICK`] points (a new one starts when it is complete).
     /// A hold request runs a whole sweep at once ([`Interpolator::hold`]),
     /// outside the tick.
-    fn ahead_acc(&mut self, kin: &Kin, v: f64) -> ([[f32; 4]; 6], bool) {
+    fn ahead_acc(&mut self, kin: &Kin, v: f64) -> (Ahead, bool) {
         // Stopping only: a resume plans its cap at λ = 1 already, and a
         // look-ahead cap dropping under μ on its exponential tail forces μ
         // down against the tail law (measured: up to 1.07× j at landing).
         if self.fh.ctl.state() != HoldState::Stopping {
             self.fh.sweep = None;
-            return ([[0.0; 4]; 6], false);
+            return (Ahead::default(), false);
         }
         let mut sw = match self.fh.sweep {
             Some(sw) if !sw.done => sw,
@@ -389,13 +358,7 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
         };
         self.sweep_points(&mut sw, AHEAD_PER_TICK);
         self.fh.sweep = Some(sw);
-        let mut out = self.fh.ahead;
-        for (o, p) in out.iter_mut().zip(sw.part.iter()) {
-            for (x, y) in o.iter_mut().zip(p.iter()) {
-                *x = x.max(*y);
-            }
-        }
-        (out, self.fh.reach || sw.reach)
+        (self.fh.ahead.join(&sw.part), self.fh.reach || sw.reach)
     }
 
     /// One tick under time-scaling (module docs); `phase` is `Run`.
@@ -455,7 +418,7 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
         }
         let (ahead, stop_in_reach) = match self.fh.seg_tau {
             // (in the stop segment: coast through it)
-            Some(_) => ([[0.0; 4]; 6], true),
+            Some(_) => (Ahead::default(), true),
             None => self.ahead_acc(&kin, p1),
         };
         // (below λ = ½ the plan's λ³J and 3λμA leave room to finish)
