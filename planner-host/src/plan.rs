@@ -170,6 +170,7 @@ pub enum PlanError {
         /// Angle between the tangents on both sides, degrees.
         angle_deg: f64,
     },
+    /// The table encoder refused the plan (a bug: the plan is checked before).
     #[error("table encoding failed: {0:?}")]
     Table(table::EncodeError),
     /// An override level is not finite, not > 0, or given twice.
