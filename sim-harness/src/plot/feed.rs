@@ -1,56 +1,11 @@
 //! PNG plot of the feedrate against arc length: the plan √q(s), the
-//! simulated path speeds and the velocity limit.
-//!
-//! Text is drawn with DejaVu Sans compiled into the binary
-//! (`assets/DejaVuSans.ttf`, license beside it), so plotting needs no
-//! system fonts.
+//! simulated path speeds and the programmed feed.
 
 use std::path::Path;
-use std::sync::OnceLock;
 
 use plotters::prelude::*;
 
-static FONT: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
-
-/// Why a plot could not be drawn.
-#[derive(Debug, thiserror::Error)]
-#[non_exhaustive]
-pub enum PlotError {
-    /// Nothing to plot.
-    #[error("nothing to plot: {0}")]
-    Empty(&'static str),
-    /// The embedded font was rejected (should not happen).
-    #[error("the embedded font could not be loaded")]
-    Font,
-    /// Drawing or encoding failed.
-    #[error("cannot draw {path}: {message}")]
-    Draw {
-        /// The file.
-        path: String,
-        /// The backend's message.
-        message: String,
-    },
-    /// Renaming the finished file failed.
-    #[error("cannot write {path}: {source}")]
-    Io {
-        /// The file.
-        path: String,
-        /// Why.
-        source: std::io::Error,
-    },
-}
-
-/// Register the embedded font as plotters' `sans-serif` (once).
-pub(crate) fn register_font() -> Result<(), PlotError> {
-    static DONE: OnceLock<bool> = OnceLock::new();
-    let ok =
-        *DONE.get_or_init(|| plotters::style::register_font("sans-serif", FontStyle::Normal, FONT).is_ok());
-    if ok {
-        Ok(())
-    } else {
-        Err(PlotError::Font)
-    }
-}
+use crate::plot::png::{register_font, PlotError};
 
 /// What to draw: series of (s in mm, speed in mm/s).
 #[derive(Debug, Clone, Copy)]

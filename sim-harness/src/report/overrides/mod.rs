@@ -1,0 +1,19 @@
+//! The override scenarios as a report: the paper's Figs 13–15, an
+//! override storm, feed holds at random points, and the same with link
+//! faults; each simulated through [`crate::scenario`], written as CSV, PNG and
+//! one Markdown table.
+//!
+//! - [`catalogue`]: the scenarios ([`Spec`]) and their operator events;
+//! - [`run`]: plan and simulate one scenario ([`run_spec`]);
+//! - [`table`]: its row of the Markdown table;
+//! - [`files`]: the files of one run ([`write_run`]).
+
+pub mod catalogue;
+pub mod files;
+pub mod run;
+pub mod table;
+
+pub use self::catalogue::{catalogue, Spec};
+pub use self::files::write_run;
+pub use self::run::{run_spec, Run};
+pub use self::table::{median_max, TABLE_HEAD};
