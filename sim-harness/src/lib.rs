@@ -12,6 +12,8 @@
 //!   viscous friction ([`ServoConfig`]).
 //! - [`run`]: [`run_table`], table bytes → interpolator → servos →
 //!   [`SimResult`] (configured by [`SimConfig`]).
+//! - [`geometry`]: the table's toolpath ([`CurveGeometry`]) that the metrics
+//!   measure the contour error against.
 //! - [`metrics`]: machining time, ratios to the limits by central finite
 //!   differences, contour, following error, feedrate fluctuation
 //!   ([`Metrics`], from one [`Tick`] record per servo period).
@@ -25,7 +27,7 @@
 //! Units: mm, s, mm/s, mm/s², mm/s³; forces N, masses kg.
 
 pub mod csv;
-pub(crate) mod geometry;
+pub mod geometry;
 pub mod metrics;
 pub mod plot;
 pub mod report;
@@ -33,6 +35,7 @@ pub mod run;
 pub mod scenario;
 pub mod servo;
 
+pub use geometry::CurveGeometry;
 pub use metrics::{Metrics, Tick};
 pub use run::{run_table, SimConfig, SimError, SimResult};
 pub use servo::{Axis, ServoConfig};

@@ -11,7 +11,7 @@ use crate::metrics::{self, Metrics, Tick, Toolpath};
 use crate::servo::{Axis, ServoConfig, ServoError};
 
 /// Default servo period, s (250 µs).
-pub const DEFAULT_PERIOD_S: f64 = 250e-6;
+pub(crate) const DEFAULT_PERIOD_S: f64 = 250e-6;
 
 /// How to simulate.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
@@ -258,7 +258,7 @@ impl SimResult {
 
 /// The planned feed of a table at `n` evenly spaced points of [0, L]: √q(s),
 /// and inside the end segments (if any) the segments' own feed.
-pub fn planned_feed(table: &Table, n: usize) -> Series {
+pub(crate) fn planned_feed(table: &Table, n: usize) -> Series {
     let ends = table.ends();
     let Some(q) = QSpline::new(table.q_knots(), table.q_ctrl()) else {
         return Vec::new();

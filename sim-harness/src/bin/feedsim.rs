@@ -385,7 +385,7 @@ fn override_report(
         .filter(|s| names.is_empty() || names.iter().any(|n| n == s.name))
     {
         eprintln!("feedsim override: {} ...", spec.name);
-        let run = orep::run_spec(spec, period_us * 1e-6)?;
+        let run = orep::run_spec(spec, period_us * 1e-6, true)?;
         let (row, files) = orep::write_run(out, &run)?;
         println!("{row}");
         md.push_str(&row);

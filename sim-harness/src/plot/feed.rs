@@ -26,7 +26,7 @@ pub struct FeedPlot<'a> {
 }
 
 /// Image size, pixels.
-pub const SIZE_PX: (u32, u32) = (1400, 800);
+pub(crate) const SIZE_PX: (u32, u32) = (1400, 800);
 
 /// Draw the plot to `path` (PNG), atomically (temporary file, then rename).
 pub fn plot_feed(path: &Path, p: &FeedPlot) -> Result<(), PlotError> {

@@ -4,7 +4,7 @@
 //! Per servo tick k (t = kT):
 //!
 //! 1. downlink messages due by t reach the firmware
-//!    ([`Interpolator::offer_override`]); each reply (accepted, or the typed
+//!    ([`firmware_core::interp::Interpolator::offer_override`]); each reply (accepted, or the typed
 //!    refusal) goes up the link;
 //! 2. the interpolator ticks, the servos follow, and a status (s, feed, the
 //!    active profile) goes up the link;
@@ -25,21 +25,21 @@
 //!
 //! The parts, one per file:
 //!
-//! - [`operator`]: what the operator does ([`Command`], [`Event`], feed holds at
+//! - `operator.rs`: what the operator does ([`Command`], [`Event`], feed holds at
 //!   points of the path, [`HoldPoint`]);
-//! - [`link`]: the host–firmware link ([`LinkConfig`]) and the messages it carries;
-//! - [`jitter`]: the tick interrupt's latency ([`JitterConfig`]), drawn by [`rng`];
-//! - [`host`]: the host, which computes an override's transition profile and sends it;
-//! - [`record`]: what became of each override command and each feed hold;
-//! - [`run`]: the tick loop, [`run_scenario`], and its [`ScenarioResult`].
+//! - `link.rs`: the host–firmware link ([`LinkConfig`]) and the messages it carries;
+//! - `jitter.rs`: the tick interrupt's latency ([`JitterConfig`]), drawn by `rng.rs`;
+//! - `host.rs`: the host, which computes an override's transition profile and sends it;
+//! - `record.rs`: what became of each override command and each feed hold;
+//! - `run.rs`: the tick loop, [`run_scenario`], and its [`ScenarioResult`].
 
 pub(crate) mod host;
-pub mod jitter;
-pub mod link;
-pub mod operator;
-pub mod record;
+pub(crate) mod jitter;
+pub(crate) mod link;
+pub(crate) mod operator;
+pub(crate) mod record;
 pub(crate) mod rng;
-pub mod run;
+pub(crate) mod run;
 
 pub use self::jitter::JitterConfig;
 pub use self::link::LinkConfig;

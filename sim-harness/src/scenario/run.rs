@@ -91,6 +91,18 @@ pub fn run_scenario(
     geometry: Option<&CurveGeometry>,
     cfg: &ScenarioConfig,
 ) -> Result<ScenarioResult, SimError> {
+    run_scenario_observed(table_bytes, ctx, geometry, cfg, &mut |_| {})
+}
+
+/// [`run_scenario`], calling `on_tick` with every tick recorded (for a
+/// progress bar; it sees the ticks, it cannot change them).
+pub(crate) fn run_scenario_observed(
+    table_bytes: &[u8],
+    ctx: &OverrideContext,
+    geometry: Option<&CurveGeometry>,
+    cfg: &ScenarioConfig,
+    on_tick: &mut dyn FnMut(&Tick),
+) -> Result<ScenarioResult, SimError> {
     let table = Table::parse(table_bytes).map_err(SimError::Table)?;
     let limits = table.limits();
     let t = cfg.period_s;
@@ -197,6 +209,9 @@ pub fn run_scenario(
             ticks: ticks.len(),
         })?;
         ticks.push(servo_tick(&mut axes, &cfg.servo, t, &sp)?);
+        if let Some(tk) = ticks.last() {
+            on_tick(tk);
+        }
         let (seq_now, level_now) = ip.active_profile();
         if seq_now != active_seq {
             if let Some(r) = seq_now.and_then(|q| recs.iter_mut().find(|r| r.sent_seqs.contains(&q))) {

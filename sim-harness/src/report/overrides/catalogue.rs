@@ -22,7 +22,7 @@ pub struct Spec {
     /// Override levels planned into the table, percent.
     pub levels: Vec<f64>,
     /// The scenario (events at times relative to the predicted machining time are filled by [`events`]).
-    pub kind: Kind,
+    pub(crate) kind: Kind,
     /// The link.
     pub link: LinkConfig,
     /// Interrupt latency of the firmware's tick.
@@ -31,7 +31,7 @@ pub struct Spec {
 
 /// What the operator does in a scenario.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Kind {
+pub(crate) enum Kind {
     /// One override to level 1 at this fraction of the predicted time.
     Single(f64),
     /// A new override every `every_s` seconds to a random level, all path long.
@@ -60,7 +60,7 @@ pub enum Kind {
 
 /// The operator events of `kind` for a path whose plan takes `t_pred` s and
 /// a table with `levels` override levels.
-pub fn events(kind: Kind, t_pred: f64, levels: usize) -> Vec<Event> {
+pub(crate) fn events(kind: Kind, t_pred: f64, levels: usize) -> Vec<Event> {
     let mut ev = Vec::new();
     let storm = |ev: &mut Vec<Event>, every: f64, rng: &mut Rng| {
         let mut t = every;
@@ -101,7 +101,7 @@ pub fn events(kind: Kind, t_pred: f64, levels: usize) -> Vec<Event> {
 /// uniformly in each n-th of 2–98 % of the length, resumed `held_s` after coming to
 /// rest (even ones) or after the hold (odd ones, so often while still
 /// stopping).
-pub fn hold_points(kind: Kind, length_mm: f64) -> Vec<HoldPoint> {
+pub(crate) fn hold_points(kind: Kind, length_mm: f64) -> Vec<HoldPoint> {
     let Kind::Holds { n, held_s, seed } = kind else {
         return Vec::new();
     };

@@ -3,17 +3,17 @@
 //! faults; each simulated through [`crate::scenario`], written as CSV, PNG and
 //! one Markdown table.
 //!
-//! - [`catalogue`]: the scenarios ([`Spec`]) and their operator events;
-//! - [`run`]: plan and simulate one scenario ([`run_spec`]);
-//! - [`table`]: its row of the Markdown table;
-//! - [`files`]: the files of one run ([`write_run`]).
+//! - `catalogue.rs`: the scenarios ([`Spec`]) and their operator events;
+//! - `run.rs`: plan and simulate one scenario ([`run_spec`]);
+//! - `table.rs`: its row of the Markdown table;
+//! - `files.rs`: the files of one run ([`write_run`]).
 
-pub mod catalogue;
-pub mod files;
-pub mod run;
-pub mod table;
+pub(crate) mod catalogue;
+pub(crate) mod files;
+pub(crate) mod run;
+pub(crate) mod table;
 
 pub use self::catalogue::{catalogue, Spec};
 pub use self::files::write_run;
-pub use self::run::{run_spec, Run};
+pub use self::run::{run_spec, BoxError, Run};
 pub use self::table::{median_max, TABLE_HEAD};

@@ -5,7 +5,10 @@ use planner_host::arclength::ArcLength;
 use planner_host::feed_override::OverrideContext;
 use planner_host::plan::{self, PlanConfig};
 
+use indicatif::{ProgressBar, ProgressStyle};
+
 use crate::geometry::CurveGeometry;
+use crate::metrics::Tick;
 use crate::report::overrides::catalogue::{events, hold_points, Spec};
 use crate::scenario::run::{self as scenario, ScenarioConfig, ScenarioResult};
 
@@ -27,8 +30,10 @@ pub struct Run {
     pub context_time_s: f64,
 }
 
-/// Plan and simulate one scenario.
-pub fn run_spec(spec: &Spec, period_s: f64) -> Result<Run, BoxError> {
+/// Plan and simulate one scenario; with `progress`, a progress bar on
+/// stderr follows the setpoint along the path (hidden when stderr is not a
+/// terminal, cleared at the end).
+pub fn run_spec(spec: &Spec, period_s: f64, progress: bool) -> Result<Run, BoxError> {
     let cfg = PlanConfig {
         limits: planner_host::limits::Limits {
             vbar: spec.vbar_mm_s,
@@ -54,7 +59,22 @@ pub fn run_spec(spec: &Spec, period_s: f64) -> Result<Run, BoxError> {
         hold_points: hold_points(spec.kind, planned.path_length_mm),
         ..ScenarioConfig::default()
     };
-    let result = scenario::run_scenario(&planned.table_bytes, &ctx, Some(&geometry), &sc)?;
+    let bar = if progress {
+        path_bar(spec.name, planned.path_length_mm)
+    } else {
+        ProgressBar::hidden()
+    };
+    let mut n = 0u32;
+    let mut on_tick = |tk: &Tick| {
+        n += 1;
+        if n % 200 == 0 {
+            bar.set_position(tk.s_mm.max(0.0) as u64);
+        }
+    };
+    let result =
+        scenario::run_scenario_observed(&planned.table_bytes, &ctx, Some(&geometry), &sc, &mut on_tick);
+    bar.finish_and_clear();
+    let result = result?;
     Ok(Run {
         spec: spec.clone(),
         result,
@@ -62,4 +82,16 @@ pub fn run_spec(spec: &Spec, period_s: f64) -> Result<Run, BoxError> {
         plan_time_s,
         context_time_s,
     })
+}
+
+/// A bar over the path's length in mm, named after the scenario.
+fn path_bar(name: &str, length_mm: f64) -> ProgressBar {
+    let bar = ProgressBar::new(length_mm.max(0.0).ceil() as u64);
+    bar.set_style(
+        ProgressStyle::with_template("{prefix:>8} {elapsed_precise} [{bar:40}] {pos}/{len} mm of the path")
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    bar.set_prefix(name.to_string());
+    bar
 }

@@ -78,7 +78,7 @@ pub enum ReportError {
 }
 
 /// The three methods, in table order.
-pub const METHODS: [(&str, Sampling); 3] = [
+pub(crate) const METHODS: [(&str, Sampling); 3] = [
     ("PAR", Sampling::Par),
     ("LEN", Sampling::Len),
     (

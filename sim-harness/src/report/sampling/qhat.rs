@@ -12,7 +12,7 @@ use crate::report::sampling::results::QhatDiag;
 use crate::report::sampling::runs::plan_one;
 
 /// The (q̂ bound, objective) pairs of the decomposition table.
-pub const DECOMP: [Formulation; 4] = [
+pub(crate) const DECOMP: [Formulation; 4] = [
     Formulation::PAPER,
     Formulation {
         qhat_bound: QhatBound::None,

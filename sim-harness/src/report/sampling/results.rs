@@ -34,7 +34,7 @@ pub struct Row {
     pub curve: String,
     /// Density, points per mm.
     pub density: f64,
-    /// Index into [`METHODS`].
+    /// Index into the methods PAR, LEN, ADA (in this order).
     pub method: usize,
     /// Index into the formulations.
     pub formulation: usize,
@@ -45,7 +45,7 @@ pub struct Row {
 /// â diagnostics of one curve and method (default bound vs none, integral weights).
 #[derive(Debug, Clone)]
 pub struct QhatDiag {
-    /// Predicted time for every (bound, objective) in [`DECOMP`] order, or the error.
+    /// Predicted time for every (bound, objective) in the order none/uniform, none/integral, control/uniform, control/integral, or the error.
     pub times: Vec<Result<f64, String>>,
     /// Interior control points with â_i < 2 % of q̂(g_i).
     pub zero_ctrl: usize,
