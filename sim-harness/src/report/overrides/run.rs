@@ -67,7 +67,7 @@ pub fn run_spec(spec: &Spec, period_s: f64, progress: bool) -> Result<Run, BoxEr
     let mut n = 0u32;
     let mut on_tick = |tk: &Tick| {
         n += 1;
-        if n % 200 == 0 {
+        if n.is_multiple_of(200) {
             bar.set_position(tk.s_mm.max(0.0) as u64);
         }
     };
