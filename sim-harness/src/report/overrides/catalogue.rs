@@ -15,6 +15,8 @@ pub struct Spec {
     pub name: &'static str,
     /// One line for the report.
     pub what: String,
+    /// The feed figure's title (short enough to fit the image).
+    pub title: String,
     /// The toolpath.
     pub curve: Nurbs,
     /// The programmed feed v̄, mm/s.
@@ -128,6 +130,8 @@ pub fn catalogue(butterfly: &Nurbs, trident: Option<&Nurbs>, link: LinkConfig) -
     let mut v = vec![
         Spec {
             name: "fig13",
+            title: "fig13 (paper's Fig. 13): Butterfly, override acceleration 4000 → 5000 mm/min (125 %)"
+                .into(),
             what: "Fig. 13: Butterfly, override acceleration 4000 -> 5000 mm/min (125 %)".into(),
             curve: butterfly.clone(),
             vbar_mm_s: mm_min(4000.0),
@@ -138,6 +142,8 @@ pub fn catalogue(butterfly: &Nurbs, trident: Option<&Nurbs>, link: LinkConfig) -
         },
         Spec {
             name: "fig14",
+            title: "fig14 (paper's Fig. 14): Butterfly, override deceleration 5000 → 1500 mm/min (30 %)"
+                .into(),
             what: "Fig. 14: Butterfly, override deceleration 5000 -> 1500 mm/min (30 %)".into(),
             curve: butterfly.clone(),
             vbar_mm_s: mm_min(5000.0),
@@ -150,6 +156,7 @@ pub fn catalogue(butterfly: &Nurbs, trident: Option<&Nurbs>, link: LinkConfig) -
     if let Some(t) = trident {
         v.push(Spec {
             name: "fig15",
+            title: "fig15 (paper's Fig. 15): Trident, override deceleration 5000 → 1750 mm/min (35 %)".into(),
             what: "Fig. 15: Trident stand-in, override deceleration 5000 -> 1750 mm/min (35 %)".into(),
             curve: t.clone(),
             vbar_mm_s: mm_min(5000.0),
@@ -162,6 +169,7 @@ pub fn catalogue(butterfly: &Nurbs, trident: Option<&Nurbs>, link: LinkConfig) -
     v.extend([
         Spec {
             name: "storm",
+            title: "storm: Butterfly at 6000 mm/min, a new override every 50 ms to a random level".into(),
             what: "Butterfly at 6000 mm/min, a new override every 50 ms to a random level (100, 30, 50, 70, 120, 150 %) all path long"
                 .into(),
             curve: butterfly.clone(),
@@ -176,6 +184,7 @@ pub fn catalogue(butterfly: &Nurbs, trident: Option<&Nurbs>, link: LinkConfig) -
         },
         Spec {
             name: "holds",
+            title: "holds: Butterfly at 6000 mm/min, 8 feed holds at random points of the path".into(),
             what: "Butterfly at 6000 mm/min, 8 feed holds at random points of the path (one in each eighth), resumed 0.2 s after coming to rest (even ones) or 0.2 s after the hold (odd ones, so often while still stopping)".into(),
             curve: butterfly.clone(),
             vbar_mm_s: vbar,
@@ -190,6 +199,7 @@ pub fn catalogue(butterfly: &Nurbs, trident: Option<&Nurbs>, link: LinkConfig) -
         },
         Spec {
             name: "faults",
+            title: "faults: the storm with every 3rd message lost, a host restart and tick jitter".into(),
             what: "Butterfly at 6000 mm/min, the storm with every 3rd message lost, a host restart at mid-path and a tick interrupt latency of up to 60 % of T".into(),
             curve: butterfly.clone(),
             vbar_mm_s: vbar,

@@ -6,9 +6,12 @@
 //! - `catalogue.rs`: the scenarios ([`Spec`]) and their operator events;
 //! - `run.rs`: plan and simulate one scenario ([`run_spec`]);
 //! - `table.rs`: its row of the Markdown table;
+//! - `figure.rs`: its feed figure, with the override commands, holds and
+//!   resumes marked;
 //! - `files.rs`: the files of one run ([`write_run`]).
 
 pub(crate) mod catalogue;
+pub(crate) mod figure;
 pub(crate) mod files;
 pub(crate) mod run;
 pub(crate) mod table;

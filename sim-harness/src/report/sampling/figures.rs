@@ -10,6 +10,7 @@ use planner_host::sampling;
 use plotters::prelude::*;
 
 use crate::plot::png::{draw_err, png, PlotError};
+use crate::plot::style::{draw_legend, light, title_px, Dash, Line};
 use crate::report::sampling::config::{ReportConfig, METHODS};
 use crate::report::sampling::results::{sim_t, Report};
 use crate::run::Series;
@@ -21,9 +22,13 @@ const COLORS: [RGBColor; 3] = [
     RGBColor(20, 150, 60),
 ];
 
-fn light(c: RGBColor) -> RGBColor {
-    let l = |x: u8| ((x as u16 + 2 * 255) / 3) as u8;
-    RGBColor(l(c.0), l(c.1), l(c.2))
+/// The dash pattern of formulation `fi`: solid, dashed, dotted.
+fn formulation_dash(fi: usize) -> Dash {
+    match fi {
+        0 => Dash::Solid,
+        1 => Dash::Dashed(10, 6),
+        _ => Dash::Dashed(3, 5),
+    }
 }
 
 /// Sampling points of every method on the curve, one panel per method.
@@ -45,7 +50,7 @@ pub(crate) fn fig_sampling(path: &Path, c: &Nurbs, arc: &ArcLength, m: usize) ->
         y1 = y1.max(y);
     }
     let pad = 0.05 * (x1 - x0).max(y1 - y0).max(1e-6);
-    png(path, (1200, 420), |root| {
+    png(path, (1200, 460), |root| {
         root.fill(&WHITE).map_err(&e)?;
         let root = root
             .titled(
@@ -68,12 +73,15 @@ pub(crate) fn fig_sampling(path: &Path, c: &Nurbs, arc: &ArcLength, m: usize) ->
             let mut ch = ChartBuilder::on(panel)
                 .caption(*name, ("sans-serif", 20))
                 .margin(8)
-                .x_label_area_size(30)
-                .y_label_area_size(45)
+                .x_label_area_size(45)
+                .y_label_area_size(60)
                 .build_cartesian_2d((x0 - pad)..(x1 + pad), (y0 - pad)..(y1 + pad))
                 .map_err(&e)?;
             ch.configure_mesh()
                 .disable_mesh()
+                .x_desc("x [mm]")
+                .y_desc("y [mm]")
+                .axis_desc_style(("sans-serif", 15))
                 .label_style(("sans-serif", 13))
                 .x_labels(5)
                 .y_labels(5)
@@ -117,55 +125,54 @@ pub(crate) fn fig_time(path: &Path, rep: &Report, cfg: &ReportConfig, curve: &st
     let (t0, t1) = all().fold((f64::INFINITY, 0.0f64), |(a, b), (_, t)| (a.min(t), b.max(t)));
     let (t0, t1) = if t0.is_finite() { (t0, t1) } else { (0.0, 1.0) };
     let span = (t1 - t0).max(1e-3 * t1.max(1e-9));
-    png(path, (900, 500), |root| {
+    png(path, (1000, 520), |root| {
         root.fill(&WHITE).map_err(&e)?;
-        let mut ch = ChartBuilder::on(&root)
-            .caption(
-                format!("{curve}: machining time against sampling density"),
-                ("sans-serif", 24),
-            )
+        let title = format!("{curve}: simulated machining time against sampling density");
+        let root = root
+            .titled(&title, ("sans-serif", title_px(&title, 1000, 24)))
+            .map_err(&e)?;
+        let (left, right) = root.split_horizontally(1000 - 230);
+        let mut ch = ChartBuilder::on(&left)
             .margin(15)
             .x_label_area_size(50)
             .y_label_area_size(70)
             .build_cartesian_2d(
                 (d0 * 0.8).log10()..(d1 * 1.25).log10(),
-                (t0 - 0.1 * span)..(t1 + 0.35 * span),
+                (t0 - 0.1 * span)..(t1 + 0.1 * span),
             )
             .map_err(&e)?;
         ch.configure_mesh()
-            .x_desc("sampling density [points/mm] (log scale)")
-            .y_desc("simulated machining time [s]")
+            .x_desc("sampling density P [points/mm] (log scale)")
+            .y_desc("simulated machining time T [s]")
             .x_label_formatter(&|x| format!("{:.2}", 10f64.powf(*x)))
             .axis_desc_style(("sans-serif", 18))
             .label_style(("sans-serif", 15))
+            .light_line_style(RGBColor(235, 235, 235))
             .draw()
             .map_err(&e)?;
+        let mut legend = Vec::new();
         for (fi, mi, pts) in &series {
             let color = COLORS[*mi];
-            let style = color.stroke_width(2);
+            let line = Line::new(
+                format!("{} {}", METHODS[*mi].0, cfg.formulations[*fi].name()),
+                color,
+                2,
+                formulation_dash(*fi),
+            );
             let lp: Vec<(f64, f64)> = pts.iter().map(|&(d, t)| (d.log10(), t)).collect();
-            let label = format!("{} {}", METHODS[*mi].0, cfg.formulations[*fi].name());
-            let anno = match fi {
-                0 => ch.draw_series(LineSeries::new(lp.clone(), style)).map_err(&e)?,
-                1 => ch
-                    .draw_series(DashedLineSeries::new(lp.clone(), 10, 6, style))
-                    .map_err(&e)?,
-                _ => ch
-                    .draw_series(DashedLineSeries::new(lp.clone(), 3, 5, style))
-                    .map_err(&e)?,
-            };
-            anno.label(label)
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
+            line.draw(&mut ch, lp.clone()).map_err(draw_err(path))?;
             ch.draw_series(lp.iter().map(|&p| Circle::new(p, 4, color.filled())))
                 .map_err(&e)?;
+            legend.push(line);
         }
-        ch.configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .label_font(("sans-serif", 15))
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .draw()
-            .map_err(&e)?;
+        let (_, rh) = right.dim_in_pixel();
+        let legend_area = right.margin(
+            (rh / 2).saturating_sub(20 * legend.len() as u32 / 2 + 10),
+            0,
+            0,
+            0,
+        );
+        draw_legend(&legend_area, &legend, 1, 15, 5).map_err(draw_err(path))?;
         root.present().map_err(&e)?;
         Ok(())
     })
@@ -175,57 +182,65 @@ pub(crate) fn fig_time(path: &Path, rep: &Report, cfg: &ReportConfig, curve: &st
 pub(crate) fn fig_feed(path: &Path, rep: &Report, cfg: &ReportConfig, curve: &str) -> Result<(), PlotError> {
     let e = draw_err(path);
     let d = cfg.feed_density;
-    png(path, (W, 720), |root| {
+    png(path, (W, 760), |root| {
         root.fill(&WHITE).map_err(&e)?;
+        let title = format!("{curve}: planned feed against arc length at {d} point/mm");
         let root = root
-            .titled(
-                &format!("{curve}: planned feed at {d} point/mm"),
-                ("sans-serif", 24),
-            )
+            .titled(&title, ("sans-serif", title_px(&title, W, 24)))
             .map_err(&e)?;
         let panels = root.split_evenly((3, 1));
         let lmax = rep.curves.iter().find(|c| c.0 == curve).map_or(1.0, |c| c.2);
-        let vmax = cfg.limits.vbar * 1.1;
+        let vbar = cfg.limits.vbar;
+        let vmax = vbar * 1.1;
         for (mi, panel) in panels.iter().enumerate() {
-            let mut ch = ChartBuilder::on(panel)
+            let (chart_area, legend_area) = panel.split_horizontally(W - 250);
+            let mut ch = ChartBuilder::on(&chart_area)
                 .margin(8)
-                .x_label_area_size(if mi == 2 { 40 } else { 20 })
-                .y_label_area_size(60)
+                .x_label_area_size(if mi == 2 { 45 } else { 25 })
+                .y_label_area_size(65)
                 .build_cartesian_2d(0.0..lmax, 0.0..vmax)
                 .map_err(&e)?;
             ch.configure_mesh()
                 .x_desc(if mi == 2 { "arc length s [mm]" } else { "" })
-                .y_desc(format!("{} feed [mm/s]", METHODS[mi].0))
+                .y_desc(format!("{}: feed [mm/s]", METHODS[mi].0))
                 .axis_desc_style(("sans-serif", 15))
                 .label_style(("sans-serif", 13))
+                .light_line_style(RGBColor(235, 235, 235))
                 .draw()
                 .map_err(&e)?;
+            let programmed = Line::new("programmed feed v̄", BLACK, 1, Dash::Dashed(8, 5));
+            programmed
+                .draw(&mut ch, vec![(0.0, vbar), (lmax, vbar)])
+                .map_err(draw_err(path))?;
+            let mut legend = Vec::new();
+            // the later formulations wide, light and dashed behind the first
             for fi in (0..cfg.formulations.len()).rev() {
                 let Some(Ok(c)) = rep.row(curve, d, mi, fi).map(|r| &r.outcome) else {
                     continue;
                 };
-                let color = if fi == 0 { COLORS[mi] } else { light(COLORS[mi]) };
-                let label = format!(
-                    "{} {}: T = {}",
-                    METHODS[mi].0,
-                    cfg.formulations[fi].name(),
-                    sim_t(c).map_or("—".into(), |t| format!("{t:.3} s"))
+                let (color, width) = if fi == 0 {
+                    (COLORS[mi], 2)
+                } else {
+                    (light(COLORS[mi]), 4)
+                };
+                let line = Line::new(
+                    format!(
+                        "{} {}: T = {}",
+                        METHODS[mi].0,
+                        cfg.formulations[fi].name(),
+                        sim_t(c).map_or("—".into(), |t| format!("{t:.3} s"))
+                    ),
+                    color,
+                    width,
+                    formulation_dash(fi),
                 );
-                ch.draw_series(LineSeries::new(
-                    c.feed.iter().copied(),
-                    color.stroke_width(if fi == 0 { 2 } else { 3 }),
-                ))
-                .map_err(&e)?
-                .label(label)
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(3)));
+                line.draw(&mut ch, c.feed.clone()).map_err(draw_err(path))?;
+                legend.push(line);
             }
-            ch.configure_series_labels()
-                .position(SeriesLabelPosition::LowerRight)
-                .label_font(("sans-serif", 13))
-                .background_style(WHITE.mix(0.85))
-                .border_style(BLACK)
-                .draw()
-                .map_err(&e)?;
+            legend.reverse();
+            legend.push(programmed);
+            let legend_area = legend_area.margin(20, 0, 0, 0);
+            draw_legend(&legend_area, &legend, 1, 13, 5).map_err(draw_err(path))?;
         }
         root.present().map_err(&e)?;
         Ok(())

@@ -374,7 +374,7 @@ pub(crate) fn markdown(rep: &Report, cfg: &ReportConfig) -> String {
         if cfg.densities.contains(&d1) {
             let _ = writeln!(
                 o,
-                "Planned feed √q(s) against arc length at {d1} point/mm per method (cf. Figs 9–12); dark: {}, light: {}:\n\n![{name} feed]({stem}_feed.png)\n",
+                "Planned feed √q(s) against arc length at {d1} point/mm per method (cf. Figs 9–12); dark solid: {}, light dashed: {}:\n\n![{name} feed]({stem}_feed.png)\n",
                 fnames[0],
                 fnames[1..].join(", ")
             );
