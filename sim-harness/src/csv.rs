@@ -41,7 +41,7 @@ pub enum CsvError {
 
 /// Append `x` in the shortest round-trip form: plain decimal for
 /// moderate magnitudes, exponent form for very small or large ones.
-pub fn push_f64(out: &mut String, x: f64) {
+pub(crate) fn push_f64(out: &mut String, x: f64) {
     let a = x.abs();
     let _ = if x == 0.0 || (1e-5..1e16).contains(&a) || !x.is_finite() {
         write!(out, "{x}")
@@ -51,7 +51,7 @@ pub fn push_f64(out: &mut String, x: f64) {
 }
 
 /// The CSV text for `ticks`.
-pub fn to_csv_string(ticks: &[Tick]) -> String {
+pub(crate) fn to_csv_string(ticks: &[Tick]) -> String {
     let mut out = String::with_capacity(ticks.len() * 200 + 64);
     out.push_str(HEADER);
     out.push('\n');

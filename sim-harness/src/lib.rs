@@ -5,31 +5,37 @@
 //! actual motion are measured against the toolpath and the table's limits,
 //! written as CSV and plotted.
 //!
-//! - [`servo`]: position-P / velocity-PI cascade with feed-forward, current
-//!   loop as a first-order lag, rigid inertia with viscous friction.
+//! The layers, in the order the data flows:
+//!
+//! - [`servo`]: one machine axis, [`Axis`]: position-P / velocity-PI cascade
+//!   with feed-forward, current loop as a first-order lag, rigid inertia with
+//!   viscous friction ([`ServoConfig`]).
+//! - [`run`]: [`run_table`], table bytes → interpolator → servos →
+//!   [`SimResult`] (configured by [`SimConfig`]).
+//! - [`geometry`]: the table's toolpath ([`CurveGeometry`]) that the metrics
+//!   measure the contour error against.
 //! - [`metrics`]: machining time, ratios to the limits by central finite
-//!   differences (the stencils of `shared/checks/check_traj.py`), contour,
-//!   following error, feedrate fluctuation.
-//! - [`sim`]: [`sim::run_table`], table bytes → [`sim::SimResult`].
+//!   differences, contour, following error, feedrate fluctuation
+//!   ([`Metrics`], from one [`Tick`] record per servo period).
 //! - [`csv`]: one row per tick, full precision, written atomically.
 //! - [`plot`]: feedrate against arc length as PNG (font embedded).
 //! - [`scenario`]: operator, host and link in front of the interpolator:
-//!   feedrate overrides (paper §4), feed hold, link faults.
-//! - [`override_report`]: the override scenarios (Figs 13–15, storm, holds,
-//!   faults) as CSV, PNG and a Markdown table.
-//! - [`report`]: the sampling study PAR/LEN/ADA as a Markdown report with figures.
+//!   feedrate overrides (paper §4), feed hold, link faults, tick jitter.
+//! - [`report`]: the sampling study PAR / LEN / ADA and the override
+//!   scenarios (Figs 13–15, storm, holds, faults) as Markdown with figures.
 //!
 //! Units: mm, s, mm/s, mm/s², mm/s³; forces N, masses kg.
 
 pub mod csv;
+pub mod geometry;
 pub mod metrics;
-pub mod override_report;
 pub mod plot;
 pub mod report;
+pub mod run;
 pub mod scenario;
 pub mod servo;
-pub mod sim;
 
+pub use geometry::CurveGeometry;
 pub use metrics::{Metrics, Tick};
+pub use run::{run_table, SimConfig, SimError, SimResult};
 pub use servo::{Axis, ServoConfig};
-pub use sim::{run_table, SimConfig, SimError, SimResult};

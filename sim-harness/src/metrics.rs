@@ -46,7 +46,7 @@ pub trait Toolpath {
 
 /// A projection of a point onto the toolpath.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Projection {
+pub(crate) struct Projection {
     /// Parameter of the nearest point found.
     pub u: f64,
     /// Distance to it, mm.
@@ -67,7 +67,7 @@ fn norm(a: [f64; 3]) -> f64 {
 /// f(u) = (C(u) − p)·C′(u), steps clamped to 2 % of the parameter range.
 /// Never farther than the seed's own point (so the result bounds the
 /// contour error from above even where Newton fails).
-pub fn project(path: &dyn Toolpath, p: [f64; 3], seed: f64) -> Projection {
+pub(crate) fn project(path: &dyn Toolpath, p: [f64; 3], seed: f64) -> Projection {
     let (u0, u1) = path.u_range();
     let span = u1 - u0;
     let seed = if seed.is_finite() { seed.clamp(u0, u1) } else { u0 };
@@ -123,7 +123,7 @@ pub struct Metrics {
     pub ratios: Ratios,
     /// Time of each maximum, s (same keys).
     pub ratios_argmax_t_s: Ratios,
-    /// The same with the machine at rest for [`REST_PAD`] ticks before and
+    /// The same with the machine at rest for `REST_PAD` (50) ticks before and
     /// after (as `check_traj.py --pad-rest`): shows steps at the ends.
     pub ratios_at_rest: Ratios,
     /// Whether tangential ratios use the projection onto the toolpath
@@ -161,7 +161,7 @@ pub struct Metrics {
     /// Largest |path speed − √q| / √q over the whole path (path speed
     /// |rₙ₊₁ − rₙ₋₁| / 2h of the commanded positions).
     pub feed_fluct_max: f64,
-    /// The same, outside the first and last [`FLUCT_TRIM_MM`] of arc length.
+    /// The same, outside the first and last `FLUCT_TRIM_MM` (1 mm) of arc length.
     pub feed_fluct_inner_max: f64,
     /// Arc length where `feed_fluct_inner_max` occurs, mm.
     pub feed_fluct_inner_s_mm: f64,
@@ -170,9 +170,9 @@ pub struct Metrics {
 }
 
 /// Rest ticks added before and after for [`Metrics::ratios_at_rest`].
-pub const REST_PAD: usize = 50;
+pub(crate) const REST_PAD: usize = 50;
 /// Arc length excluded at each end from [`Metrics::feed_fluct_inner_max`], mm.
-pub const FLUCT_TRIM_MM: f64 = 1.0;
+pub(crate) const FLUCT_TRIM_MM: f64 = 1.0;
 
 /// Central finite differences (the checker's stencils): v and a at samples
 /// 1..n−1, j at samples 2..n−2 (index k of the result ↔ sample k+1, k+2).
@@ -191,7 +191,7 @@ pub fn fd(x: &[f64], h: f64) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
 }
 
 /// Path speed |rₙ₊₁ − rₙ₋₁| / 2h at ticks 1..n−1 (index k ↔ tick k+1).
-pub fn path_speed(p: &[[f64; 3]], h: f64) -> Vec<f64> {
+pub(crate) fn path_speed(p: &[[f64; 3]], h: f64) -> Vec<f64> {
     (1..p.len().saturating_sub(1))
         .map(|i| norm(sub(p[i + 1], p[i - 1])) / (2.0 * h))
         .collect()

@@ -3,7 +3,7 @@
 
 use planner_host::curve::Nurbs;
 use planner_host::plan::{self, PlanConfig};
-use sim_harness::sim::{self, SimConfig, SimError};
+use sim_harness::{run_table, SimConfig, SimError};
 
 fn line_table() -> Vec<u8> {
     let line = Nurbs::line([0.0, 0.0, 0.0], [60.0, 80.0, 0.0]); // 100 mm
@@ -15,7 +15,7 @@ fn line_table() -> Vec<u8> {
 #[test]
 fn line_runs_and_measures() {
     let bytes = line_table();
-    let res = sim::run_table(&bytes, &SimConfig::default()).unwrap();
+    let res = run_table(&bytes, &SimConfig::default()).unwrap();
     let m = &res.metrics;
     let n = res.ticks.len();
     assert_eq!(m.ticks, n);
@@ -29,7 +29,7 @@ fn line_runs_and_measures() {
     );
     // a line: the commanded positions lie on it, the feed stays within the limit
     // (firmware-core evaluates r as a fixed-point Q40 polynomial per piece,
-    // fitted to 2e-11 mm, issue 3)
+    // fitted to 2e-11 mm)
     assert!(m.contour_err_cmd_mm.unwrap() < 1e-6, "{:?}", m.contour_err_cmd_mm);
     assert!(m.start_err_mm.unwrap() < 1e-9 && m.end_err_mm.unwrap() < 1e-9);
     assert!(m.min_ds_mm.unwrap() >= 0.0);
@@ -72,18 +72,18 @@ fn line_runs_and_measures() {
 fn bad_tables_are_errors_not_panics() {
     let bytes = line_table();
     let cfg = SimConfig::default();
-    assert!(matches!(sim::run_table(&[], &cfg), Err(SimError::Table(_))));
+    assert!(matches!(run_table(&[], &cfg), Err(SimError::Table(_))));
     assert!(matches!(
-        sim::run_table(b"not a table at all, just text", &cfg),
+        run_table(b"not a table at all, just text", &cfg),
         Err(SimError::Table(_))
     ));
     let mut bad = bytes.clone();
     let mid = bad.len() / 2;
     bad[mid] ^= 0x55;
-    let e = sim::run_table(&bad, &cfg).unwrap_err();
+    let e = run_table(&bad, &cfg).unwrap_err();
     assert!(e.to_string().starts_with("table rejected"), "{e}");
-    assert!(sim::run_table(&bytes[..bytes.len() - 1], &cfg).is_err());
-    let e = sim::run_table(
+    assert!(run_table(&bytes[..bytes.len() - 1], &cfg).is_err());
+    let e = run_table(
         &bytes,
         &SimConfig {
             period_s: 0.0,
@@ -92,7 +92,7 @@ fn bad_tables_are_errors_not_panics() {
     )
     .unwrap_err();
     assert!(matches!(e, SimError::Interp(_)), "{e}");
-    let e = sim::run_table(
+    let e = run_table(
         &bytes,
         &SimConfig {
             max_ticks: 100,

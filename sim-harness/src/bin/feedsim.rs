@@ -16,7 +16,7 @@ use planner_host::plan::{self, PlanConfig};
 use planner_host::{builtin, limits, sampling::Sampling, verify};
 use sim_harness::plot::{self, FeedPlot};
 use sim_harness::servo::ServoConfig;
-use sim_harness::sim::{self, SimConfig, SimResult};
+use sim_harness::{run_table, SimConfig, SimResult};
 
 #[derive(Parser)]
 #[command(
@@ -73,7 +73,7 @@ enum Cmd {
         /// Formulations, comma-separated: paper (q-hat bound none, uniform weights), default
         /// (control, integral) or BOUND/OBJECTIVE; the first is the solid line of the figures.
         #[arg(long, value_delimiter = ',', default_value = "paper,default")]
-        formulations: Vec<sim_harness::report::Formulation>,
+        formulations: Vec<sim_harness::report::sampling::Formulation>,
         /// Replace the formulations by these q-hat bounds (control, eval, none; comma-separated),
         /// combined with --objective (default integral).
         #[arg(long, value_delimiter = ',')]
@@ -151,7 +151,7 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                 cfg.servo = ServoConfig::load_axes(&path)?;
             }
             let bytes = std::fs::read(&table).map_err(|e| format!("cannot read {}: {e}", table.display()))?;
-            let res = sim::run_table(&bytes, &cfg).map_err(|e| format!("{}: {e}", table.display()))?;
+            let res = run_table(&bytes, &cfg).map_err(|e| format!("{}: {e}", table.display()))?;
             if let Some(path) = &csv {
                 sim_harness::csv::write_csv(path, &res.ticks)?;
             }
@@ -205,7 +205,7 @@ fn run(cli: Cli) -> Result<(), BoxError> {
             no_decomposition,
             quiet,
         } => {
-            use sim_harness::report::{self, Formulation, ReportConfig};
+            use sim_harness::report::sampling::{run_report, Formulation, ReportConfig};
             if !(period_us.is_finite() && period_us > 0.0) {
                 return Err(format!("--period-us must be a positive number, got {period_us}").into());
             }
@@ -252,7 +252,7 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                     .join(" "),
                 ..ReportConfig::default()
             };
-            let rep = report::run_report(&cfg)?;
+            let rep = run_report(&cfg)?;
             let failed = rep.rows.iter().filter(|r| r.outcome.is_err()).count();
             println!(
                 "wrote {} ({} files) in {:.1} s: {} curves, {} cases, {} without a plan",
@@ -331,7 +331,7 @@ fn demo(out: &Path) -> Result<(), BoxError> {
 
     let bin = out.join("butterfly.bin");
     sim_harness::csv::write_atomic(&bin, &planned.table_bytes)?;
-    let res = sim::run_table(&planned.table_bytes, &SimConfig::default())?;
+    let res = run_table(&planned.table_bytes, &SimConfig::default())?;
     println!("== simulation");
     print!("{}", res.summary());
     let csv = out.join("butterfly.csv");
@@ -350,7 +350,7 @@ fn override_report(
     trident: Option<PathBuf>,
     period_us: f64,
 ) -> Result<(), BoxError> {
-    use sim_harness::override_report as orep;
+    use sim_harness::report::overrides as orep;
     std::fs::create_dir_all(out).map_err(|e| format!("cannot create {}: {e}", out.display()))?;
     let butterfly = builtin::butterfly()?;
     let trident_path = trident.unwrap_or_else(|| PathBuf::from("../shared/curves/trident.json"));
@@ -385,7 +385,7 @@ fn override_report(
         .filter(|s| names.is_empty() || names.iter().any(|n| n == s.name))
     {
         eprintln!("feedsim override: {} ...", spec.name);
-        let run = orep::run_spec(spec, period_us * 1e-6)?;
+        let run = orep::run_spec(spec, period_us * 1e-6, true)?;
         let (row, files) = orep::write_run(out, &run)?;
         println!("{row}");
         md.push_str(&row);
@@ -427,8 +427,8 @@ fn override_report(
                 "  Holds: {} pressed, {} came to rest (the others were resumed while stopping); hold to rest {} mm and {} s (median / max); `{}_holds.json`.\n",
                 h.len(),
                 dist.len(),
-                sim_harness::scenario::median_max(&dist).map_or("–".into(), |(a, b)| format!("{a:.1} / {b:.1}")),
-                sim_harness::scenario::median_max(&time).map_or("–".into(), |(a, b)| format!("{a:.2} / {b:.2}")),
+                orep::median_max(&dist).map_or("–".into(), |(a, b)| format!("{a:.1} / {b:.1}")),
+                orep::median_max(&time).map_or("–".into(), |(a, b)| format!("{a:.2} / {b:.2}")),
                 spec.name
             ));
             sim_harness::csv::write_atomic(

@@ -5,14 +5,13 @@
 use firmware_core::interp::{Fault, InterpError, Interpolator};
 use firmware_core::qspline::QSpline;
 use firmware_core::table::{Limits, Table, TableError};
-use planner_host::arclength::ArcLength;
-use planner_host::curve::{CurveError, Nurbs};
 
+use crate::geometry::CurveGeometry;
 use crate::metrics::{self, Metrics, Tick, Toolpath};
 use crate::servo::{Axis, ServoConfig, ServoError};
 
 /// Default servo period, s (250 µs).
-pub const DEFAULT_PERIOD_S: f64 = 250e-6;
+pub(crate) const DEFAULT_PERIOD_S: f64 = 250e-6;
 
 /// How to simulate.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
@@ -102,48 +101,6 @@ fn fault_message(f: &Fault) -> String {
         Fault::NonFinite { s_mm } => format!("the step became NaN or infinite at s = {s_mm} mm"),
         Fault::Eval { s_mm } => format!("an evaluation failed at s = {s_mm} mm"),
         other => format!("{other:?}"),
-    }
-}
-
-/// The toolpath of a table as a [`Toolpath`] for the metrics: the
-/// planner-host NURBS (with u-derivatives) and its arc length.
-#[derive(Debug, Clone)]
-pub struct CurveGeometry {
-    /// The curve.
-    pub curve: Nurbs,
-    /// Its arc length s(u).
-    pub arc: ArcLength,
-}
-
-impl CurveGeometry {
-    /// From a curve (validated by its constructor).
-    pub fn new(curve: Nurbs) -> CurveGeometry {
-        let arc = ArcLength::new(&curve);
-        CurveGeometry { curve, arc }
-    }
-
-    /// The NURBS stored in a table (degree, knots, `[x, y, z, w]` points).
-    pub fn from_table(table: &Table) -> Result<CurveGeometry, CurveError> {
-        let knots: Vec<f64> = table.nurbs_knots().iter().collect();
-        let flat: Vec<f64> = table.nurbs_points().flat().iter().collect();
-        let points = flat.chunks_exact(4).map(|p| [p[0], p[1], p[2]]).collect();
-        let weights = flat.chunks_exact(4).map(|p| p[3]).collect();
-        let mut curve = Nurbs::new(table.nurbs_degree() as usize, knots, weights, points)?;
-        curve.name = "table".into();
-        Ok(CurveGeometry::new(curve))
-    }
-}
-
-impl Toolpath for CurveGeometry {
-    fn u_range(&self) -> (f64, f64) {
-        self.curve.u_range()
-    }
-    fn derivs2(&self, u: f64) -> [[f64; 3]; 3] {
-        let d = self.curve.derivs_u(u);
-        [d[0], d[1], d[2]]
-    }
-    fn s_of_u(&self, u: f64) -> f64 {
-        self.arc.s_of_u(u)
     }
 }
 
@@ -301,7 +258,7 @@ impl SimResult {
 
 /// The planned feed of a table at `n` evenly spaced points of [0, L]: √q(s),
 /// and inside the end segments (if any) the segments' own feed.
-pub fn planned_feed(table: &Table, n: usize) -> Series {
+pub(crate) fn planned_feed(table: &Table, n: usize) -> Series {
     let ends = table.ends();
     let Some(q) = QSpline::new(table.q_knots(), table.q_ctrl()) else {
         return Vec::new();

@@ -1,132 +1,28 @@
-//! Override and feed-hold scenarios (issue 6): an operator, a host and a
-//! link in front of firmware-core's interpolator, tick by tick.
-//!
-//! Per servo tick k (t = kT):
-//!
-//! 1. downlink messages due by t reach the firmware
-//!    ([`Interpolator::offer_override`]); each reply (accepted, or the typed
-//!    refusal) goes up the link;
-//! 2. the interpolator ticks, the servos follow, and a status (s, feed, the
-//!    active profile) goes up the link;
-//! 3. uplink messages due by t reach the host;
-//! 4. operator events due by t act: feed hold and resume on the firmware
-//!    directly (a local input: the firmware stops on its own), an override on
-//!    the host, which computes the transition profile (paper §4,
-//!    `planner_host::feed_override`) for the position it predicts the
-//!    machine at when the profile arrives, and sends it down.
-//!
-//! The host predicts the splice position with a compute allowance
-//! ([`LinkConfig::compute_budget_s`]); the message leaves when the
-//! computation really ended (its measured wall time, at least the allowance),
-//! so a slow computation shows up as a late splice or a `Late` refusal. Faults: lost downlink messages (the host resends
-//! after [`LinkConfig::ack_timeout_s`]), a host restart (it forgets what it
-//! sent and resynchronises from the firmware's status), refusals (late,
-//! stale context, queue full: the host recomputes from the new position).
+//! The tick loop of a scenario ([`run_scenario`]): downlink, tick, uplink,
+//! operator, in that order every servo period (see [`crate::scenario`]).
 
 use std::collections::VecDeque;
-use std::time::Instant;
 
 use firmware_core::hold::HoldState;
 use firmware_core::interp::{Interpolator, OVERRIDE_Q, OVERRIDE_W};
-
-/// The interpolator with the default override capacities.
-type Fw<'a> = Interpolator<'a, OVERRIDE_Q, OVERRIDE_W>;
 use firmware_core::qspline::QSpline;
 use firmware_core::splice::{OverrideError, OverrideProfile as FwProfile};
 use firmware_core::table::Table;
-use planner_host::feed_override::{OverrideContext, OverrideOutcome};
+use planner_host::feed_override::OverrideContext;
 
+use crate::geometry::CurveGeometry;
 use crate::metrics::{self, Metrics, Tick, Toolpath};
+use crate::run::{servo_tick, SimError};
+use crate::scenario::host::{dispatch, Host};
+use crate::scenario::jitter::JitterConfig;
+use crate::scenario::link::{Down, LinkConfig, Status, Up};
+use crate::scenario::operator::{Command, Event, HoldPoint};
+use crate::scenario::record::{fate_failed, Fate, HoldRecord, OverrideRecord};
+use crate::scenario::rng::Rng;
 use crate::servo::{Axis, ServoConfig};
-use crate::sim::{servo_tick, CurveGeometry, SimError};
 
-/// The link between host and firmware.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
-pub struct LinkConfig {
-    /// Host → firmware latency, s.
-    pub down_latency_s: f64,
-    /// Firmware → host latency (status and replies), s.
-    pub up_latency_s: f64,
-    /// Time the host's computation takes in the timeline, s.
-    pub compute_budget_s: f64,
-    /// Every n-th override message sent down is lost (0: none).
-    pub drop_every: usize,
-    /// The host resends when no reply came this long after the expected one, s.
-    pub ack_timeout_s: f64,
-    /// Ticks of margin the host adds to its predicted splice position.
-    pub margin_ticks: f64,
-}
-
-impl Default for LinkConfig {
-    fn default() -> Self {
-        LinkConfig {
-            down_latency_s: 0.005,
-            up_latency_s: 0.005,
-            compute_budget_s: 0.010,
-            drop_every: 0,
-            ack_timeout_s: 0.020,
-            margin_ticks: 8.0,
-        }
-    }
-}
-
-/// What the operator does.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
-pub enum Command {
-    /// Feed override to this level id (0: the plan, k: table level k).
-    Override {
-        /// Level id.
-        level: u16,
-    },
-    /// Feed hold (0 %).
-    Hold,
-    /// Resume after a hold.
-    Resume,
-    /// The host process restarts: it forgets everything it sent.
-    HostRestart,
-}
-
-/// Servo-period jitter of the firmware's tick interrupt.
-///
-/// The interpolator is clocked by one [`Interpolator::tick`] per servo
-/// period and has no notion of wall time: its setpoint for tick k is the
-/// plan at t = kT, written to a double-buffered output that the drives
-/// latch at the period boundary (as CSP drives on a distributed clock do).
-/// The interrupt itself starts late by a random latency each tick, so what
-/// the jitter changes is which tick a downlink message lands on (operator
-/// holds and resumes keep their tick); the setpoints stay on the nominal grid as long as each
-/// tick ends before its boundary ([`ScenarioResult::deadline_misses`]).
-#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
-pub struct JitterConfig {
-    /// Largest interrupt latency as a fraction of T (uniform in [0, this]).
-    pub isr_latency_frac: f64,
-    /// Seed of the latencies.
-    pub seed: u64,
-}
-
-/// An operator event.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
-pub struct Event {
-    /// When, s.
-    pub t_s: f64,
-    /// What.
-    pub cmd: Command,
-}
-
-/// A feed hold at a point of the path, and its resume.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
-pub struct HoldPoint {
-    /// The hold is pressed when the setpoint passes this arc length, mm
-    /// (while running or resuming; a point passed while stopping or held
-    /// waits for the resume).
-    pub s_mm: f64,
-    /// Resume this long after the machine came to rest (or, if
-    /// `after_rest` is false, after the hold was pressed: often while
-    /// still stopping), s.
-    pub resume_after_s: f64,
-    /// See `resume_after_s`.
-    pub after_rest: bool,
-}
+/// The interpolator with the default override capacities.
+type Fw<'a> = Interpolator<'a, OVERRIDE_Q, OVERRIDE_W>;
 
 /// A scenario.
 #[derive(Debug, Clone, serde::Serialize)]
@@ -152,7 +48,7 @@ pub struct ScenarioConfig {
 impl Default for ScenarioConfig {
     fn default() -> Self {
         ScenarioConfig {
-            period_s: crate::sim::DEFAULT_PERIOD_S,
+            period_s: crate::run::DEFAULT_PERIOD_S,
             servo: [ServoConfig::default(); 3],
             link: LinkConfig::default(),
             events: Vec::new(),
@@ -160,109 +56,6 @@ impl Default for ScenarioConfig {
             max_attempts: 8,
             jitter: JitterConfig::default(),
             hold_points: Vec::new(),
-        }
-    }
-}
-
-/// What became of an override command.
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Fate {
-    /// Not settled when the path ended.
-    Open,
-    /// Accepted and executed from its splice point on.
-    Active,
-    /// Accepted, then superseded by a newer command before its splice.
-    Superseded,
-    /// A newer command came before this one was sent.
-    Replaced,
-    /// The host skipped it (paper §4: end of path, final deceleration, …).
-    Skipped(String),
-    /// Could not be computed or was refused for good.
-    Failed(String),
-}
-
-/// One override command, end to end.
-#[derive(Debug, Clone, serde::Serialize)]
-pub struct OverrideRecord {
-    /// Command time, s.
-    pub t_cmd_s: f64,
-    /// Setpoint arc length at the command, mm.
-    pub s_cmd_mm: f64,
-    /// Target level id and its percentage.
-    pub level: u16,
-    /// Percent of the programmed feed.
-    pub percent: f64,
-    /// What became of it.
-    pub fate: Fate,
-    /// Messages sent for it.
-    pub sends: u32,
-    /// Refusals and timeouts on the way, as text.
-    pub refusals: Vec<String>,
-    /// Measured wall time of each host computation, s.
-    pub compute_s: Vec<f64>,
-    /// The paper's case of the profile executed (accel, decel-i, decel-ii).
-    pub case: Option<String>,
-    /// LP retries: grown windows and Algorithm 2 restarts.
-    pub retries_grow: u32,
-    /// Algorithm 2 restarts.
-    pub retries_extreme: u32,
-    /// ArcLen's estimate of the transition, mm.
-    pub arclen_estimate_mm: Option<f64>,
-    /// The transition's arc length, mm.
-    pub transition_len_mm: Option<f64>,
-    /// Splice and merge points of the profile sent last, mm.
-    pub splice_s_mm: Option<f64>,
-    /// Merge point, mm.
-    pub merge_s_mm: Option<f64>,
-    /// When the firmware accepted it, s.
-    pub t_accepted_s: Option<f64>,
-    /// When it became active (the tick entering its splice span), s.
-    pub t_active_s: Option<f64>,
-    /// The profile equals the active one bitwise up to the splice (host side).
-    pub prefix_identical: Option<bool>,
-    /// Largest |executed feed − the target level's √q| between the merge
-    /// and the next splice (or the end), mm/s; `None` if that stretch is empty.
-    pub feed_err_after_merge_mm_s: Option<f64>,
-    /// The sequence number that was accepted.
-    #[serde(skip)]
-    pub seq: Option<u32>,
-    /// Every sequence number sent for it.
-    #[serde(skip)]
-    pub sent_seqs: Vec<u32>,
-}
-
-impl OverrideRecord {
-    /// Command to the start of the transition, s.
-    pub fn latency_s(&self) -> Option<f64> {
-        self.t_active_s.map(|t| t - self.t_cmd_s)
-    }
-}
-
-/// One feed hold, end to end.
-#[derive(Debug, Clone, Copy, serde::Serialize)]
-pub struct HoldRecord {
-    /// Hold command time, s, and arc length, mm.
-    pub t_hold_s: f64,
-    /// Arc length at the command, mm.
-    pub s_hold_mm: f64,
-    /// First tick with zero feed, s.
-    pub t_stopped_s: Option<f64>,
-    /// Where it stopped, mm.
-    pub s_stopped_mm: Option<f64>,
-    /// Resume command time, s.
-    pub t_resume_s: Option<f64>,
-}
-
-impl HoldRecord {
-    /// A hold pressed at `t_s`, the setpoint at `s_mm`.
-    fn pressed(t_s: f64, s_mm: f64) -> Self {
-        HoldRecord {
-            t_hold_s: t_s,
-            s_hold_mm: s_mm,
-            t_stopped_s: None,
-            s_stopped_mm: None,
-            t_resume_s: None,
         }
     }
 }
@@ -290,86 +83,6 @@ pub struct ScenarioResult {
     pub shifted_by_jitter: u64,
 }
 
-#[derive(Debug, Clone)]
-enum Down {
-    Profile {
-        rec: usize,
-        seq: u32,
-        level: u16,
-        first: u32,
-        ctrl: Vec<f64>,
-    },
-}
-
-#[derive(Debug, Clone)]
-enum Up {
-    Reply {
-        rec: usize,
-        seq: u32,
-        result: Result<f64, OverrideError>,
-        superseded: u8,
-    },
-    Status(Status),
-}
-
-#[derive(Debug, Clone, Copy)]
-struct Status {
-    t_s: f64,
-    s_mm: f64,
-    feed_mm_s: f64,
-    #[allow(dead_code)]
-    active_seq: Option<u32>,
-    active_level: u16,
-}
-
-/// A profile the host has sent: what it needs to compute the next one.
-#[derive(Debug, Clone)]
-struct Sent {
-    rec: usize,
-    seq: u32,
-    level: u16,
-    ctrl: Vec<f64>,
-    /// When the reply is overdue, s.
-    deadline_s: f64,
-}
-
-struct Host<'c> {
-    ctx: &'c OverrideContext,
-    /// The profile the host believes is scheduled last: level and control points.
-    base_level: u16,
-    base_ctrl: Vec<f64>,
-    in_flight: Option<Sent>,
-    /// An override command waiting to be sent (the newest wins).
-    waiting: Option<usize>,
-    retry_at_s: Option<f64>,
-    status: Option<Status>,
-    next_seq: u32,
-    sends: usize,
-    /// Accepted records not yet active, with their splice points.
-    scheduled: Vec<(usize, u32, f64)>,
-}
-
-impl<'c> Host<'c> {
-    fn forget(&mut self) {
-        self.in_flight = None;
-        self.waiting = None;
-        self.retry_at_s = None;
-        self.scheduled.clear();
-        // resynchronise from the firmware's last status: its active level's profile
-        let level = self.status.map_or(0, |s| s.active_level);
-        self.base_level = level;
-        self.base_ctrl = self
-            .ctx
-            .level_ctrl(level)
-            .map(<[f64]>::to_vec)
-            .unwrap_or_default();
-    }
-}
-
-fn fate_failed(e: impl std::fmt::Display) -> Fate {
-    Fate::Failed(e.to_string())
-}
-
 /// Run a scenario on `table_bytes` (a table with the override levels of
 /// `ctx`), with the host computing through `ctx`.
 pub fn run_scenario(
@@ -377,6 +90,18 @@ pub fn run_scenario(
     ctx: &OverrideContext,
     geometry: Option<&CurveGeometry>,
     cfg: &ScenarioConfig,
+) -> Result<ScenarioResult, SimError> {
+    run_scenario_observed(table_bytes, ctx, geometry, cfg, &mut |_| {})
+}
+
+/// [`run_scenario`], calling `on_tick` with every tick recorded (for a
+/// progress bar; it sees the ticks, it cannot change them).
+pub(crate) fn run_scenario_observed(
+    table_bytes: &[u8],
+    ctx: &OverrideContext,
+    geometry: Option<&CurveGeometry>,
+    cfg: &ScenarioConfig,
+    on_tick: &mut dyn FnMut(&Tick),
 ) -> Result<ScenarioResult, SimError> {
     let table = Table::parse(table_bytes).map_err(SimError::Table)?;
     let limits = table.limits();
@@ -414,7 +139,7 @@ pub fn run_scenario(
     let mut active_seq: Option<u32> = None;
     let link = cfg.link;
     let jit = cfg.jitter;
-    let mut rng = crate::override_report::Rng::new(jit.seed);
+    let mut rng = Rng::new(jit.seed);
     let (mut max_isr_latency_s, mut shifted_by_jitter) = (0.0f64, 0u64);
 
     let mut resume_when_held: Option<f64> = None;
@@ -484,6 +209,9 @@ pub fn run_scenario(
             ticks: ticks.len(),
         })?;
         ticks.push(servo_tick(&mut axes, &cfg.servo, t, &sp)?);
+        if let Some(tk) = ticks.last() {
+            on_tick(tk);
+        }
         let (seq_now, level_now) = ip.active_profile();
         if seq_now != active_seq {
             if let Some(r) = seq_now.and_then(|q| recs.iter_mut().find(|r| r.sent_seqs.contains(&q))) {
@@ -734,118 +462,6 @@ pub fn run_scenario(
         max_isr_latency_s,
         shifted_by_jitter,
     })
-}
-
-/// The host computes the profile for record `rec` and sends it.
-fn dispatch(
-    host: &mut Host,
-    recs: &mut [OverrideRecord],
-    rec: usize,
-    now: f64,
-    period_s: f64,
-    link: &LinkConfig,
-    down: &mut VecDeque<(f64, Down)>,
-) {
-    let (s_seen, feed_seen, t_seen) = host
-        .status
-        .map_or((0.0, 0.0, now), |s| (s.s_mm, s.feed_mm_s, s.t_s));
-    // where the machine will be when the profile arrives, plus a margin
-    let ahead = (now - t_seen) + link.compute_budget_s + link.down_latency_s + link.margin_ticks * period_s;
-    let target = recs[rec].level;
-    let length = host.ctx.knots().last().copied().unwrap_or(0.0);
-    let s_at = s_seen + feed_seen * ahead;
-    if s_at >= length {
-        recs[rec].fate = Fate::Skipped("EndOfPath (the machine is there before the profile)".into());
-        return;
-    }
-    let t0 = Instant::now();
-    let outcome = host.ctx.compute(host.base_level, &host.base_ctrl, s_at, target);
-    let took = t0.elapsed().as_secs_f64();
-    let r = &mut recs[rec];
-    r.compute_s.push(took);
-    match outcome {
-        Err(e) => {
-            // SCENARIO_DUMP=dir (diagnosis): what the host computed from
-            if let Some(dir) = std::env::var_os("SCENARIO_DUMP") {
-                let dump = serde_json::json!({
-                    "base_level": host.base_level,
-                    "base_ctrl": host.base_ctrl,
-                    "s_at_mm": s_at,
-                    "target": target,
-                    "error": e.to_string(),
-                });
-                let path = std::path::Path::new(&dir).join(format!("override_failure_{rec}.json"));
-                let _ = std::fs::write(path, dump.to_string());
-            }
-            r.fate = fate_failed(e);
-        }
-        Ok(OverrideOutcome::Skip(why)) => r.fate = Fate::Skipped(format!("{why:?}")),
-        Ok(OverrideOutcome::Profile(p)) => {
-            let seq = host.next_seq;
-            host.next_seq += 1;
-            host.sends += 1;
-            r.sends += 1;
-            r.sent_seqs.push(seq);
-            r.case = Some(format!("{:?}", p.case));
-            r.retries_grow += p.retries_grow;
-            r.retries_extreme += p.retries_extreme;
-            r.arclen_estimate_mm = p.arclen_estimate_mm;
-            r.transition_len_mm = Some(p.transition_len_mm);
-            r.splice_s_mm = Some(p.splice_s_mm);
-            r.merge_s_mm = Some(p.merge_s_mm);
-            let cut = (p.first as usize + 3).min(p.full_ctrl.len());
-            r.prefix_identical = Some(
-                host.base_ctrl.len() == p.full_ctrl.len()
-                    && host.base_ctrl[..cut]
-                        .iter()
-                        .zip(&p.full_ctrl[..cut])
-                        .all(|(a, b)| a.to_bits() == b.to_bits()),
-            );
-            // the message leaves when the computation really ended
-            let depart = now + took.max(link.compute_budget_s);
-            let arrive = depart + link.down_latency_s;
-            host.in_flight = Some(Sent {
-                rec,
-                seq,
-                level: target,
-                ctrl: p.full_ctrl.clone(),
-                deadline_s: arrive + link.up_latency_s + link.ack_timeout_s,
-            });
-            let lost = link.drop_every > 0 && host.sends.is_multiple_of(link.drop_every);
-            if !lost {
-                let at = down.partition_point(|(a, _)| *a <= arrive);
-                down.insert(
-                    at,
-                    (
-                        arrive,
-                        Down::Profile {
-                            rec,
-                            seq,
-                            level: target,
-                            first: p.first,
-                            ctrl: p.ctrl,
-                        },
-                    ),
-                );
-            }
-        }
-    }
-}
-
-/// Order statistics of a sample: (median, max); `None` if empty.
-pub fn median_max(v: &[f64]) -> Option<(f64, f64)> {
-    let mut v: Vec<f64> = v.iter().copied().filter(|x| x.is_finite()).collect();
-    if v.is_empty() {
-        return None;
-    }
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    let med = if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    };
-    Some((med, v[n - 1]))
 }
 
 /// Feed hold or resume on the firmware (a local input, no link). After the
