@@ -18,9 +18,13 @@
 //! - [`override_report`]: the override scenarios (Figs 13–15, storm, holds,
 //!   faults) as CSV, PNG and a Markdown table.
 //! - [`report`]: the sampling study PAR/LEN/ADA as a Markdown report with figures.
+//! - [`check`]: the independent trajectory checker: every limit on the
+//!   setpoints with the machine at rest before and after, the contour error
+//!   against the curve by its own NURBS evaluation (`feedsim check`).
 //!
 //! Units: mm, s, mm/s, mm/s², mm/s³; forces N, masses kg.
 
+pub mod check;
 pub mod csv;
 pub mod metrics;
 pub mod override_report;
@@ -30,6 +34,7 @@ pub mod scenario;
 pub mod servo;
 pub mod sim;
 
+pub use check::{check_trajectory, CheckConfig, CheckReport, Trajectory};
 pub use metrics::{Metrics, Tick};
 pub use servo::{Axis, ServoConfig};
 pub use sim::{run_table, SimConfig, SimError, SimResult};
