@@ -158,13 +158,16 @@ pub fn check_trajectory(
             fail.push(name.to_string());
         }
     }
-    if !(worst <= cfg.contour_tol) {
+    if worst.is_nan() || worst > cfg.contour_tol {
         fail.push("contour".into());
     }
-    if !(start_err_mm <= ENDPOINT_TOL_MM && end_err_mm <= ENDPOINT_TOL_MM) {
+    if [start_err_mm, end_err_mm]
+        .iter()
+        .any(|e| e.is_nan() || *e > ENDPOINT_TOL_MM)
+    {
         fail.push("endpoints".into());
     }
-    if !(min_ds_mm >= -MONOTONE_TOL_MM) {
+    if min_ds_mm.is_nan() || min_ds_mm < -MONOTONE_TOL_MM {
         fail.push("monotone".into());
     }
     Ok(CheckReport {

@@ -273,8 +273,9 @@ fn de_boor(knots: &[f64], k: usize, q: usize, u: f64, mut c: [[f64; 4]; MAX_DEGR
             let i = k - q + j; // global index of c[j]
             let den = knots[i + q + 1 - r] - knots[i];
             let alpha = (u - knots[i]) / den;
-            for a in 0..4 {
-                c[j][a] = (1.0 - alpha) * c[j - 1][a] + alpha * c[j][a];
+            let prev = c[j - 1];
+            for (x, p) in c[j].iter_mut().zip(prev) {
+                *x = (1.0 - alpha) * p + alpha * *x;
             }
         }
     }
@@ -293,8 +294,8 @@ fn hodograph(
     for j in 1..=q {
         let i = k - q + j;
         let den = knots[i + q] - knots[i];
-        for a in 0..4 {
-            d[j - 1][a] = q as f64 * (c[j][a] - c[j - 1][a]) / den;
+        for ((x, cur), prev) in d[j - 1].iter_mut().zip(c[j]).zip(c[j - 1]) {
+            *x = q as f64 * (cur - prev) / den;
         }
     }
     d

@@ -48,9 +48,9 @@ pub(crate) fn pad_rest<T: Copy>(x: &[T], pad: usize) -> Vec<T> {
         return Vec::new();
     };
     let mut out = Vec::with_capacity(x.len() + 2 * pad);
-    out.extend(std::iter::repeat(first).take(pad));
+    out.resize(pad, first);
     out.extend_from_slice(x);
-    out.extend(std::iter::repeat(last).take(pad));
+    out.resize(x.len() + 2 * pad, last);
     out
 }
 

@@ -247,3 +247,57 @@ fn full_circle_with_a_double_knot() {
     assert!(r.contour.max_mm < 1e-9 && r.min_ds_mm > 0.0);
     assert!((r.s_end_mm - r.length_mm).abs() < 1e-9);
 }
+
+#[test]
+fn agrees_with_the_external_reference_checker_on_the_demo() {
+    // `feedsim demo`'s run (the Butterfly, LEN, 1 point/mm, Table 1, 250 µs) and the
+    // figures the external reference checker `check_traj.py --pad-rest 50` (numpy/scipy)
+    // printed for its CSV; the two evaluate the curve independently.
+    use planner_host::plan::{self, PlanConfig};
+    let curve = planner_host::builtin::butterfly().unwrap();
+    let cfg = PlanConfig {
+        sampling: planner_host::sampling::Sampling::Len,
+        density_per_mm: 1.0,
+        limits: planner_host::limits::TABLE1,
+        ..PlanConfig::default()
+    };
+    let planned = plan::plan_curve(&curve, &cfg).unwrap();
+    let res = crate::sim::run_table(&planned.table_bytes, &crate::SimConfig::default()).unwrap();
+    let r = check_trajectory(
+        &curve,
+        &Trajectory::from_ticks(&res.ticks),
+        &CheckConfig::default(),
+    )
+    .unwrap();
+    assert!(r.ok, "{}", r.text());
+    assert_eq!(r.setpoints, 23182);
+    let reference = [
+        ("vel", 0.872044516825553, 0.52025),
+        ("acc", 0.8496285396783287, 5.26),
+        ("jerk", 1.0004423529608149, 4.23425),
+        ("feed", 0.9999912346545435, 5.3545),
+        ("tacc", 0.9226762479859931, 5.477),
+        ("tjerk", 1.0040579354608754, 4.216),
+    ];
+    for ((name, peak), (rname, ratio, t)) in r.ratios.named().into_iter().zip(reference) {
+        assert_eq!(name, rname);
+        assert!(
+            (peak.ratio - ratio).abs() < 1e-6,
+            "{name}: {} vs {ratio}",
+            peak.ratio
+        );
+        assert!((peak.t_s - t).abs() < 1e-9, "{name}: at {} s vs {t} s", peak.t_s);
+    }
+    assert!((r.length_mm - 382.85955830129024).abs() < 1e-9, "{}", r.length_mm);
+    assert!(
+        (r.contour.max_mm - 2.3399267466103058e-11).abs() < 1e-13,
+        "{}",
+        r.contour.max_mm
+    );
+    assert!(
+        (r.min_ds_mm - 2.9378384169831406e-09).abs() < 1e-13,
+        "{}",
+        r.min_ds_mm
+    );
+    assert_eq!((r.start_err_mm, r.end_err_mm), (0.0, 0.0));
+}
