@@ -183,7 +183,11 @@ fn check_fails_with_exit_5_on_an_acceleration_step() {
     }
     assert!(v["contour"]["max_mm"].as_f64().unwrap() < 1e-12);
     assert_eq!(v["pad_rest"], 50);
-    assert!(String::from_utf8_lossy(&out.stderr).contains("jerk, tjerk"));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("jerk ratio 125.0000 > 1 + 0.005") && err.contains("tjerk ratio"),
+        "{err}"
+    );
     // a looser tolerance does not hide a ratio of 125
     assert_eq!(check(&["--tol", "10"]).status.code(), Some(5));
     std::fs::remove_dir_all(&dir).unwrap();

@@ -81,10 +81,15 @@ enum Cmd {
         #[arg(long, default_value_t = 50, requires = "check")]
         pad_rest: usize,
     },
-    /// Check setpoints (a CSV with columns t,x,y,z at a fixed servo period) against a curve and the
-    /// limits: per-axis and path velocity, acceleration and jerk by central differences with the
-    /// machine at rest before and after, contour error, start and end points, monotone progress.
-    /// The curve is evaluated by the checker's own NURBS code, independent of the planner's.
+    /// Check setpoints against a curve and every limit, with the machine at rest before and after.
+    ///
+    /// The CSV has a header naming t,x,y,z (further columns are ignored) and one row per servo
+    /// tick at a fixed period. Checked: per-axis and path velocity, acceleration and jerk by
+    /// central finite differences (with --pad-rest ticks at rest added before and after, so an
+    /// acceleration step at the start or stop shows up as jerk), the contour error (distance to
+    /// the curve), the start and end points (1e-6 mm) and monotone progress. The curve is
+    /// evaluated by the checker's own NURBS code, independent of the planner's and the
+    /// firmware's.
     #[command(after_help = EXIT_CODES)]
     Check {
         /// The setpoints (e.g. from `feedsim run --csv`).
@@ -177,6 +182,7 @@ enum Cmd {
         period_us: f64,
     },
     /// Print a shell completion script (bash, zsh, fish, elvish, powershell) to stdout.
+    #[command(after_help = EXIT_CODES)]
     Completions {
         /// The shell.
         shell: clap_complete::Shell,
@@ -382,15 +388,32 @@ struct RunOut<'a> {
 /// Exit 5 naming what failed when the check did not pass.
 fn check_verdict(rep: &CheckReport) -> Result<(), Failure> {
     if rep.ok {
-        Ok(())
-    } else {
-        Err(Failure::limit(format!(
-            "the check failed: {} (ratio > 1 + {}, contour error > {} mm, an end point off the curve, or progress backwards)",
-            rep.fail.join(", "),
-            rep.tol,
-            rep.contour.tol_mm
-        )))
+        return Ok(());
     }
+    let what: Vec<String> = rep
+        .fail
+        .iter()
+        .map(
+            |f| match (f.as_str(), rep.ratios.named().iter().find(|(n, _)| n == f)) {
+                (_, Some((n, p))) => {
+                    format!("{n} ratio {:.4} > 1 + {} at t = {:.4} s", p.ratio, rep.tol, p.t_s)
+                }
+                ("contour", _) => format!(
+                    "contour error {:.3e} mm > {} mm at t = {:.4} s",
+                    rep.contour.max_mm, rep.contour.tol_mm, rep.contour.t_s
+                ),
+                ("endpoints", _) => format!(
+                    "start and end {:.3e} mm and {:.3e} mm from the curve's ends (> {} mm)",
+                    rep.start_err_mm,
+                    rep.end_err_mm,
+                    check::ENDPOINT_TOL_MM
+                ),
+                ("monotone", _) => format!("progress goes backwards by {:.3e} mm", -rep.min_ds_mm),
+                (other, _) => other.to_string(),
+            },
+        )
+        .collect();
+    Err(Failure::limit(format!("the check failed: {}", what.join("; "))))
 }
 
 fn run(cli: Cli) -> Result<(), Failure> {

@@ -6,7 +6,7 @@
 //! the limits, [`check_trajectory`] measures
 //!
 //! - per-axis velocity, acceleration and jerk, by central finite
-//!   differences at the servo period ([`ratios`]), against `v`, `a`, `j`;
+//!   differences at the servo period (`check/ratios.rs`), against `v`, `a`, `j`;
 //! - the tangential (path) velocity, acceleration and jerk, by the same
 //!   stencils on the arc length of each setpoint's closest point on the
 //!   curve, against v̄, ā, j̄ (the paper's constraints (5)–(7) and the
@@ -15,7 +15,7 @@
 //!   stands still before it starts and after it stops, so an acceleration
 //!   step at either end shows up as a jerk violation;
 //! - the contour error, the distance of every setpoint to the curve by a
-//!   closest-point search ([`contour`]);
+//!   closest-point search (`check/contour.rs`);
 //! - the start and end errors against r(u₀) and r(u₁), and that progress
 //!   along the path never goes backwards.
 //!
@@ -26,7 +26,7 @@
 //!
 //! **Independent of the code it checks.** The curve is evaluated by the
 //! checker's own de Boor evaluation and arc-length quadrature
-//! ([`nurbs_ref`]), not by planner-host's or firmware-core's evaluator: a
+//! (`check/nurbs_ref.rs`), not by planner-host's or firmware-core's evaluator: a
 //! bug in the shared evaluator would otherwise move the setpoints and the
 //! yardstick together and hide itself. planner-host is used only to read
 //! and validate the curve file and the limits file. The definitions and
