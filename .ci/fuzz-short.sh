@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Short fuzz run of the table parser (issue 7; docs/robustness.md).
+# Short fuzz run of the table parser (docs/robustness.md).
 #
 # 1. Replays the committed corpus (fuzz/corpus, fuzz/regressions) on stable
 #    Rust through the same invariant check (tests/tests/fuzz_corpus.rs).

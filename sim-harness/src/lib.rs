@@ -23,9 +23,13 @@
 //!   feedrate overrides (paper §4), feed hold, link faults, tick jitter.
 //! - [`report`]: the sampling study PAR / LEN / ADA and the override
 //!   scenarios (Figs 13–15, storm, holds, faults) as Markdown with figures.
+//! - [`check`]: the independent trajectory checker: every limit on the
+//!   setpoints with the machine at rest before and after, the contour error
+//!   against the curve by its own NURBS evaluation (`feedsim check`).
 //!
 //! Units: mm, s, mm/s, mm/s², mm/s³; forces N, masses kg.
 
+pub mod check;
 pub mod csv;
 pub mod geometry;
 pub mod metrics;
@@ -35,6 +39,7 @@ pub mod run;
 pub mod scenario;
 pub mod servo;
 
+pub use check::{check_trajectory, CheckConfig, CheckReport, Trajectory};
 pub use geometry::CurveGeometry;
 pub use metrics::{Metrics, Tick};
 pub use run::{run_table, SimConfig, SimError, SimResult};

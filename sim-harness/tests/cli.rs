@@ -21,7 +21,7 @@ fn errors_exit_non_zero_with_a_message() {
         .args(["run", dir.join("missing.bin").to_str().unwrap()])
         .output()
         .unwrap();
-    assert!(!out.status.success());
+    assert_eq!(out.status.code(), Some(1));
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
         err.contains("cannot read") && err.contains("missing.bin"),
@@ -31,7 +31,7 @@ fn errors_exit_non_zero_with_a_message() {
     let junk = dir.join("junk.bin");
     std::fs::write(&junk, b"FLPT but not really a table").unwrap();
     let out = feedsim().args(["run", junk.to_str().unwrap()]).output().unwrap();
-    assert!(!out.status.success());
+    assert_eq!(out.status.code(), Some(3));
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("table rejected"), "{err}");
 
@@ -41,7 +41,7 @@ fn errors_exit_non_zero_with_a_message() {
         .args(["run", junk.to_str().unwrap(), "--servo", servo.to_str().unwrap()])
         .output()
         .unwrap();
-    assert!(!out.status.success());
+    assert_eq!(out.status.code(), Some(3));
     assert!(String::from_utf8_lossy(&out.stderr).contains("kv_per_s"));
     std::fs::remove_dir_all(&dir).unwrap();
 }
@@ -96,4 +96,200 @@ fn run_writes_csv_plot_and_json() {
         "{s}"
     );
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A straight line of `length` mm along x as curve JSON.
+fn line_json(length: f64) -> String {
+    format!(
+        r#"{{"name": "line", "degree": 2, "knots": [0, 0, 0, 1, 1, 1], "weights": [1, 1, 1],
+            "control_points": [[0, 0, 0], [{}, 0, 0], [{length}, 0, 0]]}}"#,
+        length / 2.0
+    )
+}
+
+/// Rest to rest along x at 250 µs: 1000 mm/s² for 50 ms, down to −1000 mm/s² at
+/// 8000 mm/s³, −1000 mm/s² for 50 ms. Within Table 1 except that the start and the
+/// stop are acceleration steps: with the machine at rest before and after, a jerk
+/// of 2e6 mm/s³. Returns the CSV and the length.
+fn acceleration_step_csv() -> (String, f64) {
+    let (h, a0, jerk, t1): (f64, f64, f64, f64) = (250e-6, 1000.0, 8000.0, 0.05);
+    let tau = 2.0 * a0 / jerk;
+    let (v1, s1) = (a0 * t1, 0.5 * a0 * t1 * t1);
+    let s2 = s1 + v1 * tau + 0.5 * a0 * tau * tau - jerk * tau.powi(3) / 6.0;
+    let s = |t: f64| {
+        if t <= t1 {
+            0.5 * a0 * t * t
+        } else if t <= t1 + tau {
+            let d = t - t1;
+            s1 + v1 * d + 0.5 * a0 * d * d - jerk * d.powi(3) / 6.0
+        } else {
+            let d = t - t1 - tau;
+            s2 + v1 * d - 0.5 * a0 * d * d
+        }
+    };
+    let n = 1400;
+    let mut csv = String::from("t,x,y,z\n");
+    for k in 0..=n {
+        let t = k as f64 * h;
+        csv.push_str(&format!("{t},{},0,0\n", s(t)));
+    }
+    (csv, s(n as f64 * h))
+}
+
+#[test]
+fn check_fails_with_exit_5_on_an_acceleration_step() {
+    let dir = temp_dir("check");
+    let (text, length) = acceleration_step_csv();
+    let csv = dir.join("step.csv");
+    std::fs::write(&csv, text).unwrap();
+    let curve = dir.join("line.json");
+    std::fs::write(&curve, line_json(length)).unwrap();
+    let check = |extra: &[&str]| {
+        feedsim()
+            .args(["check", csv.to_str().unwrap(), "--curve", curve.to_str().unwrap()])
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    // without the rest padding the motion is within the limits
+    let out = check(&["--pad-rest", "0"]);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stdout)
+    );
+    assert!(String::from_utf8_lossy(&out.stdout).contains("ok: every ratio"));
+    // at rest before and after (default 50 ticks) the steps are jerk violations
+    let out = check(&["--json"]);
+    assert_eq!(
+        out.status.code(),
+        Some(5),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.starts_with(r#"{"schema_version":1,"#), "{text}");
+    let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    assert_eq!(v["ok"], false);
+    assert_eq!(v["fail"], serde_json::json!(["jerk", "tjerk"]));
+    let jerk = v["ratios"]["tjerk"]["ratio"].as_f64().unwrap();
+    assert!((jerk - 125.0).abs() < 1e-3, "{jerk}");
+    for k in ["vel", "acc", "jerk", "feed", "tacc", "tjerk"] {
+        assert!(
+            v["ratios"][k]["t_s"].is_number() && v["ratios"][k]["row"].is_number(),
+            "{k}"
+        );
+    }
+    assert!(v["contour"]["max_mm"].as_f64().unwrap() < 1e-12);
+    assert_eq!(v["pad_rest"], 50);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("jerk ratio 125.0000 > 1 + 0.005") && err.contains("tjerk ratio"),
+        "{err}"
+    );
+    // a looser tolerance does not hide a ratio of 125
+    assert_eq!(check(&["--tol", "10"]).status.code(), Some(5));
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn check_bad_input_exits_3_and_usage_2() {
+    let dir = temp_dir("check-input");
+    let csv = dir.join("a.csv");
+    std::fs::write(&csv, "t,x,y\n0,0,0\n").unwrap();
+    let run = |args: &[&str]| feedsim().args(args).output().unwrap();
+    let missing = dir.join("missing.csv");
+    for (args, code, what) in [
+        (
+            vec!["check", missing.to_str().unwrap(), "--curve", "butterfly"],
+            3,
+            "cannot read",
+        ),
+        (
+            vec!["check", csv.to_str().unwrap(), "--curve", "butterfly"],
+            3,
+            "`z`",
+        ),
+        (
+            vec!["check", csv.to_str().unwrap(), "--curve", "no-such-curve"],
+            3,
+            "built-in curve",
+        ),
+        (vec!["check", csv.to_str().unwrap()], 2, "--curve"),
+        (vec!["run", "--tol", "0.1", "x.bin"], 2, "--check"),
+    ] {
+        let out = run(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(code), "{args:?}: {err}");
+        assert!(err.contains(what), "{args:?}: {err}");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn run_check_passes_on_a_plan_and_json_keeps_its_keys() {
+    use planner_host::curve::Nurbs;
+    use planner_host::plan::{self, PlanConfig};
+    let dir = temp_dir("run-check");
+    let table = dir.join("line.bin");
+    let line = Nurbs::line([0.0, 0.0, 0.0], [30.0, 0.0, 40.0]);
+    let bytes = plan::plan_curve(&line, &PlanConfig::default())
+        .unwrap()
+        .table_bytes;
+    std::fs::write(&table, bytes).unwrap();
+    let out = feedsim()
+        .args(["run", table.to_str().unwrap(), "--json", "--check"])
+        .output()
+        .unwrap();
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.starts_with(r#"{"schema_version":1,"#), "{text}");
+    let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    assert!(v["setpoints"].as_u64().unwrap() > 1000);
+    assert_eq!(v["setpoint_digest"].as_str().unwrap().len(), 16);
+    assert_eq!(v["check"]["schema_version"], 1);
+    assert_eq!(v["check"]["ok"], true, "{}", v["check"]);
+    assert_eq!(v["check"]["pad_rest"], 50);
+    assert!(v["check"]["ratios"]["tjerk"]["ratio"].as_f64().unwrap() > 0.5);
+    // text mode prints the check
+    let out = feedsim()
+        .args(["run", table.to_str().unwrap(), "--check", "--pad-rest", "10"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(0));
+    assert!(String::from_utf8_lossy(&out.stdout).contains("10 ticks at rest"));
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn help_documents_exit_codes_and_completions_are_generated() {
+    for args in [vec!["--help"], vec!["check", "--help"], vec!["run", "--help"]] {
+        let out = feedsim().args(&args).output().unwrap();
+        assert!(out.status.success());
+        let text = String::from_utf8_lossy(&out.stdout);
+        for line in ["3  bad input", "4  infeasible plan", "5  a limit exceeded"] {
+            assert!(text.contains(line), "{args:?}: {text}");
+        }
+    }
+    for shell in ["bash", "zsh", "fish", "elvish", "powershell"] {
+        let out = feedsim().args(["completions", shell]).output().unwrap();
+        assert!(out.status.success(), "{shell}");
+        let text = String::from_utf8_lossy(&out.stdout);
+        assert!(text.contains("feedsim") && text.contains("pad-rest"), "{shell}");
+    }
+    assert_eq!(
+        feedsim()
+            .args(["completions", "tcsh"])
+            .output()
+            .unwrap()
+            .status
+            .code(),
+        Some(2)
+    );
 }

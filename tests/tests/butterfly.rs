@@ -69,17 +69,17 @@ fn butterfly_executes_as_planned() {
             (0..3).map(|k| (r[k] - p.pos_mm[k]).powi(2)).sum::<f64>().sqrt()
         })
         .fold(0.0, f64::max);
-    // The firmware evaluates r in f32 relative to an f64 origin per piece of at
-    // most 4 mm (issue 3): 2e-7 mm on the Butterfly (3e-14 in f64).
+    // The firmware's fast path evaluates r in f32 relative to an f64 origin per
+    // piece of at most 4 mm: 2e-7 mm on the Butterfly (3e-14 in f64).
     eprintln!("contour error of the setpoints: {worst_contour:.3e} mm");
     assert!(worst_contour < 1e-6, "setpoint off r(u): {worst_contour}");
 }
 
 #[test]
-fn every_shared_curve_plans_and_runs() {
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/curves");
+fn every_benchmark_curve_plans_and_runs() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../planner-host/curves");
     let mut n = 0;
-    for entry in std::fs::read_dir(&dir).expect("../shared/curves beside the checkout") {
+    for entry in std::fs::read_dir(&dir).expect("planner-host/curves") {
         let path = entry.unwrap().path();
         if path.extension().and_then(|e| e.to_str()) != Some("json") {
             continue;

@@ -1,4 +1,4 @@
-//! Property tests of the firmware over random command sequences (issue 7):
+//! Property tests of the firmware over random command sequences:
 //! ticks, feed hold and resume, override profiles from the host (paper §4),
 //! and hostile ones — early, late, duplicated, replayed, with a wrong
 //! context, out of range, garbage values — on a table with override levels,

@@ -1,4 +1,4 @@
-//! Feed hold anywhere and resume (issue 6) on the Butterfly at 250 µs.
+//! Feed hold anywhere and resume on the Butterfly at 250 µs.
 //!
 //! The firmware time-scales the plan (`firmware_core::hold`): holds are
 //! requested at 20 seeded random points and at chosen ones (inside the start
@@ -392,14 +392,29 @@ fn hold_runs_within_the_limits() {
     }
 }
 
-/// One hold/resume run (hold at 200 mm) as a CSV for
-/// `shared/checks/check_traj.py --pad-rest 50`: written to
-/// `$CARGO_TARGET_TMPDIR/hold_butterfly.csv`.
+/// One hold/resume run (hold at 200 mm), checked by the project's
+/// independent trajectory checker against every limit with the machine at
+/// rest 50 ticks before and after, and written as a CSV for `feedsim check`
+/// or an external checker: `$CARGO_TARGET_TMPDIR/hold_butterfly.csv`.
 #[test]
 fn hold_run_as_csv() {
     let run = run_with_holds(&[200.0]);
     assert_eq!(run.holds.len(), 1);
+    let ticks = ticks(&run.pts);
+    let p = plan();
+    let table = Table::parse(&p.bytes).unwrap();
+    let curve = sim_harness::sim::CurveGeometry::from_table(&table).unwrap().curve;
+    let cfg = sim_harness::CheckConfig {
+        limits: table.limits(),
+        pad_rest: 50,
+        tol: TOL,
+        ..Default::default()
+    };
+    let rep =
+        sim_harness::check_trajectory(&curve, &sim_harness::Trajectory::from_ticks(&ticks), &cfg).unwrap();
+    eprint!("{}", rep.text());
+    assert!(rep.ok, "{}", rep.text());
     let path = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("hold_butterfly.csv");
-    sim_harness::csv::write_csv(&path, &ticks(&run.pts)).unwrap();
+    sim_harness::csv::write_csv(&path, &ticks).unwrap();
     eprintln!("wrote {}", path.display());
 }

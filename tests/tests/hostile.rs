@@ -1,7 +1,7 @@
-//! Degenerate and hostile toolpaths (issue 7), kept as fixtures in
+//! Degenerate and hostile toolpaths, kept as fixtures in
 //! `tests/fixtures/hostile/`: each gets a clear, typed error naming the
-//! problem, or a plan. What the plans must also do — hold every limit — is
-//! issue 5's part; the figures are printed here with `--nocapture`.
+//! problem, or a plan. That plans hold every limit is tested on the hard
+//! curves (`hard_curves.rs`); the figures are printed here with `--nocapture`.
 
 use std::path::PathBuf;
 

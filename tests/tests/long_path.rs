@@ -1,5 +1,5 @@
 //! A long toolpath (> 10 m): a cubic B-spline helix of 22 turns, planned and run
-//! through the firmware interpolator (the fixed-point fast path of issue 3) at
+//! through the firmware interpolator (its fixed-point fast path) at
 //! 250 µs. No drift: every sampled setpoint lies within 0.1 µm of the
 //! exact curve point at its arc length — r(u(s)) with the table's s → u map in f64,
 //! and r(u*(s)) with the planner's own arc-length inverse — and the final setpoint

@@ -1,11 +1,11 @@
-//! Override computations that once failed, replayed from what the host had
-//! (issue 6).
+//! Feedrate override computations (paper §4) that once failed, replayed from
+//! what the host had.
 
 use planner_host::arclength::ArcLength;
 use planner_host::feed_override::{OverrideContext, OverrideOutcome};
 use planner_host::plan::{self, PlanConfig};
 
-/// The faults scenario (stop 12): a new command while the host's scheduled
+/// The faults scenario: a new command while the host's scheduled
 /// profile, a 120 % → 50 % transition, had not merged yet (q still at 120 %
 /// where the window starts), to 30 %. The window LP bounded the feed by the
 /// two levels only (50 %), so the profile's own fixed points broke its rows:

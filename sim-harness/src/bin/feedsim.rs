@@ -1,28 +1,46 @@
 //! `feedsim`: run a firmware table through the interpolator and simulated
-//! servos, and measure the motion.
+//! servos, measure the motion, and check setpoints against every limit.
 //!
 //! ```text
 //! feedsim run TABLE.bin [--period-us 250] [--csv OUT.csv] [--plot OUT.png] [--json] [--servo FILE]
+//!                       [--check [--tol 0.005] [--pad-rest 50]]
+//! feedsim check OUT.csv --curve CURVE [--limits FILE] [--pad-rest 50] [--tol 0.005] [--contour-tol 1e-3] [--json]
 //! feedsim demo [--out DIR]
 //! feedsim report [CURVES...] [--densities 0.25,0.5,1,2] [--out DIR] [--formulations paper,default] [--qhat-bound B] [--objective O]
+//! feedsim override [SCENARIOS...] [--latency-ms 5] [--out DIR]
+//! feedsim completions SHELL
 //! ```
 
+use std::fmt::Display;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, Parser, Subcommand};
 use planner_host::arclength::ArcLength;
-use planner_host::plan::{self, PlanConfig};
-use planner_host::{builtin, limits, sampling::Sampling, verify};
+use planner_host::curve::Nurbs;
+use planner_host::plan::{self, PlanConfig, PlanError};
+use planner_host::{limits, sampling::Sampling, verify};
+use sim_harness::check::{self, CheckConfig, CheckReport, Trajectory};
 use sim_harness::plot::{self, FeedPlot};
 use sim_harness::servo::ServoConfig;
-use sim_harness::{run_table, SimConfig, SimResult};
+use sim_harness::{run_table, SimConfig, SimError, SimResult};
+
+/// Exit codes, shown after every `--help`.
+const EXIT_CODES: &str = "\
+Exit codes:
+  0  success
+  1  I/O or internal error
+  2  usage (unknown option, missing argument)
+  3  bad input: unreadable or invalid curve, table, limits file, servo file or CSV
+  4  infeasible plan: the LP or the plan has no solution
+  5  a limit exceeded in a check";
 
 #[derive(Parser)]
 #[command(
     name = "feedsim",
     version,
-    about = "Run a feedrate table through firmware-core's interpolator and simulated servos; measure the motion"
+    about = "Run a feedrate table through firmware-core's interpolator and simulated servos; measure the motion and check it against every limit",
+    after_help = EXIT_CODES
 )]
 struct Cli {
     #[command(subcommand)]
@@ -32,6 +50,7 @@ struct Cli {
 #[derive(Subcommand)]
 enum Cmd {
     /// Simulate a table: machining time, ratios to the limits, contour and following error, feed fluctuation.
+    #[command(after_help = EXIT_CODES)]
     Run {
         /// The firmware table (feedplan's output).
         table: PathBuf,
@@ -51,9 +70,53 @@ enum Cmd {
         /// sim-harness/servo.example.json, missing ones keep the defaults.
         #[arg(long)]
         servo: Option<PathBuf>,
+        /// Check the setpoints against the table's curve and limits with the independent checker
+        /// (as `feedsim check`); exit 5 if a limit is exceeded.
+        #[arg(long)]
+        check: bool,
+        /// With --check: a ratio fails above 1 + TOL.
+        #[arg(long, default_value_t = 0.005, requires = "check")]
+        tol: f64,
+        /// With --check: ticks at rest added before the first and after the last setpoint.
+        #[arg(long, default_value_t = 50, requires = "check")]
+        pad_rest: usize,
+    },
+    /// Check setpoints against a curve and every limit, with the machine at rest before and after.
+    ///
+    /// The CSV has a header naming t,x,y,z (further columns are ignored) and one row per servo
+    /// tick at a fixed period. Checked: per-axis and path velocity, acceleration and jerk by
+    /// central finite differences (with --pad-rest ticks at rest added before and after, so an
+    /// acceleration step at the start or stop shows up as jerk), the contour error (distance to
+    /// the curve), the start and end points (1e-6 mm) and monotone progress. The curve is
+    /// evaluated by the checker's own NURBS code, independent of the planner's and the
+    /// firmware's.
+    #[command(after_help = EXIT_CODES)]
+    Check {
+        /// The setpoints (e.g. from `feedsim run --csv`).
+        csv: PathBuf,
+        /// The toolpath: a JSON file, or a built-in curve: butterfly, circle, fan, star, trident.
+        #[arg(long)]
+        curve: String,
+        /// Limits file (JSON: vbar, abar, jbar, v, a, j); default the paper's Table 1.
+        #[arg(long)]
+        limits: Option<PathBuf>,
+        /// Ticks at rest added before the first and after the last setpoint: a start or stop with
+        /// an acceleration step then shows up as a jerk violation.
+        #[arg(long, default_value_t = 50)]
+        pad_rest: usize,
+        /// A ratio fails above 1 + TOL.
+        #[arg(long, default_value_t = 0.005)]
+        tol: f64,
+        /// Largest allowed distance of a setpoint from the curve, mm.
+        #[arg(long, default_value_t = 1e-3)]
+        contour_tol: f64,
+        /// Print one JSON object instead of the text summary.
+        #[arg(long)]
+        json: bool,
     },
     /// Plan the built-in Butterfly (Table 1 limits, LEN sampling, 1 point/mm), simulate it at 250 us,
     /// write DIR/butterfly.bin, DIR/butterfly.csv and DIR/butterfly_feed.png.
+    #[command(after_help = EXIT_CODES)]
     Demo {
         /// Output directory (created if missing).
         #[arg(long, default_value = "out")]
@@ -61,9 +124,10 @@ enum Cmd {
     },
     /// The sampling study: plan every curve at every density with PAR, LEN and ADA, simulate each,
     /// and write DIR/README.md (Markdown tables) and PNG figures.
+    #[command(after_help = EXIT_CODES)]
     Report {
-        /// Curve JSON files (default: every *.json in ../shared/curves).
-        curves: Vec<PathBuf>,
+        /// Curves: JSON files or built-in names (default: the five built-in curves).
+        curves: Vec<String>,
         /// Sampling densities, points per mm, comma-separated.
         #[arg(long, value_delimiter = ',', default_value = "0.25,0.5,1,2")]
         densities: Vec<f64>,
@@ -94,9 +158,10 @@ enum Cmd {
         #[arg(long)]
         quiet: bool,
     },
-    /// Override scenarios (issue 6): the paper's Figs 13-15, an override storm, feed holds and link
-    /// faults, each planned with its override levels and simulated with a host-firmware link model;
-    /// writes DIR/README.md, a CSV and a feed plot per scenario.
+    /// Feedrate override and feed hold scenarios: the paper's Figs 13-15, an override storm, feed
+    /// holds and link faults, each planned with its override levels and simulated with a
+    /// host-firmware link model; writes DIR/README.md, a CSV and a feed plot per scenario.
+    #[command(after_help = EXIT_CODES)]
     Override {
         /// Scenarios (default all): fig13, fig14, fig15, storm, holds, faults.
         scenarios: Vec<String>,
@@ -109,28 +174,249 @@ enum Cmd {
         /// Host compute budget in the timeline, milliseconds (measured times are reported beside it).
         #[arg(long, default_value_t = 10.0)]
         compute_ms: f64,
-        /// The Fig. 15 curve (default ../shared/curves/trident.json).
+        /// The Fig. 15 curve: a JSON file or a built-in name (default: the built-in Trident).
         #[arg(long)]
-        trident: Option<PathBuf>,
+        trident: Option<String>,
         /// Servo period, microseconds.
         #[arg(long, default_value_t = 250.0)]
         period_us: f64,
+    },
+    /// Print a shell completion script (bash, zsh, fish, elvish, powershell) to stdout.
+    #[command(after_help = EXIT_CODES)]
+    Completions {
+        /// The shell.
+        shell: clap_complete::Shell,
     },
 }
 
 type BoxError = Box<dyn std::error::Error>;
 
-fn main() -> ExitCode {
-    match run(Cli::parse()) {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("feedsim: error: {e}");
-            ExitCode::from(2)
+/// An error with its exit code (see [`EXIT_CODES`]).
+struct Failure {
+    code: u8,
+    message: String,
+}
+
+impl Failure {
+    /// 3: the input is unreadable or invalid.
+    fn input(e: impl Display) -> Failure {
+        Failure {
+            code: 3,
+            message: e.to_string(),
+        }
+    }
+    /// 4: the plan has no solution.
+    fn infeasible(e: impl Display) -> Failure {
+        Failure {
+            code: 4,
+            message: e.to_string(),
+        }
+    }
+    /// 5: a limit is exceeded.
+    fn limit(e: impl Display) -> Failure {
+        Failure {
+            code: 5,
+            message: e.to_string(),
         }
     }
 }
 
-fn run(cli: Cli) -> Result<(), BoxError> {
+/// Everything else is an I/O or internal error (1).
+impl<E: Into<BoxError>> From<E> for Failure {
+    fn from(e: E) -> Failure {
+        Failure {
+            code: 1,
+            message: e.into().to_string(),
+        }
+    }
+}
+
+/// A planner error's exit code: bad input 3, no solution 4, else 1.
+fn plan_failure(e: PlanError) -> Failure {
+    match e {
+        PlanError::Curve(_) | PlanError::Limits(_) | PlanError::OverrideLevel { .. } => Failure::input(e),
+        PlanError::Lp(_)
+        | PlanError::TooFewPoints { .. }
+        | PlanError::EndSegments { .. }
+        | PlanError::Stall { .. }
+        | PlanError::Corner { .. }
+        | PlanError::Level { .. } => Failure::infeasible(e),
+        e => e.into(),
+    }
+}
+
+/// A simulation error's exit code: a table, servo model or period the
+/// interpolator or the servos cannot use is bad input (3), else 1.
+fn sim_failure(e: SimError, table: &Path) -> Failure {
+    let message = format!("{}: {e}", table.display());
+    match e {
+        SimError::Table(_) | SimError::Interp(_) | SimError::Servo(_) | SimError::Unstable { .. } => {
+            Failure::input(message)
+        }
+        _ => message.into(),
+    }
+}
+
+fn main() -> ExitCode {
+    match run(Cli::parse()) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("feedsim: error: {}", e.message);
+            ExitCode::from(e.code)
+        }
+    }
+}
+
+/// The five benchmark toolpaths of `planner-host/curves`, built in by name.
+/// The one place that resolves curve names (`check --curve`, `report`,
+/// `override --trident`).
+const BUILTIN_CURVES: [(&str, &str); 5] = [
+    (
+        "butterfly",
+        include_str!("../../../planner-host/curves/butterfly.json"),
+    ),
+    ("circle", include_str!("../../../planner-host/curves/circle.json")),
+    ("fan", include_str!("../../../planner-host/curves/fan.json")),
+    ("star", include_str!("../../../planner-host/curves/star.json")),
+    (
+        "trident",
+        include_str!("../../../planner-host/curves/trident.json"),
+    ),
+];
+
+/// The JSON text of a built-in curve by name (case-insensitive).
+fn builtin_json(name: &str) -> Option<&'static str> {
+    BUILTIN_CURVES
+        .iter()
+        .find(|(n, _)| n.eq_ignore_ascii_case(name))
+        .map(|(_, json)| *json)
+}
+
+fn builtin_names() -> String {
+    BUILTIN_CURVES.map(|(n, _)| n).join(", ")
+}
+
+/// A curve argument: an existing JSON file, else the name of a built-in curve.
+fn load_curve(arg: &str) -> Result<Nurbs, Failure> {
+    let path = Path::new(arg);
+    if path.exists() {
+        return Nurbs::load(path).map_err(Failure::input);
+    }
+    match builtin_json(arg) {
+        Some(json) => Nurbs::from_json_str(json).map_err(|e| format!("built-in curve {arg}: {e}").into()),
+        None => Err(Failure::input(format!(
+            "{arg}: no such file, and not a built-in curve ({})",
+            builtin_names()
+        ))),
+    }
+}
+
+/// Curve arguments of `feedsim report` as files (the report reads files): an
+/// existing file as is, a built-in name written to a temporary directory that
+/// the returned guard removes. No arguments: the five built-in curves.
+fn report_curve_files(args: &[String]) -> Result<(Vec<PathBuf>, TempDir), Failure> {
+    let names: Vec<String> = if args.is_empty() {
+        BUILTIN_CURVES.iter().map(|(n, _)| n.to_string()).collect()
+    } else {
+        args.to_vec()
+    };
+    let tmp = TempDir(std::env::temp_dir().join(format!("feedsim-curves-{}", std::process::id())));
+    let mut files = Vec::new();
+    for arg in &names {
+        let path = Path::new(arg);
+        if path.exists() {
+            files.push(path.to_path_buf());
+            continue;
+        }
+        let Some(json) = builtin_json(arg) else {
+            return Err(Failure::input(format!(
+                "{arg}: no such file, and not a built-in curve ({})",
+                builtin_names()
+            )));
+        };
+        std::fs::create_dir_all(&tmp.0).map_err(|e| format!("cannot create {}: {e}", tmp.0.display()))?;
+        let file = tmp.0.join(format!("{}.json", arg.to_ascii_lowercase()));
+        std::fs::write(&file, json).map_err(|e| format!("cannot write {}: {e}", file.display()))?;
+        files.push(file);
+    }
+    Ok((files, tmp))
+}
+
+/// A directory removed when dropped.
+struct TempDir(PathBuf);
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+fn check_period(period_us: f64) -> Result<(), Failure> {
+    if period_us.is_finite() && period_us > 0.0 {
+        Ok(())
+    } else {
+        Err(Failure::input(format!(
+            "--period-us must be a positive number, got {period_us}"
+        )))
+    }
+}
+
+/// `feedsim check --json`: the report (`schema_version` first) and its inputs.
+#[derive(serde::Serialize)]
+struct CheckOut<'a> {
+    #[serde(flatten)]
+    report: &'a CheckReport,
+    csv: String,
+    curve: String,
+}
+
+/// `feedsim run --json`: the run's summary and the files written.
+#[derive(serde::Serialize)]
+struct RunOut<'a> {
+    schema_version: u32,
+    #[serde(flatten)]
+    summary: sim_harness::run::SimSummary<'a>,
+    table: String,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    csv: Option<String>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    plot: Option<String>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    check: Option<&'a CheckReport>,
+}
+
+/// Exit 5 naming what failed when the check did not pass.
+fn check_verdict(rep: &CheckReport) -> Result<(), Failure> {
+    if rep.ok {
+        return Ok(());
+    }
+    let what: Vec<String> = rep
+        .fail
+        .iter()
+        .map(
+            |f| match (f.as_str(), rep.ratios.named().iter().find(|(n, _)| n == f)) {
+                (_, Some((n, p))) => {
+                    format!("{n} ratio {:.4} > 1 + {} at t = {:.4} s", p.ratio, rep.tol, p.t_s)
+                }
+                ("contour", _) => format!(
+                    "contour error {:.3e} mm > {} mm at t = {:.4} s",
+                    rep.contour.max_mm, rep.contour.tol_mm, rep.contour.t_s
+                ),
+                ("endpoints", _) => format!(
+                    "start and end {:.3e} mm and {:.3e} mm from the curve's ends (> {} mm)",
+                    rep.start_err_mm,
+                    rep.end_err_mm,
+                    check::ENDPOINT_TOL_MM
+                ),
+                ("monotone", _) => format!("progress goes backwards by {:.3e} mm", -rep.min_ds_mm),
+                (other, _) => other.to_string(),
+            },
+        )
+        .collect();
+    Err(Failure::limit(format!("the check failed: {}", what.join("; "))))
+}
+
+fn run(cli: Cli) -> Result<(), Failure> {
     match cli.cmd {
         Cmd::Run {
             table,
@@ -139,19 +425,20 @@ fn run(cli: Cli) -> Result<(), BoxError> {
             plot,
             json,
             servo,
+            check,
+            tol,
+            pad_rest,
         } => {
-            if !(period_us.is_finite() && period_us > 0.0) {
-                return Err(format!("--period-us must be a positive number, got {period_us}").into());
-            }
+            check_period(period_us)?;
             let mut cfg = SimConfig {
                 period_s: period_us * 1e-6,
                 ..SimConfig::default()
             };
             if let Some(path) = servo {
-                cfg.servo = ServoConfig::load_axes(&path)?;
+                cfg.servo = ServoConfig::load_axes(&path).map_err(Failure::input)?;
             }
             let bytes = std::fs::read(&table).map_err(|e| format!("cannot read {}: {e}", table.display()))?;
-            let res = run_table(&bytes, &cfg).map_err(|e| format!("{}: {e}", table.display()))?;
+            let res = run_table(&bytes, &cfg).map_err(|e| sim_failure(e, &table))?;
             if let Some(path) = &csv {
                 sim_harness::csv::write_csv(path, &res.ticks)?;
             }
@@ -162,16 +449,24 @@ fn run(cli: Cli) -> Result<(), BoxError> {
             if let Some(path) = &plot {
                 write_plot(path, &res, &title)?;
             }
+            let report = if check {
+                Some(
+                    check_run(&bytes, &res, tol, pad_rest)
+                        .map_err(|e| format!("{}: {}", table.display(), e.message))?,
+                )
+            } else {
+                None
+            };
             if json {
-                let mut v = serde_json::to_value(res.summary_json())?;
-                v["table"] = table.display().to_string().into();
-                if let Some(p) = &csv {
-                    v["csv"] = p.display().to_string().into();
-                }
-                if let Some(p) = &plot {
-                    v["plot"] = p.display().to_string().into();
-                }
-                println!("{}", serde_json::to_string(&v)?);
+                let out = RunOut {
+                    schema_version: check::SCHEMA_VERSION,
+                    summary: res.summary_json(),
+                    table: table.display().to_string(),
+                    csv: csv.as_ref().map(|p| p.display().to_string()),
+                    plot: plot.as_ref().map(|p| p.display().to_string()),
+                    check: report.as_ref(),
+                };
+                println!("{}", serde_json::to_string(&out)?);
             } else {
                 println!("{}", table.display());
                 print!("{}", res.summary());
@@ -181,8 +476,54 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                 if let Some(p) = &plot {
                     println!("  wrote {}", p.display());
                 }
+                if let Some(r) = &report {
+                    println!("check against the table's curve and limits:");
+                    print!("{}", r.text());
+                }
             }
-            Ok(())
+            report.as_ref().map_or(Ok(()), check_verdict)
+        }
+        Cmd::Check {
+            csv,
+            curve,
+            limits: limits_file,
+            pad_rest,
+            tol,
+            contour_tol,
+            json,
+        } => {
+            if !(tol.is_finite() && tol >= 0.0 && contour_tol.is_finite() && contour_tol > 0.0) {
+                return Err(Failure::input(format!(
+                    "--tol must be >= 0 and --contour-tol > 0, got {tol} and {contour_tol}"
+                )));
+            }
+            let nurbs = load_curve(&curve)?;
+            let lim = match &limits_file {
+                Some(p) => limits::load(p).map_err(Failure::input)?,
+                None => limits::TABLE1,
+            };
+            let traj =
+                Trajectory::load(&csv).map_err(|e| Failure::input(format!("{}: {e}", csv.display())))?;
+            let cfg = CheckConfig {
+                limits: lim,
+                pad_rest,
+                tol,
+                contour_tol,
+            };
+            let rep = check::check_trajectory(&nurbs, &traj, &cfg)
+                .map_err(|e| Failure::input(format!("{}: {e}", csv.display())))?;
+            if json {
+                let out = CheckOut {
+                    report: &rep,
+                    csv: csv.display().to_string(),
+                    curve,
+                };
+                println!("{}", serde_json::to_string(&out)?);
+            } else {
+                println!("{} against {} ({}):", csv.display(), curve, nurbs.name);
+                print!("{}", rep.text());
+            }
+            check_verdict(&rep)
         }
         Cmd::Demo { out } => demo(&out),
         Cmd::Override {
@@ -192,7 +533,17 @@ fn run(cli: Cli) -> Result<(), BoxError> {
             compute_ms,
             trident,
             period_us,
-        } => override_report(&scenarios, &out, latency_ms, compute_ms, trident, period_us),
+        } => {
+            check_period(period_us)?;
+            override_report(
+                &scenarios,
+                &out,
+                latency_ms,
+                compute_ms,
+                trident.as_deref(),
+                period_us,
+            )
+        }
         Cmd::Report {
             curves,
             densities,
@@ -206,19 +557,13 @@ fn run(cli: Cli) -> Result<(), BoxError> {
             quiet,
         } => {
             use sim_harness::report::sampling::{run_report, Formulation, ReportConfig};
-            if !(period_us.is_finite() && period_us > 0.0) {
-                return Err(format!("--period-us must be a positive number, got {period_us}").into());
-            }
-            let curves = if curves.is_empty() {
-                default_curves()?
-            } else {
-                curves
-            };
+            check_period(period_us)?;
+            let (curves, _tmp) = report_curve_files(&curves)?;
             let formulations = if qhat_bound.is_empty() {
                 if objective.is_some() {
-                    return Err(
-                        "--objective goes with --qhat-bound (or use --formulations BOUND/OBJECTIVE)".into(),
-                    );
+                    return Err(Failure::input(
+                        "--objective goes with --qhat-bound (or use --formulations BOUND/OBJECTIVE)",
+                    ));
                 }
                 formulations
             } else {
@@ -231,7 +576,7 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                     .collect()
             };
             let lim = match &limits_file {
-                Some(p) => limits::load(p)?,
+                Some(p) => limits::load(p).map_err(Failure::input)?,
                 None => limits::TABLE1,
             };
             let cfg = ReportConfig {
@@ -266,24 +611,32 @@ fn run(cli: Cli) -> Result<(), BoxError> {
             for (p, e) in &rep.curve_errors {
                 eprintln!("feedsim: {p}: {e}");
             }
+            if rep.curves.is_empty() && !rep.curve_errors.is_empty() {
+                return Err(Failure::input("no curve could be loaded"));
+            }
+            Ok(())
+        }
+        Cmd::Completions { shell } => {
+            clap_complete::generate(shell, &mut Cli::command(), "feedsim", &mut std::io::stdout());
             Ok(())
         }
     }
 }
 
-/// Every `*.json` in `../shared/curves` (relative to the working directory), sorted.
-fn default_curves() -> Result<Vec<PathBuf>, BoxError> {
-    let dir = Path::new("../shared/curves");
-    let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
-        .map_err(|e| format!("cannot list {}: {e} (name the curves instead)", dir.display()))?
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.extension().is_some_and(|x| x == "json"))
-        .collect();
-    v.sort();
-    if v.is_empty() {
-        return Err(format!("no *.json curves in {}", dir.display()).into());
-    }
-    Ok(v)
+/// `run --check`: the run's setpoints against the table's own curve and limits.
+fn check_run(bytes: &[u8], res: &SimResult, tol: f64, pad_rest: usize) -> Result<CheckReport, Failure> {
+    let table = firmware_core::table::Table::parse(bytes)
+        .map_err(|e| Failure::input(format!("table rejected: {e}")))?;
+    let geometry = sim_harness::CurveGeometry::from_table(&table)
+        .map_err(|e| Failure::input(format!("the table's NURBS is not usable for the check: {e}")))?;
+    let cfg = CheckConfig {
+        limits: res.limits,
+        pad_rest,
+        tol,
+        ..CheckConfig::default()
+    };
+    check::check_trajectory(&geometry.curve, &Trajectory::from_ticks(&res.ticks), &cfg)
+        .map_err(Failure::input)
 }
 
 fn write_plot(path: &Path, res: &SimResult, name: &str) -> Result<(), BoxError> {
@@ -306,16 +659,16 @@ fn write_plot(path: &Path, res: &SimResult, name: &str) -> Result<(), BoxError> 
     Ok(())
 }
 
-fn demo(out: &Path) -> Result<(), BoxError> {
+fn demo(out: &Path) -> Result<(), Failure> {
     std::fs::create_dir_all(out).map_err(|e| format!("cannot create {}: {e}", out.display()))?;
-    let curve = builtin::butterfly()?;
+    let curve = load_curve("butterfly")?;
     let cfg = PlanConfig {
         sampling: Sampling::Len,
         density_per_mm: 1.0,
         limits: limits::TABLE1,
         ..PlanConfig::default()
     };
-    let planned = plan::plan_curve(&curve, &cfg)?;
+    let planned = plan::plan_curve(&curve, &cfg).map_err(plan_failure)?;
     let arc = ArcLength::new(&curve);
     let check = verify::dense_check_ends(
         &curve,
@@ -347,35 +700,33 @@ fn override_report(
     out: &Path,
     latency_ms: f64,
     compute_ms: f64,
-    trident: Option<PathBuf>,
+    trident: Option<&str>,
     period_us: f64,
-) -> Result<(), BoxError> {
+) -> Result<(), Failure> {
     use sim_harness::report::overrides as orep;
     std::fs::create_dir_all(out).map_err(|e| format!("cannot create {}: {e}", out.display()))?;
-    let butterfly = builtin::butterfly()?;
-    let trident_path = trident.unwrap_or_else(|| PathBuf::from("../shared/curves/trident.json"));
-    let trident = planner_host::curve::Nurbs::load(&trident_path).ok();
+    let butterfly = load_curve("butterfly")?;
+    let trident = load_curve(trident.unwrap_or("trident"))?;
     let link = sim_harness::scenario::LinkConfig {
         down_latency_s: latency_ms * 1e-3,
         up_latency_s: latency_ms * 1e-3,
         compute_budget_s: compute_ms * 1e-3,
         ..Default::default()
     };
-    let all = orep::catalogue(&butterfly, trident.as_ref(), link);
+    let all = orep::catalogue(&butterfly, Some(&trident), link);
     for n in names {
         if !all.iter().any(|s| s.name == n) {
-            return Err(format!(
+            return Err(Failure::input(format!(
                 "unknown scenario {n:?} (known: {})",
                 all.iter().map(|s| s.name).collect::<Vec<_>>().join(", ")
-            )
-            .into());
+            )));
         }
     }
     let mut md = format!(
         "# Feedrate override and feed hold scenarios\n\nMade by `cargo run --release -p sim-harness --bin feedsim -- override{}` \
          (one-way link latency {latency_ms} ms, host compute budget {compute_ms} ms in the timeline, servo period {period_us} us). \
          Ratios are the commanded setpoints' largest ratio to each limit with the machine at rest before and after \
-         (`--pad-rest`), by feedsim's own stencils; `.ci/check-traj.sh` runs `shared/checks/check_traj.py --pad-rest 50` on the CSVs.\n\n{}\n",
+         (`--pad-rest`), by feedsim's own stencils; CI checks every CSV with `feedsim check --pad-rest 50`.\n\n{}\n",
         names.iter().map(|n| format!(" {n}")).collect::<String>(),
         orep::TABLE_HEAD
     );
