@@ -5,8 +5,8 @@
 
 use std::path::{Path, PathBuf};
 
-use firmware_core::qspline::QSpline;
-use firmware_core::table::Table;
+use firmware_core::path::qspline::QSpline;
+use firmware_core::Table;
 use planner_host::arclength::ArcLength;
 use planner_host::curve::Nurbs;
 use planner_host::feed_override::OverrideContext;

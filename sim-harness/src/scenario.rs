@@ -26,14 +26,14 @@
 use std::collections::VecDeque;
 use std::time::Instant;
 
-use firmware_core::hold::HoldState;
 use firmware_core::interp::{Interpolator, OVERRIDE_Q, OVERRIDE_W};
+use firmware_core::HoldState;
 
 /// The interpolator with the default override capacities.
 type Fw<'a> = Interpolator<'a, OVERRIDE_Q, OVERRIDE_W>;
-use firmware_core::qspline::QSpline;
-use firmware_core::splice::{OverrideError, OverrideProfile as FwProfile};
-use firmware_core::table::Table;
+use firmware_core::path::qspline::QSpline;
+use firmware_core::Table;
+use firmware_core::{OverrideError, OverrideProfile as FwProfile};
 use planner_host::feed_override::{OverrideContext, OverrideOutcome};
 
 use crate::metrics::{self, Metrics, Tick, Toolpath};
@@ -382,7 +382,7 @@ pub fn run_scenario(
     let limits = table.limits();
     let t = cfg.period_s;
     let last_point: Option<[f64; 3]> = {
-        use firmware_core::array::F64Array;
+        use firmware_core::F64Array;
         let flat = table.nurbs_points().flat();
         let n = flat.len();
         (n >= 4)

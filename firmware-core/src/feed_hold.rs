@@ -93,7 +93,7 @@
 //! λ, μ and the step are f64 (their rounding would otherwise show in the
 //! finite-difference jerk); the constraints are f32.
 
-use crate::table::Limits;
+use crate::limits::Limits;
 
 /// Margin on the jerk limits the controller plans against.
 pub const RHO_J: f32 = 0.985;
