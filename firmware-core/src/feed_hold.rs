@@ -1,4 +1,4 @@
-//! Feed hold and resume by time-scaling (issue 6): the controller, pure
+//! Feed hold and resume by time-scaling: the controller, pure
 //! math.
 //!
 //! # Time-scaling
@@ -39,21 +39,21 @@
 //!
 //! # The controller
 //!
-//! Each tick ([`FeedHold::control`]) builds the linear constraints
-//! |d + cν| ≤ m ([`constraints`]), per axis and tangentially:
+//! Each tick (`FeedHold::control`) builds the linear constraints
+//! |d + cν| ≤ m (`constraints`), per axis and tangentially:
 //!
-//! - jerk during the tick: d = λ³J + 3λμA, c = V, m = [`RHO_J`]·j;
+//! - jerk during the tick: d = λ³J + 3λμA, c = V, m = `RHO_J`·j;
 //! - acceleration at the end of the tick: d = λ²A + μV + h(λ³J + 3λμA),
-//!   c = hV, m = [`RHO_A`]·a (or the current |acc| when the plan itself is
+//!   c = hV, m = `RHO_A`·a (or the current |acc| when the plan itself is
 //!   above that, never above a);
-//! - a cap on |μ₁| = |μ + νh| ([`mu_cap`]): the jerk 3λμA the braking
+//! - a cap on |μ₁| = |μ + νh| (`mu_cap`): the jerk 3λμA the braking
 //!   rate drives through the plan's acceleration (centripetal included)
-//!   stays within [`RHO_M`]·j while μ is brought back to 0, with A allowed
+//!   stays within `RHO_M`·j while μ is brought back to 0, with A allowed
 //!   to grow at the plan's jerk bound meanwhile (λ taken as 1 while
 //!   resuming); while stopping, |A| is also taken as no less than the
 //!   largest |A| of the plan over the arc length the stop can still cover
 //!   (sampled ahead by the tick), and μV must leave the plan's λ²|A| ahead
-//!   room within [`RHO_AHEAD`]·a ([`mu_cap_ahead`]); the stop segment
+//!   room within `RHO_AHEAD`·a (`mu_cap_ahead`); the stop segment
 //!   ahead counts with its entry. Above the cap |μ| may only shrink, and
 //!   the cap is hard: a relaxed ν (infeasible tick) still keeps |μ| within
 //!   it. (Letting the cap yield to the jerk and acceleration constraints of
@@ -61,16 +61,16 @@
 //!   there is self-reinforcing: 3λμA adds to a J against A, and the ν that
 //!   compensates brakes harder — up to 1.2× j before the end.)
 //!
-//! and intersects them ([`interval`]). If the intersection is empty it
+//! and intersects them (`interval`). If the intersection is empty it
 //! takes the ν that minimises the largest relative violation (exactly: the
 //! smallest common relaxation factor over all pairs of bounds) and counts
 //! the tick ([`HoldStats::infeasible`]).
 //!
 //! In distance-to-go coordinates (hold: x = λ, w = −μ, u = −ν; resume:
 //! x = 1 − λ, w = μ, u = ν; the double integrator ẋ = −w, ẇ = u) the target
-//! is bang-bang with a braking curve ([`approach`]): the largest u in the
+//! is bang-bang with a braking curve (`approach`): the largest u in the
 //! feasible interval that keeps w₁²/(2x₁) ≤ b after the tick, b =
-//! [`THETA`] × an estimate of the braking capacity (min over axes and the
+//! `THETA` × an estimate of the braking capacity (min over axes and the
 //! tangent of j/|V|, the jerk-limited ν when λ ≈ 0, no more than 4× the
 //! capacity now); on the curve, the landing law
 //!
@@ -83,9 +83,9 @@
 //! and w = 0 together exactly at the end of tick n (then the same law keeps
 //! it there), so λ lands on 0 (or 1) with μ = 0: no overshoot, no
 //! acceleration left when the plan takes over. A resume also keeps
-//! 1 − λ on an exponential tail, μ ≤ κ(1 − λ) ([`Kin::tail_rate`]): near
+//! 1 − λ on an exponential tail, μ ≤ κ(1 − λ) (`Kin::tail_rate`): near
 //! λ = 1 the plan may leave only (1 − λ³)j of jerk, and it lands within
-//! [`X_SNAP`]. λ is monotone while
+//! `X_SNAP`. λ is monotone while
 //! approaching (w ≥ 0 is kept); λ is clamped to [0, 1], and a landing that
 //! the constraints did not allow is snapped (counted in
 //! [`HoldStats::forced`]).
@@ -96,35 +96,35 @@
 use crate::limits::Limits;
 
 /// Margin on the jerk limits the controller plans against.
-pub const RHO_J: f32 = 0.985;
+pub(crate) const RHO_J: f32 = 0.985;
 /// Margin on the acceleration limits.
-pub const RHO_A: f32 = 0.985;
+pub(crate) const RHO_A: f32 = 0.985;
 /// Margin on the jerk part the braking rate drives normal to the path.
-pub const RHO_M: f32 = 0.5;
+pub(crate) const RHO_M: f32 = 0.5;
 /// Fraction of the acceleration limits the braking acceleration and the
 /// plan's acceleration ahead may use together ([`mu_cap_ahead`]).
-pub const RHO_AHEAD: f32 = 0.8;
+pub(crate) const RHO_AHEAD: f32 = 0.8;
 /// Smallest μ cap (1/s) the acceleration look-ahead leaves (a hold always
 /// makes progress: 1 − λ then grows at least exponentially, at the rate
 /// the plan's slack (1 − λ²)a, (1 − λ³)j opens). Small: μ_f·|V| is an
 /// acceleration the plan's may not leave room for (0.5 before gave 1.07× j
 /// at some hold points; 0.02 × 166 mm/s is 0.2 % of 1500 mm/s²).
-pub const MU_FLOOR: f32 = 0.02;
+pub(crate) const MU_FLOOR: f32 = 0.02;
 /// Smallest μ cap (1/s) the jerk look-ahead leaves (the same; 3μ_f|A| is
 /// 0.9 % of 16000 mm/s³ at |A| = 1000 mm/s², 2.0 before).
-pub const MU_FLOOR_J: f32 = 0.05;
+pub(crate) const MU_FLOOR_J: f32 = 0.05;
 /// Fastest rise of the μ cap while stopping, 1/s².
-pub const CAP_RISE: f32 = 20.0;
+pub(crate) const CAP_RISE: f32 = 20.0;
 /// Fraction of the braking capacity the braking curve plans with.
-pub const THETA: f64 = 0.7;
+pub(crate) const THETA: f64 = 0.7;
 /// A resume within this of λ = 1 lands (rounding only: snapping λ by x
 /// steps the velocity by x·|V|, a finite-difference jerk of ~x|V|/T²,
 /// so the landing itself must be exact).
-pub const X_SNAP: f64 = 1e-12;
+pub(crate) const X_SNAP: f64 = 1e-12;
 /// Constraints per tick: jerk (for the plan's J, for −J and for J grown
 /// by its last change, see [`constraints`]) and end acceleration for 3 axes and the tangent, and
 /// the cap on |μ| ([`mu_cap`]).
-pub const N_CONS: usize = 17;
+pub(crate) const N_CONS: usize = 17;
 
 /// The feed-hold state.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -180,7 +180,7 @@ pub struct HoldStats {
 
 /// One linear constraint |d + c ν| ≤ m.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
-pub struct Lin {
+pub(crate) struct Lin {
     /// Coefficient of ν.
     pub c: f32,
     /// Value at ν = 0.
@@ -191,7 +191,7 @@ pub struct Lin {
 
 /// The feasible ν interval of a set of [`Lin`] constraints.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Interval {
+pub(crate) struct Interval {
     /// Lower bound of ν.
     pub lo: f32,
     /// Upper bound of ν.
@@ -219,7 +219,7 @@ fn norm(k: &Lin) -> Option<(f32, f32)> {
 /// smallest r with max_i L_i(r) ≤ min_j U_j(r), L_i(r) = −r m_i/c_i −
 /// d_i/c_i, U_j(r) = r m_j/c_j − d_j/c_j (c > 0 after a sign flip), is the
 /// largest over pairs (i, j) of (d_j/c_j − d_i/c_i)/(m_i/c_i + m_j/c_j).
-pub fn interval(cons: &[Lin]) -> Interval {
+pub(crate) fn interval(cons: &[Lin]) -> Interval {
     let (mut lo, mut hi, mut fixed) = (f32::NEG_INFINITY, f32::INFINITY, 0.0f32);
     for k in cons {
         match norm(k) {
@@ -278,7 +278,7 @@ pub fn interval(cons: &[Lin]) -> Interval {
 /// tangentially: V, A, J (see the module docs), and per axis the parts of A
 /// and J normal to the path.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
-pub struct Kin {
+pub(crate) struct Kin {
     /// Velocity, mm/s.
     pub v: [f32; 4],
     /// Acceleration, mm/s².
@@ -369,7 +369,7 @@ impl Kin {
 /// The limits the controller works with: accelerations and jerks per axis
 /// and, index 3, tangential (f32).
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
-pub struct HoldLimits {
+pub(crate) struct HoldLimits {
     /// v_x, v_y, v_z, v̄ (mm/s; 0: unknown, the current |V| is used).
     pub v: [f32; 4],
     /// a_x, a_y, a_z, ā (mm/s²).
@@ -394,7 +394,10 @@ impl HoldLimits {
 /// and tangentially while μ is brought back to 0 at `nu_r` (1/s²) and A
 /// grows at up to λ·j meanwhile (the plan's jerk bound; no look-ahead along
 /// the path is needed): the root of 3λμ(|A| + λjμ/ν_r) = RHO_M·j.
-pub fn mu_cap(k: &Kin, lim: &HoldLimits, lam: f32, nu_r: f32) -> f32 {
+// The cap without a look-ahead, the form the module docs derive; the tick
+// uses [`mu_cap_ahead`].
+#[allow(dead_code)]
+pub(crate) fn mu_cap(k: &Kin, lim: &HoldLimits, lam: f32, nu_r: f32) -> f32 {
     mu_cap_ahead(k, &Ahead::default(), lim, lam, nu_r)
 }
 
@@ -405,7 +408,7 @@ pub fn mu_cap(k: &Kin, lim: &HoldLimits, lam: f32, nu_r: f32) -> f32 {
 /// plan's growing A too late and the jerk limit cannot unwind μ in time);
 /// 3λμA must leave the plan's λ³|J| ahead room within [`RHO_AHEAD`] of
 /// RHO_J·j, on the axes only where J is against A.
-pub fn mu_cap_ahead(k: &Kin, ahead: &Ahead, lim: &HoldLimits, lam: f32, nu_r: f32) -> f32 {
+pub(crate) fn mu_cap_ahead(k: &Kin, ahead: &Ahead, lim: &HoldLimits, lam: f32, nu_r: f32) -> f32 {
     let mut cap = f32::INFINITY;
     for (i, (a, j)) in k.a.iter().zip(lim.j.iter()).enumerate() {
         let at = |x: &[f32; 4]| x.get(i).copied().unwrap_or(0.0);
@@ -455,7 +458,7 @@ pub fn mu_cap_ahead(k: &Kin, ahead: &Ahead, lim: &HoldLimits, lam: f32, nu_r: f3
 /// stop brakes (μ < 0): μV adds to the plan's acceleration only where A is
 /// against V, and 3λμA to the plan's jerk only where J is against A.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
-pub struct Ahead {
+pub(crate) struct Ahead {
     /// Largest |A|, mm/s².
     pub a: [f32; 4],
     /// Largest |V|, mm/s.
@@ -518,7 +521,13 @@ impl Ahead {
 /// The [`N_CONS`] constraints on ν at (λ, μ) for a tick of h seconds (see
 /// the module docs); `nu_r` the braking rate planned with, `lam_cap` the
 /// largest λ the μ cap must hold for (λ itself holding, 1 resuming).
-pub fn constraints(k: &Kin, lim: &HoldLimits, (lam, mu): (f32, f32), h: f32, cap: f32) -> [Lin; N_CONS] {
+pub(crate) fn constraints(
+    k: &Kin,
+    lim: &HoldLimits,
+    (lam, mu): (f32, f32),
+    h: f32,
+    cap: f32,
+) -> [Lin; N_CONS] {
     let mut out = [Lin::default(); N_CONS];
     let (l2, l3) = (lam * lam, lam * lam * lam);
     let mut slots = out.iter_mut();
@@ -583,7 +592,7 @@ pub fn constraints(k: &Kin, lim: &HoldLimits, (lam, mu): (f32, f32), h: f32, cap
 /// the distance to go, w the approach rate), u within [ulo, uhi], planning
 /// with braking deceleration b (module docs); and whether this tick lands
 /// (x = w = 0 at its end).
-pub fn approach(x: f64, w: f64, (ulo, uhi): (f64, f64), b: f64, kappa: f64, h: f64) -> (f64, bool) {
+pub(crate) fn approach(x: f64, w: f64, (ulo, uhi): (f64, f64), b: f64, kappa: f64, h: f64) -> (f64, bool) {
     let h2 = h * h;
     // The exponential tail w₁ ≤ κ x₁ (resume): u ≤ (κ(x − wh) − w)/(h + κh²/2).
     let uhi = if kappa.is_finite() {
@@ -631,7 +640,7 @@ pub fn approach(x: f64, w: f64, (ulo, uhi): (f64, f64), b: f64, kappa: f64, h: f
 
 /// The hold controller: λ, μ and the state.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct FeedHold {
+pub(crate) struct FeedHold {
     lam: f64,
     mu: f64,
     state: HoldState,
@@ -656,7 +665,7 @@ impl Default for FeedHold {
 
 /// (λ, μ, ν) of one tick: λ and μ at its start, ν over it.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
-pub struct TickScale {
+pub(crate) struct TickScale {
     /// λ at the start of the tick.
     pub lam: f64,
     /// μ = λ̇ at the start of the tick, 1/s.
@@ -721,6 +730,8 @@ impl FeedHold {
     /// One tick of h seconds: chooses ν from the constraints at the current
     /// state (`kin` at the current s), advances λ and μ, and returns the
     /// tick's (λ, μ, ν) for the step of s.
+    // The tick runs with a look-ahead (`control_ahead`); the unit tests drive this.
+    #[cfg_attr(not(test), allow(dead_code))]
     pub fn control(&mut self, kin: &Kin, lim: &HoldLimits, h: f64) -> TickScale {
         self.control_ahead(kin, &Ahead::default(), lim, h)
     }
@@ -871,7 +882,7 @@ impl FeedHold {
 
 /// The step of s over a tick (order-4 Taylor, module docs) from the plan's
 /// `[ṡ_p, s̈_p, s⃛_p, s⁗_p]` and the tick's (λ, μ, ν); never negative.
-pub fn scaled_step(p: [f64; 4], t: &TickScale, h: f64) -> f64 {
+pub(crate) fn scaled_step(p: [f64; 4], t: &TickScale, h: f64) -> f64 {
     let [v, a, j, sn] = p;
     let (l, m, n) = (t.lam, t.mu, t.nu);
     let s1 = l * v;

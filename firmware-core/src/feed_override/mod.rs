@@ -1,7 +1,7 @@
 //! Feedrate override: splicing host-planned transition profiles into the
 //! running plan (paper §4; the contract is `docs/override-design.md`).
 //!
-//! The table holds precomputed *levels* (sections 16–19, [`Level`]): whole
+//! The table holds precomputed *levels* (sections 16–19, [`Level`](crate::table::level::Level)): whole
 //! plans on the base q knots with v̄ scaled by α. To change the feed the host
 //! sends an [`OverrideProfile`]: new control points a_first … a_{first+len−1}
 //! of q, whose first [`CONTEXT`] entries must equal (bitwise) the control
@@ -12,8 +12,8 @@
 //!
 //! [`crate::interp::Interpolator::offer_override`] checks a profile
 //! ([`OverrideError`] names every refusal), computes the local and fixed
-//! forms of the window's q spans first … first+len−1 (`fast::q_local`,
-//! `fast::q_fixed`, as [`crate::table::encode`] does for the table) and
+//! forms of the window's q spans first … first+len−1 (`q_span::q_local`,
+//! `q_span::q_fixed`, as [`crate::table::encode()`] does for the table) and
 //! queues it (capacity `Q`, window capacity `W` control points, both const
 //! generics of the interpolator). A profile supersedes the queued ones whose
 //! splice is at or after its own (reported in [`Accepted::superseded`]).
@@ -27,9 +27,9 @@
 //! Acceptance costs two f64 span evaluations per window span (soft float on
 //! the M4F): call it between ticks, from the task that owns the interpolator.
 
-pub(crate) mod queue;
-
 use core::fmt;
+
+pub(crate) mod queue;
 
 /// Leading entries of [`OverrideProfile::ctrl`] that must repeat the running
 /// plan's control points (the spans before the splice use them).

@@ -2,8 +2,7 @@
 //! moves along them: the current q span and the current piece; q and √q at
 //! a given s.
 
-use crate::math::source::F64Array;
-use crate::math::source::{LeF32, LeF64};
+use crate::math::source::{F64Array, LeF32, LeF64};
 use crate::servo_forms::fixed::{fx_small_f32, sqrt_q32, to_fx, Q_FRAC};
 use crate::servo_forms::piece::{piece_shift_mask, PieceU, PIECE_F64_LEN, PIECE_HEAD_LEN, POS_BYTES};
 use crate::servo_forms::q_span::{feed_near, q_fx_eval, QLocal, Q_FX_LEN, Q_LOCAL_LEN};
@@ -11,7 +10,7 @@ use crate::servo_forms::q_span::{feed_near, q_fx_eval, QLocal, Q_FX_LEN, Q_LOCAL
 /// The current q span: its index among the q spans (knot span 3 + idx),
 /// its start U_i and end U_{i+1} in Q40 (the end `i64::MAX` for the last
 /// span), the anchor of its f32 form (U_i, or U_{i+1} for the last span,
-/// see [`crate::fast`]), and its fixed-point cubic and shift.
+/// see [`crate::servo_forms`]), and its fixed-point cubic and shift.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
 pub(crate) struct QCur {
     pub(crate) idx: usize,
@@ -35,7 +34,7 @@ pub(crate) struct PCur {
     pub(crate) u0: i64,
     pub(crate) centre: i64,
     pub(crate) shift: u32,
-    /// Constant-axis mask ([`pos_eval`]).
+    /// Constant-axis mask ([`pos_eval`](crate::servo_forms::piece::pos_eval)).
     pub(crate) constant: u32,
     /// The s → u head, copied on entry.
     pub(crate) head: PieceU,
@@ -190,7 +189,7 @@ fn t0_q(v: &Views<'_>) -> Option<f32> {
 
 /// The q state at s (Q40) as the tick computes it: `[q, q′, q″, q‴]` (q from
 /// the fixed-point form, the derivatives from the f32 form), √q in f32 and
-/// in Q32 ([`q_eval`]). A scan over the spans: for [`Interpolator::new`],
+/// in Q32 ([`q_eval`]). A scan over the spans: for [`Interpolator::new`](crate::interp::interpolator::Interpolator::new),
 /// reset and the start segment's join only.
 pub(crate) fn q_state_at(v: &Views<'_>, s: i64, guess: f32) -> Option<QState> {
     let mut qc = v.q(0)?;

@@ -9,7 +9,7 @@ use crate::limits::Limits;
 /// stop run.
 pub(crate) const END_FACTOR: f32 = 2.0;
 /// A stop still above this λ when the plan's stop segment comes within its
-/// reach coasts ([`crate::hold::FeedHold::set_coast`]).
+/// reach coasts ([`crate::feed_hold::FeedHold::set_coast`]).
 pub(crate) const COAST_ABOVE: f64 = 0.5;
 /// Points the μ cap's look-ahead evaluates the plan at.
 pub(crate) const AHEAD_N: usize = 32;

@@ -1,12 +1,12 @@
-//! Feed hold on the tick (issue 6): [`crate::hold`]'s controller driving
+//! Feed hold on the tick: [`crate::feed_hold`]'s controller driving
 //! the interpolator.
 //!
 //! While a hold or resume is in progress, [`Interpolator::tick`] hands the
 //! tick to [`Interpolator::hold_tick`]: the plan's ṡ_p, s̈_p, s⃛_p, s⁗_p at
 //! s (from q, or from the stop segment's cubic), the path's r′, r″, r‴
-//! from the piece polynomial ([`crate::fast::pos_derivs`]), one controller
+//! from the piece polynomial ([`crate::servo_forms::piece::pos_derivs`]), one controller
 //! step (ν), then s advances by the scaled order-4 Taylor step in f64
-//! ([`crate::hold::scaled_step`]; never backwards) and the position comes
+//! ([`crate::feed_hold::scaled_step`]; never backwards) and the position comes
 //! from the same fixed-point piece polynomial as on the normal tick. The
 //! stall checks do not run on these ticks; held, the tick returns the same
 //! position with feed 0 and the clock advancing.
@@ -42,7 +42,7 @@ use crate::servo_forms::piece::pos_derivs;
 
 impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
     /// Request a feed hold: decelerate to rest on the path within the
-    /// acceleration and jerk limits (see [`crate::hold`]). Idempotent; a
+    /// acceleration and jerk limits (see [`crate::feed_hold`]). Idempotent; a
     /// no-op while stopping or held.
     pub fn hold(&mut self) -> Result<(), HoldError> {
         self.hold_allowed()?;

@@ -1,8 +1,7 @@
 //! [`Interpolator`]: its state, construction and queries. The tick itself is
 //! in [`crate::interp::tick`], feed hold in [`crate::interp::hold_tick`].
 
-use crate::feed_override::queue::Now;
-use crate::feed_override::queue::Overrides;
+use crate::feed_override::queue::{Now, Overrides};
 use crate::feed_override::{Accepted, OverrideError, OverrideProfile};
 use crate::interp::cursor::{q_state_at, PCur, QCur, QState, Views};
 use crate::interp::end_segments::{SegConsts, SegRun};
@@ -44,12 +43,12 @@ pub const OVERRIDE_W: usize = 64;
 
 /// The servo-rate interpolator over one validated table.
 ///
-/// The fast path of [`crate::fast`]: s accumulates in Q40 fixed point; q and
+/// The fast path of `crate::servo_forms`: s accumulates in Q40 fixed point; q and
 /// √q are fixed point (Q32) with f32 estimates, the higher Taylor terms f32,
 /// the position a fixed-point polynomial per piece (Q40), u(s) f32 local.
 ///
 /// With override levels in the table, [`Interpolator::offer_override`]
-/// queues transition profiles ([`crate::splice`]): up to `Q` waiting, each
+/// queues transition profiles ([`crate::feed_override`]): up to `Q` waiting, each
 /// with up to `W` control points (RAM: `Q + 1` windows of ~68·W bytes).
 // repr(C), override storage last: the tick's fields stay at small offsets
 // (Thumb-2 loads reach 4 KiB from a base register; the windows are ~13 KiB).
@@ -106,7 +105,7 @@ pub struct Interpolator<'a, const Q: usize = 0, const W: usize = 0> {
     /// part is the active level's.
     pub(crate) segk: SegConsts,
     pub(crate) phase: Phase,
-    /// Feed hold and resume (issue 6, [`crate::hold`]).
+    /// Feed hold and resume ([`crate::feed_hold`]).
     pub(crate) fh: HoldRun,
     /// Override profiles: the queue and the active one.
     pub(crate) ov: Overrides<'a, Q, W>,
@@ -115,7 +114,7 @@ pub struct Interpolator<'a, const Q: usize = 0, const W: usize = 0> {
 impl<'a> Interpolator<'a> {
     /// An interpolator at the start of `table`, ticking every `period_s`
     /// seconds, without room for override profiles (every offer is refused
-    /// with [`crate::splice::OverrideError::QueueFull`]; no RAM spent on
+    /// with [`crate::feed_override::OverrideError::QueueFull`]; no RAM spent on
     /// windows). [`Interpolator::new_sized`] gives room for `Q` queued
     /// profiles of up to `W` control points, e.g.
     /// `Interpolator::<3, 64>::new_sized` ([`OVERRIDE_Q`], [`OVERRIDE_W`]:
@@ -274,7 +273,7 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         self.period_s
     }
 
-    /// Offer a feedrate-override profile ([`crate::splice`],
+    /// Offer a feedrate-override profile ([`crate::feed_override`],
     /// `docs/override-design.md`): checked, its window forms computed, and
     /// queued to become active at the tick that enters q span `p.first`; or
     /// refused with nothing changed. Not for the tick context: it costs two

@@ -12,8 +12,8 @@
 //! would; the table guarantees q′(0) > 0). Then u = u(s) and the position
 //! r(u) on the current *piece* (a part of an s → u segment, ≤ 4 mm).
 //!
-//! Numerics (issue 3, the Cortex-M4F has a single-precision FPU only): the
-//! tick runs the fast path of [`crate::fast`]. s is an i64 in Q40 mm (the
+//! Numerics (the Cortex-M4F has a single-precision FPU only, so f64 is soft float): the
+//! tick runs the fast path of `crate::servo_forms`. s is an i64 in Q40 mm (the
 //! accumulator: exact integer additions, no drift); q and √q are fixed point
 //! (Q32) with an f32 estimate refined by one integer Newton step; the step
 //! is √q·T in fixed point plus the higher Taylor terms in f32; the position
@@ -22,10 +22,10 @@
 //! converted from Q40 on the bit patterns. The only soft-float calls left on
 //! the Taylor tick are the i64 → f64 conversions of the five outputs. Setpoint
 //! rounding noise: σ < 1e-12 mm, finite-difference jerk noise ≤ 11 mm/s³ at
-//! 250 µs on the shared curves (see [`crate::fast`] for the error budget).
+//! 250 µs on the shared curves (see `crate::servo_forms` for the error budget).
 //! Entering a q span or a piece converts two breaks to Q40 and copies its
-//! forms in place (~200–400 instructions). The f64 evaluators ([`crate::qspline`],
-//! [`crate::sumap`], [`crate::nurbs`]) stay as the reference:
+//! forms in place (~200–400 instructions). The f64 evaluators ([`crate::path::qspline`],
+//! [`crate::path::su_map`], [`crate::path::nurbs`]) stay as the reference:
 //! [`crate::table::Table::parse`] checks the local forms against them. Host
 //! and MCU run this same code (integer arithmetic and IEEE f32/f64 without
 //! contraction), so their setpoints agree bit for bit.

@@ -13,7 +13,7 @@ pub struct Setpoint {
     /// NURBS parameter u.
     pub u: f64,
     /// Feedrate ṡ = √q(s), mm/s (λ√q(s) during a feed hold or resume,
-    /// [`crate::hold`]; 0 when held).
+    /// [`crate::feed_hold`]; 0 when held).
     pub feed_mm_s: f64,
     /// Position r(u), mm (x, y, z).
     pub pos_mm: [f64; 3],
@@ -27,7 +27,7 @@ pub enum InterpError {
     /// The period is not a finite number > 0.
     BadPeriod,
     /// The table's views do not fit together (cannot happen for a table from
-    /// [`Table::parse`]).
+    /// [`Table::parse`](crate::table::view::Table::parse)).
     Inconsistent,
 }
 
@@ -49,14 +49,14 @@ pub enum Fault {
         /// Where, mm.
         s_mm: f64,
     },
-    /// An evaluation failed (cannot happen for a table from [`Table::parse`]).
+    /// An evaluation failed (cannot happen for a table from [`Table::parse`](crate::table::view::Table::parse)).
     Eval {
         /// Where, mm.
         s_mm: f64,
     },
 }
 
-/// [`Interpolator::run`] stopped.
+/// [`Interpolator::run`](crate::interp::interpolator::Interpolator::run) stopped.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum RunError<E> {

@@ -127,7 +127,7 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         self.step(t_s, h, tk)
     }
 
-    /// One Taylor step of `h` seconds (step scale `tk`, [`step_scale`]) from
+    /// One Taylor step of `h` seconds (step scale `tk`, [`step_scale`](crate::servo_forms::fixed::step_scale)) from
     /// (s, q) (see the module docs): ds = √q·h in fixed point (Q32 × the
     /// scale) plus the higher Taylor terms in f32.
     #[inline(always)]

@@ -157,12 +157,12 @@ pub fn ders_basis(win: &[f64], p: usize, x: f64, n: usize, ders: &mut BasisDeriv
     true
 }
 
-/// Knot-window buffer: room for the `2p` knots of [`crate::basis::window`].
-pub type KnotWindow = [f64; 2 * MAX_DEGREE];
+/// Knot-window buffer: room for the `2p` knots of [`crate::math::basis::window`].
+pub(crate) type KnotWindow = [f64; 2 * MAX_DEGREE];
 
 /// Copy the knot window `U[i−p+1] ..= U[i+p]` of span `span` out of `knots`
-/// into `buf` and return it as a slice (for [`crate::basis::ders_basis`]).
-pub fn copy_window<'b, A: F64Array>(
+/// into `buf` and return it as a slice (for [`crate::math::basis::ders_basis`]).
+pub(crate) fn copy_window<'b, A: F64Array>(
     knots: &A,
     degree: usize,
     span: usize,

@@ -1,8 +1,8 @@
 //! Read-only indexed sources of numbers: host slices and zero-copy
 //! little-endian views into a table.
 //!
-//! Everything above this layer ([`crate::qspline`], [`crate::nurbs`],
-//! [`crate::sumap`]) reads its data through these traits, so one evaluation
+//! Everything above this layer ([`crate::path::qspline`], [`crate::path::nurbs`],
+//! [`crate::path::su_map`]) reads its data through these traits, so one evaluation
 //! code path serves the host (`&[f64]`) and the firmware (bytes in flash).
 //! Reads are bounds-checked and return `None` past the end; nothing panics.
 
@@ -80,7 +80,7 @@ impl<'a> LeF64<'a> {
 
 impl LeF64<'_> {
     /// Element `i` as the little-endian i64 it holds (the fixed-point
-    /// words of a table, [`crate::fast`]).
+    /// words of a table, `crate::servo_forms`).
     #[inline]
     pub fn get_i64(&self, i: usize) -> Option<i64> {
         let start = i.checked_mul(8)?;
@@ -101,7 +101,7 @@ impl F64Array for LeF64<'_> {
 }
 
 /// Zero-copy view of little-endian `f32`s (4 bytes each): the span-local
-/// single-precision sections of a table ([`crate::fast`]).
+/// single-precision sections of a table (`crate::servo_forms`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct LeF32<'a> {
     bytes: &'a [u8],

@@ -44,7 +44,6 @@
 
 use core::convert::Infallible;
 use core::fmt;
-
 use embedded_hal::digital::{OutputPin, PinState};
 use embedded_hal::spi::SpiDevice;
 

@@ -3,7 +3,7 @@
 //!
 //! On each knot span the spline is a cubic; [`QSpline::span_poly`] converts
 //! it once to the local power form q(s₀ + t) = c₀ + c₁t + c₂t² + c₃t³ from
-//! q, q′, q″, q‴ at the span start s₀ (P&T A2.3 via [`crate::basis`]), so
+//! q, q′, q″, q‴ at the span start s₀ (P&T A2.3 via [`crate::math::basis`]), so
 //! each later evaluation is a Horner step. From q the motion follows:
 //! ṡ = √q (1), s̈ = q′/2 (4), s⃛ = ½q″√q (5, as ERRATA.md reads it).
 

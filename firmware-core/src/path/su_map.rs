@@ -48,7 +48,7 @@ impl SegmentArray for &[SuSegment] {
 
 /// u = Σ_k c_k τ^k by Horner's rule, highest power first.
 #[inline]
-pub fn horner(c: &[f64; SU_COEFFS], tau: f64) -> f64 {
+pub(crate) fn horner(c: &[f64; SU_COEFFS], tau: f64) -> f64 {
     c.iter().rev().fold(0.0, |acc, &ck| acc * tau + ck)
 }
 

@@ -26,7 +26,7 @@ pub const Q_TOL_REL: f64 = 1e-5;
 /// piece length within `SU_TOL` relative, and the q span length too.
 pub const SU_TOL: f64 = 1e-6;
 /// Parse tolerance for the fixed-point positions, mm (the host fits them
-/// to [`FIT_TOL_MM`]).
+/// to [`FIT_TOL_MM`](crate::servo_forms::fit::FIT_TOL_MM)).
 pub const POS_TOL_MM: f64 = 1e-9;
 /// Parse tolerance for the fixed-point q, absolute part, (mm/s)².
 pub const Q_FX_TOL_ABS: f64 = 1e-7;
@@ -42,7 +42,7 @@ fn check_nodes() -> impl Iterator<Item = f64> {
 }
 
 /// q span check: the local form agrees with the f64 span polynomial.
-/// `at_end` as for [`q_local`].
+/// `at_end` as for [`q_local`](crate::servo_forms::q_span::q_local).
 pub fn check_q<A: F64Array>(q: &QSpline<A>, span: usize, local: &QLocal, q_scale: f64, at_end: bool) -> bool {
     let (Some(a), Some(b)) = (q.knots().get(span), q.knots().get(span.saturating_add(1))) else {
         return false;
@@ -101,7 +101,7 @@ pub fn check_q_fx<A: F64Array>(q: &QSpline<A>, span: usize, c: [i64; Q_FX_LEN], 
 /// over `[s0, s1]`) at [`CHECK_POINTS`] points, and the fixed-point
 /// position within [`POS_TOL_MM`] of r(u(s)) at [`POS_CHECK_POINTS`]
 /// points of the piece `[sa, sb]`, τ within Q61 over it. `words` are the
-/// piece's [`PIECE_F64_LEN`] 64-bit words (bytes).
+/// piece's [`PIECE_F64_LEN`](crate::servo_forms::piece::PIECE_F64_LEN) 64-bit words (bytes).
 pub fn check_piece<K: F64Array, P: Point4Array>(
     curve: &NurbsView<K, P>,
     seg: &SuSegment,

@@ -15,7 +15,7 @@ use crate::servo_forms::piece::{
 /// Longest piece before the fit's bisection, mm (see the module docs). The
 /// fixed-point position has no length-dependent rounding; long pieces keep
 /// tables small where the curve is gentle (the fit bisects where it is
-/// not). Must stay < 128 mm (the f32 piece-local t, [`fx_small_f32`]).
+/// not). Must stay < 128 mm (the f32 piece-local t, [`fx_small_f32`](crate::servo_forms::fixed::fx_small_f32)).
 pub const PIECE_MAX_MM: f64 = 16.0;
 /// Shortest piece the feed rule asks for, mm.
 pub const PIECE_MIN_MM: f64 = 0.1;

@@ -12,29 +12,29 @@
 //! for every stage feeding the position (q and √q, the step, s, the s →
 //! position map). Now:
 //!
-//! - **s**: i64 Q40 mm ([`FX_FRAC`], quantum 2⁻⁴⁰ = 9.1e-13 mm, range
+//! - **s**: i64 Q40 mm ([`FX_FRAC`](crate::servo_forms::fixed::FX_FRAC), quantum 2⁻⁴⁰ = 9.1e-13 mm, range
 //!   ±8.4e6 mm); the accumulator is an exact integer addition.
 //! - **q** per q span: a cubic in τ = (s − U_i)/2^e ∈ [0, 1] (2^e ≥ the span
-//!   length) with i64 Q32 (mm/s)² coefficients ([`q_fixed`], table section
-//!   15), evaluated by Horner with [`mul_tau`]; q′, q″, q‴ (only in the
+//!   length) with i64 Q32 (mm/s)² coefficients ([`q_fixed`](crate::servo_forms::q_span::q_fixed), table section
+//!   15), evaluated by Horner with [`mul_tau`](crate::servo_forms::fixed::mul_tau); q′, q″, q‴ (only in the
 //!   small Taylor terms) still from the f32 form of section 10.
-//! - **√q**: an f32 estimate ([`feed_near`]: two f32 Newton steps from the
+//! - **√q**: an f32 estimate ([`feed_near`](crate::servo_forms::q_span::feed_near): two f32 Newton steps from the
 //!   predicted speed, or `sqrtf`) refined by one Newton step whose residual
 //!   q − v₀² is exact in integers and whose correction (q − v₀²)/(2v₀) is f32
-//!   ([`sqrt_q32`]): √q in Q32 mm/s within ~1e-14 relative.
+//!   ([`sqrt_q32`](crate::servo_forms::fixed::sqrt_q32)): √q in Q32 mm/s within ~1e-14 relative.
 //! - **step**: ds = √q·T in fixed point (`mul_hi(v, k) << g`, the period
-//!   as k = T·2^(72−g), [`step_scale`]) plus the higher Taylor terms
+//!   as k = T·2^(72−g), [`step_scale`](crate::servo_forms::fixed::step_scale)) plus the higher Taylor terms
 //!   T²(s̈/2 + T s⃛/6 + T² s⁗/24) in f32 (≤ ~3e-4 mm, so their f32 rounding
-//!   is ≤ 2e-11 mm), converted to Q40 ([`f32_to_fx`]).
+//!   is ≤ 2e-11 mm), converted to Q40 ([`f32_to_fx`](crate::servo_forms::fixed::f32_to_fx)).
 //! - **position** per *piece* (0.1 s of planned travel, 0.1–16 mm, inside
-//!   one s → u segment, then bisected as needed): r(u(s)) as one degree-[`POS_DEG`]
+//!   one s → u segment, then bisected as needed): r(u(s)) as one degree-[`POS_DEG`](crate::servo_forms::piece::POS_DEG)
 //!   polynomial per axis in τ = (s − c)/2^e ∈ [−1, 1] (c the piece's centre
 //!   in Q40, 2^e ≥ half its length), i64 Q40 mm coefficients, fitted on the
 //!   host at the Chebyshev–Lobatto points of the piece against the f64
 //!   reference (the table's s → u quintic and the f64 NURBS) and bisected
-//!   (up to [`MAX_SPLIT`] times) until the fixed-point polynomial is within
-//!   [`FIT_TOL_MM`] = 2e-11 mm of it at [`FIT_CHECKS`] points ([`piece_local`]).
-//!   Horner in i64 with [`mul_tau`]: three signed 32 × 32 → 64 products a
+//!   (up to [`MAX_SPLIT`](crate::servo_forms::fit::MAX_SPLIT) times) until the fixed-point polynomial is within
+//!   [`FIT_TOL_MM`](crate::servo_forms::fit::FIT_TOL_MM) = 2e-11 mm of it at [`FIT_CHECKS`](crate::servo_forms::fit::FIT_CHECKS) points ([`piece_local`](crate::servo_forms::fit::piece_local)).
+//!   Horner in i64 with [`mul_tau`](crate::servo_forms::fixed::mul_tau): three signed 32 × 32 → 64 products a
 //!   step (τ in Q61 split into 31-bit halves), within 0–2 units (2⁻⁴⁰ mm) of
 //!   the exact floor. An axis whose b₁ … b₇ are all zero (z on a planar path)
 //!   is b₀ without the Horner steps. No homogeneous division, no u on the
@@ -42,13 +42,13 @@
 //! - **u** (reported only): u_a (Q40) + the f32 Δv quintic of the piece as
 //!   before.
 //! - **outputs**: s, x, y, z, u from Q40 by an i64 → f64 conversion and an
-//!   exponent subtraction ([`fx_to_f64`], exact below 8192 mm); t = k·T by
-//!   one integer product, correctly rounded ([`u128_to_f64_pow2`]).
+//!   exponent subtraction ([`fx_to_f64`](crate::servo_forms::fixed::fx_to_f64), exact below 8192 mm); t = k·T by
+//!   one integer product, correctly rounded ([`u128_to_f64_pow2`](crate::servo_forms::fixed::u128_to_f64_pow2)).
 //!
 //! Everything on the tick path is integer arithmetic or IEEE f32 +, −, ×, ÷
 //! (correctly rounded on both targets; Rust never contracts to FMA), so host
 //! and Cortex-M4F agree bit for bit. The conversions f64 ↔ fixed point are
-//! done on the bit patterns ([`to_fx`], [`f64_to_fixed`]): Rust's
+//! done on the bit patterns ([`to_fx`](crate::servo_forms::fixed::to_fx), [`f64_to_fixed`](crate::servo_forms::fixed::f64_to_fixed)): Rust's
 //! saturating `f64 as i64` costs ~350 soft-float instructions there.
 //!
 //! # Error budget (Butterfly, Circle, Fan; T = 250 µs)
@@ -91,11 +91,11 @@
 //! 557,292 → 428,236 bytes.
 //!
 //! The host derives all local forms from the f64 data once
-//! ([`crate::table::encode`]) and [`crate::table::Table::parse`] checks
-//! every one against the f64 data ([`check_q`], [`check_q_fx`],
-//! [`check_piece`]): q within [`Q_FX_TOL_ABS`] + [`Q_FX_TOL_REL`]·max q, u
-//! within [`SU_TOL`] of the span width, positions within [`POS_TOL_MM`] =
-//! 1e-9 mm at [`POS_CHECK_POINTS`] points, τ within range over every piece
+//! ([`crate::table::encode()`]) and [`crate::table::Table::parse`] checks
+//! every one against the f64 data ([`check_q`](crate::servo_forms::check::check_q), [`check_q_fx`](crate::servo_forms::check::check_q_fx),
+//! [`check_piece`](crate::servo_forms::check::check_piece)): q within [`Q_FX_TOL_ABS`](crate::servo_forms::check::Q_FX_TOL_ABS) + [`Q_FX_TOL_REL`](crate::servo_forms::check::Q_FX_TOL_REL)·max q, u
+//! within [`SU_TOL`](crate::servo_forms::check::SU_TOL) of the span width, positions within [`POS_TOL_MM`](crate::servo_forms::check::POS_TOL_MM) =
+//! 1e-9 mm at [`POS_CHECK_POINTS`](crate::servo_forms::check::POS_CHECK_POINTS) points, τ within range over every piece
 //! and span; a table whose local forms would be inaccurate is refused
 //! before any motion.
 

@@ -112,7 +112,7 @@ impl PieceU {
 /// r′, r″, r‴ of a piece's position polynomial (Σ b_k τ^k per axis, b_k
 /// Q40 mm) with respect to arc length at τ (Q61), f32: `[r′, r″, r‴]`, each
 /// `[x, y, z]` (mm/mm, 1/mm, 1/mm²). With τ = (s − c)/2^e, d/ds = 2^−e d/dτ
-/// (2^−e = 2^(shift − 21)). For the feed-hold constraints ([`crate::hold`]),
+/// (2^−e = 2^(shift − 21)). For the feed-hold constraints ([`crate::feed_hold`]),
 /// not on the normal tick path. A constant axis (bit of `constant`) has zero
 /// derivatives.
 pub fn pos_derivs(b: &[u8; POS_BYTES], tau: i64, shift: u32, constant: u32) -> [[f32; 3]; 3] {

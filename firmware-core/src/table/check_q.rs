@@ -1,10 +1,81 @@
-//! Check stage: q control points and the end segments (section 14).
+//! Check stage 4: q (sections 8, 9) and the end segments (section 14).
 
-use crate::limits::EndSegments;
-use crate::math::source::F64Array;
+use crate::limits::{EndSegments, Limits, END_LEN};
+use crate::math::source::{F64Array, LeF64};
 use crate::path::qspline::QSpline;
-use crate::table::error::{LevelFault, TableError};
-use crate::table::layout::{END_TOL_REL, Q_VBAR_SLACK};
+use crate::table::check::{check_knots, expect_count, near};
+use crate::table::check_header::Directory;
+use crate::table::error::{base_fault, LevelFault, TableError};
+use crate::table::layout::{END_TOL_REL, Q_ORDER, Q_VBAR_SLACK};
+use crate::table::section::Section;
+
+/// The q sections and the end segments, if any.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct QSections<'a> {
+    /// q knots.
+    pub(crate) knots: LeF64<'a>,
+    /// q control points.
+    pub(crate) ctrl: LeF64<'a>,
+    /// The start and stop segments.
+    pub(crate) ends: Option<EndSegments>,
+}
+
+/// q: N ≥ 4 control points within the limits, first and last 0, N + 4
+/// clamped knots from 0 to L; the end segments joined C², or without them
+/// q′ ≠ 0 at both ends.
+pub(crate) fn q<'a>(dir: &Directory<'a>, limits: &Limits, len_l: f64) -> Result<QSections<'a>, TableError> {
+    let q_knots = dir.f64s(Section::QKnots)?;
+    let q_ctrl = dir.f64s(Section::QCtrl)?;
+    let nq = q_ctrl.len();
+    if nq < Q_ORDER as usize {
+        return Err(TableError::Count {
+            section: Section::QCtrl,
+            expected: Q_ORDER as usize,
+            found: nq,
+        });
+    }
+    expect_count(
+        Section::QKnots,
+        nq.saturating_add(Q_ORDER as usize),
+        q_knots.len(),
+    )?;
+    check_knots(Section::QKnots, &q_knots, Q_ORDER as usize - 1)?;
+    let q_first = q_knots.get(0).unwrap_or(f64::NAN);
+    let q_last = q_knots.last().unwrap_or(f64::NAN);
+    if q_first != 0.0 || !near(q_last, len_l, len_l) {
+        return Err(TableError::KnotRange {
+            section: Section::QKnots,
+        });
+    }
+    check_q_values(&q_ctrl, limits.vbar).map_err(base_fault)?;
+    // End segments (optional): present, they start and stop the motion;
+    // absent, q′(0) > 0 and q′(L) < 0 must.
+    let ends = match dir.entry(Section::Ends) {
+        Some(e) if e.count != 0 => {
+            let v = dir.f64s(Section::Ends)?;
+            expect_count(Section::Ends, END_LEN, v.len())?;
+            let mut x = [0.0; END_LEN];
+            for (slot, val) in x.iter_mut().zip(v.iter()) {
+                *slot = val;
+            }
+            let ends = EndSegments::from_array(x);
+            let q = QSpline::new(q_knots, q_ctrl).ok_or(TableError::KnotRange {
+                section: Section::QKnots,
+            })?;
+            check_ends(&ends, &q, len_l)?;
+            Some(ends)
+        }
+        _ => {
+            check_q_flat_ends(&q_ctrl).map_err(base_fault)?;
+            None
+        }
+    };
+    Ok(QSections {
+        knots: q_knots,
+        ctrl: q_ctrl,
+        ends,
+    })
+}
 
 /// q control points (finite already): ≥ 0, ≤ [`Q_VBAR_SLACK`]`·vbar²`,
 /// first and last exactly 0 (N ≥ 4 checked before).

@@ -6,15 +6,13 @@ use crate::limits::END_LEN;
 use crate::math::basis::MAX_DEGREE;
 use crate::path::qspline::QSpline;
 use crate::servo_forms::fit::{all_pieces, n_pieces, FitInput};
-use crate::servo_forms::piece::piece_f32_len;
-use crate::servo_forms::piece::PIECE_F64_LEN;
-use crate::servo_forms::q_span::q_fixed;
-use crate::servo_forms::q_span::q_local;
-use crate::servo_forms::q_span::{Q_FX_LEN, Q_LOCAL_LEN};
+use crate::servo_forms::piece::{piece_f32_len, PIECE_F64_LEN};
+use crate::servo_forms::q_span::{q_fixed, q_local, Q_FX_LEN, Q_LOCAL_LEN};
 use crate::table::crc::CRC;
 use crate::table::error::EncodeError;
-use crate::table::layout::{entry_field, header_field};
-use crate::table::layout::{CRC_LEN, DIR_ENTRY_LEN, HEADER_LEN, MAGIC, Q_ORDER, VERSION};
+use crate::table::layout::{
+    entry_field, header_field, CRC_LEN, DIR_ENTRY_LEN, HEADER_LEN, MAGIC, Q_ORDER, VERSION,
+};
 use crate::table::parts::TableParts;
 use crate::table::section::{Section, N_BASE, N_KNOWN};
 use crate::table::view::Table;

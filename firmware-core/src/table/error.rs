@@ -18,7 +18,7 @@ pub enum TableError {
         /// Bytes given.
         len: usize,
     },
-    /// The first 4 bytes are not [`MAGIC`].
+    /// The first 4 bytes are not [`MAGIC`](crate::table::layout::MAGIC).
     BadMagic,
     /// A format version this reader does not know.
     UnsupportedVersion {
@@ -53,7 +53,7 @@ pub enum TableError {
         /// Directory index.
         entry: usize,
     },
-    /// A section kind below [`EXTENSION_BASE`] this reader does not know.
+    /// A section kind below [`EXTENSION_BASE`](crate::table::layout::EXTENSION_BASE) this reader does not know.
     UnknownSection {
         /// Kind code.
         kind: u16,
@@ -108,7 +108,7 @@ pub enum TableError {
         /// Index of the f64 in the section.
         index: usize,
     },
-    /// A limit is not > 0 (index in [`Limits::to_array`] order).
+    /// A limit is not > 0 (index in [`Limits::to_array`](crate::limits::Limits::to_array) order).
     Limit {
         /// Index 0 ..= 11.
         index: usize,
@@ -205,14 +205,14 @@ pub enum TableError {
         segment: usize,
     },
     /// The end segments (section 14) are not 0 < s₁ < s₂ < L with J, t > 0
-    /// and s = Jt³/6, or q does not join them C² within [`END_TOL_REL`]
+    /// and s = Jt³/6, or q does not join them C² within [`END_TOL_REL`](crate::table::layout::END_TOL_REL)
     /// (`stop`: at s₂, else at s₁).
     EndSegment {
         /// Which segment.
         stop: bool,
     },
     /// A span-local f32 section (10–13) disagrees with the f64 data beyond
-    /// the tolerances of [`crate::fast`] at span or segment `index`
+    /// the tolerances of `crate::servo_forms` at span or segment `index`
     /// (0-based among the section's spans).
     FastMismatch {
         /// The section.
@@ -245,7 +245,7 @@ pub enum LevelFault {
     Alpha,
     /// α is not above the previous level's (levels sorted strictly increasing).
     Unsorted,
-    /// v̄_level is not α·v̄ (within [`MATCH_TOL_REL`]).
+    /// v̄_level is not α·v̄ (within [`MATCH_TOL_REL`](crate::table::layout::MATCH_TOL_REL)).
     Vbar,
     /// Control point `index` is negative.
     QNegative {
@@ -399,12 +399,12 @@ impl fmt::Display for TableError {
     }
 }
 
-/// Why [`encode`] refused.
+/// Why [`encode`](crate::table::encode::encode) refused.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[non_exhaustive]
 pub enum EncodeError {
-    /// `out` is shorter than [`encoded_len`].
+    /// `out` is shorter than [`encoded_len`](crate::table::encode::encoded_len).
     BufferTooSmall {
         /// Bytes needed.
         needed: usize,
@@ -413,7 +413,7 @@ pub enum EncodeError {
     },
     /// The table would exceed the u32 length/count fields.
     TooLarge,
-    /// The parts do not make a valid table; the same error [`Table::parse`] gives.
+    /// The parts do not make a valid table; the same error [`Table::parse`](crate::table::view::Table::parse) gives.
     Invalid(TableError),
 }
 

@@ -8,7 +8,7 @@ use crate::limits::END_LEN;
 pub const MAGIC: [u8; 4] = *b"FLPT";
 /// Format version written and accepted.
 pub const VERSION: u16 = 3;
-/// Header length written by [`encode`].
+/// Header length written by [`encode`](crate::table::encode::encode).
 pub const HEADER_LEN: usize = 16;
 /// Bytes per directory entry.
 pub const DIR_ENTRY_LEN: usize = 16;
@@ -29,12 +29,12 @@ pub const MATCH_TOL_REL: f64 = 1e-9;
 /// point (B-spline convex hull), so no accepted table runs faster than
 /// √`Q_VBAR_SLACK` · vbar. The plan keeps q ≤ vbar² at its evaluation points
 /// only; at very coarse sampling its control points overshoot vbar² by up to
-/// ≈ 40 % (issue 4's sampling study, 0.05 points/mm), hence the slack.
+/// ≈ 40 % (the sampling-density study, 0.05 points/mm), hence the slack.
 pub const Q_VBAR_SLACK: f64 = 2.0;
 /// Relative tolerance of the end segments' consistency checks (section 14).
 pub const END_TOL_REL: f64 = 1e-6;
 /// f64 values per level in the level meta section (α, v̄_level, then the
-/// [`END_LEN`] end-segment values).
+/// `END_LEN` end-segment values).
 pub const LEVEL_META_LEN: usize = 2 + END_LEN;
 
 /// Bytes of the meta section's one element: f64 L, f64 T, u32 p, u32 order.

@@ -2,8 +2,7 @@
 //! 16–19), as zero-copy views.
 
 use crate::limits::{EndSegments, END_LEN};
-use crate::math::source::F64Array;
-use crate::math::source::{LeF32, LeF64};
+use crate::math::source::{F64Array, LeF32, LeF64};
 use crate::servo_forms::q_span::{Q_FX_LEN, Q_LOCAL_LEN};
 use crate::table::layout::LEVEL_META_LEN;
 
@@ -53,7 +52,7 @@ impl<'a> LevelSections<'a> {
 }
 
 /// One plan of a table: the base (id 0) or an override level (id ≥ 1),
-/// zero-copy views into the validated table ([`Table::level`]).
+/// zero-copy views into the validated table ([`Table::level`](crate::table::view::Table::level)).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Level<'a> {
     pub(crate) id: u16,
@@ -82,11 +81,11 @@ impl<'a> Level<'a> {
     pub fn ctrl(&self) -> LeF64<'a> {
         self.ctrl
     }
-    /// q span-local f32 forms, as [`Table::q_local`].
+    /// q span-local f32 forms, as [`Table::q_local`](crate::table::view::Table::q_local).
     pub fn q_local(&self) -> LeF32<'a> {
         self.q_local
     }
-    /// q fixed-point cubics, as [`Table::q_fixed`].
+    /// q fixed-point cubics, as [`Table::q_fixed`](crate::table::view::Table::q_fixed).
     pub fn q_fixed(&self) -> LeF64<'a> {
         self.q_fixed
     }

@@ -1,9 +1,9 @@
 //! The firmware table: what the host plans, in one validated binary blob.
 //!
-//! The host fills a [`TableParts`] and calls [`encode`]; the firmware calls
+//! The host fills a [`TableParts`] and calls [`encode()`]; the firmware calls
 //! [`Table::parse`], which checks *everything* (framing, CRC, directory,
 //! counts, finiteness, knot vectors, the s → u map against the NURBS knots)
-//! before any motion and then gives zero-copy accessors. [`encode`] runs the
+//! before any motion and then gives zero-copy accessors. [`encode()`] runs the
 //! same validation on what it wrote, so encode either errs or produces bytes
 //! that parse.
 //!
@@ -53,7 +53,7 @@
 //! |    7 | su coeffs     |     M | f64 × 6 (`SU_COEFFS`) per segment        |
 //! |    8 | q knots       |   N+4 | f64, clamped order 4, 0 … L              |
 //! |    9 | q ctrl        |     N | f64, (mm/s)², ≥ 0, first and last 0      |
-//! |   10 | q local       | 5(N−3)| f32 c0..c3, h per q span (`fast`)        |
+//! |   10 | q local       | 5(N−3)| f32 c0..c3, h per q span (`q_span`)      |
 //! |   11 | piece breaks  |   P+1 | f64 s at each piece start, then L        |
 //! |   12 | piece words   |   27P | per piece: f64 u_a; i64 centre c (Q40    |
 //! |      |               |       | mm); i64 shift 21 − e; i64 b_k (Q40 mm), |
@@ -61,7 +61,7 @@
 //! |   13 | piece f32     |    7P | f32 d1..d5, w, 1/len per piece           |
 //! |   14 | end segments  | 0 or 6| f64 s₁, J₁, t₁, s₂, J₂, t₂ (optional)    |
 //! |   15 | q fixed       | 5(N−3)| i64 C0..C3 (Q32 (mm/s)²), shift 21 − e   |
-//! |      |               |       | per q span (`fast`)                      |
+//! |      |               |       | per q span (`q_span`)                    |
 //! |   16 | level meta    |     K | per level 8 f64: α, v̄_level = α·v̄, then  |
 //! |      |               |       | s₁, J₁, t₁, s₂, J₂, t₂ (all 0 without 14)|
 //! |   17 | level ctrl    |   K·N | f64, level k's a_0 … a_{N−1} at [k·N …]  |
@@ -76,7 +76,7 @@
 //! whole plans on the same q knots with v̄ replaced by α·v̄, level id k + 1
 //! for table level k (id 0 is the base plan, sections 9/10/14/15). Parse
 //! checks each level exactly as the base q (finite, ≥ 0, first and last 0,
-//! ≤ [`Q_VBAR_SLACK`]`·v̄_level²`, q′ ≠ 0 at the ends without section 14,
+//! ≤ [`Q_VBAR_SLACK`](crate::table::layout::Q_VBAR_SLACK)`·v̄_level²`, q′ ≠ 0 at the ends without section 14,
 //! local and fixed forms against the f64 data, end segments joined C² as
 //! section 14's, present exactly when the base has them), and 0 < α ≠ 1,
 //! α strictly increasing, v̄_level = α·v̄; errors name the level
@@ -84,25 +84,25 @@
 //!
 //! Section 14 (optional; missing or empty: the plan starts and stops with
 //! an acceleration step, q′(0) > 0 and q′(L) < 0) holds the time-domain
-//! jerk-limited start and stop segments ([`EndSegments`]): s(t) = J₁t³/6 for
+//! jerk-limited start and stop segments ([`EndSegments`](crate::limits::EndSegments)): s(t) = J₁t³/6 for
 //! 0 ≤ t ≤ t₁ up to s₁, and s = L − J₂τ³/6 for τ from t₂ down to 0 from s₂.
 //! Parse checks 0 < s₁ < s₂ < L, J > 0, s₁ = J₁t₁³/6 and L − s₂ = J₂t₂³/6,
 //! and that q joins them C² (q, q′, q″ at s₁ and s₂ within
-//! [`END_TOL_REL`]); q on [0, s₁] and [s₂, L] is then not executed.
+//! [`END_TOL_REL`](crate::table::layout::END_TOL_REL)); q on [0, s₁] and [s₂, L] is then not executed.
 //!
 //! Sections 10–13 and 15 are derived data: the span-local forms the
-//! servo-rate fast path evaluates ([`crate::fast`]; version 3 replaced the
+//! servo-rate fast path evaluates (`crate::servo_forms`; version 3 replaced the
 //! f32 homogeneous NURBS pieces of version 2 by fixed-point position
 //! polynomials, section 12, dropped their f32 NURBS part from section 13 and
-//! added the fixed-point q cubics, section 15). [`encode`] computes them from
+//! added the fixed-point q cubics, section 15). [`encode()`] computes them from
 //! the f64 sections (the host never fills them in by hand); [`Table::parse`]
 //! checks every span and piece of them against the f64 data with the
-//! tolerances stated in [`crate::fast`] (empty spans: all zeros). Sections
+//! tolerances stated in `crate::servo_forms` (empty spans: all zeros). Sections
 //! 12 and 15 hold i64 bit patterns, so only u_a is checked for finiteness.
 //!
-//! Kinds `0x8000 ..= 0xFFFF` ([`EXTENSION_BASE`]) are extensions a reader may
+//! Kinds `0x8000 ..= 0xFFFF` ([`EXTENSION_BASE`](crate::table::layout::EXTENSION_BASE)) are extensions a reader may
 //! skip: they are bounds-, alignment- and overlap-checked, then ignored.
-//! `0x8000 + k` ([`OVERRIDE_PROFILE_BASE`]) is reserved for feedrate-override
+//! `0x8000 + k` ([`OVERRIDE_PROFILE_BASE`](crate::table::layout::OVERRIDE_PROFILE_BASE)) is reserved for feedrate-override
 //! profile k (§4 of the paper: alternative q control points on the q knots).
 //! Any other unknown kind (0, 20 ..= 0x7FFF) is refused: a change a reader
 //! must understand takes a new kind below the base or a new version.
@@ -121,7 +121,10 @@ pub(crate) mod check;
 pub(crate) mod check_forms;
 pub(crate) mod check_header;
 pub(crate) mod check_levels;
+pub(crate) mod check_meta;
+pub(crate) mod check_nurbs;
 pub(crate) mod check_q;
+pub(crate) mod check_su_map;
 pub(crate) mod crc;
 pub(crate) mod encode;
 pub(crate) mod error;

@@ -35,7 +35,7 @@ pub struct TableParts<'a> {
 }
 
 /// One override level as the host writes it: a whole plan on the base q
-/// knots with the tangential feed limit α·v̄ ([`encode`] derives its local
+/// knots with the tangential feed limit α·v̄ ([`encode`](crate::table::encode::encode) derives its local
 /// and fixed forms and v̄_level = α·v̄).
 #[derive(Clone, Copy, Debug)]
 pub struct LevelParts<'a> {

@@ -53,7 +53,7 @@ pub enum Section {
 }
 
 impl Section {
-    /// Every known kind, in the order [`encode`] writes them.
+    /// Every known kind, in the order [`encode`](crate::table::encode::encode) writes them.
     pub const ALL: [Section; 19] = [
         Section::Limits,
         Section::Meta,

@@ -1,8 +1,7 @@
 //! [`Table`]: a validated table, zero-copy views into its bytes.
 
 use crate::limits::{EndSegments, Limits};
-use crate::math::source::F64Array;
-use crate::math::source::{LeF32, LeF64, LePoint4, LeU32};
+use crate::math::source::{F64Array, LeF32, LeF64, LePoint4, LeU32};
 use crate::path::nurbs::NurbsView;
 use crate::path::qspline::QSpline;
 use crate::path::su_map::{SegmentArray, SuMapView, SuSegment, SU_COEFFS};
@@ -119,24 +118,24 @@ impl<'a> Table<'a> {
     pub fn su_segments_spans(&self) -> LeU32<'a> {
         self.su_spans
     }
-    /// q span-local f32 forms, [`fast::Q_LOCAL_LEN`] values per q span 3 ..= N − 1.
+    /// q span-local f32 forms, `Q_LOCAL_LEN` values per q span 3 ..= N − 1.
     pub fn q_local(&self) -> LeF32<'a> {
         self.q_local
     }
-    /// Piece starts in s (mm), then L: P + 1 values ([`crate::fast`]).
+    /// Piece starts in s (mm), then L: P + 1 values (`crate::servo_forms`).
     pub fn piece_breaks(&self) -> LeF64<'a> {
         self.piece_breaks
     }
-    /// Per q span `fast::Q_FX_LEN` i64: the fixed-point cubic and its shift.
+    /// Per q span `Q_FX_LEN` i64: the fixed-point cubic and its shift.
     pub fn q_fixed(&self) -> LeF64<'a> {
         self.q_fixed
     }
-    /// Per piece `fast::PIECE_F64_LEN` 64-bit words: u_a (f64), the centre
+    /// Per piece `PIECE_F64_LEN` 64-bit words: u_a (f64), the centre
     /// (i64 Q40), the shift, the position coefficients (i64 Q40).
     pub fn piece_f64(&self) -> LeF64<'a> {
         self.piece_f64
     }
-    /// Per piece `fast::piece_f32_len(p)` f32 values.
+    /// Per piece `piece_f32_len(p)` f32 values.
     pub fn piece_f32(&self) -> LeF32<'a> {
         self.piece_f32
     }

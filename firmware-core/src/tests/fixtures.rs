@@ -2,9 +2,6 @@
 //! segments, override levels), byte offsets into a table, reference
 //! integrals of the machining time.
 
-use std::vec;
-use std::vec::Vec;
-
 pub(super) use crate::interp::interpolator::Interpolator;
 pub(super) use crate::interp::setpoint::{Fault, RunError, Setpoint};
 pub(super) use crate::limits::{EndSegments, Limits};
@@ -18,6 +15,8 @@ pub(super) use crate::table::layout::{CRC_LEN, DIR_ENTRY_LEN, HEADER_LEN};
 pub(super) use crate::table::parts::TableParts;
 pub(super) use crate::table::section::Section;
 pub(super) use crate::table::view::Table;
+use std::vec;
+use std::vec::Vec;
 
 pub(super) const L: f64 = 100.0;
 pub(super) const LIMITS: Limits = Limits {
