@@ -1,6 +1,5 @@
 //! Setpoints through the embedded-hal SPI frame sink.
 
-use std::vec;
 use std::vec::Vec;
 
 use super::fixtures::*;
