@@ -1,7 +1,9 @@
 //! [`HoldRun`]: the interpolator's feed-hold state and its look-ahead
 //! sweep (the controller is [`crate::feed_hold`]).
 
-use crate::feed_hold::{Ahead, FeedHold, HoldLimits, HoldState};
+use crate::feed_hold::constraints::{Ahead, HoldLimits};
+use crate::feed_hold::controller::FeedHold;
+use crate::feed_hold::HoldState;
 use crate::limits::Limits;
 
 /// A hold requested within this many times the tangential stopping
@@ -9,7 +11,7 @@ use crate::limits::Limits;
 /// stop run.
 pub(crate) const END_FACTOR: f32 = 2.0;
 /// A stop still above this λ when the plan's stop segment comes within its
-/// reach coasts ([`crate::feed_hold::FeedHold::set_coast`]).
+/// reach coasts ([`crate::feed_hold::controller::FeedHold::set_coast`]).
 pub(crate) const COAST_ABOVE: f64 = 0.5;
 /// Points the μ cap's look-ahead evaluates the plan at.
 pub(crate) const AHEAD_N: usize = 32;

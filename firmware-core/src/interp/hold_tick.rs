@@ -6,7 +6,7 @@
 //! s (from q, or from the stop segment's cubic), the path's r′, r″, r‴
 //! from the piece polynomial ([`crate::servo_forms::piece::pos_derivs`]), one controller
 //! step (ν), then s advances by the scaled order-4 Taylor step in f64
-//! ([`crate::feed_hold::scaled_step`]; never backwards) and the position comes
+//! ([`crate::feed_hold::controller::scaled_step`]; never backwards) and the position comes
 //! from the same fixed-point piece polynomial as on the normal tick. The
 //! stall checks do not run on these ticks; held, the tick returns the same
 //! position with feed 0 and the clock advancing.
@@ -29,7 +29,9 @@
 //! - After the end, or after a fault, [`Interpolator::hold`] and
 //!   [`Interpolator::resume`] return a [`HoldError`] and change nothing.
 
-use crate::feed_hold::{scaled_step, Ahead, FeedHold, HoldError, HoldState, HoldStats, Kin};
+use crate::feed_hold::constraints::{Ahead, Kin};
+use crate::feed_hold::controller::{scaled_step, FeedHold};
+use crate::feed_hold::{HoldError, HoldState, HoldStats};
 use crate::interp::cursor::{q_eval, tau_of};
 use crate::interp::hold_run::{
     Sweep, AHEAD_FACTOR, AHEAD_MAX_MM, AHEAD_N, AHEAD_PER_TICK, COAST_ABOVE, END_FACTOR,

@@ -24,7 +24,7 @@ pub(crate) struct SuSections<'a> {
 
 /// Breaks strictly increasing from 0 to L; each segment in a non-empty knot
 /// span, spans non-decreasing, u inside the span and continuous (jumps
-/// allowed only over spans where the curve stands still), from U[p] to the
+/// allowed only over spans where the curve stands still), from `U[p]` to the
 /// last knot.
 pub(crate) fn su_map<'a>(
     dir: &Directory<'a>,
