@@ -112,13 +112,9 @@ mod tests;
 
 pub use crate::feed_hold::{HoldError, HoldState, HoldStats};
 pub use crate::feed_override::{Accepted, OverrideError, OverrideProfile};
-pub use crate::interp::interpolator::Interpolator;
-pub use crate::interp::setpoint::{Fault, InterpError, RunError, Setpoint};
+pub use crate::interp::{Fault, InterpError, Interpolator, RunError, Setpoint};
 pub use crate::limits::{EndSegments, Limits};
 pub use crate::math::source::F64Array;
 pub use crate::output::SetpointSink;
 pub use crate::path::su_map::SuSegment;
-pub use crate::table::encode::{encode, encoded_len};
-pub use crate::table::error::{EncodeError, TableError};
-pub use crate::table::parts::{LevelParts, TableParts};
-pub use crate::table::view::Table;
+pub use crate::table::{encode, encoded_len, EncodeError, LevelParts, Table, TableError, TableParts};
