@@ -22,7 +22,7 @@
 //! converted from Q40 on the bit patterns. The only soft-float calls left on
 //! the Taylor tick are the i64 → f64 conversions of the five outputs. Setpoint
 //! rounding noise: σ < 1e-12 mm, finite-difference jerk noise ≤ 11 mm/s³ at
-//! 250 µs on the shared curves (see `crate::servo_forms` for the error budget).
+//! 250 µs on the benchmark curves (see `crate::servo_forms` for the error budget).
 //! Entering a q span or a piece converts two breaks to Q40 and copies its
 //! forms in place (~200–400 instructions). The f64 evaluators ([`crate::path::qspline`],
 //! [`crate::path::su_map`], [`crate::path::nurbs`]) stay as the reference:
