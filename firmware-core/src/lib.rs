@@ -8,7 +8,7 @@
 //!
 //! # Layers, bottom up (folders follow the data from table to setpoint)
 //!
-//! - [`limits`](crate::Limits): [`Limits`] and [`EndSegments`], the
+//! - `limits` (re-exported here): [`Limits`] and [`EndSegments`], the
 //!   vocabulary planner and interpolator share.
 //! - [`math`]: [`math::basis`], B-spline basis functions and derivatives on a
 //!   knot window and the knot-span search (Piegl & Tiller A2.1–A2.3), shared
