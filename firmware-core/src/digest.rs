@@ -5,7 +5,7 @@
 //! `pos_mm[0]`, `pos_mm[1]`, `pos_mm[2]` as `f64::to_bits().to_le_bytes()`
 //! (24 bytes per tick). Equal digests mean bit-identical setpoints.
 
-use crate::interp::Setpoint;
+use crate::interp::setpoint::Setpoint;
 
 /// FNV-1a, 64 bit (offset basis 0xcbf29ce484222325, prime 0x100000001b3).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

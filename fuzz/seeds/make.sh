@@ -20,7 +20,7 @@ plan() { # curve density [more feedplan arguments]
   "$FEEDPLAN" plan "$curve" --density "$density" -o "fuzz/seeds/$name.bin" "$@" >/dev/null
 }
 plan fuzz/seeds/line.json 1
-# override levels (table sections 16-19, issue 6)
+# feedrate-override levels (table sections 16-19)
 plan fuzz/seeds/line.json 1 --override-levels 50,125
 plan fuzz/seeds/arc.json 0.5
 plan "$SHARED/curves/trident.json" 0.5

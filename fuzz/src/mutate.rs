@@ -18,8 +18,11 @@
 //! validation behind the checksum. Positions are section-relative: an
 //! argument picks a directory entry and an element inside that section.
 
-use firmware_core::dryrun::{dry_run, Report};
-use firmware_core::table::{reseal, CRC_LEN, DIR_ENTRY_LEN, HEADER_LEN};
+use firmware_core::dry_run::{dry_run, Report};
+use firmware_core::table::{
+    layout::{CRC_LEN, DIR_ENTRY_LEN, HEADER_LEN},
+    reseal,
+};
 
 /// The servo period of the dry runs, s (4 kHz).
 pub const PERIOD_S: f64 = 250e-6;

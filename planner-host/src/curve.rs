@@ -14,7 +14,7 @@
 
 use std::path::Path;
 
-use firmware_core::basis::{self, BasisDerivs, MAX_DEGREE, MAX_DERIV};
+use firmware_core::math::basis::{self, BasisDerivs, MAX_DEGREE, MAX_DERIV};
 use serde_json::Value;
 
 /// Lowest accepted degree.

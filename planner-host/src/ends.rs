@@ -56,7 +56,7 @@
 //! axial ones along the start direction), or the first interior knot, and at
 //! most L/3; s₂ likewise from the end.
 
-use firmware_core::table::{EndSegments, Limits};
+use firmware_core::{EndSegments, Limits};
 use serde::Serialize;
 
 use crate::arclength::PathDerivs;

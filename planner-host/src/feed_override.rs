@@ -96,7 +96,7 @@
 
 use std::time::Instant;
 
-use firmware_core::table::{EndSegments, Limits};
+use firmware_core::{EndSegments, Limits};
 
 use crate::arclength::ArcLength;
 use crate::certified::{self, CertifiedConfig};
@@ -383,10 +383,7 @@ impl OverrideContext {
     /// points [`crate::plan::check_points`] at the default density (the
     /// plan's forced refinement points are not in the table); the certified
     /// formulation's settings, with curvature-jump caps for `servo_period_s`.
-    pub fn from_table(
-        table: &firmware_core::table::Table,
-        servo_period_s: f64,
-    ) -> Result<Self, OverrideError> {
+    pub fn from_table(table: &firmware_core::Table, servo_period_s: f64) -> Result<Self, OverrideError> {
         let knots: Vec<f64> = table.nurbs_knots().iter().collect();
         let flat: Vec<f64> = table.nurbs_points().flat().iter().collect();
         let points = flat.chunks_exact(4).map(|p| [p[0], p[1], p[2]]).collect();
@@ -1161,11 +1158,11 @@ mod tests {
         assert_eq!(bits(&without.q_ctrl), bits(&fx.plan.q_ctrl));
         // the table's base sections are those of the plan without levels
         let (t0, t1) = (
-            firmware_core::table::Table::parse(&without.table_bytes).unwrap(),
-            firmware_core::table::Table::parse(&fx.plan.table_bytes).unwrap(),
+            firmware_core::Table::parse(&without.table_bytes).unwrap(),
+            firmware_core::Table::parse(&fx.plan.table_bytes).unwrap(),
         );
         assert_eq!((t0.level_count(), t1.level_count()), (0, 2));
-        let same = |a: firmware_core::array::LeF64, b: firmware_core::array::LeF64| {
+        let same = |a: firmware_core::math::source::LeF64, b: firmware_core::math::source::LeF64| {
             a.iter().map(f64::to_bits).eq(b.iter().map(f64::to_bits))
         };
         assert!(same(t0.q_knots(), t1.q_knots()));

@@ -33,7 +33,7 @@
 
 use crate::arclength::{ArcLength, PathDerivs, SpanArc};
 use crate::curve::Nurbs;
-use firmware_core::table::Limits;
+use firmware_core::Limits;
 
 /// Share β of the jerk limit the acceleration step at a jump may use.
 pub const JUMP_JERK_SHARE: f64 = 0.5;

@@ -14,7 +14,7 @@
 
 use std::path::Path;
 
-pub use firmware_core::table::Limits;
+pub use firmware_core::Limits;
 
 /// 10 m/min in mm/s (Table 1, read as ERRATA.md says).
 pub const TABLE1_FEED_MM_S: f64 = 10_000.0 / 60.0;

@@ -19,8 +19,8 @@ use clarabel::algebra::CscMatrix;
 use clarabel::solver::{
     DefaultSettingsBuilder, DefaultSolver, IPSolver, NonnegativeConeT, SolverStatus, SupportedConeT,
 };
-use firmware_core::basis::{ders_basis, find_span, window, BasisDerivs, MAX_DEGREE, MAX_DERIV};
-use firmware_core::table::Limits;
+use firmware_core::math::basis::{ders_basis, find_span, window, BasisDerivs, MAX_DEGREE, MAX_DERIV};
+use firmware_core::Limits;
 
 use crate::arclength::PathDerivs;
 use crate::ends::EndRows;

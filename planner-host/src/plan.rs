@@ -4,7 +4,10 @@
 use std::path::Path;
 use std::time::Instant;
 
-use firmware_core::table::{self, EndSegments, Limits, TableParts};
+use firmware_core::{
+    table::{self, TableParts},
+    EndSegments, Limits,
+};
 
 use crate::arclength::{ArcLength, PathDerivs};
 use crate::certified::{self, CertifiedConfig};

@@ -26,7 +26,7 @@
 //! last knot. Knot spans of zero arc length (a curve that stands still) get
 //! no segment.
 
-use firmware_core::table::{SuSegment, SU_COEFFS};
+use firmware_core::{path::su_map::SU_COEFFS, SuSegment};
 
 use crate::arclength::{speed_floor, ArcLength};
 use crate::curve::{dot, norm, CurveError, Nurbs, SpanPolys};

@@ -10,7 +10,7 @@ use crate::arclength::ArcLength;
 use crate::curve::Nurbs;
 use crate::lp::BasisRow;
 use crate::plan::path_derivs_at;
-use firmware_core::table::{EndSegments, Limits};
+use firmware_core::{EndSegments, Limits};
 
 /// Largest ratio to each limit (1.0 = at the limit).
 #[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]

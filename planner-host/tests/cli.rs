@@ -95,7 +95,7 @@ fn good_curve_plans_and_bad_limits_are_refused() {
     assert_eq!(v["config"]["formulation"], "certified");
     let bytes = std::fs::read(&table).unwrap();
     assert_eq!(bytes.len() as u64, v["table_bytes_len"].as_u64().unwrap());
-    assert!(firmware_core::table::Table::parse(&bytes).is_ok());
+    assert!(firmware_core::Table::parse(&bytes).is_ok());
 
     let limits = tmp("limits.json");
     std::fs::write(&limits, r#"{"jbar": 0}"#).unwrap();

@@ -15,7 +15,7 @@
 //! projection onto the toolpath for the tangential quantities (on the
 //! setpoints' own s when no toolpath is given).
 
-use firmware_core::table::Limits;
+use firmware_core::Limits;
 
 /// One servo tick: the interpolator's setpoint and the servos' answer.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]

@@ -2,9 +2,9 @@
 //! the servo period → one [`Axis`] per machine axis → [`Tick`] records →
 //! [`Metrics`].
 
-use firmware_core::interp::{Fault, InterpError, Interpolator};
-use firmware_core::qspline::QSpline;
-use firmware_core::table::{Limits, Table, TableError};
+use firmware_core::path::qspline::QSpline;
+use firmware_core::{Fault, InterpError, Interpolator};
+use firmware_core::{Limits, Table, TableError};
 
 use crate::geometry::CurveGeometry;
 use crate::metrics::{self, Metrics, Tick, Toolpath};
@@ -285,7 +285,7 @@ pub(crate) fn servo_tick(
     axes: &mut Option<[Axis; 3]>,
     servo: &[ServoConfig; 3],
     period_s: f64,
-    sp: &firmware_core::interp::Setpoint,
+    sp: &firmware_core::Setpoint,
 ) -> Result<Tick, ServoError> {
     let ax = match axes {
         Some(a) => a,

@@ -2,8 +2,8 @@
 //! in the firmware core, run the interpolator at 250 µs, and compare with the
 //! planner's own predictions.
 
-use firmware_core::interp::Interpolator;
-use firmware_core::table::Table;
+use firmware_core::Interpolator;
+use firmware_core::Table;
 use planner_host::builtin;
 use planner_host::plan::{self, PlanConfig};
 

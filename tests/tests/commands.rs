@@ -15,8 +15,8 @@
 use std::sync::OnceLock;
 
 use firmware_core::interp::{Interpolator, OVERRIDE_Q, OVERRIDE_W};
-use firmware_core::splice::{OverrideError, OverrideProfile};
-use firmware_core::table::{Table, Q_VBAR_SLACK};
+use firmware_core::{table::layout::Q_VBAR_SLACK, Table};
+use firmware_core::{OverrideError, OverrideProfile};
 use planner_host::arclength::ArcLength;
 use planner_host::feed_override::{OverrideContext, OverrideOutcome};
 use planner_host::plan::{self, PlanConfig};
@@ -53,7 +53,7 @@ fn fixture() -> &'static Fixture {
             .filter_map(|k| t.level(k).map(|l| l.vbar()))
             .fold(0.0, f64::max);
         let pts = t.nurbs_points().flat();
-        use firmware_core::array::F64Array;
+        use firmware_core::F64Array;
         let n = pts.len();
         let end = [
             pts.get(n - 4).unwrap(),

@@ -11,7 +11,7 @@ mod mutate;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use firmware_core::dryrun::{dry_run, Outcome};
+use firmware_core::dry_run::{dry_run, Outcome};
 
 fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
@@ -101,7 +101,7 @@ fn lowered_vbar_regression_is_refused() {
     let path = root().join("fuzz/regressions/table_mutate/vbar-lowered-v3");
     let table = mutate::apply(&std::fs::read(path).unwrap());
     assert!(matches!(
-        firmware_core::table::Table::parse(&table),
-        Err(firmware_core::table::TableError::QAboveVbar { .. })
+        firmware_core::Table::parse(&table),
+        Err(firmware_core::TableError::QAboveVbar { .. })
     ));
 }

@@ -10,9 +10,9 @@
 
 use std::sync::OnceLock;
 
-use firmware_core::hold::{HoldError, HoldState};
-use firmware_core::interp::{Interpolator, Setpoint};
-use firmware_core::table::{Limits, Table};
+use firmware_core::{HoldError, HoldState};
+use firmware_core::{Interpolator, Setpoint};
+use firmware_core::{Limits, Table};
 use planner_host::builtin;
 use planner_host::plan::{self, PlanConfig};
 use sim_harness::metrics::{self, Tick};
@@ -76,7 +76,7 @@ struct Run {
     /// constraint (`HoldStats::last_ratio`, `last_binding`).
     model: Vec<(f32, u8, f32)>,
     holds: Vec<HoldRec>,
-    stats: firmware_core::hold::HoldStats,
+    stats: firmware_core::HoldStats,
 }
 
 /// Runs the plan, holding at each of `at` (sorted arc lengths; a point
@@ -403,7 +403,7 @@ fn hold_run_as_csv() {
     let ticks = ticks(&run.pts);
     let p = plan();
     let table = Table::parse(&p.bytes).unwrap();
-    let curve = sim_harness::sim::CurveGeometry::from_table(&table).unwrap().curve;
+    let curve = sim_harness::CurveGeometry::from_table(&table).unwrap().curve;
     let cfg = sim_harness::CheckConfig {
         limits: table.limits(),
         pad_rest: 50,

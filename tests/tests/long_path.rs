@@ -5,8 +5,8 @@
 //! and r(u*(s)) with the planner's own arc-length inverse — and the final setpoint
 //! is r(1) exactly.
 
-use firmware_core::interp::Interpolator;
-use firmware_core::table::Table;
+use firmware_core::Interpolator;
+use firmware_core::Table;
 use planner_host::arclength::ArcLength;
 use planner_host::curve::Nurbs;
 use planner_host::plan::{self, PlanConfig};

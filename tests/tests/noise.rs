@@ -16,8 +16,8 @@
 
 #![allow(clippy::needless_range_loop)] // per-axis third differences index fw and rf together
 
-use firmware_core::interp::Interpolator;
-use firmware_core::table::Table;
+use firmware_core::Interpolator;
+use firmware_core::Table;
 use planner_host::curve::Nurbs;
 use planner_host::plan::{self, PlanConfig};
 

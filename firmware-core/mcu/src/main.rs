@@ -15,11 +15,11 @@
 use core::hint::black_box;
 use cortex_m_rt::entry;
 use cortex_m_semihosting::hprintln;
-use firmware_core::array::F64Array;
-use firmware_core::hold::HoldState;
-use firmware_core::interp::{Fault, Interpolator, Setpoint};
-use firmware_core::sumap::SegmentArray;
-use firmware_core::table::Table;
+use firmware_core::path::su_map::SegmentArray;
+use firmware_core::F64Array;
+use firmware_core::HoldState;
+use firmware_core::Table;
+use firmware_core::{Fault, Interpolator, Setpoint};
 use firmware_mcu::{
     calibrate, exit, fpu_enabled, group, mark_begin, mark_end, stack_high_water, stack_paint, Aligned, Dec,
     Fnv1a64,

@@ -1,12 +1,12 @@
-//! Feed hold on the tick (issue 6): [`crate::hold`]'s controller driving
+//! Feed hold on the tick: [`crate::feed_hold`]'s controller driving
 //! the interpolator.
 //!
 //! While a hold or resume is in progress, [`Interpolator::tick`] hands the
 //! tick to [`Interpolator::hold_tick`]: the plan's ṡ_p, s̈_p, s⃛_p, s⁗_p at
 //! s (from q, or from the stop segment's cubic), the path's r′, r″, r‴
-//! from the piece polynomial ([`crate::fast::pos_derivs`]), one controller
+//! from the piece polynomial ([`crate::servo_forms::piece::pos_derivs`]), one controller
 //! step (ν), then s advances by the scaled order-4 Taylor step in f64
-//! ([`crate::hold::scaled_step`]; never backwards) and the position comes
+//! ([`crate::feed_hold::controller::scaled_step`]; never backwards) and the position comes
 //! from the same fixed-point piece polynomial as on the normal tick. The
 //! stall checks do not run on these ticks; held, the tick returns the same
 //! position with feed 0 and the clock advancing.
@@ -29,107 +29,22 @@
 //! - After the end, or after a fault, [`Interpolator::hold`] and
 //!   [`Interpolator::resume`] return a [`HoldError`] and change nothing.
 
-use super::{q_eval, tau_of, Fault, Interpolator, Phase, Setpoint};
-use crate::array::F64Array;
-use crate::fast::{fx_small_f32, fx_to_f64, pos_derivs, to_fx, Q_ONE};
-use crate::hold::{scaled_step, Ahead, FeedHold, HoldError, HoldLimits, HoldState, HoldStats, Kin};
-use crate::table::Limits;
-
-/// A hold requested within this many times the tangential stopping
-/// distance of the end ([`HoldRun::stop_distance`]) lets the plan's own
-/// stop run.
-const END_FACTOR: f32 = 2.0;
-/// A stop still above this λ when the plan's stop segment comes within its
-/// reach coasts ([`crate::hold::FeedHold::set_coast`]).
-const COAST_ABOVE: f64 = 0.5;
-/// Points the μ cap's look-ahead evaluates the plan at.
-const AHEAD_N: usize = 32;
-/// Look-ahead points evaluated per hold tick (a whole sweep is
-/// [`AHEAD_N`] + 2 points).
-const AHEAD_PER_TICK: usize = 4;
-/// Safety factor on the look-ahead distance.
-const AHEAD_FACTOR: f64 = 1.5;
-/// Longest look-ahead, mm.
-const AHEAD_MAX_MM: f64 = 40.0;
-
-/// The interpolator's feed-hold state.
-#[derive(Clone, Copy, Debug, PartialEq, Default)]
-pub(super) struct HoldRun {
-    ctl: FeedHold,
-    lim: HoldLimits,
-    /// In the stop segment under scaling: τ, the segment's time to go, s.
-    seg_tau: Option<f64>,
-    /// A hold requested near the end: the plan's own stop runs (λ = 1).
-    to_end: bool,
-    /// The plan's J (per axis, tangent) at the last hold tick.
-    prev_j: Option<[f32; 4]>,
-    /// The look-ahead sweep in progress (stopping).
-    sweep: Option<Sweep>,
-    /// The last complete sweep's maxima, and whether it reached the stop
-    /// segment within the stop's reach.
-    ahead: Ahead,
-    reach: bool,
-}
-
-/// One pass of the look-ahead over the plan ahead, spread over ticks.
-#[derive(Clone, Copy, Debug, PartialEq, Default)]
-struct Sweep {
-    /// Where it started (Q40 mm) and how far it looks, mm.
-    base: i64,
-    d: f64,
-    /// The next point.
-    next: usize,
-    /// Maxima so far.
-    part: Ahead,
-    /// The stop segment's entry is within `d`.
-    reach: bool,
-    into_stop: bool,
-    /// The stop segment's entry is within [`AHEAD_MAX_MM`] of `base`.
-    stop_near: bool,
-    done: bool,
-}
-
-impl HoldRun {
-    pub(super) fn new(l: &Limits) -> Self {
-        HoldRun {
-            lim: HoldLimits::new(l),
-            ..HoldRun::default()
-        }
-    }
-
-    /// A hold or resume is in progress (or the scaled stop segment runs).
-    #[inline(always)]
-    pub(super) fn engaged(&self) -> bool {
-        self.ctl.state() != HoldState::Running || self.seg_tau.is_some()
-    }
-
-    pub(super) fn reset(&mut self) {
-        self.ctl.clear();
-        self.seg_tau = None;
-        self.to_end = false;
-        self.prev_j = None;
-        self.sweep = None;
-        self.reach = false;
-    }
-
-    /// The distance a tangential jerk-limited stop from `v` (mm/s) needs
-    /// with ā, j̄ (mm): v√(v/j̄) below v = ā²/j̄, else v(v/ā + ā/j̄)/2.
-    fn stop_distance(&self, v: f32) -> f32 {
-        let (a, j) = (self.lim.a[3], self.lim.j[3]);
-        if !(a > 0.0 && j > 0.0 && v > 0.0) {
-            return 0.0;
-        }
-        if v * j <= a * a {
-            v * libm::sqrtf(v / j)
-        } else {
-            0.5 * v * (v / a + a / j)
-        }
-    }
-}
+use crate::feed_hold::constraints::{Ahead, Kin};
+use crate::feed_hold::controller::{scaled_step, FeedHold};
+use crate::feed_hold::{HoldError, HoldState, HoldStats};
+use crate::interp::cursor::{q_eval, tau_of};
+use crate::interp::hold_run::{
+    Sweep, AHEAD_FACTOR, AHEAD_MAX_MM, AHEAD_N, AHEAD_PER_TICK, COAST_ABOVE, END_FACTOR,
+};
+use crate::interp::interpolator::{Interpolator, Phase};
+use crate::interp::setpoint::{Fault, Setpoint};
+use crate::math::source::F64Array;
+use crate::servo_forms::fixed::{fx_small_f32, fx_to_f64, to_fx, Q_ONE};
+use crate::servo_forms::piece::pos_derivs;
 
 impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
     /// Request a feed hold: decelerate to rest on the path within the
-    /// acceleration and jerk limits (see [`crate::hold`]). Idempotent; a
+    /// acceleration and jerk limits (see [`crate::feed_hold`]). Idempotent; a
     /// no-op while stopping or held.
     pub fn hold(&mut self) -> Result<(), HoldError> {
         self.hold_allowed()?;

@@ -44,12 +44,11 @@
 
 use core::convert::Infallible;
 use core::fmt;
-
 use embedded_hal::digital::{OutputPin, PinState};
 use embedded_hal::spi::SpiDevice;
 
-use super::SetpointSink;
-use crate::interp::Setpoint;
+use crate::interp::setpoint::Setpoint;
+use crate::output::SetpointSink;
 
 /// Bytes of one frame.
 pub const FRAME_LEN: usize = 20;

@@ -248,7 +248,7 @@ fn override_cmd(
 ) -> Result<(), Box<dyn std::error::Error>> {
     use planner_host::feed_override::{OverrideContext, OverrideOutcome};
     let bytes = std::fs::read(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
-    let table = firmware_core::table::Table::parse(&bytes)
+    let table = firmware_core::Table::parse(&bytes)
         .map_err(|e| format!("{}: table refused: {e:?}", path.display()))?;
     let ctx = OverrideContext::from_table(&table, servo_period_us * 1e-6)?;
     let id_of = |pct: f64| -> Result<u16, String> {

@@ -45,7 +45,7 @@ pub use csv_in::Trajectory;
 pub use ratios::Peak;
 pub use report::{CheckReport, ContourPeak, Ratios, SCHEMA_VERSION};
 
-use firmware_core::table::Limits;
+use firmware_core::Limits;
 use planner_host::curve::Nurbs;
 
 use ratios::Order;

@@ -2,7 +2,7 @@
 //! end and progress figures, and the list of failures; serialisable as the
 //! `feedsim check --json` object (`schema_version` first).
 
-use firmware_core::table::Limits;
+use firmware_core::Limits;
 use serde::Serialize;
 
 use super::Peak;

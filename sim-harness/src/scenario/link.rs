@@ -2,7 +2,7 @@
 //! ([`LinkConfig`]), and the messages it carries: override profiles down,
 //! replies and the firmware's status up.
 
-use firmware_core::splice::OverrideError;
+use firmware_core::OverrideError;
 
 /// The link between host and firmware.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]

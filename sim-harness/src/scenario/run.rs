@@ -3,11 +3,10 @@
 
 use std::collections::VecDeque;
 
-use firmware_core::hold::HoldState;
 use firmware_core::interp::{Interpolator, OVERRIDE_Q, OVERRIDE_W};
-use firmware_core::qspline::QSpline;
-use firmware_core::splice::{OverrideError, OverrideProfile as FwProfile};
-use firmware_core::table::Table;
+use firmware_core::path::qspline::QSpline;
+use firmware_core::{HoldState, Table};
+use firmware_core::{OverrideError, OverrideProfile as FwProfile};
 use planner_host::feed_override::OverrideContext;
 
 use crate::geometry::CurveGeometry;
@@ -107,7 +106,7 @@ pub(crate) fn run_scenario_observed(
     let limits = table.limits();
     let t = cfg.period_s;
     let last_point: Option<[f64; 3]> = {
-        use firmware_core::array::F64Array;
+        use firmware_core::F64Array;
         let flat = table.nurbs_points().flat();
         let n = flat.len();
         (n >= 4)

@@ -4,7 +4,7 @@
 
 use std::path::Path;
 
-use firmware_core::qspline::QSpline;
+use firmware_core::path::qspline::QSpline;
 use firmware_core::table::Table;
 
 use crate::plot::feed::{plot_feed_marked, FeedPlot, Marker, MarkerKind};

@@ -21,7 +21,7 @@ pub struct ReportConfig {
     /// Formulations; the first is the primary one of the figures.
     pub formulations: Vec<Formulation>,
     /// Limits for every plan.
-    pub limits: firmware_core::table::Limits,
+    pub limits: firmware_core::Limits,
     /// The simulation.
     pub sim: SimConfig,
     /// Points per knot span of q in the dense re-evaluation.

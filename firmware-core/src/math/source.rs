@@ -1,12 +1,10 @@
 //! Read-only indexed sources of numbers: host slices and zero-copy
 //! little-endian views into a table.
 //!
-//! Everything above this layer ([`crate::qspline`], [`crate::nurbs`],
-//! [`crate::sumap`]) reads its data through these traits, so one evaluation
+//! Everything above this layer ([`crate::path::qspline`], [`crate::path::nurbs`],
+//! [`crate::path::su_map`]) reads its data through these traits, so one evaluation
 //! code path serves the host (`&[f64]`) and the firmware (bytes in flash).
 //! Reads are bounds-checked and return `None` past the end; nothing panics.
-
-use crate::basis::MAX_DEGREE;
 
 /// A read-only array of `f64`.
 pub trait F64Array {
@@ -82,7 +80,7 @@ impl<'a> LeF64<'a> {
 
 impl LeF64<'_> {
     /// Element `i` as the little-endian i64 it holds (the fixed-point
-    /// words of a table, [`crate::fast`]).
+    /// words of a table, `crate::servo_forms`).
     #[inline]
     pub fn get_i64(&self, i: usize) -> Option<i64> {
         let start = i.checked_mul(8)?;
@@ -103,7 +101,7 @@ impl F64Array for LeF64<'_> {
 }
 
 /// Zero-copy view of little-endian `f32`s (4 bytes each): the span-local
-/// single-precision sections of a table ([`crate::fast`]).
+/// single-precision sections of a table (`crate::servo_forms`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct LeF32<'a> {
     bytes: &'a [u8],
@@ -229,72 +227,6 @@ impl Point4Array for LePoint4<'_> {
     }
 }
 
-/// Knot-window buffer: room for the `2p` knots of [`crate::basis::window`].
-pub type KnotWindow = [f64; 2 * MAX_DEGREE];
-
-/// Copy the knot window `U[i−p+1] ..= U[i+p]` of span `span` out of `knots`
-/// into `buf` and return it as a slice (for [`crate::basis::ders_basis`]).
-pub fn copy_window<'b, A: F64Array>(
-    knots: &A,
-    degree: usize,
-    span: usize,
-    buf: &'b mut KnotWindow,
-) -> Option<&'b [f64]> {
-    let start = span.checked_add(1)?.checked_sub(degree)?;
-    let len = degree.checked_mul(2)?;
-    let win = buf.get_mut(..len)?;
-    for (k, slot) in win.iter_mut().enumerate() {
-        *slot = knots.get(start.checked_add(k)?)?;
-    }
-    buf.get(..len)
-}
-
-/// Index `i` of the knot span with `U[i] ≤ x < U[i+1]`, `p ≤ i ≤ n − 1`
-/// (`n` control points, `n + p + 1` knots); `x` at or past `U[n]` maps to the
-/// last non-empty span, `x` before `U[p]` to the first. Binary search over
-/// any [`F64Array`]; `None` if the knots are too few or all spans are empty.
-pub fn find_span<A: F64Array>(knots: &A, degree: usize, x: f64) -> Option<usize> {
-    let n_knots = knots.len();
-    if n_knots < degree.checked_mul(2)?.checked_add(2)? {
-        return None;
-    }
-    let n = n_knots - degree - 1; // number of control points; spans p ..= n−1
-    let lo_knot = knots.get(degree)?;
-    let hi_knot = knots.get(n)?;
-    if !(hi_knot > lo_knot) {
-        return None;
-    }
-    if x >= hi_knot {
-        return last_nonempty_span(knots, degree, n);
-    }
-    if x < lo_knot {
-        return first_nonempty_span(knots, degree, n);
-    }
-    // Invariant: U[lo] ≤ x < U[hi], lo < hi.
-    let (mut lo, mut hi) = (degree, n);
-    while hi - lo > 1 {
-        let mid = lo + (hi - lo) / 2;
-        if x < knots.get(mid)? {
-            hi = mid;
-        } else {
-            lo = mid;
-        }
-    }
-    Some(lo)
-}
-
-/// The first span `i ≥ p` with `U[i] < U[i+1]`.
-pub(crate) fn first_nonempty_span<A: F64Array>(knots: &A, degree: usize, n: usize) -> Option<usize> {
-    (degree..n).find(|&i| matches!((knots.get(i), knots.get(i + 1)), (Some(a), Some(b)) if b > a))
-}
-
-/// The last span `i ≤ n − 1` with `U[i] < U[i+1]`.
-pub(crate) fn last_nonempty_span<A: F64Array>(knots: &A, degree: usize, n: usize) -> Option<usize> {
-    (degree..n)
-        .rev()
-        .find(|&i| matches!((knots.get(i), knots.get(i + 1)), (Some(a), Some(b)) if b > a))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -324,17 +256,5 @@ mod tests {
             Some(u32::from_le_bytes([bytes[0], bytes[1], bytes[2], bytes[3]]))
         );
         assert_eq!(u.get(2), None);
-    }
-
-    #[test]
-    fn find_span_matches_basis() {
-        let knots = [0.0, 0.0, 0.0, 0.0, 0.2, 0.2, 0.7, 1.0, 1.0, 1.0, 1.0];
-        let k: &[f64] = &knots;
-        for step in -5..=105 {
-            let x = step as f64 / 100.0;
-            let ours = find_span(&k, 3, x).unwrap();
-            let theirs = crate::basis::find_span(&knots, 3, x.clamp(0.0, 1.0)).unwrap();
-            assert_eq!(ours, theirs, "x={x}");
-        }
     }
 }

@@ -7,8 +7,10 @@
 //! A(u) = Σ N_{j,p}(u) Pʷ_j and r(u) = A_xyz / A_w (P&T eq. 4.2, A4.1), its
 //! u-derivative r′ = (A′_xyz − A′_w r) / A_w (P&T eq. 4.8).
 
-use crate::array::{copy_window, find_span, F64Array, KnotWindow, Point4Array};
-use crate::basis::{ders_basis, BasisDerivs, MAX_DEGREE, MAX_DERIV};
+use crate::math::basis::{
+    copy_window, ders_basis, find_span_in, BasisDerivs, KnotWindow, MAX_DEGREE, MAX_DERIV,
+};
+use crate::math::source::{F64Array, Point4Array};
 
 /// A NURBS curve over any knot and point sources.
 #[derive(Clone, Copy, Debug)]
@@ -27,7 +29,7 @@ impl<K: F64Array, P: Point4Array> NurbsView<K, P> {
         if !(1..=MAX_DEGREE).contains(&degree) || n <= degree || knots.len() != n.checked_add(degree + 1)? {
             return None;
         }
-        find_span(&knots, degree, knots.get(degree)?)?;
+        find_span_in(&knots, degree, knots.get(degree)?)?;
         Some(NurbsView {
             degree,
             knots,
@@ -52,7 +54,7 @@ impl<K: F64Array, P: Point4Array> NurbsView<K, P> {
 
     /// The knot span containing u (binary search; clamped to the domain).
     pub fn find_span(&self, u: f64) -> Option<usize> {
-        find_span(&self.knots, self.degree, u)
+        find_span_in(&self.knots, self.degree, u)
     }
 
     /// Load span `span`: its knot window and weighted points.

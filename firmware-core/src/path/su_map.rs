@@ -8,8 +8,22 @@
 //! [`SuMapView`] (binary search) or [`SuCursor`] (span by span, O(1)
 //! amortised for monotone s).
 
-use crate::array::F64Array;
-use crate::table::{SuSegment, SU_COEFFS};
+use crate::math::source::F64Array;
+
+/// Coefficients per s → u segment (a quintic in τ).
+pub const SU_COEFFS: usize = 6;
+
+/// One s → u segment: u(s) = Σ_k `coeffs[k]` τ^k, τ = (s − s_j)/(s_{j+1} − s_j)
+/// ∈ [0, 1]; the segment lies in NURBS knot span `span`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct SuSegment {
+    /// Knot span index i (U_i ≤ u ≤ U_{i+1}).
+    pub span: u32,
+    /// Power-form coefficients in τ, lowest first.
+    pub coeffs: [f64; SU_COEFFS],
+}
 
 /// A read-only array of [`SuSegment`]s.
 pub trait SegmentArray {
@@ -34,7 +48,7 @@ impl SegmentArray for &[SuSegment] {
 
 /// u = Σ_k c_k τ^k by Horner's rule, highest power first.
 #[inline]
-pub fn horner(c: &[f64; SU_COEFFS], tau: f64) -> f64 {
+pub(crate) fn horner(c: &[f64; SU_COEFFS], tau: f64) -> f64 {
     c.iter().rev().fold(0.0, |acc, &ck| acc * tau + ck)
 }
 

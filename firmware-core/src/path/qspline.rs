@@ -3,12 +3,15 @@
 //!
 //! On each knot span the spline is a cubic; [`QSpline::span_poly`] converts
 //! it once to the local power form q(s₀ + t) = c₀ + c₁t + c₂t² + c₃t³ from
-//! q, q′, q″, q‴ at the span start s₀ (P&T A2.3 via [`crate::basis`]), so
+//! q, q′, q″, q‴ at the span start s₀ (P&T A2.3 via [`crate::math::basis`]), so
 //! each later evaluation is a Horner step. From q the motion follows:
 //! ṡ = √q (1), s̈ = q′/2 (4), s⃛ = ½q″√q (5, as ERRATA.md reads it).
 
-use crate::array::{copy_window, find_span, first_nonempty_span, last_nonempty_span, F64Array, KnotWindow};
-use crate::basis::{ders_basis, BasisDerivs, MAX_DEGREE, MAX_DERIV};
+use crate::math::basis::{
+    copy_window, ders_basis, find_span_in, first_nonempty_span, last_nonempty_span, BasisDerivs, KnotWindow,
+    MAX_DEGREE, MAX_DERIV,
+};
+use crate::math::source::F64Array;
 
 /// Degree of q (order 4).
 pub const Q_DEGREE: usize = 3;
@@ -104,7 +107,7 @@ impl<A: F64Array> QSpline<A> {
     /// `[q, q′, q″, q‴]` at s (binary search for the span; s outside the
     /// domain extrapolates the end span). For hosts and dense checks.
     pub fn eval(&self, s: f64) -> Option<[f64; 4]> {
-        let span = find_span(&self.knots, Q_DEGREE, s)?;
+        let span = find_span_in(&self.knots, Q_DEGREE, s)?;
         Some(self.span_poly(span)?.eval(s))
     }
 

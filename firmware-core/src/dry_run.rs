@@ -16,8 +16,11 @@
 //! A fault ([`Fault`]) is an allowed outcome (the interpolator refusing to go
 //! on is safe); a violated invariant is a [`Violation`]. No heap, no panic.
 
-use crate::interp::{Fault, InterpError, Interpolator, Setpoint};
-use crate::table::{Table, TableError, Q_VBAR_SLACK};
+use crate::interp::interpolator::Interpolator;
+use crate::interp::setpoint::{Fault, InterpError, Setpoint};
+use crate::table::error::TableError;
+use crate::table::layout::Q_VBAR_SLACK;
+use crate::table::view::Table;
 
 /// Relative slack on the per-tick displacement and feed bounds: the fixed-point
 /// fast path's rounding (s Q40, q/√q Q32) and the Taylor step's Ā·T²/2 are far

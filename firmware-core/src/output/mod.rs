@@ -6,7 +6,7 @@
 //! `embedded-hal` feature, the examples of `output::hal`: setpoints as CRC-checked
 //! SPI frames to servo drives, and a sync strobe pin.
 
-use crate::interp::Setpoint;
+use crate::interp::setpoint::Setpoint;
 
 #[cfg(feature = "embedded-hal")]
 pub mod hal;

@@ -8,6 +8,8 @@
 //!
 //! The algorithms are Piegl & Tiller, *The NURBS Book*, A2.2 and A2.3.
 
+use crate::math::source::F64Array;
+
 /// Highest supported B-spline degree.
 pub const MAX_DEGREE: usize = 5;
 /// Highest derivative order computed by [`ders_basis`].
@@ -155,6 +157,72 @@ pub fn ders_basis(win: &[f64], p: usize, x: f64, n: usize, ders: &mut BasisDeriv
     true
 }
 
+/// Knot-window buffer: room for the `2p` knots of [`crate::math::basis::window`].
+pub(crate) type KnotWindow = [f64; 2 * MAX_DEGREE];
+
+/// Copy the knot window `U[i−p+1] ..= U[i+p]` of span `span` out of `knots`
+/// into `buf` and return it as a slice (for [`crate::math::basis::ders_basis`]).
+pub(crate) fn copy_window<'b, A: F64Array>(
+    knots: &A,
+    degree: usize,
+    span: usize,
+    buf: &'b mut KnotWindow,
+) -> Option<&'b [f64]> {
+    let start = span.checked_add(1)?.checked_sub(degree)?;
+    let len = degree.checked_mul(2)?;
+    let win = buf.get_mut(..len)?;
+    for (k, slot) in win.iter_mut().enumerate() {
+        *slot = knots.get(start.checked_add(k)?)?;
+    }
+    buf.get(..len)
+}
+
+/// Index `i` of the knot span with `U[i] ≤ x < U[i+1]`, `p ≤ i ≤ n − 1`
+/// (`n` control points, `n + p + 1` knots); `x` at or past `U[n]` maps to the
+/// last non-empty span, `x` before `U[p]` to the first. Binary search over
+/// any [`F64Array`]; `None` if the knots are too few or all spans are empty.
+pub(crate) fn find_span_in<A: F64Array>(knots: &A, degree: usize, x: f64) -> Option<usize> {
+    let n_knots = knots.len();
+    if n_knots < degree.checked_mul(2)?.checked_add(2)? {
+        return None;
+    }
+    let n = n_knots - degree - 1; // number of control points; spans p ..= n−1
+    let lo_knot = knots.get(degree)?;
+    let hi_knot = knots.get(n)?;
+    if !(hi_knot > lo_knot) {
+        return None;
+    }
+    if x >= hi_knot {
+        return last_nonempty_span(knots, degree, n);
+    }
+    if x < lo_knot {
+        return first_nonempty_span(knots, degree, n);
+    }
+    // Invariant: U[lo] ≤ x < U[hi], lo < hi.
+    let (mut lo, mut hi) = (degree, n);
+    while hi - lo > 1 {
+        let mid = lo + (hi - lo) / 2;
+        if x < knots.get(mid)? {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    Some(lo)
+}
+
+/// The first span `i ≥ p` with `U[i] < U[i+1]`.
+pub(crate) fn first_nonempty_span<A: F64Array>(knots: &A, degree: usize, n: usize) -> Option<usize> {
+    (degree..n).find(|&i| matches!((knots.get(i), knots.get(i + 1)), (Some(a), Some(b)) if b > a))
+}
+
+/// The last span `i ≤ n − 1` with `U[i] < U[i+1]`.
+pub(crate) fn last_nonempty_span<A: F64Array>(knots: &A, degree: usize, n: usize) -> Option<usize> {
+    (degree..n)
+        .rev()
+        .find(|&i| matches!((knots.get(i), knots.get(i + 1)), (Some(a), Some(b)) if b > a))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -230,6 +298,18 @@ mod tests {
                 let fd = (dp[k][j] - dm[k][j]) / (2.0 * h);
                 assert!((fd - d[k + 1][j]).abs() < 1e-4 * (1.0 + fd.abs()), "k={k} j={j}");
             }
+        }
+    }
+
+    #[test]
+    fn find_span_in_matches_find_span() {
+        let knots = [0.0, 0.0, 0.0, 0.0, 0.2, 0.2, 0.7, 1.0, 1.0, 1.0, 1.0];
+        let k: &[f64] = &knots;
+        for step in -5..=105 {
+            let x = step as f64 / 100.0;
+            let ours = find_span_in(&k, 3, x).unwrap();
+            let theirs = find_span(&knots, 3, x.clamp(0.0, 1.0)).unwrap();
+            assert_eq!(ours, theirs, "x={x}");
         }
     }
 }

@@ -1,0 +1,99 @@
+//! [`HoldRun`]: the interpolator's feed-hold state and its look-ahead
+//! sweep (the controller is [`crate::feed_hold`]).
+
+use crate::feed_hold::constraints::{Ahead, HoldLimits};
+use crate::feed_hold::controller::FeedHold;
+use crate::feed_hold::HoldState;
+use crate::limits::Limits;
+
+/// A hold requested within this many times the tangential stopping
+/// distance of the end ([`HoldRun::stop_distance`]) lets the plan's own
+/// stop run.
+pub(crate) const END_FACTOR: f32 = 2.0;
+/// A stop still above this λ when the plan's stop segment comes within its
+/// reach coasts ([`crate::feed_hold::controller::FeedHold::set_coast`]).
+pub(crate) const COAST_ABOVE: f64 = 0.5;
+/// Points the μ cap's look-ahead evaluates the plan at.
+pub(crate) const AHEAD_N: usize = 32;
+/// Look-ahead points evaluated per hold tick (a whole sweep is
+/// [`AHEAD_N`] + 2 points).
+pub(crate) const AHEAD_PER_TICK: usize = 4;
+/// Safety factor on the look-ahead distance.
+pub(crate) const AHEAD_FACTOR: f64 = 1.5;
+/// Longest look-ahead, mm.
+pub(crate) const AHEAD_MAX_MM: f64 = 40.0;
+
+/// The interpolator's feed-hold state.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub(crate) struct HoldRun {
+    pub(crate) ctl: FeedHold,
+    pub(crate) lim: HoldLimits,
+    /// In the stop segment under scaling: τ, the segment's time to go, s.
+    pub(crate) seg_tau: Option<f64>,
+    /// A hold requested near the end: the plan's own stop runs (λ = 1).
+    pub(crate) to_end: bool,
+    /// The plan's J (per axis, tangent) at the last hold tick.
+    pub(crate) prev_j: Option<[f32; 4]>,
+    /// The look-ahead sweep in progress (stopping).
+    pub(crate) sweep: Option<Sweep>,
+    /// The last complete sweep's maxima, and whether it reached the stop
+    /// segment within the stop's reach.
+    pub(crate) ahead: Ahead,
+    pub(crate) reach: bool,
+}
+
+/// One pass of the look-ahead over the plan ahead, spread over ticks.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub(crate) struct Sweep {
+    /// Where it started (Q40 mm) and how far it looks, mm.
+    pub(crate) base: i64,
+    pub(crate) d: f64,
+    /// The next point.
+    pub(crate) next: usize,
+    /// Maxima so far.
+    pub(crate) part: Ahead,
+    /// The stop segment's entry is within `d`.
+    pub(crate) reach: bool,
+    pub(crate) into_stop: bool,
+    /// The stop segment's entry is within [`AHEAD_MAX_MM`] of `base`.
+    pub(crate) stop_near: bool,
+    pub(crate) done: bool,
+}
+
+impl HoldRun {
+    pub(super) fn new(l: &Limits) -> Self {
+        HoldRun {
+            lim: HoldLimits::new(l),
+            ..HoldRun::default()
+        }
+    }
+
+    /// A hold or resume is in progress (or the scaled stop segment runs).
+    #[inline(always)]
+    pub(super) fn engaged(&self) -> bool {
+        self.ctl.state() != HoldState::Running || self.seg_tau.is_some()
+    }
+
+    pub(super) fn reset(&mut self) {
+        self.ctl.clear();
+        self.seg_tau = None;
+        self.to_end = false;
+        self.prev_j = None;
+        self.sweep = None;
+        self.reach = false;
+    }
+
+    /// The distance a tangential jerk-limited stop from `v` (mm/s) needs
+    /// with ā, j̄ (mm): v√(v/j̄) below v = ā²/j̄, else v(v/ā + ā/j̄)/2.
+    pub(crate) fn stop_distance(&self, v: f32) -> f32 {
+        let (a, j) = (self.lim.a[3], self.lim.j[3]);
+        if !(a > 0.0 && j > 0.0 && v > 0.0) {
+            return 0.0;
+        }
+        if v * j <= a * a {
+            v * libm::sqrtf(v / j)
+        } else {
+            0.5 * v * (v / a + a / j)
+        }
+    }
+}

@@ -1,0 +1,176 @@
+//! The parse-time checks of the derived forms against the f64 data, and
+//! their tolerances: a table whose local forms would be inaccurate is
+//! refused before any motion.
+
+use crate::math::source::{F64Array, Point4Array};
+use crate::path::nurbs::NurbsView;
+use crate::path::qspline::QSpline;
+use crate::path::su_map::{horner, SuSegment};
+use crate::servo_forms::fixed::{fx_to_f64, piece_tau, to_fx, Q_ONE};
+use crate::servo_forms::piece::{
+    piece_shift_mask, pos_eval, rd_i64, ref_point, PieceU, POS_BYTES, POS_COEFFS, POS_DEG,
+};
+use crate::servo_forms::q_span::{q_fx_eval, QLocal, Q_FX_LEN};
+
+/// The parse tolerance for positions on such a curve: [`POS_TOL_MM`], or
+/// 256 ulps of `scale`.
+pub fn pos_tol_mm(scale: f64) -> f64 {
+    POS_TOL_MM.max(256.0 * f64::EPSILON * scale)
+}
+
+/// Parse tolerance for q: |q₃₂ − q₆₄| ≤ `Q_TOL_REL · max(q ctrl)` and
+/// |q′₃₂ − q′₆₄| ≤ `Q_TOL_REL · max(q ctrl) / h` at three points per span.
+pub const Q_TOL_REL: f64 = 1e-5;
+/// Parse tolerance for the s → u map: |u₃₂ − u₆₄| ≤ `SU_TOL · w` (w the
+/// knot span's width) at three points per piece, the width and the inverse
+/// piece length within `SU_TOL` relative, and the q span length too.
+pub const SU_TOL: f64 = 1e-6;
+/// Parse tolerance for the fixed-point positions, mm (the host fits them
+/// to [`FIT_TOL_MM`](crate::servo_forms::fit::FIT_TOL_MM)).
+pub const POS_TOL_MM: f64 = 1e-9;
+/// Parse tolerance for the fixed-point q, absolute part, (mm/s)².
+pub const Q_FX_TOL_ABS: f64 = 1e-7;
+/// Parse tolerance for the fixed-point q, part relative to max q.
+pub const Q_FX_TOL_REL: f64 = 1e-12;
+/// Points per piece at which parse compares the fixed-point positions.
+pub const POS_CHECK_POINTS: usize = POS_DEG + 1;
+/// Points per span (v or τ = k / (CHECK_POINTS − 1)) at which parse compares.
+pub const CHECK_POINTS: usize = 3;
+
+fn check_nodes() -> impl Iterator<Item = f64> {
+    (0..CHECK_POINTS).map(|k| k as f64 / (CHECK_POINTS - 1) as f64)
+}
+
+/// q span check: the local form agrees with the f64 span polynomial.
+/// `at_end` as for [`q_local`](crate::servo_forms::q_span::q_local).
+pub fn check_q<A: F64Array>(q: &QSpline<A>, span: usize, local: &QLocal, q_scale: f64, at_end: bool) -> bool {
+    let (Some(a), Some(b)) = (q.knots().get(span), q.knots().get(span.saturating_add(1))) else {
+        return false;
+    };
+    if !(b > a) {
+        return local.c == [0.0; 4] && local.h == 0.0;
+    }
+    let h = b - a;
+    if !((f64::from(local.h) - h).abs() <= SU_TOL * h) {
+        return false;
+    }
+    let Some(poly) = q.span_poly(span) else {
+        return false;
+    };
+    let tol = Q_TOL_REL * q_scale;
+    check_nodes().all(|x| {
+        let t = x * h;
+        let e64 = poly.eval(a + t);
+        let e32 = local.eval(if at_end { (t - h) as f32 } else { t as f32 });
+        (f64::from(e32[0]) - e64[0]).abs() <= tol && (f64::from(e32[1]) - e64[1]).abs() <= tol / h
+    })
+}
+
+/// Fixed-point q span check: q from [`q_fx_eval`] within
+/// [`Q_FX_TOL_ABS`]` + `[`Q_FX_TOL_REL`]` · q_scale` of the f64 span
+/// polynomial at [`CHECK_POINTS`] points, and τ within Q61 over the span.
+pub fn check_q_fx<A: F64Array>(q: &QSpline<A>, span: usize, c: [i64; Q_FX_LEN], q_scale: f64) -> bool {
+    let (Some(a), Some(b)) = (q.knots().get(span), q.knots().get(span.saturating_add(1))) else {
+        return false;
+    };
+    if !(b > a) {
+        return c == [0; Q_FX_LEN];
+    }
+    let Some(poly) = q.span_poly(span) else {
+        return false;
+    };
+    let Ok(shift) = u32::try_from(c[4]) else {
+        return false;
+    };
+    let (ua, ub) = (to_fx(a), to_fx(b));
+    if piece_tau(ub, ua, shift).is_none() {
+        return false;
+    }
+    let tol = Q_FX_TOL_ABS + Q_FX_TOL_REL * q_scale;
+    check_nodes().all(|x| {
+        let s = a + x * (b - a);
+        let Some(t) = piece_tau(to_fx(s).max(ua), ua, shift) else {
+            return false;
+        };
+        let qf = q_fx_eval([c[0], c[1], c[2], c[3]], t) as f64 / Q_ONE;
+        (qf - poly.eval(s)[0]).abs() <= tol
+    })
+}
+
+/// Piece check: u from the f32 form against the f64 s → u segment (`seg`
+/// over `[s0, s1]`) at [`CHECK_POINTS`] points, and the fixed-point
+/// position within [`POS_TOL_MM`] of r(u(s)) at [`POS_CHECK_POINTS`]
+/// points of the piece `[sa, sb]`, τ within Q61 over it. `words` are the
+/// piece's [`PIECE_F64_LEN`](crate::servo_forms::piece::PIECE_F64_LEN) 64-bit words (bytes).
+pub fn check_piece<K: F64Array, P: Point4Array>(
+    curve: &NurbsView<K, P>,
+    seg: &SuSegment,
+    (s0, s1): (f64, f64),
+    (sa, sb): (f64, f64),
+    words: &[u8],
+    head: &PieceU,
+    pos_tol: f64,
+) -> bool {
+    let span = seg.span as usize;
+    let (Some(k0), Some(k1)) = (curve.knots().get(span), curve.knots().get(span.saturating_add(1))) else {
+        return false;
+    };
+    let (w, len, seg_len) = (k1 - k0, sb - sa, s1 - s0);
+    if !(w > 0.0 && len > 0.0 && seg_len > 0.0 && sa >= s0 && sb <= s1) {
+        return false;
+    }
+    if !((f64::from(head.width) - w).abs() <= SU_TOL * w)
+        || !((f64::from(head.inv_len) * len - 1.0).abs() <= SU_TOL)
+    {
+        return false;
+    }
+    let word = |i: usize| -> Option<u64> {
+        let mut b = [0u8; 8];
+        b.copy_from_slice(words.get(8 * i..8 * i + 8)?);
+        Some(u64::from_le_bytes(b))
+    };
+    let (Some(u_a), Some(c_fx), Some(shift)) = (word(0), word(1), word(2)) else {
+        return false;
+    };
+    let (u_a, c_fx) = (f64::from_bits(u_a), c_fx as i64);
+    let Some((shift, constant)) = piece_shift_mask(shift) else {
+        return false;
+    };
+    let Some(pos): Option<&[u8; POS_BYTES]> = words.get(24..24 + POS_BYTES).and_then(|b| b.try_into().ok())
+    else {
+        return false;
+    };
+    // An axis marked constant has b₁ … b₇ = 0 exactly.
+    let marked_ok = (0..3).all(|a| {
+        constant & (1 << a) == 0 || (1..POS_COEFFS).all(|k| rd_i64(pos, 8 * (a * POS_COEFFS + k)) == 0)
+    });
+    if !marked_ok {
+        return false;
+    }
+    if piece_tau(to_fx(sa), c_fx, shift).is_none() || piece_tau(to_fx(sb), c_fx, shift).is_none() {
+        return false;
+    }
+    let u_ok = check_nodes().all(|x| {
+        let s = sa + x * len;
+        let u64v = horner(&seg.coeffs, ((s - s0) / seg_len).clamp(0.0, 1.0));
+        let dv = head.delta((s - sa) as f32);
+        let u32v = u_a + f64::from(dv * head.width);
+        (u32v - u64v).abs() <= SU_TOL * w
+    });
+    u_ok && (0..POS_CHECK_POINTS).all(|k| {
+        let s = sa + len * k as f64 / (POS_CHECK_POINTS - 1) as f64;
+        let (Some(r64), Some(t)) = (
+            ref_point(curve, seg, (s0, s1), s),
+            piece_tau(to_fx(s), c_fx, shift),
+        ) else {
+            return false;
+        };
+        let p = pos_eval(pos, t, constant);
+        // the tolerance scales with the point itself, not with the control
+        // points: a far-away control point of negligible weight must not
+        // widen it (a fuzzer finding, fuzz/regressions/table_mutate)
+        r64.iter()
+            .zip(p.iter())
+            .all(|(&r, &x)| (fx_to_f64(x) - r).abs() <= pos_tol.max(pos_tol_mm(r)))
+    })
+}
