@@ -5,10 +5,10 @@
 //!
 //!     cargo run --release -p planner-host --example certified_figures -- [--formulation F] [--densities 0.5,1,2] [CURVE.json ...]
 
-use planner_host::arclength::ArcLength;
-use planner_host::curve::Nurbs;
 use planner_host::plan::{self, Formulation, PlanConfig};
 use planner_host::sampling::Sampling;
+use planner_host::ArcLength;
+use planner_host::Nurbs;
 
 fn main() {
     let mut args = std::env::args().skip(1);

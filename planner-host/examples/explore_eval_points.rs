@@ -6,14 +6,15 @@
 
 use std::time::Instant;
 
-use planner_host::arclength::ArcLength;
-use planner_host::curve::Nurbs;
+use planner_host::geometry::path_derivs_at;
 use planner_host::limits::TABLE1;
 use planner_host::lp::{self, BasisRow, EvalPoint, FeedLp, Objective, QhatBound};
-use planner_host::plan::{machining_time, path_derivs_at};
+use planner_host::plan::machining_time;
+use planner_host::plan::su_fit::SuMap;
+use planner_host::plan::verify;
 use planner_host::sampling::{self, Sampling};
-use planner_host::sumap::SuMap;
-use planner_host::verify;
+use planner_host::ArcLength;
+use planner_host::Nurbs;
 
 fn main() {
     let path = std::env::args().nth(1);

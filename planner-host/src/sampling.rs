@@ -18,8 +18,9 @@
 use std::fmt;
 use std::str::FromStr;
 
-use crate::arclength::{adaptive_gl, curvature_of, gl16, speed_floor, ArcLength, GL16};
-use crate::curve::{norm, CurveError, Nurbs};
+use crate::geometry::arc_length::{adaptive_gl, curvature_of, gl16, speed_floor, ArcLength, GL16};
+use crate::geometry::curve::{norm, Nurbs};
+use crate::geometry::curve_error::CurveError;
 
 /// Fewest points [`points_for_density`] returns.
 pub const MIN_POINTS: usize = 4;
@@ -347,7 +348,7 @@ fn ada(curve: &Nurbs, arc: &ArcLength, t: &Turning, lambda_s: f64, lambda_k: f64
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::curve::tests::{butterfly, quintic_3d, shared_curves};
+    use crate::geometry::curve::tests::{butterfly, quintic_3d, shared_curves};
 
     #[test]
     fn parse_and_display_round_trip() {

@@ -1,13 +1,12 @@
 //! The certified formulation (the default): every limit held on a dense
 //! re-evaluation of the plan (20 points per knot span), and fast.
 
-use planner_host::arclength::ArcLength;
-use planner_host::curve::Nurbs;
 use planner_host::limits::TABLE1;
 use planner_host::plan::{self, Formulation, PlanConfig};
-use planner_host::verify;
+use planner_host::ArcLength;
+use planner_host::Nurbs;
 
-fn check(curve: &Nurbs, cfg: &PlanConfig) -> (f64, verify::Ratios) {
+fn check(curve: &Nurbs, cfg: &PlanConfig) -> (f64, planner_host::Ratios) {
     let out = plan::plan_curve(curve, cfg).unwrap();
     let arc = ArcLength::new(curve);
     let d = out.dense_check(curve, &arc, 20);

@@ -7,10 +7,10 @@ use std::path::{Path, PathBuf};
 
 use firmware_core::qspline::QSpline;
 use firmware_core::table::Table;
-use planner_host::arclength::ArcLength;
-use planner_host::curve::Nurbs;
 use planner_host::feed_override::OverrideContext;
 use planner_host::plan::{self, PlanConfig};
+use planner_host::ArcLength;
+use planner_host::Nurbs;
 
 use crate::plot::{self, FeedPlot};
 use crate::scenario::{

@@ -15,12 +15,12 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use image::ImageEncoder as _;
-use planner_host::arclength::ArcLength;
-use planner_host::curve::Nurbs;
 use planner_host::lp::{greville, BasisRow, LpStats, Objective, QhatBound};
 use planner_host::plan::{self, PlanConfig, PlanError, PlanOutput};
 use planner_host::sampling::{self, Sampling};
-use planner_host::verify::Ratios;
+use planner_host::ArcLength;
+use planner_host::Nurbs;
+use planner_host::Ratios;
 use plotters::prelude::*;
 
 use crate::plot::{register_font, PlotError};
@@ -279,7 +279,7 @@ fn plan_one(
         objective: f.objective,
         qhat_bound: f.qhat_bound,
         // the paper's plans: q(0) = q(L) = 0, acceleration steps at the ends
-        ends: planner_host::ends::EndMode::Step,
+        ends: planner_host::EndMode::Step,
         ..PlanConfig::default()
     };
     plan::plan_curve(curve, &pc)

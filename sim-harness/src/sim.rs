@@ -5,8 +5,8 @@
 use firmware_core::interp::{Fault, InterpError, Interpolator};
 use firmware_core::qspline::QSpline;
 use firmware_core::table::{Limits, Table, TableError};
-use planner_host::arclength::ArcLength;
-use planner_host::curve::{CurveError, Nurbs};
+use planner_host::ArcLength;
+use planner_host::{CurveError, Nurbs};
 
 use crate::metrics::{self, Metrics, Tick, Toolpath};
 use crate::servo::{Axis, ServoConfig, ServoError};

@@ -17,9 +17,9 @@ use std::sync::OnceLock;
 use firmware_core::interp::{Interpolator, OVERRIDE_Q, OVERRIDE_W};
 use firmware_core::splice::{OverrideError, OverrideProfile};
 use firmware_core::table::{Table, Q_VBAR_SLACK};
-use planner_host::arclength::ArcLength;
 use planner_host::feed_override::{OverrideContext, OverrideOutcome};
 use planner_host::plan::{self, PlanConfig};
+use planner_host::ArcLength;
 use proptest::prelude::*;
 
 struct Fixture {

@@ -1,9 +1,9 @@
 //! Override computations that once failed, replayed from what the host had
 //! (issue 6).
 
-use planner_host::arclength::ArcLength;
 use planner_host::feed_override::{OverrideContext, OverrideOutcome};
 use planner_host::plan::{self, PlanConfig};
+use planner_host::ArcLength;
 
 /// The faults scenario (stop 12): a new command while the host's scheduled
 /// profile, a 120 % → 50 % transition, had not merged yet (q still at 120 %

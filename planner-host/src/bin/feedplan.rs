@@ -11,14 +11,14 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
-use planner_host::arclength::ArcLength;
-use planner_host::curve::Nurbs;
-use planner_host::ends::EndMode;
 use planner_host::limits;
 use planner_host::lp::{Objective, QhatBound};
+use planner_host::plan::verify;
 use planner_host::plan::{self, Formulation, PlanConfig};
 use planner_host::sampling::Sampling;
-use planner_host::verify;
+use planner_host::ArcLength;
+use planner_host::EndMode;
+use planner_host::Nurbs;
 
 #[derive(Parser)]
 #[command(

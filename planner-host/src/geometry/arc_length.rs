@@ -16,7 +16,8 @@
 //! the curve, which must be the one it was built from (checked in debug
 //! builds).
 
-use crate::curve::{cross, dot, norm, CurveError, Nurbs, SpanPolys};
+use crate::geometry::curve::{cross, dot, norm, Nurbs, SpanPolys};
+use crate::geometry::curve_error::CurveError;
 
 /// Nodes (on [−1, 1]) and weights of the 16-point Gauss–Legendre rule.
 pub const GL16: ([f64; 16], [f64; 16]) = {
@@ -490,10 +491,15 @@ pub(crate) fn curvature_of(d: &[[f64; 3]; 4], floor: f64) -> f64 {
     norm(cross(d[1], d[2])) / (sig * sig * sig)
 }
 
+/// r, r′, r″, r‴ with respect to arc length at arc length `s`.
+pub fn path_derivs_at(curve: &Nurbs, arc: &ArcLength, s: f64) -> PathDerivs {
+    arc.derivs_s(curve, arc.u_of_s(s))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::curve::tests::{butterfly, quintic_3d, shared_curves};
+    use crate::geometry::curve::tests::{butterfly, quintic_3d, shared_curves};
 
     #[test]
     fn far_from_the_origin_the_length_is_the_same() {

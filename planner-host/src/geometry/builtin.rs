@@ -1,11 +1,62 @@
-//! Built-in toolpaths.
+//! The built-in toolpaths: the five benchmark curves of `planner-host/curves/`
+//! (provenance in its README), compiled into the crate so that the tools and
+//! the tests can name them without a file beside the repository.
 
-use crate::curve::{CurveError, Nurbs};
+use crate::geometry::curve::Nurbs;
+use crate::geometry::curve_error::CurveError;
 
-/// The paper's Butterfly (Table 5, corrected as `shared/curves/butterfly.json`).
-pub const BUTTERFLY_JSON: &str = include_str!("../curves/butterfly.json");
+/// The built-in curves as `(name, JSON text)`, in alphabetical order.
+pub const CURVES: [(&str, &str); 5] = [
+    ("butterfly", include_str!("../../curves/butterfly.json")),
+    ("circle", include_str!("../../curves/circle.json")),
+    ("fan", include_str!("../../curves/fan.json")),
+    ("star", include_str!("../../curves/star.json")),
+    ("trident", include_str!("../../curves/trident.json")),
+];
+
+/// The names [`by_name`] knows, in alphabetical order.
+pub const NAMES: [&str; 5] = ["butterfly", "circle", "fan", "star", "trident"];
+
+/// The paper's Butterfly (Table 5, corrected as `planner-host/curves/butterfly.json`).
+pub const BUTTERFLY_JSON: &str = CURVES[0].1;
 
 /// The built-in Butterfly toolpath.
 pub fn butterfly() -> Result<Nurbs, CurveError> {
     Nurbs::from_json_str(BUTTERFLY_JSON)
+}
+
+/// The built-in curve called `name` (case-insensitive: butterfly, circle,
+/// fan, star, trident); `None` for any other name.
+pub fn by_name(name: &str) -> Option<Result<Nurbs, CurveError>> {
+    CURVES
+        .iter()
+        .find(|(n, _)| n.eq_ignore_ascii_case(name))
+        .map(|(_, json)| Nurbs::from_json_str(json))
+}
+
+/// Every built-in curve, in the order of [`NAMES`].
+pub fn all() -> Result<Vec<Nurbs>, CurveError> {
+    CURVES
+        .iter()
+        .map(|(_, json)| Nurbs::from_json_str(json))
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_name_loads_and_the_lists_agree() {
+        assert_eq!(CURVES.map(|(n, _)| n), NAMES);
+        let all = all().unwrap();
+        assert_eq!(all.len(), 5);
+        for (name, c) in NAMES.iter().zip(&all) {
+            assert_eq!(c.name.to_ascii_lowercase(), *name);
+            assert_eq!(&by_name(name).unwrap().unwrap(), c);
+            assert_eq!(&by_name(&name.to_ascii_uppercase()).unwrap().unwrap(), c);
+        }
+        assert!(by_name("spiral").is_none());
+        assert_eq!(butterfly().unwrap(), all[0]);
+    }
 }

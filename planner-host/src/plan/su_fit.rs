@@ -28,8 +28,9 @@
 
 use firmware_core::table::{SuSegment, SU_COEFFS};
 
-use crate::arclength::{speed_floor, ArcLength};
-use crate::curve::{dot, norm, CurveError, Nurbs, SpanPolys};
+use crate::geometry::arc_length::{speed_floor, ArcLength};
+use crate::geometry::curve::{dot, norm, Nurbs, SpanPolys};
+use crate::geometry::curve_error::CurveError;
 
 /// Default tolerance of the s → u map, mm.
 pub const DEFAULT_TOL_MM: f64 = 1e-6;
@@ -295,7 +296,7 @@ impl SuMap {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::curve::tests::{butterfly, quintic_3d, shared_curves};
+    use crate::geometry::curve::tests::{butterfly, quintic_3d, shared_curves};
 
     fn all_curves() -> Vec<Nurbs> {
         let mut v = shared_curves();

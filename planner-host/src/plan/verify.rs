@@ -6,49 +6,12 @@
 //! says) — are evaluated at many points per knot span of q, and each is
 //! divided by its limit.
 
-use crate::arclength::ArcLength;
-use crate::curve::Nurbs;
-use crate::lp::BasisRow;
-use crate::plan::path_derivs_at;
 use firmware_core::table::{EndSegments, Limits};
 
-/// Largest ratio to each limit (1.0 = at the limit).
-#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
-pub struct Ratios {
-    /// Axial velocity, max over axes.
-    pub vel: f64,
-    /// Axial acceleration, max over axes.
-    pub acc: f64,
-    /// Axial jerk, max over axes.
-    pub jerk: f64,
-    /// Tangential velocity (feedrate).
-    pub feed: f64,
-    /// Tangential acceleration.
-    pub tacc: f64,
-    /// Tangential jerk.
-    pub tjerk: f64,
-}
-
-impl Ratios {
-    /// Element-wise maximum.
-    pub fn max(self, o: Ratios) -> Ratios {
-        Ratios {
-            vel: self.vel.max(o.vel),
-            acc: self.acc.max(o.acc),
-            jerk: self.jerk.max(o.jerk),
-            feed: self.feed.max(o.feed),
-            tacc: self.tacc.max(o.tacc),
-            tjerk: self.tjerk.max(o.tjerk),
-        }
-    }
-
-    /// The largest of all six.
-    pub fn worst(&self) -> f64 {
-        [self.vel, self.acc, self.jerk, self.feed, self.tacc, self.tjerk]
-            .into_iter()
-            .fold(0.0, f64::max)
-    }
-}
+use crate::geometry::arc_length::{path_derivs_at, ArcLength};
+use crate::geometry::curve::Nurbs;
+use crate::limits::Ratios;
+use crate::lp::basis_rows::BasisRow;
 
 /// Fewest time samples per end segment in [`dense_check_ends`].
 pub const SEGMENT_MIN_POINTS: usize = 200;

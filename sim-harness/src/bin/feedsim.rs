@@ -11,9 +11,9 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
-use planner_host::arclength::ArcLength;
 use planner_host::plan::{self, PlanConfig};
-use planner_host::{builtin, limits, sampling::Sampling, verify};
+use planner_host::ArcLength;
+use planner_host::{builtin, limits, plan::verify, sampling::Sampling};
 use sim_harness::plot::{self, FeedPlot};
 use sim_harness::servo::ServoConfig;
 use sim_harness::sim::{self, SimConfig, SimResult};
@@ -354,7 +354,7 @@ fn override_report(
     std::fs::create_dir_all(out).map_err(|e| format!("cannot create {}: {e}", out.display()))?;
     let butterfly = builtin::butterfly()?;
     let trident_path = trident.unwrap_or_else(|| PathBuf::from("../shared/curves/trident.json"));
-    let trident = planner_host::curve::Nurbs::load(&trident_path).ok();
+    let trident = planner_host::Nurbs::load(&trident_path).ok();
     let link = sim_harness::scenario::LinkConfig {
         down_latency_s: latency_ms * 1e-3,
         up_latency_s: latency_ms * 1e-3,
