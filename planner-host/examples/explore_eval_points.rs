@@ -1,8 +1,8 @@
-//! Exploration for issue 5: how many evaluation points does the paper's
+//! How many evaluation points does the paper's
 //! formulation need before the limits hold between them, what does it cost,
 //! and what does re-linearising the jerk rows around the last plan gain?
 //!
-//!     cargo run --release -p planner-host --example explore_eval_points [CURVE.json]
+//!     cargo run --release -p planner-host --example explore_eval_points [CURVE.json | NAME]
 
 use std::time::Instant;
 
@@ -19,7 +19,10 @@ use planner_host::Nurbs;
 fn main() {
     let path = std::env::args().nth(1);
     let curve = match path {
-        Some(p) => Nurbs::load(std::path::Path::new(&p)).unwrap(),
+        Some(p) => match planner_host::builtin::by_name(&p) {
+            Some(c) => c.unwrap(),
+            None => Nurbs::load(std::path::Path::new(&p)).unwrap(),
+        },
         None => planner_host::builtin::butterfly().unwrap(),
     };
     let arc = ArcLength::new(&curve);

@@ -2,8 +2,9 @@
 //! of a motion to each limit ([`Ratios`]).
 //!
 //! The limits file is JSON with any of the keys below (mm and s; keys left
-//! out keep Table 1). It is the same format as `shared/checks`' `LIMITS.json`,
-//! so one file serves the planner and the checker:
+//! out keep Table 1). `feedsim check --limits` reads the same format (so
+//! does the paper notes' external checker, as `LIMITS.json`), so one file
+//! serves the planner and the checker:
 //!
 //! ```json
 //! { "vbar": 166.667, "abar": 1500, "jbar": 16000,

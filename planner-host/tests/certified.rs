@@ -46,11 +46,7 @@ fn a_short_line_holds_every_limit() {
 
 #[test]
 fn a_circle_holds_every_limit() {
-    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/curves/circle.json");
-    let Ok(circle) = Nurbs::load(std::path::Path::new(dir)) else {
-        eprintln!("{dir} not found: skipped");
-        return;
-    };
+    let circle = planner_host::builtin::by_name("circle").unwrap().unwrap();
     let (_, r) = check(&circle, &PlanConfig::default());
     assert!(r.worst() <= 1.01, "{r:?}");
     let _ = TABLE1;

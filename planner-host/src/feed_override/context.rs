@@ -108,7 +108,7 @@ impl OverrideContext {
 
     /// Build the context from a firmware table alone (`feedplan override`):
     /// the toolpath, q, its levels and limits from the table; the check
-    /// points [`crate::plan::lp_stage::check_points`] at the default density (the
+    /// points `crate::plan::lp_stage::check_points` at the default density (the
     /// plan's forced refinement points are not in the table); the certified
     /// formulation's settings, with curvature-jump caps for `servo_period_s`.
     pub fn from_table(

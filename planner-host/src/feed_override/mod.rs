@@ -39,7 +39,7 @@
 //! the active feed already under the target's): I_t = I_l + d. §4.3.2,
 //! Case II: J_l = min({k > J_s : q_cur(g_k) ≤ q_low(g_k)} ∪ {K}), then
 //! Algorithm 1 — for k = J_s+1 … J_l the first k whose ArcLen (Appendix C,
-//! Algorithms 3–4, [`transition::arc_len`]) from F_cur(J_s) to
+//! Algorithms 3–4, `transition::arc_len`) from F_cur(J_s) to
 //! F_low(k) fits into g_k − g_{J_s} — gives J_k, J_e = min(J_l, J_k) and
 //! I_t = min{i : U_i ≥ g_{J_e}} (the paper's min{k : s_k ≥ g(J_e)} + (d − 1)
 //! in 0-based knots: the first control point whose support lies past
@@ -57,33 +57,33 @@
 //! a free control point (spans I_l − 2 … I_m − 1), with the tangential feed
 //! limit max(F_cur, F_target) — the paper's F_cur² upper bound in the free
 //! range, the target's profile beyond — and the jerk rows linearised in a
-//! trust region q ≤ q̄ exactly as [`crate::lp::trust_region`] does
-//! ([`crate::lp::trust_region::solve_window`]: pseudo-jerk LP first, as the paper's
+//! trust region q ≤ q̄ exactly as `crate::lp::trust_region` does
+//! (`crate::lp::trust_region::solve_window`: pseudo-jerk LP first, as the paper's
 //! q̂_ovr, then the SLP from q̄ = q̂). Objective: the linearised machining
 //! time of the window. The result holds every limit at every check point of
 //! the window to 1 + `tol`.
 //!
 //! **Linearisation and refinement.** The SLP starts linearised at
 //! min(q̂, max(q_active, q_target)) rather than at q̂ alone (see
-//! [`crate::lp::trust_region::solve_window`]); a window stops at the first
+//! `crate::lp::trust_region::solve_window`); a window stops at the first
 //! accepted iterate that gains less than `stop_rel` of its own time. The
-//! accepted window is re-evaluated at [`crate::plan::lp_stage::REFINE_PER_SPAN`]
+//! accepted window is re-evaluated at `crate::plan::lp_stage::REFINE_PER_SPAN`
 //! points per span (precomputed in the context); points over
-//! [`crate::plan::lp_stage::REFINE_TRIGGER`] join the check points and the window is
-//! solved again (at most [`crate::plan::lp_stage::REFINE_ROUNDS`] rounds; a round
+//! `crate::plan::lp_stage::REFINE_TRIGGER` join the check points and the window is
+//! solved again (at most `crate::plan::lp_stage::REFINE_ROUNDS` rounds; a round
 //! whose LP fails keeps the last certified plan). The banded solver gets
-//! [`WINDOW_BANDED_MAX_ITER`] iterations, then Clarabel decides (an
+//! `WINDOW_BANDED_MAX_ITER` iterations, then Clarabel decides (an
 //! infeasible window LP is certified in ~20 Clarabel iterations instead of
 //! 200 banded ones).
 //!
 //! **Retries (§4.3.3).** ArcLen is a straight-line bang-bang estimate; on a
 //! curve the window can be too short and the LP infeasible. Then I_m grows
-//! ([`OverrideConfig::max_grow`] times, `retries_grow`); after that,
+//! (`OverrideConfig::max_grow` times, `retries_grow`); after that,
 //! Algorithm 2 moves the override point to the nearest local extreme of the
 //! active feed after g_{J_s} (the first Greville point where the tangential
 //! acceleration changes sign) and everything is recomputed
-//! ([`OverrideConfig::max_extreme`] times, `retries_extreme`). I_m never
-//! grows past first + [`OverrideConfig::max_window_ctrl`] (the firmware's
+//! (`OverrideConfig::max_extreme` times, `retries_extreme`). I_m never
+//! grows past first + `OverrideConfig::max_window_ctrl` (the firmware's
 //! window buffer); if every override point tried ends infeasible at that
 //! size, the override is skipped with [`SkipReason::WindowTooLong`].
 //!
@@ -104,6 +104,5 @@ pub(crate) mod window;
 #[cfg(test)]
 mod tests;
 
-pub use config::{OverrideConfig, MAX_WINDOW_CTRL, REACH_TOL_Q, WINDOW_BANDED_MAX_ITER};
 pub use context::OverrideContext;
 pub use outcome::{Case, OverrideError, OverrideOutcome, OverrideProfile, SkipReason};

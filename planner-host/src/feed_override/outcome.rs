@@ -36,7 +36,7 @@ pub enum SkipReason {
     /// stop-segment join.
     InStopJoin,
     /// No feasible window fits the firmware's window buffer
-    /// ([`OverrideConfig::max_window_ctrl`] control points, context
+    /// (`OverrideConfig::max_window_ctrl` control points, context
     /// included): at every override point tried (Algorithm 2 included) the
     /// window LP was still infeasible with I_m grown to the buffer's size.
     WindowTooLong,
@@ -47,7 +47,7 @@ pub enum SkipReason {
 pub struct OverrideProfile {
     /// The target level id.
     pub level: u16,
-    /// ctrl[i] is the new a_{first+i}; the first span that changes.
+    /// `ctrl[i]` is the new a_{first+i}; the first span that changes.
     pub first: u32,
     /// 3 context control points (the active a_first … a_first+2), then the
     /// new a_{first+3} … a_{I_m−1}.
@@ -72,13 +72,13 @@ pub struct OverrideProfile {
     pub full_ctrl: Vec<f64>,
     /// LPs solved: every LP of the accepted window, one per failed window.
     pub lp_count: u32,
-    /// Wall time of [`OverrideContext::compute`], s.
+    /// Wall time of `OverrideContext::compute`, s.
     pub compute_time_s: f64,
     /// The override point finally used (Algorithm 2 may move it), mm.
     pub override_s_mm: f64,
 }
 
-/// What [`OverrideContext::compute`] gives.
+/// What `OverrideContext::compute` gives.
 #[derive(Debug, Clone)]
 pub enum OverrideOutcome {
     /// A profile to send.

@@ -499,7 +499,7 @@ pub fn path_derivs_at(curve: &Nurbs, arc: &ArcLength, s: f64) -> PathDerivs {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::curve::tests::{butterfly, quintic_3d, shared_curves};
+    use crate::geometry::curve::tests::{benchmark_curves, butterfly, quintic_3d};
 
     #[test]
     fn far_from_the_origin_the_length_is_the_same() {
@@ -556,8 +556,11 @@ mod tests {
                 assert!((s - exact * q as f64 / 4.0).abs() < 1e-9 * exact);
             }
         }
-        // the 7-point form of shared/curves/circle.json (R = 50, double knot at 0.5)
-        let c = shared_curves().into_iter().find(|c| c.name == "Circle").unwrap();
+        // the 7-point form of curves/circle.json (R = 50, double knot at 0.5)
+        let c = benchmark_curves()
+            .into_iter()
+            .find(|c| c.name == "Circle")
+            .unwrap();
         let arc = ArcLength::new(&c);
         let exact = 2.0 * std::f64::consts::PI * 50.0;
         assert!((arc.total() - exact).abs() <= 1e-9 * exact, "{}", arc.total());
@@ -632,7 +635,7 @@ mod tests {
 
     #[test]
     fn inverse_is_exact_on_all_curves() {
-        let mut curves = shared_curves();
+        let mut curves = benchmark_curves();
         curves.push(quintic_3d());
         curves.push(Nurbs::circle([0.0; 3], 7.0));
         for c in &curves {

@@ -6,7 +6,7 @@ use crate::geometry::curve::Nurbs;
 use crate::geometry::curve_error::CurveError;
 
 /// The built-in curves as `(name, JSON text)`, in alphabetical order.
-pub const CURVES: [(&str, &str); 5] = [
+pub(crate) const CURVES: [(&str, &str); 5] = [
     ("butterfly", include_str!("../../curves/butterfly.json")),
     ("circle", include_str!("../../curves/circle.json")),
     ("fan", include_str!("../../curves/fan.json")),
@@ -17,12 +17,10 @@ pub const CURVES: [(&str, &str); 5] = [
 /// The names [`by_name`] knows, in alphabetical order.
 pub const NAMES: [&str; 5] = ["butterfly", "circle", "fan", "star", "trident"];
 
-/// The paper's Butterfly (Table 5, corrected as `planner-host/curves/butterfly.json`).
-pub const BUTTERFLY_JSON: &str = CURVES[0].1;
-
-/// The built-in Butterfly toolpath.
+/// The built-in Butterfly toolpath: the paper's Table 5, corrected
+/// (`planner-host/curves/butterfly.json`).
 pub fn butterfly() -> Result<Nurbs, CurveError> {
-    Nurbs::from_json_str(BUTTERFLY_JSON)
+    Nurbs::from_json_str(CURVES[0].1)
 }
 
 /// The built-in curve called `name` (case-insensitive: butterfly, circle,

@@ -303,7 +303,7 @@ impl Nurbs {
     }
 
     /// Every non-empty span's homogeneous polynomial in power form, for fast
-    /// repeated evaluation ([`SpanPolys`]).
+    /// repeated evaluation (`SpanPolys`).
     #[allow(clippy::needless_range_loop)] // a small dense solve, written with indices
     pub fn span_polys(&self) -> SpanPolys {
         let p = self.degree.min(MAX_DEGREE);
@@ -533,13 +533,13 @@ pub(crate) mod tests {
     use std::path::Path;
 
     /// The five benchmark curves ([`crate::geometry::builtin::all`]).
-    pub(crate) fn shared_curves() -> Vec<Nurbs> {
+    pub(crate) fn benchmark_curves() -> Vec<Nurbs> {
         crate::geometry::builtin::all().unwrap()
     }
 
     #[test]
     fn span_polys_agree_with_the_basis_recurrence() {
-        let mut curves = shared_curves();
+        let mut curves = benchmark_curves();
         curves.push(quintic_3d());
         curves.push(Nurbs::circle([1.0, 2.0, 0.0], 5.0));
         for c in curves {
@@ -605,11 +605,11 @@ pub(crate) mod tests {
         "control_points":[[0,0,0],[1,1,0],[2,0,0],[3,1,0]]}"#;
 
     #[test]
-    fn loads_good_and_all_shared_curves() {
+    fn loads_good_and_all_benchmark_curves() {
         let c = Nurbs::from_json_str(GOOD).unwrap();
         assert_eq!(c.name, "t");
         assert_eq!(c.spans(), vec![(2, 0.0, 0.5), (3, 0.5, 1.0)]);
-        let all = shared_curves();
+        let all = benchmark_curves();
         let names: Vec<_> = all.iter().map(|c| c.name.as_str()).collect();
         for want in ["Butterfly", "Circle", "Fan", "Star", "Trident"] {
             assert!(names.contains(&want), "{names:?}");

@@ -1,10 +1,10 @@
 //! The toolpath and its geometry, before anything is planned:
 //!
-//! - [`curve`]: the rational NURBS, evaluated with derivatives.
-//! - [`curve_json`]: its file format; [`curve_error`]: why a curve is unusable.
+//! - `curve`: the rational NURBS, evaluated with derivatives.
+//! - `curve_json`: its file format; `curve_error`: why a curve is unusable.
 //! - [`builtin`]: the five benchmark curves, by name.
-//! - [`arc_length`]: s(u), u(s), and r′, r″, r‴ with respect to arc length.
-//! - [`junction`]: corners and curvature jumps, and the feed cap at a jump.
+//! - `arc_length`: s(u), u(s), and r′, r″, r‴ with respect to arc length.
+//! - `junction`: corners and curvature jumps, and the feed cap at a jump.
 
 pub(crate) mod arc_length;
 pub mod builtin;

@@ -8,7 +8,7 @@
 //! evaluated at points of that knot vector, one row pair per axis and limit,
 //! each row touching at most four control points, so the constraint matrix
 //! is banded and sparse: solved by the banded interior-point method
-//! ([`crate::lp::banded_ipm`]) or by Clarabel.
+//! (`crate::lp::banded_ipm`) or by Clarabel.
 
 use std::time::Instant;
 
@@ -30,7 +30,7 @@ pub enum Stage {
     PseudoJerk,
     /// Stage 2: with jerk rows linearised by √q̂, gives the plan.
     Plan,
-    /// One LP of the certified formulation's sequence ([`crate::lp::trust_region`]).
+    /// One LP of the certified formulation's sequence (`crate::lp::trust_region`).
     Linearised,
 }
 
@@ -170,7 +170,7 @@ pub struct FeedLp<'a> {
     pub qhat_bound: QhatBound,
     /// Interior-point settings.
     pub settings: SolverSettings,
-    /// Jerk-limited start and stop segments ([`crate::lp::end_rows`]): their join
+    /// Jerk-limited start and stop segments (`crate::lp::end_rows`): their join
     /// rows are added to both LPs; `None`: q(0) = q(L) = 0 with a step.
     pub ends: Option<&'a EndRows>,
 }
@@ -229,7 +229,7 @@ pub struct SolverSettings {
     pub tol_feas: f64,
     /// Ruiz equilibration on or off.
     pub equilibrate: bool,
-    /// Use the banded interior-point solver ([`crate::lp::banded_ipm`]) instead of
+    /// Use the banded interior-point solver (`crate::lp::banded_ipm`) instead of
     /// Clarabel (which stays the fallback if it fails).
     pub banded: bool,
     /// Iteration limit of the banded solver alone (None: `max_iter`). A
@@ -296,7 +296,7 @@ impl<'a> FeedLp<'a> {
     }
 
     /// Rows of one kind of limit at one evaluation point, for the certified
-    /// formulation ([`crate::lp::trust_region`]): `sqrt_qbar` is √q̄ of the
+    /// formulation (`crate::lp::trust_region`): `sqrt_qbar` is √q̄ of the
     /// linearisation (14)(15), valid where the row `q ≤ q̄` is present too.
     pub(crate) fn kind_rows(&self, p: &EvalPoint, kind: RowKind, sqrt_qbar: f64, out: &mut Vec<Row>) {
         let b = &p.basis;
@@ -320,7 +320,7 @@ impl<'a> FeedLp<'a> {
     }
 
     /// `true` where q is executed: everywhere without end segments, on
-    /// [s₁, s₂] with them ([`crate::lp::end_rows`]).
+    /// [s₁, s₂] with them (`crate::lp::end_rows`).
     pub fn executes(&self, s: f64) -> bool {
         self.ends.is_none_or(|e| e.executes(s))
     }
@@ -330,7 +330,7 @@ impl<'a> FeedLp<'a> {
     /// their rows q(s₁) ≤ Q₁, q(s₂) ≤ Q₂ are added and their join equalities
     /// are eliminated: at a knot they involve three control points, the
     /// outer two become fixed multiples of the middle one (the LP keeps its
-    /// band of width 4 for [`crate::lp::banded_ipm`]). The one place every LP goes
+    /// band of width 4 for `crate::lp::banded_ipm`). The one place every LP goes
     /// through.
     ///
     /// `fixed[i] = Some(x)` fixes control point i to x (the override window
@@ -623,7 +623,7 @@ fn join_substitution(ends: &EndRows, n: usize) -> Option<Vec<Option<(usize, f64)
     Some(subst)
 }
 
-/// Rows of ≤ 4 consecutive columns for [`crate::lp::banded_ipm`], from (row, col, value) triplets.
+/// Rows of ≤ 4 consecutive columns for `crate::lp::banded_ipm`, from (row, col, value) triplets.
 fn band_rows(trip: &[(usize, usize, f64)], m: usize, nv: usize) -> Vec<crate::lp::banded_ipm::BandRow> {
     let mut rows = vec![
         crate::lp::banded_ipm::BandRow {

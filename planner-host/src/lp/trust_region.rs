@@ -75,7 +75,7 @@ pub struct CertifiedConfig {
     /// Check points per knot span of q (knots included).
     pub checks_per_span: usize,
     /// Knot refinement: largest turning angle ∫|κ| ds of a knot span, rad
-    /// ([`crate::plan::knots::refine_turning`]); 0 or ∞ turns it off.
+    /// (`crate::plan::knots::refine_turning`); 0 or ∞ turns it off.
     pub max_turn_rad: f64,
     /// Largest number of LPs.
     pub max_lps: usize,

@@ -19,7 +19,7 @@ pub enum Formulation {
     /// [`PlanConfig::qhat_bound`] and [`PlanConfig::objective`]; the paper as
     /// printed is `QhatBound::None` with `Objective::Uniform`.
     Paper,
-    /// [`crate::lp::trust_region`]: check points in every knot span, jerk rows
+    /// `crate::lp::trust_region`: check points in every knot span, jerk rows
     /// re-linearised inside a trust region with q ≤ q̄, an exact check of every
     /// limit at every check point. The default.
     #[default]
@@ -73,11 +73,11 @@ pub struct PlanConfig {
     /// How the plan starts and stops: jerk-limited segments or steps.
     pub ends: EndMode,
     /// Servo period T the table is planned for, s: the feed cap at curvature
-    /// jumps ([`crate::geometry::junction`]) depends on it (certified formulation).
+    /// jumps (`crate::geometry::junction`) depends on it (certified formulation).
     pub servo_period_s: f64,
     /// Feedrate override levels, percent of v̄ (docs/override-design.md):
     /// each is planned as a whole plan with v̄ × percent/100 on the base
-    /// plan's knot vector and check points ([`PlanOutput::levels`], sorted by
+    /// plan's knot vector and check points (`PlanOutput::levels`, sorted by
     /// percent). 100 is skipped; every entry must be finite, > 0 and distinct.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub override_levels: Vec<f64>,

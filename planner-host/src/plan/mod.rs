@@ -1,17 +1,17 @@
 //! The planning pipeline, from a curve to a firmware table
 //! ([`plan_curve`]), in the order it runs:
 //!
-//! 1. [`config`]: what to plan with ([`PlanConfig`], [`Formulation`]).
+//! 1. `config`: what to plan with ([`PlanConfig`], [`Formulation`]).
 //! 2. [`su_fit`]: the s → u polynomials the firmware evaluates at servo rate.
-//! 3. [`knots`]: the sampling Γ turned into the knots of q.
-//! 4. [`lp_stage`]: the check points, the LPs ([`crate::lp`]) and their
-//!    refinement rounds, the [`stall`] check, the machining time.
-//! 5. [`levels`]: the feedrate override levels, each a whole plan.
-//! 6. [`pipeline`]: the steps above in order, and the table encoding.
-//! 7. [`output`]: the finished plan ([`PlanOutput`]); [`verify`]: its dense
-//!    re-evaluation against every limit; [`atomic_write`]: writing the table.
+//! 3. `knots`: the sampling Γ turned into the knots of q.
+//! 4. `lp_stage`: the check points, the LPs ([`crate::lp`]) and their
+//!    refinement rounds, the `stall` check, the machining time.
+//! 5. `levels`: the feedrate override levels, each a whole plan.
+//! 6. `pipeline`: the steps above in order, and the table encoding.
+//! 7. `output`: the finished plan ([`PlanOutput`]); [`verify`]: its dense
+//!    re-evaluation against every limit; `atomic_write`: writing the table.
 //!
-//! Why a plan fails: [`error`] ([`PlanError`]).
+//! Why a plan fails: `error` ([`PlanError`]).
 
 pub(crate) mod atomic_write;
 pub(crate) mod config;
@@ -31,4 +31,4 @@ pub use config::{Formulation, PlanConfig};
 pub use error::PlanError;
 pub use output::{LevelPlan, PlanOutput};
 pub use pipeline::{plan_curve, plan_curve_with_progress};
-pub use stall::{find_stall, StallAt};
+pub use stall::StallAt;

@@ -29,7 +29,7 @@ pub struct PlanOutput {
     /// Certified formulation: largest exact ratio to each limit over its check points.
     pub check: Option<Ratios>,
     /// Certified formulation: the toolpath's curvature jumps and the feed cap
-    /// at each ([`crate::geometry::junction`]).
+    /// at each (`crate::geometry::junction`).
     pub curvature_jumps: Vec<Jump>,
     /// Predicted machining time, s: T = ∫ ds/√q, or with end segments
     /// t₁ + ∫_{s₁}^{s₂} ds/√q + t₂.

@@ -1,5 +1,5 @@
 //! The stall check: a plan that cannot start, dies out before the end or
-//! stops the feed in mid-path is refused ([`find_stall`], [`StallAt`]).
+//! stops the feed in mid-path is refused (`find_stall`, [`StallAt`]).
 
 use firmware_core::table::Limits;
 
@@ -15,20 +15,20 @@ pub const STALL_FEED_REL: f64 = 1e-3;
 /// going (∫ds/√q diverges).
 pub const STALL_ACC_REL: f64 = 1e-3;
 
-/// Where and why a plan would stall the machine (see [`find_stall`]).
+/// Where and why a plan would stall the machine (see `find_stall`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum StallAt {
-    /// q′(0)/2 < [`STALL_ACC_REL`]·ā: the motion cannot start.
+    /// q′(0)/2 < `STALL_ACC_REL`·ā: the motion cannot start.
     Start {
         /// The start acceleration q′(0)/2, mm/s².
         acc_mm_s2: f64,
     },
-    /// −q′(L)/2 < [`STALL_ACC_REL`]·ā: the feed dies out before L.
+    /// −q′(L)/2 < `STALL_ACC_REL`·ā: the feed dies out before L.
     End {
         /// The stop deceleration −q′(L)/2, mm/s².
         acc_mm_s2: f64,
     },
-    /// √q < [`STALL_FEED_REL`]·v̄ in mid-path.
+    /// √q < `STALL_FEED_REL`·v̄ in mid-path.
     Interior {
         /// Where the feed is lowest, mm.
         s_mm: f64,
@@ -92,7 +92,7 @@ pub fn find_stall(knots: &[f64], ctrl: &[f64], limits: &Limits) -> Option<StallA
 }
 
 /// The stall floors `(acceleration mm/s², q (mm/s)²)` on a path of length
-/// `length` mm: [`STALL_ACC_REL`] and [`STALL_FEED_REL`] of what a
+/// `length` mm: `STALL_ACC_REL` and `STALL_FEED_REL` of what a
 /// rest-to-rest move can reach there at all, min(Ā, J̄^{2/3}(L/2)^{1/3}) and
 /// min(v̄, J̄^{1/3}(L/2)^{2/3}) (pure jerk phases over each half), so that a
 /// path of a few µm is not called stalled for being short.
@@ -103,7 +103,7 @@ pub fn stall_floors(limits: &Limits, length: f64) -> (f64, f64) {
     (STALL_ACC_REL * acc, (STALL_FEED_REL * feed).powi(2))
 }
 
-/// The interior part of [`find_stall`]: the exact minimum of q on [lo, hi]
+/// The interior part of `find_stall`: the exact minimum of q on [lo, hi]
 /// against (STALL_FEED_REL·v̄)². With end segments, [lo, hi] = [s₁, s₂]:
 /// the segments start and stop the motion, q must not vanish in between.
 pub fn find_stall_between(knots: &[f64], ctrl: &[f64], limits: &Limits, lo: f64, hi: f64) -> Option<StallAt> {

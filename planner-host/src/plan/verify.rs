@@ -14,7 +14,7 @@ use crate::limits::Ratios;
 use crate::lp::basis_rows::BasisRow;
 
 /// Fewest time samples per end segment in [`dense_check_ends`].
-pub const SEGMENT_MIN_POINTS: usize = 200;
+pub(crate) const SEGMENT_MIN_POINTS: usize = 200;
 
 /// Result of a dense check.
 #[derive(Debug, Clone, serde::Serialize)]
@@ -30,7 +30,7 @@ pub struct DenseReport {
 }
 
 /// Ratios to the limits at one arc length `s` of the plan (knots, ctrl).
-pub fn ratios_at(
+pub(crate) fn ratios_at(
     curve: &Nurbs,
     arc: &ArcLength,
     knots: &[f64],
@@ -48,7 +48,7 @@ pub fn ratios_at(
 }
 
 /// Ratios to the limits at arc length `s` moving with `[ṡ, s̈, s⃛]`.
-pub fn ratios_kin(curve: &Nurbs, arc: &ArcLength, lim: &Limits, s: f64, kin: [f64; 3]) -> Ratios {
+pub(crate) fn ratios_kin(curve: &Nurbs, arc: &ArcLength, lim: &Limits, s: f64, kin: [f64; 3]) -> Ratios {
     let [sd, sdd, sddd] = kin;
     let q = sd * sd;
     let g = path_derivs_at(curve, arc, s);
@@ -83,7 +83,7 @@ pub fn dense_check(
 }
 
 /// [`dense_check`] of a plan with end segments: q on [s₁, s₂] as there, and
-/// each segment at `per_span` × (its knot spans, at least [`SEGMENT_MIN_POINTS`])
+/// each segment at `per_span` × (its knot spans, at least `SEGMENT_MIN_POINTS`)
 /// points evenly spaced in time, from the exact s(t) of the segment.
 pub fn dense_check_ends(
     curve: &Nurbs,
