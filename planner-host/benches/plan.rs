@@ -1,7 +1,7 @@
 #![allow(missing_docs)] // criterion_group! generates an undocumented function
 //! Whole-plan time of the Butterfly (LEN, ADA, PAR; 1 point/mm, Table 1), default
 //! (certified) formulation: geometry, every LP of the sequence, the s → u map
-//! and the table. Issue 5 asks for ≤ 100 ms median on the 2-core machine.
+//! and the table. The target is a median of at most 100 ms on a 2-core machine.
 //!
 //!     cargo bench -p planner-host --bench plan
 

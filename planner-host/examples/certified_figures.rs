@@ -1,14 +1,16 @@
-//! Issue 5 figures: every curve × PAR/LEN/ADA × density, planned with the
+//! Planning figures of the benchmark curves: every curve × PAR/LEN/ADA × density, planned with the
 //! default (certified) formulation, or `--formulation paper`: predicted time,
 //! the largest dense ratio to each limit (20 and 200 points per knot span),
 //! LPs and planning time.
 //!
-//!     cargo run --release -p planner-host --example certified_figures -- [--formulation F] [--densities 0.5,1,2] [CURVE.json ...]
+//!     cargo run --release -p planner-host --example certified_figures -- [--formulation F] [--densities 0.5,1,2] [CURVE.json | NAME ...]
+//!
+//! Without curves: the five built-in ones.
 
-use planner_host::arclength::ArcLength;
-use planner_host::curve::Nurbs;
 use planner_host::plan::{self, Formulation, PlanConfig};
 use planner_host::sampling::Sampling;
+use planner_host::ArcLength;
+use planner_host::Nurbs;
 
 fn main() {
     let mut args = std::env::args().skip(1);
@@ -41,21 +43,20 @@ fn main() {
         }
     }
     if curves.is_empty() {
-        let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/curves");
-        let mut v: Vec<String> = std::fs::read_dir(dir)
-            .unwrap()
-            .filter_map(|e| e.ok().map(|e| e.path().display().to_string()))
-            .filter(|p| p.ends_with(".json"))
+        curves = planner_host::builtin::NAMES
+            .iter()
+            .map(|n| n.to_string())
             .collect();
-        v.sort();
-        curves = v;
     }
     println!(
         "| curve | sampling | pts/mm | T (s) | vel | acc | jerk | feed | tacc | tjerk | jerk@200 | tjerk@200 | LPs | IPM its | plan ms |"
     );
     println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     for path in &curves {
-        let curve = Nurbs::load(std::path::Path::new(path)).unwrap();
+        let curve = match planner_host::builtin::by_name(path) {
+            Some(c) => c.unwrap(),
+            None => Nurbs::load(std::path::Path::new(path)).unwrap(),
+        };
         let arc = ArcLength::new(&curve);
         for &sampling in &samplings {
             for &density in &densities {

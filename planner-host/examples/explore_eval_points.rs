@@ -1,24 +1,28 @@
-//! Exploration for issue 5: how many evaluation points does the paper's
+//! How many evaluation points does the paper's
 //! formulation need before the limits hold between them, what does it cost,
 //! and what does re-linearising the jerk rows around the last plan gain?
 //!
-//!     cargo run --release -p planner-host --example explore_eval_points [CURVE.json]
+//!     cargo run --release -p planner-host --example explore_eval_points [CURVE.json | NAME]
 
 use std::time::Instant;
 
-use planner_host::arclength::ArcLength;
-use planner_host::curve::Nurbs;
+use planner_host::geometry::path_derivs_at;
 use planner_host::limits::TABLE1;
 use planner_host::lp::{self, BasisRow, EvalPoint, FeedLp, Objective, QhatBound};
-use planner_host::plan::{machining_time, path_derivs_at};
+use planner_host::plan::machining_time;
+use planner_host::plan::su_fit::SuMap;
+use planner_host::plan::verify;
 use planner_host::sampling::{self, Sampling};
-use planner_host::sumap::SuMap;
-use planner_host::verify;
+use planner_host::ArcLength;
+use planner_host::Nurbs;
 
 fn main() {
     let path = std::env::args().nth(1);
     let curve = match path {
-        Some(p) => Nurbs::load(std::path::Path::new(&p)).unwrap(),
+        Some(p) => match planner_host::builtin::by_name(&p) {
+            Some(c) => c.unwrap(),
+            None => Nurbs::load(std::path::Path::new(&p)).unwrap(),
+        },
         None => planner_host::builtin::butterfly().unwrap(),
     };
     let arc = ArcLength::new(&curve);

@@ -1,38 +1,39 @@
 //! planner-host: time-optimal, jerk-limited feedrate planning on NURBS
-//! toolpaths by linear programming (Petráček, Vlček, Švéda 2022, §2–§3).
+//! toolpaths by linear programming (Petráček, Vlček, Švéda 2022).
 //!
-//! The layers, bottom up:
-//! - [`curve`]: the toolpath, a rational NURBS of degree 2‥5 in three axes,
-//!   loaded from the `shared/curves` JSON format and validated.
-//! - [`arclength`]: s(u) by adaptive quadrature, u(s), and the derivatives
-//!   r′, r″, r‴ with respect to arc length that the constraints need.
+//! The folders follow the data, from a curve to a firmware table:
+//!
+//! - [`geometry`]: the toolpath, a rational NURBS of degree 2‥5 in three
+//!   axes, its JSON format, the built-in benchmark curves, arc length s(u)
+//!   and u(s) with the derivatives r′, r″, r‴ the constraints need, and the
+//!   curvature jumps at its knots.
 //! - [`sampling`]: the arc-length sampling Γ — PAR, LEN or ADA (§3).
-//! - [`lp`]: the knot vector (17), Greville points (18) and the two LPs of
-//!   §2.1 (pseudo-jerk, then plan), solved with Clarabel.
-//! - [`sumap`]: the s → u polynomials the firmware evaluates at servo rate.
-//! - [`plan`]: the pipeline, from a curve to a firmware table
-//!   ([`firmware_core::table`]), with the predicted machining time.
-//! - [`ends`]: jerk-limited start and stop segments joined C² to q.
-//! - [`junction`]: curvature jumps of the toolpath and the feed cap at them.
-//! - [`verify`]: dense re-evaluation of a plan against every limit.
-//! - [`transition`]: ArcLen (Appendix C), the length of a jerk-limited
-//!   feed transition, for the override (§4).
+//! - [`lp`]: the knot vector (17), Greville points (18), end segments, and
+//!   the LPs of §2.1: the paper's two LPs and the certified trust-region
+//!   sequence, solved by a banded interior-point method or Clarabel.
+//! - [`plan`]: the pipeline [`plan_curve`] — configuration, knots, LP stage
+//!   with refinement rounds, override levels, stall check, machining time,
+//!   the s → u polynomials, the table, its dense verification.
 //! - [`feed_override`]: the feedrate override (§4): override levels reused,
-//!   the window LP between the active profile and the target level.
-//! - [`limits`]: Table 1 and the limits file; [`builtin`]: built-in curves.
+//!   ArcLen (Appendix C) and the window LP between the active profile and
+//!   the target level.
+//! - [`limits`]: the paper's Table 1 and the limits file.
+//!
+//! Start from [`plan_curve`] with a [`Nurbs`] (from a file, [`Nurbs::load`],
+//! or built in, [`builtin::by_name`]) and a [`PlanConfig`]; the
+//! [`PlanOutput`] holds the encoded table. An [`OverrideContext`] built from
+//! the plan answers feedrate override requests.
 
-pub mod arclength;
-pub mod builtin;
-pub mod certified;
-pub mod curve;
-pub mod ends;
 pub mod feed_override;
-mod ipm;
-pub mod junction;
+pub mod geometry;
 pub mod limits;
 pub mod lp;
 pub mod plan;
 pub mod sampling;
-pub mod sumap;
-pub mod transition;
-pub mod verify;
+
+pub use feed_override::{OverrideContext, OverrideOutcome};
+pub use geometry::{builtin, ArcLength, CurveError, Nurbs};
+pub use limits::{Limits, LimitsError, Ratios, TABLE1};
+pub use lp::EndMode;
+pub use plan::{plan_curve, Formulation, PlanConfig, PlanError, PlanOutput};
+pub use sampling::Sampling;

@@ -1,8 +1,10 @@
-//! Kinematic limits: the paper's Table 1 and the limits file.
+//! Kinematic limits: the paper's Table 1, the limits file, and the ratios
+//! of a motion to each limit ([`Ratios`]).
 //!
 //! The limits file is JSON with any of the keys below (mm and s; keys left
-//! out keep Table 1). It is the same format as `shared/checks`' `LIMITS.json`,
-//! so one file serves the planner and the checker:
+//! out keep Table 1). `feedsim check --limits` reads the same format (so
+//! does the paper notes' external checker, as `LIMITS.json`), so one file
+//! serves the planner and the checker:
 //!
 //! ```json
 //! { "vbar": 166.667, "abar": 1500, "jbar": 16000,
@@ -28,6 +30,45 @@ pub const TABLE1: Limits = Limits {
     a: [1500.0; 3],
     j: [16000.0; 3],
 };
+
+/// How close a motion comes to each limit: the largest ratio of a value to
+/// its limit (1.0 = at the limit).
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
+pub struct Ratios {
+    /// Axial velocity, max over axes.
+    pub vel: f64,
+    /// Axial acceleration, max over axes.
+    pub acc: f64,
+    /// Axial jerk, max over axes.
+    pub jerk: f64,
+    /// Tangential velocity (feedrate).
+    pub feed: f64,
+    /// Tangential acceleration.
+    pub tacc: f64,
+    /// Tangential jerk.
+    pub tjerk: f64,
+}
+
+impl Ratios {
+    /// Element-wise maximum.
+    pub fn max(self, o: Ratios) -> Ratios {
+        Ratios {
+            vel: self.vel.max(o.vel),
+            acc: self.acc.max(o.acc),
+            jerk: self.jerk.max(o.jerk),
+            feed: self.feed.max(o.feed),
+            tacc: self.tacc.max(o.tacc),
+            tjerk: self.tjerk.max(o.tjerk),
+        }
+    }
+
+    /// The largest of all six.
+    pub fn worst(&self) -> f64 {
+        [self.vel, self.acc, self.jerk, self.feed, self.tacc, self.tjerk]
+            .into_iter()
+            .fold(0.0, f64::max)
+    }
+}
 
 /// A limits file that could not be used.
 #[derive(Debug, thiserror::Error)]

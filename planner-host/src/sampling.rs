@@ -3,7 +3,7 @@
 //!
 //! - PAR: uniform in the curve parameter u, mapped to arc length.
 //! - LEN: uniform in arc length.
-//! - ADA: the hybrid distribution of Khamayseh & Kuprat (paper ref. [51];
+//! - ADA: the hybrid distribution of Khamayseh & Kuprat (paper ref. \[51\];
 //!   REFERENCES.md): F(s) = (λ_s·s/L + λ_k·K(s)/K(L)) / (λ_s + λ_k) with
 //!   K(s) = ∫₀ˢ |κ| dσ the integrated absolute curvature (turning angle,
 //!   rad), s_j = F⁻¹((j−1)/(m−1)). The paper takes λ_s + λ_k = 1; other
@@ -18,8 +18,9 @@
 use std::fmt;
 use std::str::FromStr;
 
-use crate::arclength::{adaptive_gl, curvature_of, gl16, speed_floor, ArcLength, GL16};
-use crate::curve::{norm, CurveError, Nurbs};
+use crate::geometry::arc_length::{adaptive_gl, curvature_of, gl16, speed_floor, ArcLength, GL16};
+use crate::geometry::curve::{norm, Nurbs};
+use crate::geometry::curve_error::CurveError;
 
 /// Fewest points [`points_for_density`] returns.
 pub const MIN_POINTS: usize = 4;
@@ -137,7 +138,7 @@ pub fn points_for_density(length_mm: f64, density_per_mm: f64) -> usize {
 /// Integrated absolute curvature K(u) = ∫ |κ| σ du (rad), tabulated by
 /// adaptive Gauss–Legendre per knot span (1e-10 rad per span).
 #[derive(Debug, Clone)]
-pub struct Turning {
+pub(crate) struct Turning {
     u: Vec<f64>,
     k: Vec<f64>,
     piece_span: Vec<usize>,
@@ -191,7 +192,8 @@ impl Turning {
         curvature_of(&d, self.floor) * norm(d[1])
     }
 
-    /// Number of quadrature pieces in the table.
+    /// Number of quadrature pieces in the table (reported by the tests).
+    #[cfg(test)]
     pub fn pieces(&self) -> usize {
         self.piece_span.len()
     }
@@ -347,7 +349,7 @@ fn ada(curve: &Nurbs, arc: &ArcLength, t: &Turning, lambda_s: f64, lambda_k: f64
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::curve::tests::{butterfly, quintic_3d, shared_curves};
+    use crate::geometry::curve::tests::{benchmark_curves, butterfly, quintic_3d};
 
     #[test]
     fn parse_and_display_round_trip() {
@@ -413,7 +415,7 @@ mod tests {
 
     #[test]
     fn every_method_on_every_curve_is_monotone_with_exact_ends() {
-        let mut curves = shared_curves();
+        let mut curves = benchmark_curves();
         curves.push(quintic_3d());
         curves.push(Nurbs::line([0.0; 3], [3.0, 4.0, 0.0]));
         for c in &curves {

@@ -1,13 +1,12 @@
 //! The certified formulation (the default): every limit held on a dense
 //! re-evaluation of the plan (20 points per knot span), and fast.
 
-use planner_host::arclength::ArcLength;
-use planner_host::curve::Nurbs;
 use planner_host::limits::TABLE1;
 use planner_host::plan::{self, Formulation, PlanConfig};
-use planner_host::verify;
+use planner_host::ArcLength;
+use planner_host::Nurbs;
 
-fn check(curve: &Nurbs, cfg: &PlanConfig) -> (f64, verify::Ratios) {
+fn check(curve: &Nurbs, cfg: &PlanConfig) -> (f64, planner_host::Ratios) {
     let out = plan::plan_curve(curve, cfg).unwrap();
     let arc = ArcLength::new(curve);
     let d = out.dense_check(curve, &arc, 20);
@@ -47,11 +46,7 @@ fn a_short_line_holds_every_limit() {
 
 #[test]
 fn a_circle_holds_every_limit() {
-    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/curves/circle.json");
-    let Ok(circle) = Nurbs::load(std::path::Path::new(dir)) else {
-        eprintln!("{dir} not found: skipped");
-        return;
-    };
+    let circle = planner_host::builtin::by_name("circle").unwrap().unwrap();
     let (_, r) = check(&circle, &PlanConfig::default());
     assert!(r.worst() <= 1.01, "{r:?}");
     let _ = TABLE1;

@@ -1,9 +1,9 @@
 //! The toolpath of a table as a [`Toolpath`] for the metrics: the
 //! planner-host NURBS (with u-derivatives) and its arc length s(u).
 
-use firmware_core::table::Table;
-use planner_host::arclength::ArcLength;
-use planner_host::curve::{CurveError, Nurbs};
+use firmware_core::Table;
+use planner_host::ArcLength;
+use planner_host::{CurveError, Nurbs};
 
 use crate::metrics::Toolpath;
 

@@ -108,7 +108,7 @@ pub(crate) fn project(path: &dyn Toolpath, p: [f64; 3], seed: f64) -> Projection
 
 /// Largest ratio to each limit (1.0 = at the limit); the same keys as
 /// `check_traj.py`'s `ratios`, and the same type as the planner's dense check.
-pub use planner_host::verify::Ratios;
+pub use planner_host::Ratios;
 
 /// Everything measured on one run.
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]

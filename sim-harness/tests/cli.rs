@@ -48,8 +48,8 @@ fn errors_exit_non_zero_with_a_message() {
 
 #[test]
 fn run_writes_csv_plot_and_json() {
-    use planner_host::curve::Nurbs;
     use planner_host::plan::{self, PlanConfig};
+    use planner_host::Nurbs;
     let dir = temp_dir("run");
     let table = dir.join("line.bin");
     let line = Nurbs::line([0.0, 0.0, 0.0], [30.0, 0.0, 40.0]);
@@ -229,8 +229,8 @@ fn check_bad_input_exits_3_and_usage_2() {
 
 #[test]
 fn run_check_passes_on_a_plan_and_json_keeps_its_keys() {
-    use planner_host::curve::Nurbs;
     use planner_host::plan::{self, PlanConfig};
+    use planner_host::Nurbs;
     let dir = temp_dir("run-check");
     let table = dir.join("line.bin");
     let line = Nurbs::line([0.0, 0.0, 0.0], [30.0, 0.0, 40.0]);

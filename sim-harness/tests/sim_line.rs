@@ -1,8 +1,8 @@
 //! End to end inside the crate: plan a straight line with planner-host, run
 //! it through firmware-core and the servo models, check the measurements.
 
-use planner_host::curve::Nurbs;
 use planner_host::plan::{self, PlanConfig};
+use planner_host::Nurbs;
 use sim_harness::{run_table, SimConfig, SimError};
 
 fn line_table() -> Vec<u8> {

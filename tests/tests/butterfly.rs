@@ -44,7 +44,7 @@ fn butterfly_executes_as_planned() {
     // planner's quadrature, independent of the firmware's s and its s → u map) by
     // central differences. (The chord |r_{n+1} − r_{n−1}| would read up to 2e-3 low at
     // the Butterfly's two near-corners, κ ≈ 42 /mm, where κ²Δs²/24 is no longer small.)
-    let arc = planner_host::arclength::ArcLength::new(&curve);
+    let arc = planner_host::ArcLength::new(&curve);
     let len = out.path_length_mm;
     let mut worst: f64 = 0.0;
     for w in pts.windows(3) {
@@ -84,7 +84,7 @@ fn every_benchmark_curve_plans_and_runs() {
         if path.extension().and_then(|e| e.to_str()) != Some("json") {
             continue;
         }
-        let curve = planner_host::curve::Nurbs::load(&path).unwrap();
+        let curve = planner_host::Nurbs::load(&path).unwrap();
         let out = plan::plan_curve(&curve, &PlanConfig::default())
             .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
         let mut it = Interpolator::new(Table::parse(&out.table_bytes).unwrap(), PERIOD_S).unwrap();

@@ -17,9 +17,9 @@ use std::sync::OnceLock;
 use firmware_core::interp::{Interpolator, OVERRIDE_Q, OVERRIDE_W};
 use firmware_core::{table::layout::Q_VBAR_SLACK, Table};
 use firmware_core::{OverrideError, OverrideProfile};
-use planner_host::arclength::ArcLength;
 use planner_host::feed_override::{OverrideContext, OverrideOutcome};
 use planner_host::plan::{self, PlanConfig};
+use planner_host::ArcLength;
 use proptest::prelude::*;
 
 struct Fixture {

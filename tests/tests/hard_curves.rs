@@ -13,10 +13,10 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use planner_host::arclength::ArcLength;
-use planner_host::curve::Nurbs;
 use planner_host::plan::{self, Formulation, PlanConfig};
-use planner_host::verify::Ratios;
+use planner_host::ArcLength;
+use planner_host::Nurbs;
+use planner_host::Ratios;
 
 /// Largest dense ratio allowed to any limit.
 const TOLERANCE: f64 = 1.01;

@@ -35,7 +35,7 @@ fn plan() -> &'static Plan {
     P.get_or_init(|| {
         // HOLD_CURVE (diagnosis): another toolpath (JSON)
         let curve = match std::env::var("HOLD_CURVE") {
-            Ok(p) => planner_host::curve::Nurbs::load(std::path::Path::new(&p)).unwrap(),
+            Ok(p) => planner_host::Nurbs::load(std::path::Path::new(&p)).unwrap(),
             Err(_) => builtin::butterfly().unwrap(),
         };
         // HOLD_VBAR (mm/s) plans at another programmed feed (diagnosis)

@@ -5,8 +5,8 @@
 
 use std::path::PathBuf;
 
-use planner_host::curve::{CurveError, Nurbs};
 use planner_host::plan::{self, PlanConfig, PlanError};
+use planner_host::{CurveError, Nurbs};
 
 fn fixture(name: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))

@@ -15,13 +15,13 @@
 //! model T_a + 2·A·(A/J)²/(24·v) (two jerk-rounded corners at the feed)
 //! predicts it within 0.2 %.
 
-use planner_host::arclength::ArcLength;
-use planner_host::curve::Nurbs;
-use planner_host::ends::EndMode;
 use planner_host::limits::TABLE1;
 use planner_host::lp;
+use planner_host::plan::verify;
 use planner_host::plan::{self, Formulation, PlanConfig};
-use planner_host::verify;
+use planner_host::ArcLength;
+use planner_host::EndMode;
+use planner_host::Nurbs;
 
 fn closed_forms(len: f64, v: f64, a: f64, j: f64) -> (f64, f64) {
     let t_a = 2.0 * v / a + (len - v * v / a) / v;

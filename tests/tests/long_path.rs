@@ -7,9 +7,9 @@
 
 use firmware_core::Interpolator;
 use firmware_core::Table;
-use planner_host::arclength::ArcLength;
-use planner_host::curve::Nurbs;
 use planner_host::plan::{self, PlanConfig};
+use planner_host::ArcLength;
+use planner_host::Nurbs;
 
 const PERIOD_S: f64 = 250e-6;
 

@@ -18,8 +18,8 @@
 
 use firmware_core::Interpolator;
 use firmware_core::Table;
-use planner_host::curve::Nurbs;
 use planner_host::plan::{self, PlanConfig};
+use planner_host::Nurbs;
 
 const PERIOD_S: f64 = 250e-6;
 
@@ -158,8 +158,8 @@ fn circle_and_fan_setpoint_noise_below_one_percent_of_the_jerk_limit() {
 /// exactly for L/9 ≤ s ≤ 8L/9 and s(t) is linear there.
 fn plateau_table(curve: &Nurbs, feed: f64) -> (Vec<u8>, f64) {
     use firmware_core::table::{self, TableParts};
-    use planner_host::arclength::ArcLength;
-    use planner_host::sumap::{self, SuMap};
+    use planner_host::plan::su_fit::{self as sumap, SuMap};
+    use planner_host::ArcLength;
     let arc = ArcLength::new(curve);
     let su = SuMap::fit(curve, &arc, sumap::DEFAULT_TOL_MM).unwrap();
     let len = *su.breaks.last().unwrap();

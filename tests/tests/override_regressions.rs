@@ -1,9 +1,9 @@
 //! Feedrate override computations (paper §4) that once failed, replayed from
 //! what the host had.
 
-use planner_host::arclength::ArcLength;
 use planner_host::feed_override::{OverrideContext, OverrideOutcome};
 use planner_host::plan::{self, PlanConfig};
+use planner_host::ArcLength;
 
 /// The faults scenario: a new command while the host's scheduled
 /// profile, a 120 % → 50 % transition, had not merged yet (q still at 120 %

@@ -1,30 +1,49 @@
 //! `feedplan`: plan a NURBS toolpath and write the firmware table.
 //!
 //! ```text
-//! feedplan plan CURVE.json [--sampling len] [--density P] [--limits FILE] -o TABLE.bin [--json]
-//!               [--formulation certified|paper [--objective O] [--qhat-bound B]]
-//!               [--override-levels 30,50,125 | 10:200:10]
-//! feedplan override TABLE.bin --at S_MM --to PERCENT [--from PERCENT] [-o PROFILE.json]
+//! feedplan plan CURVE [--sampling par|len|ada] [--density P] [--limits FILE]
+//!                     [--formulation certified|paper] [--ends jerk|step] [--period-us 250]
+//!                     [--override-levels 30,50,125 | 10:200:10] -o TABLE.bin [--json]
+//! feedplan override TABLE.bin --at S_MM --to PERCENT [--from PERCENT] [-o PROFILE.json] [--json]
+//! feedplan completions bash|zsh|fish|elvish|powershell
 //! ```
+//!
+//! CURVE is a JSON file or the name of a built-in curve. Exit codes: see
+//! [`EXIT_CODES`].
 
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use clap::{Parser, Subcommand};
-use planner_host::arclength::ArcLength;
-use planner_host::curve::Nurbs;
-use planner_host::ends::EndMode;
-use planner_host::limits;
+use clap::{CommandFactory, Parser, Subcommand};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use planner_host::feed_override::{OverrideContext, OverrideError, OverrideOutcome};
+use planner_host::limits::{self, LimitsError};
 use planner_host::lp::{Objective, QhatBound};
-use planner_host::plan::{self, Formulation, PlanConfig};
+use planner_host::plan::verify;
+use planner_host::plan::{self, Formulation, PlanConfig, PlanError};
 use planner_host::sampling::Sampling;
-use planner_host::verify;
+use planner_host::ArcLength;
+use planner_host::EndMode;
+use planner_host::Nurbs;
+use planner_host::{builtin, CurveError};
+
+/// The exit codes, shown after `--help`.
+const EXIT_CODES: &str = "\
+Exit codes:
+  0  success
+  1  I/O or internal error (e.g. the table cannot be written)
+  2  usage: unknown option, bad option value (clap), or an option that does not fit
+  3  bad input: unreadable or invalid curve, limits file or table
+  4  infeasible plan: an LP or the plan has no solution (stall, no room for the end segments,
+     the override window LP)
+  5  (feedsim only) a limit exceeded in a check";
 
 #[derive(Parser)]
 #[command(
     name = "feedplan",
     version,
-    about = "Time-optimal jerk-limited feedrate planning on NURBS toolpaths (LP, Clarabel)"
+    about = "Time-optimal jerk-limited feedrate planning on NURBS toolpaths (LP, Clarabel)",
+    after_help = EXIT_CODES
 )]
 struct Cli {
     #[command(subcommand)]
@@ -33,9 +52,11 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Cmd {
-    /// Plan a toolpath (shared/curves JSON format) and write the firmware table.
+    /// Plan a toolpath and write the firmware table.
+    #[command(after_help = EXIT_CODES)]
     Plan {
-        /// The toolpath: JSON with name, degree, weights, knots, control_points (mm).
+        /// The toolpath: a JSON file (name, degree, weights, knots, control_points in mm), or
+        /// the name of a built-in curve: butterfly, circle, fan, star, trident.
         curve: PathBuf,
         /// Sampling of the toolpath: par, len or ada (paper §3).
         #[arg(long, default_value = "len")]
@@ -78,7 +99,10 @@ enum Cmd {
         /// capped so that the acceleration step uses at most half the jerk limit over
         /// one period (certified formulation).
         #[arg(long, default_value_t = 250.0)]
-        servo_period_us: f64,
+        period_us: f64,
+        /// No progress bar (it is shown on stderr only when stderr is a terminal).
+        #[arg(long, short = 'q')]
+        quiet: bool,
         /// Points per knot span of q in the dense re-evaluation of the plan.
         #[arg(long, default_value_t = 20)]
         dense: usize,
@@ -92,6 +116,7 @@ enum Cmd {
     /// Compute one feedrate-override transition profile (paper §4) for inspection: the table's
     /// plan (or level --from) overridden at --at to level --to; the table must hold that level
     /// (feedplan plan --override-levels).
+    #[command(after_help = EXIT_CODES)]
     Override {
         /// The firmware table (with override levels).
         table: PathBuf,
@@ -106,10 +131,18 @@ enum Cmd {
         from: f64,
         /// Servo period, µs (feed caps at curvature jumps).
         #[arg(long, default_value_t = 250.0)]
-        servo_period_us: f64,
+        period_us: f64,
         /// Write the profile (the firmware message: level, first, ctrl; and the whole q) as JSON here.
         #[arg(short = 'o', long = "output")]
         output: Option<PathBuf>,
+        /// Print the outcome as one JSON object (the profile, or why the override was skipped).
+        #[arg(long)]
+        json: bool,
+    },
+    /// Print a shell completion script to stdout.
+    Completions {
+        /// The shell.
+        shell: clap_complete::Shell,
     },
 }
 
@@ -149,17 +182,143 @@ fn parse_levels(text: &str) -> Result<Levels, String> {
     Ok(Levels(v))
 }
 
-fn main() -> ExitCode {
-    match run(Cli::parse()) {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("feedplan: error: {e}");
-            ExitCode::from(2)
+/// A failure: the message and the exit code of [`EXIT_CODES`].
+struct Failure {
+    code: u8,
+    message: String,
+}
+
+/// I/O or internal error.
+const EXIT_IO: u8 = 1;
+/// Usage.
+const EXIT_USAGE: u8 = 2;
+/// Bad input file.
+const EXIT_INPUT: u8 = 3;
+/// Infeasible plan.
+const EXIT_INFEASIBLE: u8 = 4;
+
+impl Failure {
+    fn new(code: u8, message: impl std::fmt::Display) -> Self {
+        Failure {
+            code,
+            message: message.to_string(),
         }
     }
 }
 
-fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
+impl From<CurveError> for Failure {
+    fn from(e: CurveError) -> Self {
+        Failure::new(EXIT_INPUT, e)
+    }
+}
+
+impl From<LimitsError> for Failure {
+    fn from(e: LimitsError) -> Self {
+        Failure::new(EXIT_INPUT, e)
+    }
+}
+
+impl From<serde_json::Error> for Failure {
+    fn from(e: serde_json::Error) -> Self {
+        Failure::new(EXIT_IO, e)
+    }
+}
+
+impl From<PlanError> for Failure {
+    fn from(e: PlanError) -> Self {
+        Failure::new(plan_exit_code(&e), e)
+    }
+}
+
+impl From<OverrideError> for Failure {
+    fn from(e: OverrideError) -> Self {
+        let code = match e {
+            OverrideError::LpFailed { .. } => EXIT_INFEASIBLE,
+            OverrideError::SOutOfRange { .. } => EXIT_USAGE,
+            _ => EXIT_INPUT,
+        };
+        Failure::new(code, e)
+    }
+}
+
+/// The exit code of a failed plan: the curve or the limits are bad input
+/// (3), a bad option value is usage (2), writing is I/O (1), and everything
+/// the LPs or the plan could not satisfy is infeasible (4).
+fn plan_exit_code(e: &PlanError) -> u8 {
+    match e {
+        PlanError::Curve(_) | PlanError::Limits(_) | PlanError::Corner { .. } => EXIT_INPUT,
+        PlanError::TooFewPoints { .. } | PlanError::OverrideLevel { .. } => EXIT_USAGE,
+        PlanError::Io { .. } | PlanError::Table(_) => EXIT_IO,
+        PlanError::Level { source, .. } => plan_exit_code(source),
+        _ => EXIT_INFEASIBLE,
+    }
+}
+
+fn main() -> ExitCode {
+    match run(Cli::parse()) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(f) => {
+            eprintln!("feedplan: error: {}", f.message);
+            ExitCode::from(f.code)
+        }
+    }
+}
+
+/// One JSON object with `"schema_version": 1` as its first key, then the
+/// keys of `v` (an object).
+fn with_schema_version(v: &serde_json::Value) -> Result<String, Failure> {
+    let body = serde_json::to_string(v)?;
+    Ok(match body.strip_prefix('{') {
+        Some("}") => "{\"schema_version\":1}".to_string(),
+        Some(rest) => format!("{{\"schema_version\":1,{rest}"),
+        None => return Err(Failure::new(EXIT_IO, "JSON output is not an object")),
+    })
+}
+
+/// The curve argument: a file if one exists at that path, else a built-in
+/// curve of that name.
+fn load_curve(arg: &std::path::Path) -> Result<Nurbs, Failure> {
+    if !arg.exists() {
+        if let Some(c) = arg.to_str().and_then(builtin::by_name) {
+            return Ok(c?);
+        }
+        if arg.extension().is_none() && arg.components().count() == 1 {
+            return Err(Failure::new(
+                EXIT_INPUT,
+                format!(
+                    "{}: no such file, and not a built-in curve ({})",
+                    arg.display(),
+                    builtin::NAMES.join(", ")
+                ),
+            ));
+        }
+    }
+    Ok(Nurbs::load(arg)?)
+}
+
+/// A progress bar on stderr for the base plan and each override level,
+/// drawn only when stderr is a terminal, not `quiet`, and the plan has run
+/// for more than a second.
+fn progress_bar(quiet: bool) -> ProgressBar {
+    let pb = ProgressBar::with_draw_target(None, ProgressDrawTarget::hidden());
+    if let Ok(style) = ProgressStyle::with_template("{elapsed:>4} [{bar:30}] {pos}/{len} {msg}") {
+        pb.set_style(style.progress_chars("=> "));
+    }
+    if quiet {
+        return pb;
+    }
+    let shown = pb.clone();
+    std::thread::spawn(move || {
+        std::thread::sleep(std::time::Duration::from_secs(1));
+        if !shown.is_finished() {
+            shown.set_draw_target(ProgressDrawTarget::stderr());
+            shown.enable_steady_tick(std::time::Duration::from_millis(200));
+        }
+    });
+    pb
+}
+
+fn run(cli: Cli) -> Result<(), Failure> {
     match cli.cmd {
         Cmd::Plan {
             curve,
@@ -174,13 +333,17 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             qhat_bound,
             checks_per_span,
             ends,
-            servo_period_us,
+            period_us,
+            quiet,
             override_levels,
         } => {
             if formulation != Formulation::Paper && (objective.is_some() || qhat_bound.is_some()) {
-                return Err("--objective and --qhat-bound go with --formulation paper".into());
+                return Err(Failure::new(
+                    EXIT_USAGE,
+                    "--objective and --qhat-bound go with --formulation paper",
+                ));
             }
-            let curve = Nurbs::load(&curve)?;
+            let curve = load_curve(&curve)?;
             let limits = match lim_path {
                 Some(p) => limits::load(&p)?,
                 None => limits::TABLE1,
@@ -196,14 +359,26 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                     Formulation::Paper => EndMode::Step,
                     Formulation::Certified => EndMode::Jerk,
                 }),
-                servo_period_s: servo_period_us * 1e-6,
+                servo_period_s: period_us * 1e-6,
                 override_levels: override_levels.map(|l| l.0).unwrap_or_default(),
                 ..PlanConfig::default()
             };
             if let Some(c) = checks_per_span {
                 cfg.certified.checks_per_span = c;
             }
-            let out = plan::plan_curve(&curve, &cfg)?;
+            let pb = progress_bar(quiet);
+            pb.set_message(format!("planning {}", curve.name));
+            let planned = plan::plan_curve_with_progress(&curve, &cfg, &|done, steps| {
+                pb.set_length(steps as u64);
+                pb.set_position(done as u64);
+                pb.set_message(if done < steps {
+                    format!("override level {done} of {}", steps - 1)
+                } else {
+                    "encoding the table".to_string()
+                });
+            });
+            pb.finish_and_clear();
+            let out = planned?;
             let arc = ArcLength::new(&curve);
             let check = verify::dense_check_ends(
                 &curve,
@@ -214,16 +389,20 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                 &cfg.limits,
                 dense,
             );
-            plan::write_atomic(&output, &out.table_bytes)?;
-            if json {
+            let text = if json {
                 let mut v = serde_json::to_value(&out)?;
                 v["dense_check"] = serde_json::to_value(&check)?;
                 v["table"] = serde_json::Value::String(output.display().to_string());
-                println!("{}", serde_json::to_string(&v)?);
+                with_schema_version(&v)?
             } else {
-                print!("{}", out.summary(Some(&check)));
-                println!("  table written to {}", output.display());
-            }
+                format!(
+                    "{}  table written to {}",
+                    out.summary(Some(&check)),
+                    output.display()
+                )
+            };
+            plan::write_atomic(&output, &out.table_bytes)?;
+            println!("{text}");
             Ok(())
         }
         Cmd::Override {
@@ -231,9 +410,18 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             at,
             to,
             from,
-            servo_period_us,
+            period_us,
             output,
-        } => override_cmd(&table, at, from, to, servo_period_us, output.as_deref()),
+            json,
+        } => override_cmd(&table, at, from, to, period_us, output.as_deref(), json),
+        Cmd::Completions { shell } => {
+            let mut script = Vec::new();
+            clap_complete::generate(shell, &mut Cli::command(), "feedplan", &mut script);
+            match std::io::Write::write_all(&mut std::io::stdout(), &script) {
+                Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => Err(Failure::new(EXIT_IO, e)),
+                _ => Ok(()),
+            }
+        }
     }
 }
 
@@ -243,35 +431,85 @@ fn override_cmd(
     at: f64,
     from: f64,
     to: f64,
-    servo_period_us: f64,
+    period_us: f64,
     output: Option<&std::path::Path>,
-) -> Result<(), Box<dyn std::error::Error>> {
-    use planner_host::feed_override::{OverrideContext, OverrideOutcome};
-    let bytes = std::fs::read(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+    json: bool,
+) -> Result<(), Failure> {
+    let bytes = std::fs::read(path)
+        .map_err(|e| Failure::new(EXIT_INPUT, format!("cannot read {}: {e}", path.display())))?;
     let table = firmware_core::Table::parse(&bytes)
-        .map_err(|e| format!("{}: table refused: {e:?}", path.display()))?;
-    let ctx = OverrideContext::from_table(&table, servo_period_us * 1e-6)?;
-    let id_of = |pct: f64| -> Result<u16, String> {
+        .map_err(|e| Failure::new(EXIT_INPUT, format!("{}: table refused: {e:?}", path.display())))?;
+    let ctx = OverrideContext::from_table(&table, period_us * 1e-6)?;
+    let id_of = |pct: f64| -> Result<u16, Failure> {
         (0..ctx.level_count() as u16)
             .find(|&id| ctx.level_percent(id).is_some_and(|p| (p - pct).abs() < 1e-9))
             .ok_or_else(|| {
                 let have: Vec<String> = (0..ctx.level_count() as u16)
                     .filter_map(|id| ctx.level_percent(id).map(|p| format!("{p}")))
                     .collect();
-                format!(
-                    "no {pct} % level in {} (it has {} %)",
-                    path.display(),
-                    have.join(", ")
+                Failure::new(
+                    EXIT_INPUT,
+                    format!(
+                        "no {pct} % level in {} (it has {} %)",
+                        path.display(),
+                        have.join(", ")
+                    ),
                 )
             })
     };
     let (a, t) = (id_of(from)?, id_of(to)?);
-    let active = ctx.level_ctrl(a).ok_or("no active level")?.to_vec();
+    let active = ctx
+        .level_ctrl(a)
+        .ok_or_else(|| Failure::new(EXIT_INPUT, "no active level"))?
+        .to_vec();
     match ctx.compute(a, &active, at, t)? {
         OverrideOutcome::Skip(why) => {
-            println!("override at s = {at} mm from {from} % to {to} %: skipped ({why:?}); the active profile stays");
+            if json {
+                let v = serde_json::json!({
+                    "outcome": "skipped",
+                    "skip_reason": format!("{why:?}"),
+                    "at_s_mm": at,
+                    "percent": to,
+                    "from_percent": from,
+                });
+                println!("{}", with_schema_version(&v)?);
+            } else {
+                println!("override at s = {at} mm from {from} % to {to} %: skipped ({why:?}); the active profile stays");
+            }
         }
         OverrideOutcome::Profile(p) => {
+            let v = serde_json::json!({
+                "level": p.level,
+                "percent": to,
+                "from_percent": from,
+                "first": p.first,
+                "ctrl": p.ctrl,
+                "splice_s_mm": p.splice_s_mm,
+                "merge_s_mm": p.merge_s_mm,
+                "case": format!("{:?}", p.case),
+                "transition_len_mm": p.transition_len_mm,
+                "arclen_estimate_mm": p.arclen_estimate_mm,
+                "retries_grow": p.retries_grow,
+                "retries_extreme": p.retries_extreme,
+                "override_s_mm": p.override_s_mm,
+                "q_knots": ctx.knots(),
+                "q_ctrl": p.full_ctrl,
+            });
+            if let Some(out) = output {
+                plan::write_atomic(out, serde_json::to_string_pretty(&v)?.as_bytes())?;
+            }
+            if json {
+                let mut o = v.clone();
+                o["outcome"] = "profile".into();
+                o["at_s_mm"] = at.into();
+                o["lp_count"] = p.lp_count.into();
+                o["compute_time_s"] = p.compute_time_s.into();
+                if let Some(out) = output {
+                    o["profile_file"] = out.display().to_string().into();
+                }
+                println!("{}", with_schema_version(&o)?);
+                return Ok(());
+            }
             println!(
                 "override at s = {at} mm from {from} % to {to} %: {:?}\n  splice s = {:.4} mm (first changed span {}), merge s = {:.4} mm\n  \
                  transition {:.3} mm (ArcLen estimate {}), {} new control points, {} LPs, retries {} (window) + {} (Algorithm 2)\n  \
@@ -290,24 +528,6 @@ fn override_cmd(
                 p.compute_time_s * 1e3
             );
             if let Some(out) = output {
-                let v = serde_json::json!({
-                    "level": p.level,
-                    "percent": to,
-                    "from_percent": from,
-                    "first": p.first,
-                    "ctrl": p.ctrl,
-                    "splice_s_mm": p.splice_s_mm,
-                    "merge_s_mm": p.merge_s_mm,
-                    "case": format!("{:?}", p.case),
-                    "transition_len_mm": p.transition_len_mm,
-                    "arclen_estimate_mm": p.arclen_estimate_mm,
-                    "retries_grow": p.retries_grow,
-                    "retries_extreme": p.retries_extreme,
-                    "override_s_mm": p.override_s_mm,
-                    "q_knots": ctx.knots(),
-                    "q_ctrl": p.full_ctrl,
-                });
-                plan::write_atomic(out, serde_json::to_string_pretty(&v)?.as_bytes())?;
                 println!("  profile written to {}", out.display());
             }
         }

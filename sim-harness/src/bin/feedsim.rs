@@ -16,10 +16,10 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use clap::{CommandFactory, Parser, Subcommand};
-use planner_host::arclength::ArcLength;
-use planner_host::curve::Nurbs;
 use planner_host::plan::{self, PlanConfig, PlanError};
-use planner_host::{limits, sampling::Sampling, verify};
+use planner_host::ArcLength;
+use planner_host::Nurbs;
+use planner_host::{limits, plan::verify, sampling::Sampling};
 use sim_harness::check::{self, CheckConfig, CheckReport, Trajectory};
 use sim_harness::plot::{self, FeedPlot};
 use sim_harness::servo::ServoConfig;
@@ -267,33 +267,13 @@ fn main() -> ExitCode {
     }
 }
 
-/// The five benchmark toolpaths of `planner-host/curves`, built in by name.
-/// The one place that resolves curve names (`check --curve`, `report`,
-/// `override --trident`).
-const BUILTIN_CURVES: [(&str, &str); 5] = [
-    (
-        "butterfly",
-        include_str!("../../../planner-host/curves/butterfly.json"),
-    ),
-    ("circle", include_str!("../../../planner-host/curves/circle.json")),
-    ("fan", include_str!("../../../planner-host/curves/fan.json")),
-    ("star", include_str!("../../../planner-host/curves/star.json")),
-    (
-        "trident",
-        include_str!("../../../planner-host/curves/trident.json"),
-    ),
-];
-
 /// The JSON text of a built-in curve by name (case-insensitive).
 fn builtin_json(name: &str) -> Option<&'static str> {
-    BUILTIN_CURVES
-        .iter()
-        .find(|(n, _)| n.eq_ignore_ascii_case(name))
-        .map(|(_, json)| *json)
+    planner_host::builtin::json(name)
 }
 
 fn builtin_names() -> String {
-    BUILTIN_CURVES.map(|(n, _)| n).join(", ")
+    planner_host::builtin::NAMES.join(", ")
 }
 
 /// A curve argument: an existing JSON file, else the name of a built-in curve.
@@ -316,7 +296,10 @@ fn load_curve(arg: &str) -> Result<Nurbs, Failure> {
 /// the returned guard removes. No arguments: the five built-in curves.
 fn report_curve_files(args: &[String]) -> Result<(Vec<PathBuf>, TempDir), Failure> {
     let names: Vec<String> = if args.is_empty() {
-        BUILTIN_CURVES.iter().map(|(n, _)| n.to_string()).collect()
+        planner_host::builtin::NAMES
+            .iter()
+            .map(|n| n.to_string())
+            .collect()
     } else {
         args.to_vec()
     };
@@ -625,8 +608,8 @@ fn run(cli: Cli) -> Result<(), Failure> {
 
 /// `run --check`: the run's setpoints against the table's own curve and limits.
 fn check_run(bytes: &[u8], res: &SimResult, tol: f64, pad_rest: usize) -> Result<CheckReport, Failure> {
-    let table = firmware_core::table::Table::parse(bytes)
-        .map_err(|e| Failure::input(format!("table rejected: {e}")))?;
+    let table =
+        firmware_core::Table::parse(bytes).map_err(|e| Failure::input(format!("table rejected: {e}")))?;
     let geometry = sim_harness::CurveGeometry::from_table(&table)
         .map_err(|e| Failure::input(format!("the table's NURBS is not usable for the check: {e}")))?;
     let cfg = CheckConfig {

@@ -141,7 +141,7 @@ pub(crate) fn project_all(c: &RefCurve, pos: &[[f64; 3]], contour_tol: f64) -> V
 #[cfg(test)]
 mod tests {
     use super::*;
-    use planner_host::curve::Nurbs;
+    use planner_host::Nurbs;
 
     #[test]
     fn points_off_a_circle_project_radially() {

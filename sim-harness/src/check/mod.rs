@@ -46,7 +46,7 @@ pub use ratios::Peak;
 pub use report::{CheckReport, ContourPeak, Ratios, SCHEMA_VERSION};
 
 use firmware_core::Limits;
-use planner_host::curve::Nurbs;
+use planner_host::Nurbs;
 
 use ratios::Order;
 

@@ -8,7 +8,7 @@
 //! the checker judges setpoints made with those, and a mistake shared by
 //! the judge and the judged would hide itself. Only the curve's data
 //! (degree, knots, weights, points) is taken from the validated
-//! [`planner_host::curve::Nurbs`].
+//! [`planner_host::Nurbs`].
 //!
 //! Formulas, with `Pʷᵢ = (wᵢPᵢ, wᵢ)` the homogeneous control points of a
 //! degree-p spline on knots `U`:
@@ -26,7 +26,7 @@
 //! at a repeated knot the span to its right is used, and the derivatives
 //! are the one-sided ones of that span.
 
-use planner_host::curve::Nurbs;
+use planner_host::Nurbs;
 
 /// Highest degree the fixed-size buffers hold (planner-host validates 2‥=5).
 const MAX_DEGREE: usize = 7;

@@ -2,7 +2,7 @@
 
 /// Servo-period jitter of the firmware's tick interrupt.
 ///
-/// The interpolator is clocked by one [`firmware_core::interp::Interpolator::tick`] per servo
+/// The interpolator is clocked by one [`firmware_core::Interpolator::tick`] per servo
 /// period and has no notion of wall time: its setpoint for tick k is the
 /// plan at t = kT, written to a double-buffered output that the drives
 /// latch at the period boundary (as CSP drives on a distributed clock do).

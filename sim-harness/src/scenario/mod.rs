@@ -4,7 +4,7 @@
 //! Per servo tick k (t = kT):
 //!
 //! 1. downlink messages due by t reach the firmware
-//!    ([`firmware_core::interp::Interpolator::offer_override`]); each reply (accepted, or the typed
+//!    ([`firmware_core::Interpolator::offer_override`]); each reply (accepted, or the typed
 //!    refusal) goes up the link;
 //! 2. the interpolator ticks, the servos follow, and a status (s, feed, the
 //!    active profile) goes up the link;

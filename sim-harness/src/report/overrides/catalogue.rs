@@ -1,7 +1,7 @@
 //! The catalogue of override scenarios ([`catalogue`]) and the operator
 //! events and hold points of each kind.
 
-use planner_host::curve::Nurbs;
+use planner_host::Nurbs;
 
 use crate::scenario::jitter::JitterConfig;
 use crate::scenario::link::LinkConfig;

@@ -5,7 +5,7 @@
 use std::path::Path;
 
 use firmware_core::path::qspline::QSpline;
-use firmware_core::table::Table;
+use firmware_core::Table;
 
 use crate::plot::feed::{plot_feed_marked, FeedPlot, Marker, MarkerKind};
 use crate::report::overrides::run::{BoxError, Run};

@@ -1,9 +1,9 @@
 //! Plan one scenario's table with its override levels, build the host's
 //! override context, and simulate the scenario.
 
-use planner_host::arclength::ArcLength;
 use planner_host::feed_override::OverrideContext;
 use planner_host::plan::{self, PlanConfig};
+use planner_host::ArcLength;
 
 use indicatif::{ProgressBar, ProgressStyle};
 

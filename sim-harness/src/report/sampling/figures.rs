@@ -4,9 +4,9 @@
 
 use std::path::Path;
 
-use planner_host::arclength::ArcLength;
-use planner_host::curve::Nurbs;
 use planner_host::sampling;
+use planner_host::ArcLength;
+use planner_host::Nurbs;
 use plotters::prelude::*;
 
 use crate::plot::png::{draw_err, png, PlotError};

@@ -4,7 +4,7 @@
 use std::fmt::Write as _;
 
 use planner_host::sampling;
-use planner_host::verify::Ratios;
+use planner_host::Ratios;
 
 use crate::report::sampling::config::{ReportConfig, METHODS};
 use crate::report::sampling::formulation::Formulation;

@@ -2,7 +2,7 @@
 //!
 //! For every curve × density × sampling method (PAR, LEN, ADA) and every
 //! [`Formulation`], plan with [`planner_host::plan::plan_curve`], re-evaluate
-//! the plan densely ([`planner_host::verify::dense_check`]) and simulate the
+//! the plan densely ([`planner_host::plan::verify::dense_check`]) and simulate the
 //! table ([`crate::run::run_table`]). A plan that fails (an LP that does not
 //! solve, or q = 0 in mid-path, [`planner_host::plan::PlanError::Stall`]) becomes a row that
 //! says why; no table is simulated for it. The result is `OUT/README.md`

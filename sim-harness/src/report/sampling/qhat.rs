@@ -1,10 +1,10 @@
 //! The q ≤ q̂ bound and the objective: every (bound, objective) pair planned
 //! at the feed density, and where the bound a ≤ â costs time.
 
-use planner_host::curve::Nurbs;
 use planner_host::lp::{greville, BasisRow, Objective, QhatBound};
 use planner_host::plan::PlanOutput;
 use planner_host::sampling::Sampling;
+use planner_host::Nurbs;
 
 use crate::report::sampling::config::ReportConfig;
 use crate::report::sampling::formulation::Formulation;

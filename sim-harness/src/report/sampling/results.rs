@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 
 use planner_host::lp::LpStats;
-use planner_host::verify::Ratios;
+use planner_host::Ratios;
 
 /// One planned and simulated case.
 #[derive(Debug, Clone)]

@@ -3,10 +3,10 @@
 
 use std::time::Instant;
 
-use planner_host::arclength::ArcLength;
-use planner_host::curve::Nurbs;
 use planner_host::plan::{self, PlanConfig, PlanError, PlanOutput};
 use planner_host::sampling::Sampling;
+use planner_host::ArcLength;
+use planner_host::Nurbs;
 
 use crate::report::sampling::config::ReportConfig;
 use crate::report::sampling::formulation::Formulation;
@@ -29,7 +29,7 @@ pub(crate) fn plan_one(
         objective: f.objective,
         qhat_bound: f.qhat_bound,
         // the paper's plans: q(0) = q(L) = 0, acceleration steps at the ends
-        ends: planner_host::ends::EndMode::Step,
+        ends: planner_host::EndMode::Step,
         ..PlanConfig::default()
     };
     plan::plan_curve(curve, &pc)

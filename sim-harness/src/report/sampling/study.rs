@@ -4,8 +4,8 @@
 
 use std::time::Instant;
 
-use planner_host::arclength::ArcLength;
-use planner_host::curve::Nurbs;
+use planner_host::ArcLength;
+use planner_host::Nurbs;
 
 use crate::plot::png::register_font;
 use crate::report::sampling::config::{ReportConfig, ReportError, METHODS};

@@ -1,17 +1,14 @@
-//! The two linear programs of §2.1: the pseudo-jerk LP and the plan LP.
+//! The LP of q(s) on one knot vector: its evaluation points, limits,
+//! objective and solver settings ([`FeedLp`]), the rows of each limit, and
+//! the one place every LP is built and solved ([`FeedLp::solve_rows`]).
 //!
 //! The squared feedrate q(s) = ṡ² = Σ N_{i,4}(s) a_i is an order-4 B-spline
 //! over arc length on the knot vector (17) built from a sampling Γ. The
-//! constraints (8), (9), (11), (12) — and for the plan also (14), (15) — are
-//! evaluated at the Greville points (18) of that knot vector, one row pair per
-//! axis and limit, each row touching at most four control points, so the
-//! constraint matrix is banded and sparse. Both LPs are solved with Clarabel.
-//!
-//! Stage 1 (pseudo-jerk): maximise ∫q ds subject to (8)(9)(11)(12) → â.
-//! Stage 2 (plan): the same, plus the jerk rows (14)(15) linearised by
-//! √q̂(g) at each Greville point, plus a ≤ â (so q ≤ q̂ everywhere, since the
-//! basis is non-negative: this is what makes (14)(15) bound the true jerk
-//! (10)(13)). In both, q(0) = q(L) = 0 (a_1 = a_N = 0 are eliminated).
+//! constraints (8), (9), (11), (12) — and with the jerk also (14), (15) — are
+//! evaluated at points of that knot vector, one row pair per axis and limit,
+//! each row touching at most four control points, so the constraint matrix
+//! is banded and sparse: solved by the banded interior-point method
+//! (`crate::lp::banded_ipm`) or by Clarabel.
 
 use std::time::Instant;
 
@@ -19,15 +16,11 @@ use clarabel::algebra::CscMatrix;
 use clarabel::solver::{
     DefaultSettingsBuilder, DefaultSolver, IPSolver, NonnegativeConeT, SolverStatus, SupportedConeT,
 };
-use firmware_core::math::basis::{ders_basis, find_span, window, BasisDerivs, MAX_DEGREE, MAX_DERIV};
 use firmware_core::Limits;
 
-use crate::arclength::PathDerivs;
-use crate::ends::EndRows;
-
-/// Order of q(s) (cubic B-spline), written d in the paper.
-pub const ORDER: usize = 4;
-const DEGREE: usize = ORDER - 1;
+use crate::geometry::arc_length::PathDerivs;
+use crate::lp::basis_rows::{BasisRow, ORDER};
+use crate::lp::end_rows::EndRows;
 
 /// Which LP a result or an error belongs to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
@@ -37,7 +30,7 @@ pub enum Stage {
     PseudoJerk,
     /// Stage 2: with jerk rows linearised by √q̂, gives the plan.
     Plan,
-    /// One LP of the certified formulation's sequence ([`crate::certified`]).
+    /// One LP of the certified formulation's sequence (`crate::lp::trust_region`).
     Linearised,
 }
 
@@ -151,65 +144,6 @@ pub struct LpStats {
     pub solve_time_s: f64,
 }
 
-/// Knot vector (17): the sampling Γ = {0 = s_1, …, s_K = L} with its end
-/// knots repeated `ORDER` times.
-pub fn knot_vector(samples: &[f64]) -> Vec<f64> {
-    let (first, last) = match (samples.first(), samples.last()) {
-        (Some(&f), Some(&l)) => (f, l),
-        _ => return Vec::new(),
-    };
-    let mut u = Vec::with_capacity(samples.len() + 2 * ORDER - 2);
-    u.extend(std::iter::repeat_n(first, ORDER));
-    u.extend_from_slice(&samples[1..samples.len() - 1]);
-    u.extend(std::iter::repeat_n(last, ORDER));
-    u
-}
-
-/// Greville points (18), read as ERRATA.md says: one per control point,
-/// g_i = (U_{i+1} + U_{i+2} + U_{i+3})/3, so g_1 = 0 and g_N = L.
-pub fn greville(knots: &[f64]) -> Vec<f64> {
-    let n = knots.len().saturating_sub(ORDER);
-    (0..n)
-        .map(|i| knots[i + 1..i + ORDER].iter().sum::<f64>() / DEGREE as f64)
-        .collect()
-}
-
-/// q and its first two s-derivatives as sparse rows: the basis functions
-/// N_{first..first+4}(s) and their derivatives at one point.
-#[derive(Debug, Clone, Copy)]
-pub struct BasisRow {
-    /// Index of the first control point with a non-zero basis function.
-    pub first: usize,
-    /// `d[k][j]` = k-th derivative of N_{first+j} at the point.
-    pub d: [[f64; ORDER]; 3],
-}
-
-impl BasisRow {
-    /// Evaluate at `s` on `knots` (order 4). `None` if `s` has no span.
-    pub fn at(knots: &[f64], s: f64) -> Option<Self> {
-        let span = find_span(knots, DEGREE, s)?;
-        let mut ders: BasisDerivs = [[0.0; MAX_DEGREE + 1]; MAX_DERIV + 1];
-        if !ders_basis(window(knots, DEGREE, span)?, DEGREE, s, 2, &mut ders) {
-            return None;
-        }
-        let mut d = [[0.0; ORDER]; 3];
-        for (k, row) in d.iter_mut().enumerate() {
-            row.copy_from_slice(&ders[k][..ORDER]);
-        }
-        Some(BasisRow {
-            first: span - DEGREE,
-            d,
-        })
-    }
-
-    /// k-th derivative of q = Σ N_i a_i at the point.
-    pub fn apply(&self, k: usize, a: &[f64]) -> f64 {
-        (0..ORDER)
-            .map(|j| self.d[k][j] * a.get(self.first + j).copied().unwrap_or(0.0))
-            .sum()
-    }
-}
-
 /// Everything the LPs need at one evaluation (Greville) point.
 #[derive(Debug, Clone, Copy)]
 pub struct EvalPoint {
@@ -236,7 +170,7 @@ pub struct FeedLp<'a> {
     pub qhat_bound: QhatBound,
     /// Interior-point settings.
     pub settings: SolverSettings,
-    /// Jerk-limited start and stop segments ([`crate::ends`]): their join
+    /// Jerk-limited start and stop segments (`crate::lp::end_rows`): their join
     /// rows are added to both LPs; `None`: q(0) = q(L) = 0 with a step.
     pub ends: Option<&'a EndRows>,
 }
@@ -295,7 +229,7 @@ pub struct SolverSettings {
     pub tol_feas: f64,
     /// Ruiz equilibration on or off.
     pub equilibrate: bool,
-    /// Use the banded interior-point solver ([`crate::ipm`]) instead of
+    /// Use the banded interior-point solver (`crate::lp::banded_ipm`) instead of
     /// Clarabel (which stays the fallback if it fails).
     pub banded: bool,
     /// Iteration limit of the banded solver alone (None: `max_iter`). A
@@ -350,48 +284,6 @@ impl<'a> FeedLp<'a> {
         q
     }
 
-    /// Rows of one evaluation point: (8)(11) as one row, ±(9), ±(12), and when
-    /// `sqrt_qhat` is given, ±(14), ±(15) with that linearisation.
-    fn point_rows(&self, p: &EvalPoint, sqrt_qhat: Option<f64>, out: &mut Vec<Row>) {
-        let b = &p.basis;
-        let idx = core::array::from_fn(|j| b.first + j);
-        let lim = &self.limits;
-        let mut push = |coef: [f64; ORDER], rhs: f64, both: bool| {
-            out.push(Row { idx, val: coef, rhs });
-            if both {
-                out.push(Row {
-                    idx,
-                    val: coef.map(|c| -c),
-                    rhs,
-                });
-            }
-        };
-        // (8), (11): q ≤ q_max
-        push(b.d[0], self.q_max(&p.geo), false);
-        // (9): |r″ q + ½ r′ q′| ≤ A_k
-        for k in 0..3 {
-            let c = core::array::from_fn(|j| p.geo.d2[k] * b.d[0][j] + 0.5 * p.geo.d1[k] * b.d[1][j]);
-            push(c, lim.a[k], true);
-        }
-        // (12): |½ q′| ≤ Ā
-        push(b.d[1].map(|c| 0.5 * c), lim.abar, true);
-        if let Some(sq) = sqrt_qhat {
-            if sq > 0.0 {
-                // (14): |r‴ q + 3/2 r″ q′ + ½ r′ q″| ≤ J_k / √q̂
-                for k in 0..3 {
-                    let c = core::array::from_fn(|j| {
-                        p.geo.d3[k] * b.d[0][j]
-                            + 1.5 * p.geo.d2[k] * b.d[1][j]
-                            + 0.5 * p.geo.d1[k] * b.d[2][j]
-                    });
-                    push(c, lim.j[k] / sq, true);
-                }
-                // (15): |½ q″| ≤ J̄ / √q̂
-                push(b.d[2].map(|c| 0.5 * c), lim.jbar / sq, true);
-            }
-        }
-    }
-
     /// Objective weights c_i for all N control points.
     pub(crate) fn weights(&self) -> Vec<f64> {
         let n = self.n_ctrl();
@@ -403,34 +295,8 @@ impl<'a> FeedLp<'a> {
         }
     }
 
-    /// Stage 1: the pseudo-jerk LP, rows (8)(9)(11)(12).
-    pub fn solve_pseudo_jerk(&self) -> Result<LpSolution, LpError> {
-        self.solve(Stage::PseudoJerk, None)
-    }
-
-    /// Stage 2: the plan LP, rows (8)(9)(11)(12)(14)(15) and a ≤ â, with the
-    /// jerk rows linearised by the pseudo-jerk control points `qhat`.
-    pub fn solve_plan(&self, qhat: &[f64]) -> Result<LpSolution, LpError> {
-        self.solve(Stage::Plan, Some(qhat))
-    }
-
-    fn solve(&self, stage: Stage, qhat: Option<&[f64]>) -> Result<LpSolution, LpError> {
-        let t0 = Instant::now();
-        let mut rows = Vec::with_capacity(self.points.len() * 17);
-        for p in self.points {
-            let qh = qhat.map(|a| p.basis.apply(0, a).max(0.0));
-            // Inside an end segment q is not executed: no jerk rows there.
-            self.point_rows(p, qh.filter(|_| self.executes(p.s)).map(f64::sqrt), &mut rows);
-            if let (Some(qh), QhatBound::EvalPoints) = (qh, self.qhat_bound) {
-                rows.push(Row::q_at(&p.basis, qh));
-            }
-        }
-        let upper = qhat.filter(|_| self.qhat_bound == QhatBound::ControlPoints);
-        self.solve_rows(stage, &rows, upper, &self.weights(), t0, None, None)
-    }
-
     /// Rows of one kind of limit at one evaluation point, for the certified
-    /// formulation ([`crate::certified`]): `sqrt_qbar` is √q̄ of the
+    /// formulation (`crate::lp::trust_region`): `sqrt_qbar` is √q̄ of the
     /// linearisation (14)(15), valid where the row `q ≤ q̄` is present too.
     pub(crate) fn kind_rows(&self, p: &EvalPoint, kind: RowKind, sqrt_qbar: f64, out: &mut Vec<Row>) {
         let b = &p.basis;
@@ -454,7 +320,7 @@ impl<'a> FeedLp<'a> {
     }
 
     /// `true` where q is executed: everywhere without end segments, on
-    /// [s₁, s₂] with them ([`crate::ends`]).
+    /// [s₁, s₂] with them (`crate::lp::end_rows`).
     pub fn executes(&self, s: f64) -> bool {
         self.ends.is_none_or(|e| e.executes(s))
     }
@@ -464,7 +330,7 @@ impl<'a> FeedLp<'a> {
     /// their rows q(s₁) ≤ Q₁, q(s₂) ≤ Q₂ are added and their join equalities
     /// are eliminated: at a knot they involve three control points, the
     /// outer two become fixed multiples of the middle one (the LP keeps its
-    /// band of width 4 for [`crate::ipm`]). The one place every LP goes
+    /// band of width 4 for `crate::lp::banded_ipm`). The one place every LP goes
     /// through.
     ///
     /// `fixed[i] = Some(x)` fixes control point i to x (the override window
@@ -637,7 +503,7 @@ impl<'a> FeedLp<'a> {
                         .map(|v| a.get(v + 1).copied().unwrap_or(0.0) / scale)
                         .collect(),
                 });
-                let r = crate::ipm::solve(
+                let r = crate::lp::banded_ipm::solve(
                     nv,
                     &rows,
                     &b,
@@ -757,10 +623,10 @@ fn join_substitution(ends: &EndRows, n: usize) -> Option<Vec<Option<(usize, f64)
     Some(subst)
 }
 
-/// Rows of ≤ 4 consecutive columns for [`crate::ipm`], from (row, col, value) triplets.
-fn band_rows(trip: &[(usize, usize, f64)], m: usize, nv: usize) -> Vec<crate::ipm::BandRow> {
+/// Rows of ≤ 4 consecutive columns for `crate::lp::banded_ipm`, from (row, col, value) triplets.
+fn band_rows(trip: &[(usize, usize, f64)], m: usize, nv: usize) -> Vec<crate::lp::banded_ipm::BandRow> {
     let mut rows = vec![
-        crate::ipm::BandRow {
+        crate::lp::banded_ipm::BandRow {
             first: usize::MAX,
             val: [0.0; 4],
         };
@@ -799,6 +665,7 @@ fn csc_from_triplets(m: usize, n: usize, trip: &mut [(usize, usize, f64)]) -> Cs
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::lp::basis_rows::{greville, knot_vector};
 
     #[test]
     fn a_solver_failure_names_the_stage_and_status() {
@@ -833,31 +700,5 @@ mod tests {
         let msg = err.to_string();
         assert!(msg.starts_with("pseudo-jerk LP failed: solver status"), "{msg}");
         assert!(!err.status.is_empty() && err.status != "Solved", "{msg}");
-    }
-
-    #[test]
-    fn knots_and_greville_follow_17_and_18() {
-        let samples = [0.0, 1.0, 2.0, 3.0, 4.0];
-        let u = knot_vector(&samples);
-        assert_eq!(u, vec![0.0, 0.0, 0.0, 0.0, 1.0, 2.0, 3.0, 4.0, 4.0, 4.0, 4.0]);
-        let g = greville(&u);
-        assert_eq!(g.len(), u.len() - ORDER);
-        assert_eq!(g[0], 0.0);
-        assert_eq!(*g.last().unwrap(), 4.0);
-        assert!((g[1] - 1.0 / 3.0).abs() < 1e-15);
-        assert!(g.windows(2).all(|w| w[0] < w[1]));
-    }
-
-    #[test]
-    fn basis_row_reproduces_a_linear_function() {
-        // Control points at the Greville abscissae reproduce q(s) = s exactly.
-        let u = knot_vector(&[0.0, 0.7, 1.5, 2.0, 3.2, 4.0]);
-        let g = greville(&u);
-        for &s in &[0.0, 0.3, 1.0, 2.5, 4.0] {
-            let b = BasisRow::at(&u, s).unwrap();
-            assert!((b.apply(0, &g) - s).abs() < 1e-12);
-            assert!((b.apply(1, &g) - 1.0).abs() < 1e-12);
-            assert!(b.apply(2, &g).abs() < 1e-10);
-        }
     }
 }

@@ -41,9 +41,9 @@
 //! the q ≤ q̄ and jerk rows at the knots (with the bounds 0 ≤ a_i ≤ v̄² on
 //! every control point), and at any check point the rows whose exact value at
 //! the last iterate exceeded `activity` × limit (a row, once in, stays in).
-//! Each LP's interior-point solve starts from the last plan ([`crate::ipm`])
+//! Each LP's interior-point solve starts from the last plan ([`crate::lp::banded_ipm`])
 //! and stops at a relative gap of [`LP_TOL`]. After each LP the exact
-//! kinematics (eqs. 1–6 as in [`crate::verify`]) are evaluated at every check
+//! kinematics (eqs. 1–6 as in [`crate::plan::verify`]) are evaluated at every check
 //! point; the best iterate with every exact ratio ≤ 1 + `tol` is the plan.
 //! This keeps the LPs at a few thousand banded rows (≤ 4 non-zeros each).
 //!
@@ -55,8 +55,9 @@
 
 use std::time::Instant;
 
-use crate::lp::{EvalPoint, FeedLp, LpError, LpStats, Row, RowKind, SolverSettings, Stage, ORDER};
-use crate::verify::Ratios;
+use crate::limits::Ratios;
+use crate::lp::basis_rows::ORDER;
+use crate::lp::problem::{EvalPoint, FeedLp, LpError, LpStats, Row, RowKind, SolverSettings, Stage};
 
 /// Objective of each LP of the sequence.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
@@ -74,7 +75,7 @@ pub struct CertifiedConfig {
     /// Check points per knot span of q (knots included).
     pub checks_per_span: usize,
     /// Knot refinement: largest turning angle ∫|κ| ds of a knot span, rad
-    /// ([`crate::plan::refine_turning`]); 0 or ∞ turns it off.
+    /// (`crate::plan::knots::refine_turning`); 0 or ∞ turns it off.
     pub max_turn_rad: f64,
     /// Largest number of LPs.
     pub max_lps: usize,
@@ -201,10 +202,10 @@ fn static_cap(lp: &FeedLp, p: &EvalPoint) -> f64 {
 }
 
 /// The share of the jerk limit the continuous jerk may use at `s`: 1 − β
-/// within 1e-6 mm of a curvature jump in `caps` ([`crate::junction`]), else 1.
+/// within 1e-6 mm of a curvature jump in `caps` ([`crate::geometry::junction`]), else 1.
 fn jerk_share(s: f64, caps: &[(f64, f64)]) -> f64 {
     if caps.iter().any(|&(c, _)| (s - c).abs() <= 1e-6) {
-        1.0 - crate::junction::JUMP_JERK_SHARE
+        1.0 - crate::geometry::junction::JUMP_JERK_SHARE
     } else {
         1.0
     }
@@ -238,7 +239,7 @@ pub fn violations(
 /// Run the certified sequence on `lp`, whose `points` are the check points
 /// (sorted by s; `is_knot[i]` marks those on a knot of q, which always carry rows).
 ///
-/// `caps` are the curvature jumps ([`crate::junction`]) as `(s, q_cap)`:
+/// `caps` are the curvature jumps ([`crate::geometry::junction`]) as `(s, q_cap)`:
 /// the row q(s) ≤ q_cap, and at the check points within 1e-6 mm of s the
 /// jerk rows and the exact check held to (1 − β)·J.
 pub fn solve(
@@ -313,7 +314,7 @@ pub fn solve_window(
     }
     rows.extend(
         caps.iter()
-            .filter_map(|&(s, cap)| Some(Row::q_at(&crate::lp::BasisRow::at(lp.knots, s)?, cap))),
+            .filter_map(|&(s, cap)| Some(Row::q_at(&crate::lp::basis_rows::BasisRow::at(lp.knots, s)?, cap))),
     );
     let upper = vec![lp.limits.vbar * lp.limits.vbar; n];
     let pseudo = lp.solve_rows(
@@ -371,7 +372,7 @@ fn window_time(lp: &FeedLp, ctrl: &[f64]) -> f64 {
     };
     let lo = lp.knots[lp.knots.partition_point(|&u| u <= a.s).saturating_sub(1)];
     let hi = lp.knots[lp.knots.partition_point(|&u| u < b.s).min(lp.knots.len() - 1)];
-    crate::plan::machining_time_between(lp.knots, ctrl, lo, hi)
+    crate::lp::machining_time::machining_time_between(lp.knots, ctrl, lo, hi)
 }
 
 fn solve_with(
@@ -388,7 +389,7 @@ fn solve_with(
     let jerk_share: Vec<f64> = pts.iter().map(|p| jerk_share(p.s, caps)).collect();
     let cap_rows: Vec<Row> = caps
         .iter()
-        .filter_map(|&(s, cap)| Some(Row::q_at(&crate::lp::BasisRow::at(lp.knots, s)?, cap)))
+        .filter_map(|&(s, cap)| Some(Row::q_at(&crate::lp::basis_rows::BasisRow::at(lp.knots, s)?, cap)))
         .collect();
     let n = lp.n_ctrl();
     let lim = lp.limits;
@@ -405,7 +406,7 @@ fn solve_with(
     // the control-point bound a_i ≤ v̄² makes the feed (11) hold everywhere (convex hull)
     let upper = vec![lim.vbar * lim.vbar; n];
     let floor = (FLOOR_FEED_REL * lim.vbar).powi(2);
-    // Inside the end segments ([`crate::ends`]) q is not executed: no rows,
+    // Inside the end segments ([`crate::lp::end_rows`]) q is not executed: no rows,
     // no check, no time there.
     let executed: Vec<bool> = pts.iter().map(|p| lp.executes(p.s)).collect();
     let ds: Vec<f64> = {
@@ -614,7 +615,7 @@ fn solve_with(
                 rows.len(),
                 lps[lps.len() - 1].iterations,
                 lps[lps.len() - 1].solve_time_s * 1e3,
-                crate::plan::plan_time(lp.knots, &sol.ctrl, lp.ends),
+                crate::lp::machining_time::plan_time(lp.knots, &sol.ctrl, lp.ends),
                 ratios,
                 q_now[1..q_now.len() - 1]
                     .iter()
@@ -627,7 +628,7 @@ fn solve_with(
             // a window is judged by its own time (its spans' ∫ds/√q): the
             // rest of the path does not change
             let t = match &win {
-                None => crate::plan::plan_time(lp.knots, &sol.ctrl, lp.ends),
+                None => crate::lp::machining_time::plan_time(lp.knots, &sol.ctrl, lp.ends),
                 Some(_) => window_time(lp, &sol.ctrl),
             };
             let better = best.as_ref().is_none_or(|b| t < b.0);

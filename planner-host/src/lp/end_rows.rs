@@ -41,7 +41,7 @@
 //! magnitude of each bracket over [`GEO_SAMPLES`] values of τ, raised by
 //! [`GEO_MARGIN`] for what lies between them, turns every limit into one
 //! upper bound on Q = q(s₁): a single linear row `q(s₁) ≤ Q_max`. The dense
-//! check ([`crate::verify::dense_check_ends`]) re-evaluates the segments in
+//! check ([`crate::plan::verify::dense_check_ends`]) re-evaluates the segments in
 //! time.
 //!
 //! Where the joins go: s₁ is a knot of q (then q on [0, s₁] — not executed —
@@ -59,8 +59,8 @@
 use firmware_core::{EndSegments, Limits};
 use serde::Serialize;
 
-use crate::arclength::PathDerivs;
-use crate::lp::{BasisRow, ORDER};
+use crate::geometry::arc_length::PathDerivs;
+use crate::lp::basis_rows::{BasisRow, ORDER};
 
 /// Values of τ per segment at which the limit brackets are maximised.
 pub const GEO_SAMPLES: usize = 257;

@@ -1,7 +1,7 @@
-//! The toolpath: a rational NURBS curve in three axes (mm), loaded from the
-//! `shared/curves` JSON format, validated, and evaluated with derivatives.
+//! The toolpath: a rational NURBS curve in three axes (mm), validated and
+//! evaluated with derivatives (its file format: [`crate::geometry::curve_json`]).
 //!
-//! Evaluation reuses [`firmware_core::basis`] (Piegl & Tiller A2.2/A2.3) on
+//! Evaluation reuses [`firmware_core::math::basis`] (Piegl & Tiller A2.2/A2.3) on
 //! homogeneous control points `(w·x, w·y, w·z, w)`; derivatives of the
 //! rational curve follow from the homogeneous ones by the Leibniz rule
 //! (Piegl & Tiller eq. 4.8, algorithm A4.2):
@@ -9,197 +9,15 @@
 //!
 //! **Degree.** Degrees 2 to 5 are accepted; degree 1 (polylines) is
 //! **refused** — the planner needs r″ and r‴ along the path, which a
-//! polyline does not have (the issue's range is 2 to 5). A straight line is
+//! polyline does not have (the supported range is 2 to 5). A straight line is
 //! available as a degree-2 curve, [`Nurbs::line`].
 
-use std::path::Path;
-
 use firmware_core::math::basis::{self, BasisDerivs, MAX_DEGREE, MAX_DERIV};
-use serde_json::Value;
+
+use crate::geometry::curve_error::CurveError;
 
 /// Lowest accepted degree.
 pub const MIN_DEGREE: usize = 2;
-
-/// Why a toolpath is unusable, or why a geometric computation on it failed.
-///
-/// Every message names the offending field (with its index) as it is
-/// spelled in the JSON file, so a user can find it.
-#[derive(Debug, thiserror::Error)]
-#[non_exhaustive]
-pub enum CurveError {
-    /// The file could not be read.
-    #[error("cannot read {path}: {source}")]
-    Io {
-        /// The file.
-        path: String,
-        /// Why.
-        source: std::io::Error,
-    },
-    /// The text is not JSON.
-    #[error("{path}: not valid JSON: {source}")]
-    Json {
-        /// The file, or `<string>`.
-        path: String,
-        /// The parser's message (line and column).
-        source: serde_json::Error,
-    },
-    /// A problem found in a file, wrapped with the file's name.
-    #[error("{path}: {source}")]
-    InFile {
-        /// The file.
-        path: String,
-        /// The problem.
-        source: Box<CurveError>,
-    },
-    /// A required key is missing or has the wrong JSON type.
-    #[error("{field}: {message}")]
-    Field {
-        /// The key, with index where it applies (`control_points[2][1]`).
-        field: String,
-        /// What is wrong.
-        message: String,
-    },
-    /// The degree is outside 2‥=5.
-    #[error("degree = {degree} is not supported: degree must be 2 to 5")]
-    Degree {
-        /// The degree given.
-        degree: usize,
-    },
-    /// Not enough control points for the degree.
-    #[error("control_points: a degree-{degree} curve needs at least {need} control points, got {got}")]
-    TooFewControlPoints {
-        /// Degree.
-        degree: usize,
-        /// degree + 1.
-        need: usize,
-        /// Count given.
-        got: usize,
-    },
-    /// A list has the wrong length.
-    #[error("expected {expected} {field} ({why}), got {got}")]
-    Count {
-        /// `weights` or `knots`.
-        field: &'static str,
-        /// Required length.
-        expected: usize,
-        /// Length given.
-        got: usize,
-        /// The rule.
-        why: String,
-    },
-    /// NaN or infinite number.
-    #[error("{field} is {value} (every number must be finite)")]
-    NotFinite {
-        /// e.g. `control_points[2][1]`.
-        field: String,
-        /// The value.
-        value: f64,
-    },
-    /// A weight ≤ 0.
-    #[error("weights[{index}] must be positive, got {value}")]
-    NonPositiveWeight {
-        /// Index.
-        index: usize,
-        /// Value.
-        value: f64,
-    },
-    /// Knots decrease.
-    #[error("knots[{index}] = {value} is smaller than knots[{prev_index}] = {prev}: knots must be non-decreasing", prev_index = .index - 1)]
-    Decreasing {
-        /// Index of the smaller knot.
-        index: usize,
-        /// Its value.
-        value: f64,
-        /// The knot before it.
-        prev: f64,
-    },
-    /// The knot vector is not clamped (first and last `degree + 1` knots equal).
-    #[error("knots[{index}] = {value} differs from knots[{first}] = {expected}: the knot vector must be clamped ({which} degree + 1 = {count} knots equal)")]
-    NotClamped {
-        /// "first" or "last".
-        which: &'static str,
-        /// Offending index.
-        index: usize,
-        /// Its value.
-        value: f64,
-        /// Index of the end knot compared with.
-        first: usize,
-        /// The end knot's value.
-        expected: f64,
-        /// degree + 1.
-        count: usize,
-    },
-    /// A knot value repeats too often.
-    #[error(
-        "knots[{first}..={last}] = {value} has multiplicity {multiplicity}, more than {allowed} ({why})"
-    )]
-    Multiplicity {
-        /// First index with this value.
-        first: usize,
-        /// Last index with this value.
-        last: usize,
-        /// The value.
-        value: f64,
-        /// How often it occurs.
-        multiplicity: usize,
-        /// The most allowed.
-        allowed: usize,
-        /// The rule.
-        why: &'static str,
-    },
-    /// The parameter range `[knots[degree], knots[n]]` is empty.
-    #[error("knots: the parameter range knots[{lo}] = {start} .. knots[{hi}] = {end} is empty")]
-    EmptyRange {
-        /// Index `degree`.
-        lo: usize,
-        /// Index `n` (number of control points).
-        hi: usize,
-        /// Start value.
-        start: f64,
-        /// End value.
-        end: f64,
-    },
-    /// |dC/du| vanishes: arc length cannot parametrise the curve there.
-    #[error("the curve stands still (|dC/du| = 0) near u = {u}: a cusp or repeated control points; the s -> u map is singular there")]
-    ZeroSpeed {
-        /// Parameter where it happens.
-        u: f64,
-    },
-    /// A numerical argument is out of range (names the argument).
-    #[error("{name} = {value} is invalid: {rule}")]
-    Argument {
-        /// Argument name, with unit.
-        name: &'static str,
-        /// Given value.
-        value: f64,
-        /// The rule.
-        rule: &'static str,
-    },
-    /// The s → u fit did not reach its tolerance.
-    #[error("s -> u map: could not reach {tol_mm:e} mm in knot span {span} near s = {s_mm} mm (error {err_mm:e} mm after splitting to {len_mm:e} mm segments)")]
-    FitFailed {
-        /// Knot span.
-        span: usize,
-        /// Where.
-        s_mm: f64,
-        /// Error reached.
-        err_mm: f64,
-        /// Tolerance asked.
-        tol_mm: f64,
-        /// Segment length reached.
-        len_mm: f64,
-    },
-    /// The sampling points are not strictly increasing (degenerate curve or too many points).
-    #[error("sampling: point {index} at s = {s_mm} mm does not lie beyond the previous one ({prev_mm} mm); the curve has a zero-length stretch or too many points were asked")]
-    NotIncreasing {
-        /// Index of the offending point.
-        index: usize,
-        /// Its arc length.
-        s_mm: f64,
-        /// The previous one.
-        prev_mm: f64,
-    },
-}
 
 /// A rational NURBS toolpath: `C(u) = Σ Nᵢ,ₚ(u) wᵢ Pᵢ / Σ Nᵢ,ₚ(u) wᵢ`,
 /// control points in mm (Cartesian, not multiplied by the weight).
@@ -222,61 +40,6 @@ pub struct Nurbs {
     pub points: Vec<[f64; 3]>,
 }
 
-fn json_num(v: &Value, field: impl Fn() -> String) -> Result<f64, CurveError> {
-    match v {
-        Value::Number(n) => n.as_f64().ok_or_else(|| CurveError::Field {
-            field: field(),
-            message: format!("{n} is not representable as a 64-bit float"),
-        }),
-        Value::String(s) => Err(CurveError::Field {
-            field: field(),
-            message: format!(
-                "must be a number, got the string {s:?} (JSON has no NaN or infinity; numbers must be finite)"
-            ),
-        }),
-        other => Err(CurveError::Field {
-            field: field(),
-            message: format!("must be a number, got {}", kind(other)),
-        }),
-    }
-}
-
-fn kind(v: &Value) -> &'static str {
-    match v {
-        Value::Null => "null",
-        Value::Bool(_) => "a boolean",
-        Value::Number(_) => "a number",
-        Value::String(_) => "a string",
-        Value::Array(_) => "an array",
-        Value::Object(_) => "an object",
-    }
-}
-
-fn json_array<'a>(
-    obj: &'a serde_json::Map<String, Value>,
-    key: &'static str,
-) -> Result<&'a [Value], CurveError> {
-    match obj.get(key) {
-        Some(Value::Array(a)) => Ok(a),
-        Some(other) => Err(CurveError::Field {
-            field: key.into(),
-            message: format!("must be an array, got {}", kind(other)),
-        }),
-        None => Err(CurveError::Field {
-            field: key.into(),
-            message: "missing (required key)".into(),
-        }),
-    }
-}
-
-fn json_floats(obj: &serde_json::Map<String, Value>, key: &'static str) -> Result<Vec<f64>, CurveError> {
-    json_array(obj, key)?
-        .iter()
-        .enumerate()
-        .map(|(i, v)| json_num(v, || format!("{key}[{i}]")))
-        .collect()
-}
-
 impl Nurbs {
     /// A validated curve from its parts; the name is `"curve"`.
     pub fn new(
@@ -295,120 +58,6 @@ impl Nurbs {
         c.validate()?;
         Ok(c)
     }
-
-    /// Parse the `shared/curves` JSON format: keys `degree`, `knots`,
-    /// `weights`, `control_points` (`[[x, y, z], …]` in mm, Cartesian;
-    /// `[x, y]` gets z = 0) and optional `name`; other keys are ignored.
-    /// The curve is validated.
-    pub fn from_json_str(text: &str) -> Result<Nurbs, CurveError> {
-        let mut c = Self::parse(text, "<string>")?;
-        if c.name.is_empty() {
-            c.name = "curve".into();
-        }
-        Ok(c)
-    }
-
-    /// Read and parse a curve file (see [`Nurbs::from_json_str`]); errors
-    /// carry the path. Without a `name` key the file stem is the name.
-    pub fn load(path: &Path) -> Result<Nurbs, CurveError> {
-        let shown = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|source| CurveError::Io {
-            path: shown.clone(),
-            source,
-        })?;
-        let mut c = Self::parse(&text, &shown).map_err(|e| match e {
-            e @ CurveError::Json { .. } => e,
-            e => CurveError::InFile {
-                path: shown.clone(),
-                source: Box::new(e),
-            },
-        })?;
-        if c.name.is_empty() {
-            c.name = path
-                .file_stem()
-                .map(|s| s.to_string_lossy().into_owned())
-                .unwrap_or_default();
-        }
-        Ok(c)
-    }
-
-    fn parse(text: &str, path: &str) -> Result<Nurbs, CurveError> {
-        let v: Value = serde_json::from_str(text).map_err(|source| CurveError::Json {
-            path: path.to_string(),
-            source,
-        })?;
-        let Value::Object(obj) = &v else {
-            return Err(CurveError::Field {
-                field: "(top level)".into(),
-                message: format!("must be an object, got {}", kind(&v)),
-            });
-        };
-        let name = match obj.get("name") {
-            None | Some(Value::Null) => String::new(),
-            Some(Value::String(s)) => s.clone(),
-            Some(other) => {
-                return Err(CurveError::Field {
-                    field: "name".into(),
-                    message: format!("must be a string, got {}", kind(other)),
-                })
-            }
-        };
-        let degree = match obj.get("degree") {
-            None => {
-                return Err(CurveError::Field {
-                    field: "degree".into(),
-                    message: "missing (required key)".into(),
-                })
-            }
-            // an integral float such as 3.0 is accepted too
-            Some(d) => match d.as_u64().or_else(|| {
-                d.as_f64()
-                    .filter(|x| x.fract() == 0.0 && *x >= 0.0)
-                    .map(|x| x as u64)
-            }) {
-                Some(d) => usize::try_from(d).unwrap_or(usize::MAX),
-                None => {
-                    return Err(CurveError::Field {
-                        field: "degree".into(),
-                        message: format!("must be an integer from 2 to 5, got {d}"),
-                    })
-                }
-            },
-        };
-        let knots = json_floats(obj, "knots")?;
-        let weights = json_floats(obj, "weights")?;
-        let raw = json_array(obj, "control_points")?;
-        let mut points = Vec::with_capacity(raw.len());
-        for (i, p) in raw.iter().enumerate() {
-            let Value::Array(xyz) = p else {
-                return Err(CurveError::Field {
-                    field: format!("control_points[{i}]"),
-                    message: format!("must be an array [x, y, z] (mm), got {}", kind(p)),
-                });
-            };
-            if !(2..=3).contains(&xyz.len()) {
-                return Err(CurveError::Field {
-                    field: format!("control_points[{i}]"),
-                    message: format!("must be [x, y] or [x, y, z] (mm), got {} numbers", xyz.len()),
-                });
-            }
-            let mut q = [0.0; 3];
-            for (j, c) in xyz.iter().enumerate() {
-                q[j] = json_num(c, || format!("control_points[{i}][{j}]"))?;
-            }
-            points.push(q);
-        }
-        let c = Nurbs {
-            name,
-            degree,
-            knots,
-            weights,
-            points,
-        };
-        c.validate()?;
-        Ok(c)
-    }
-
     /// Check every rule, in this order, and report the first violation:
     /// degree 2‥=5; at least degree + 1 control points; one weight per
     /// control point; `n + degree + 1` knots; every number finite; positive
@@ -654,7 +303,7 @@ impl Nurbs {
     }
 
     /// Every non-empty span's homogeneous polynomial in power form, for fast
-    /// repeated evaluation ([`SpanPolys`]).
+    /// repeated evaluation (`SpanPolys`).
     #[allow(clippy::needless_range_loop)] // a small dense solve, written with indices
     pub fn span_polys(&self) -> SpanPolys {
         let p = self.degree.min(MAX_DEGREE);
@@ -881,30 +530,16 @@ pub(crate) fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
+    use std::path::Path;
 
-    /// The shared benchmark curves directory (`../shared/curves` beside the checkout).
-    pub(crate) fn shared_curves() -> Vec<Nurbs> {
-        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/curves");
-        let mut files: Vec<_> = std::fs::read_dir(&dir)
-            .unwrap_or_else(|e| panic!("the shared curves are expected at {}: {e}", dir.display()))
-            .filter_map(|e| e.ok().map(|e| e.path()))
-            .filter(|p| p.extension().is_some_and(|x| x == "json"))
-            .collect();
-        files.sort();
-        assert!(
-            files.len() >= 5,
-            "expected the 5 benchmark curves in {}",
-            dir.display()
-        );
-        files
-            .iter()
-            .map(|f| Nurbs::load(f).unwrap_or_else(|e| panic!("{e}")))
-            .collect()
+    /// The five benchmark curves ([`crate::geometry::builtin::all`]).
+    pub(crate) fn benchmark_curves() -> Vec<Nurbs> {
+        crate::geometry::builtin::all().unwrap()
     }
 
     #[test]
     fn span_polys_agree_with_the_basis_recurrence() {
-        let mut curves = shared_curves();
+        let mut curves = benchmark_curves();
         curves.push(quintic_3d());
         curves.push(Nurbs::circle([1.0, 2.0, 0.0], 5.0));
         for c in curves {
@@ -970,11 +605,11 @@ pub(crate) mod tests {
         "control_points":[[0,0,0],[1,1,0],[2,0,0],[3,1,0]]}"#;
 
     #[test]
-    fn loads_good_and_all_shared_curves() {
+    fn loads_good_and_all_benchmark_curves() {
         let c = Nurbs::from_json_str(GOOD).unwrap();
         assert_eq!(c.name, "t");
         assert_eq!(c.spans(), vec![(2, 0.0, 0.5), (3, 0.5, 1.0)]);
-        let all = shared_curves();
+        let all = benchmark_curves();
         let names: Vec<_> = all.iter().map(|c| c.name.as_str()).collect();
         for want in ["Butterfly", "Circle", "Fan", "Star", "Trident"] {
             assert!(names.contains(&want), "{names:?}");

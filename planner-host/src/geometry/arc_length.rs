@@ -16,7 +16,8 @@
 //! the curve, which must be the one it was built from (checked in debug
 //! builds).
 
-use crate::curve::{cross, dot, norm, CurveError, Nurbs, SpanPolys};
+use crate::geometry::curve::{cross, dot, norm, Nurbs, SpanPolys};
+use crate::geometry::curve_error::CurveError;
 
 /// Nodes (on [−1, 1]) and weights of the 16-point Gauss–Legendre rule.
 pub const GL16: ([f64; 16], [f64; 16]) = {
@@ -490,10 +491,15 @@ pub(crate) fn curvature_of(d: &[[f64; 3]; 4], floor: f64) -> f64 {
     norm(cross(d[1], d[2])) / (sig * sig * sig)
 }
 
+/// r, r′, r″, r‴ with respect to arc length at arc length `s`.
+pub fn path_derivs_at(curve: &Nurbs, arc: &ArcLength, s: f64) -> PathDerivs {
+    arc.derivs_s(curve, arc.u_of_s(s))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::curve::tests::{butterfly, quintic_3d, shared_curves};
+    use crate::geometry::curve::tests::{benchmark_curves, butterfly, quintic_3d};
 
     #[test]
     fn far_from_the_origin_the_length_is_the_same() {
@@ -550,8 +556,11 @@ mod tests {
                 assert!((s - exact * q as f64 / 4.0).abs() < 1e-9 * exact);
             }
         }
-        // the 7-point form of shared/curves/circle.json (R = 50, double knot at 0.5)
-        let c = shared_curves().into_iter().find(|c| c.name == "Circle").unwrap();
+        // the 7-point form of curves/circle.json (R = 50, double knot at 0.5)
+        let c = benchmark_curves()
+            .into_iter()
+            .find(|c| c.name == "Circle")
+            .unwrap();
         let arc = ArcLength::new(&c);
         let exact = 2.0 * std::f64::consts::PI * 50.0;
         assert!((arc.total() - exact).abs() <= 1e-9 * exact, "{}", arc.total());
@@ -626,7 +635,7 @@ mod tests {
 
     #[test]
     fn inverse_is_exact_on_all_curves() {
-        let mut curves = shared_curves();
+        let mut curves = benchmark_curves();
         curves.push(quintic_3d());
         curves.push(Nurbs::circle([0.0; 3], 7.0));
         for c in &curves {

@@ -31,9 +31,10 @@
 //! does not actually jump — the rational circle's double knot — gets no row
 //! and counts as smooth.
 
-use crate::arclength::{ArcLength, PathDerivs, SpanArc};
-use crate::curve::Nurbs;
 use firmware_core::Limits;
+
+use crate::geometry::arc_length::{ArcLength, PathDerivs, SpanArc};
+use crate::geometry::curve::Nurbs;
 
 /// Share β of the jerk limit the acceleration step at a jump may use.
 pub const JUMP_JERK_SHARE: f64 = 0.5;
@@ -152,8 +153,9 @@ mod tests {
     use crate::limits::TABLE1;
 
     fn curve(json: &str) -> Nurbs {
-        let path = format!("{}/../../shared/curves/{json}", env!("CARGO_MANIFEST_DIR"));
-        Nurbs::load(std::path::Path::new(&path)).unwrap()
+        crate::geometry::builtin::by_name(json.trim_end_matches(".json"))
+            .unwrap()
+            .unwrap()
     }
 
     #[test]

@@ -6,52 +6,15 @@
 //! says) — are evaluated at many points per knot span of q, and each is
 //! divided by its limit.
 
-use crate::arclength::ArcLength;
-use crate::curve::Nurbs;
-use crate::lp::BasisRow;
-use crate::plan::path_derivs_at;
 use firmware_core::{EndSegments, Limits};
 
-/// Largest ratio to each limit (1.0 = at the limit).
-#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
-pub struct Ratios {
-    /// Axial velocity, max over axes.
-    pub vel: f64,
-    /// Axial acceleration, max over axes.
-    pub acc: f64,
-    /// Axial jerk, max over axes.
-    pub jerk: f64,
-    /// Tangential velocity (feedrate).
-    pub feed: f64,
-    /// Tangential acceleration.
-    pub tacc: f64,
-    /// Tangential jerk.
-    pub tjerk: f64,
-}
-
-impl Ratios {
-    /// Element-wise maximum.
-    pub fn max(self, o: Ratios) -> Ratios {
-        Ratios {
-            vel: self.vel.max(o.vel),
-            acc: self.acc.max(o.acc),
-            jerk: self.jerk.max(o.jerk),
-            feed: self.feed.max(o.feed),
-            tacc: self.tacc.max(o.tacc),
-            tjerk: self.tjerk.max(o.tjerk),
-        }
-    }
-
-    /// The largest of all six.
-    pub fn worst(&self) -> f64 {
-        [self.vel, self.acc, self.jerk, self.feed, self.tacc, self.tjerk]
-            .into_iter()
-            .fold(0.0, f64::max)
-    }
-}
+use crate::geometry::arc_length::{path_derivs_at, ArcLength};
+use crate::geometry::curve::Nurbs;
+use crate::limits::Ratios;
+use crate::lp::basis_rows::BasisRow;
 
 /// Fewest time samples per end segment in [`dense_check_ends`].
-pub const SEGMENT_MIN_POINTS: usize = 200;
+pub(crate) const SEGMENT_MIN_POINTS: usize = 200;
 
 /// Result of a dense check.
 #[derive(Debug, Clone, serde::Serialize)]
@@ -67,7 +30,7 @@ pub struct DenseReport {
 }
 
 /// Ratios to the limits at one arc length `s` of the plan (knots, ctrl).
-pub fn ratios_at(
+pub(crate) fn ratios_at(
     curve: &Nurbs,
     arc: &ArcLength,
     knots: &[f64],
@@ -85,7 +48,7 @@ pub fn ratios_at(
 }
 
 /// Ratios to the limits at arc length `s` moving with `[ṡ, s̈, s⃛]`.
-pub fn ratios_kin(curve: &Nurbs, arc: &ArcLength, lim: &Limits, s: f64, kin: [f64; 3]) -> Ratios {
+pub(crate) fn ratios_kin(curve: &Nurbs, arc: &ArcLength, lim: &Limits, s: f64, kin: [f64; 3]) -> Ratios {
     let [sd, sdd, sddd] = kin;
     let q = sd * sd;
     let g = path_derivs_at(curve, arc, s);
@@ -120,7 +83,7 @@ pub fn dense_check(
 }
 
 /// [`dense_check`] of a plan with end segments: q on [s₁, s₂] as there, and
-/// each segment at `per_span` × (its knot spans, at least [`SEGMENT_MIN_POINTS`])
+/// each segment at `per_span` × (its knot spans, at least `SEGMENT_MIN_POINTS`)
 /// points evenly spaced in time, from the exact s(t) of the segment.
 pub fn dense_check_ends(
     curve: &Nurbs,

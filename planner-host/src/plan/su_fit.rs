@@ -1,7 +1,7 @@
 //! The s → u map the firmware evaluates at servo rate: piecewise quintic
 //! polynomials u(s), fitted to the exact inverse arc length.
 //!
-//! This is the feed-correction polynomial of the paper's ref. [5] (Heng &
+//! This is the feed-correction polynomial of the paper's ref. \[5\] (Heng &
 //! Erkorkmaz 2010; REFERENCES.md) in its C²-joined form: on each segment
 //! [s_j, s_{j+1}] the quintic is the Hermite interpolant of u, du/ds and
 //! d²u/ds² at both ends (exact values from the curve: u_s = 1/σ,
@@ -17,19 +17,20 @@
 //! along the polynomial (see `segment_error`); the tests measure it again,
 //! 200 points per segment, against [`ArcLength::s_of_u`].
 //!
-//! Coefficients are in the firmware's form ([`firmware_core::table::SuSegment`]):
-//! u(s) = Σₖ coeffs[k] τᵏ, τ = (s − s_j)/(s_{j+1} − s_j). Evaluated by
+//! Coefficients are in the firmware's form ([`firmware_core::SuSegment`]):
+//! u(s) = Σₖ coeffs\[k\] τᵏ, τ = (s − s_j)/(s_{j+1} − s_j). Evaluated by
 //! Horner's rule (highest power first), τ = 0 gives the segment's start
 //! knot or split point bit-exactly and τ = 1 its end (the top coefficient
 //! is corrected for that), so u is continuous across breaks to the last bit,
-//! the first segment starts exactly at U[p] and the last ends exactly at the
+//! the first segment starts exactly at U\[p\] and the last ends exactly at the
 //! last knot. Knot spans of zero arc length (a curve that stands still) get
 //! no segment.
 
 use firmware_core::{path::su_map::SU_COEFFS, SuSegment};
 
-use crate::arclength::{speed_floor, ArcLength};
-use crate::curve::{dot, norm, CurveError, Nurbs, SpanPolys};
+use crate::geometry::arc_length::{speed_floor, ArcLength};
+use crate::geometry::curve::{dot, norm, Nurbs, SpanPolys};
+use crate::geometry::curve_error::CurveError;
 
 /// Default tolerance of the s → u map, mm.
 pub const DEFAULT_TOL_MM: f64 = 1e-6;
@@ -39,7 +40,7 @@ pub const DEFAULT_TOL_MM: f64 = 1e-6;
 /// ṡ·σ·u′ (ref. [5] fits its feed-correction polynomials for this reason).
 /// Near the Butterfly's two near-corners (κ ≈ 42 /mm) a fit to 1e-6 mm alone
 /// leaves 1.4e-4 of feed error.
-pub const FEED_TOL: f64 = 1e-5;
+pub(crate) const FEED_TOL: f64 = 1e-5;
 
 /// Test points per segment: τ = k / `TEST_DIV`, k = 1 … `TEST_DIV` − 1.
 const TEST_DIV: usize = 32;
@@ -295,10 +296,10 @@ impl SuMap {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::curve::tests::{butterfly, quintic_3d, shared_curves};
+    use crate::geometry::curve::tests::{benchmark_curves, butterfly, quintic_3d};
 
     fn all_curves() -> Vec<Nurbs> {
-        let mut v = shared_curves();
+        let mut v = benchmark_curves();
         v.push(Nurbs::circle([3.0, 4.0, 0.0], 25.0));
         v.push(quintic_3d());
         v.push(Nurbs::line([0.0; 3], [10.0, 0.0, 0.0]));

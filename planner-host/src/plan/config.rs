@@ -1,0 +1,110 @@
+//! What a plan is made with: the formulation ([`Formulation`]) and every
+//! setting of the pipeline ([`PlanConfig`]).
+
+use firmware_core::Limits;
+
+use crate::limits::TABLE1;
+use crate::lp::end_rows::EndMode;
+use crate::lp::problem::{Objective, QhatBound, SolverSettings};
+use crate::lp::trust_region::CertifiedConfig;
+use crate::plan::su_fit;
+use crate::sampling::Sampling;
+
+/// Which LP formulation plans the feed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Formulation {
+    /// §2.1: the pseudo-jerk LP, then the plan LP with the jerk rows (14)(15)
+    /// linearised by √q̂, rows at the Greville points (18) only. Posed by
+    /// [`PlanConfig::qhat_bound`] and [`PlanConfig::objective`]; the paper as
+    /// printed is `QhatBound::None` with `Objective::Uniform`.
+    Paper,
+    /// `crate::lp::trust_region`: check points in every knot span, jerk rows
+    /// re-linearised inside a trust region with q ≤ q̄, an exact check of every
+    /// limit at every check point. The default.
+    #[default]
+    Certified,
+}
+
+impl std::str::FromStr for Formulation {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s.to_ascii_lowercase().as_str() {
+            "paper" => Ok(Formulation::Paper),
+            "certified" => Ok(Formulation::Certified),
+            _ => Err(format!("unknown formulation `{s}`: expected paper or certified")),
+        }
+    }
+}
+
+impl std::fmt::Display for Formulation {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Formulation::Paper => "paper",
+            Formulation::Certified => "certified",
+        })
+    }
+}
+
+/// What to plan with.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct PlanConfig {
+    /// Which formulation; `objective` and `qhat_bound` apply to
+    /// [`Formulation::Paper`] only, `certified` to [`Formulation::Certified`] only.
+    pub formulation: Formulation,
+    /// Settings of the certified sequence.
+    pub certified: CertifiedConfig,
+    /// Interior-point settings of every LP (the paper formulation always uses Clarabel).
+    #[serde(skip)]
+    pub solver: SolverSettings,
+    /// How the toolpath is sampled into Γ (§3).
+    #[serde(serialize_with = "display")]
+    pub sampling: Sampling,
+    /// Sampling density P, points per mm: m = round(P·L) points.
+    pub density_per_mm: f64,
+    /// Kinematic limits.
+    pub limits: Limits,
+    /// Objective weights.
+    pub objective: Objective,
+    /// How the plan is kept under the pseudo-jerk.
+    pub qhat_bound: QhatBound,
+    /// Tolerance of the s → u map, mm: |s(u(s)) − s|.
+    pub su_tol_mm: f64,
+    /// How the plan starts and stops: jerk-limited segments or steps.
+    pub ends: EndMode,
+    /// Servo period T the table is planned for, s: the feed cap at curvature
+    /// jumps (`crate::geometry::junction`) depends on it (certified formulation).
+    pub servo_period_s: f64,
+    /// Feedrate override levels, percent of v̄ (docs/override-design.md):
+    /// each is planned as a whole plan with v̄ × percent/100 on the base
+    /// plan's knot vector and check points (`PlanOutput::levels`, sorted by
+    /// percent). 100 is skipped; every entry must be finite, > 0 and distinct.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub override_levels: Vec<f64>,
+}
+
+fn display<S: serde::Serializer, T: std::fmt::Display>(v: &T, s: S) -> Result<S::Ok, S::Error> {
+    s.collect_str(v)
+}
+
+impl Default for PlanConfig {
+    fn default() -> Self {
+        PlanConfig {
+            formulation: Formulation::Certified,
+            certified: CertifiedConfig::default(),
+            solver: SolverSettings {
+                banded: true,
+                ..SolverSettings::default()
+            },
+            sampling: Sampling::Len,
+            density_per_mm: 1.0,
+            limits: TABLE1,
+            objective: Objective::Integral,
+            qhat_bound: QhatBound::ControlPoints,
+            su_tol_mm: su_fit::DEFAULT_TOL_MM,
+            ends: EndMode::Jerk,
+            servo_period_s: 250e-6,
+            override_levels: Vec::new(),
+        }
+    }
+}

@@ -1,0 +1,91 @@
+//! Why a plan could not be made ([`PlanError`]).
+
+use firmware_core::table;
+
+use crate::geometry::curve_error::CurveError;
+use crate::limits::LimitsError;
+use crate::lp::problem::LpError;
+use crate::plan::stall::StallAt;
+
+/// Why a plan could not be made.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum PlanError {
+    /// The toolpath is not usable.
+    #[error("toolpath: {0}")]
+    Curve(#[from] CurveError),
+    /// The limits are not usable.
+    #[error(transparent)]
+    Limits(#[from] LimitsError),
+    /// An LP did not solve; names the stage and Clarabel's status.
+    #[error(transparent)]
+    Lp(#[from] LpError),
+    /// The sampling density gives too few points.
+    #[error("sampling density {density} points/mm gives {points} points on {length_mm:.3} mm; at least 2 are needed")]
+    TooFewPoints {
+        /// Requested density.
+        density: f64,
+        /// Resulting point count.
+        points: usize,
+        /// Path length.
+        length_mm: f64,
+    },
+    /// Jerk-limited start and stop segments were asked for, but even with
+    /// knots added near the ends their joins do not fit (the path is too
+    /// short for them); no table is written.
+    #[error("no room for jerk-limited start and stop segments on this {length_mm:.4} mm path (their joins overlap even with {added} knots added near the ends); use --ends step for an acceleration-step start and stop, or a longer path")]
+    EndSegments {
+        /// Path length, mm.
+        length_mm: f64,
+        /// Knots added near the ends before giving up.
+        added: usize,
+    },
+    /// The plan would stall the machine (q ≈ 0 where it must not be); no
+    /// table is written.
+    #[error("the plan would stall the machine on this {length_mm:.3} mm path: it {at}; the constraint rows are too tight for this sampling, try another density or sampling")]
+    Stall {
+        /// Where and why.
+        at: StallAt,
+        /// Path length.
+        length_mm: f64,
+    },
+    /// The table could not be encoded.
+    /// The toolpath's tangent turns abruptly at a knot (a C0 corner): the
+    /// feed must be zero there, and one table runs from rest to rest only.
+    #[error("the toolpath has a corner at s = {s_mm:.3} mm (u = {u}): the tangent turns by {angle_deg:.3} deg; no feed crosses it with finite acceleration: split the toolpath at the corner and plan each piece")]
+    Corner {
+        /// Arc length of the corner, mm.
+        s_mm: f64,
+        /// Curve parameter of the corner.
+        u: f64,
+        /// Angle between the tangents on both sides, degrees.
+        angle_deg: f64,
+    },
+    /// The table encoder refused the plan (a bug: the plan is checked before).
+    #[error("table encoding failed: {0:?}")]
+    Table(table::EncodeError),
+    /// An override level is not finite, not > 0, or given twice.
+    #[error("override level {percent} %: {why}")]
+    OverrideLevel {
+        /// The level as given, percent.
+        percent: f64,
+        /// What is wrong with it.
+        why: &'static str,
+    },
+    /// The plan of an override level failed.
+    #[error("override level {percent} %: {source}")]
+    Level {
+        /// The level, percent.
+        percent: f64,
+        /// Why its plan failed.
+        source: Box<PlanError>,
+    },
+    /// Writing the table failed.
+    #[error("cannot write {path}: {source}")]
+    Io {
+        /// The file.
+        path: String,
+        /// Why.
+        source: std::io::Error,
+    },
+}

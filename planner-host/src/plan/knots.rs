@@ -1,0 +1,165 @@
+//! From the sampling Γ to the knots of q (certified formulation): the
+//! toolpath's own knots merged in ([`with_breaks`]), spans through sharp
+//! turns bisected ([`refine_turning`]), and room made at both ends for the
+//! joins of the jerk-limited start and stop segments ([`end_room`]).
+
+use firmware_core::Limits;
+
+use crate::geometry::arc_length::{ArcLength, PathDerivs};
+use crate::geometry::curve::Nurbs;
+use crate::lp::basis_rows;
+use crate::lp::end_rows::EndRows;
+use crate::plan::error::PlanError;
+
+/// Knot refinement of the certified formulation: every span [a, b] of the
+/// sampling Γ whose turning angle ∫ₐᵇ |κ| ds (from `turn`) exceeds `max_turn`
+/// is bisected in s, recursively (at most 12 levels). A cubic q on a span
+/// cannot follow a feed profile that must change within a sharp corner much
+/// shorter than the span; without this, holding the jerk at the check points
+/// would force q ≈ 0 over such a span (the LEN sampling of the Butterfly).
+pub fn refine_turning(samples: &[f64], max_turn: f64, turn: impl Fn(f64, f64) -> f64) -> Vec<f64> {
+    fn split(
+        a: f64,
+        b: f64,
+        t: f64,
+        depth: u32,
+        max_turn: f64,
+        turn: &dyn Fn(f64, f64) -> f64,
+        out: &mut Vec<f64>,
+    ) {
+        if t > max_turn && depth < 12 {
+            let m = 0.5 * (a + b);
+            split(a, m, turn(a, m), depth + 1, max_turn, turn, out);
+            out.push(m);
+            split(m, b, turn(m, b), depth + 1, max_turn, turn, out);
+        }
+    }
+    if !(max_turn > 0.0 && max_turn.is_finite()) {
+        return samples.to_vec();
+    }
+    let mut out = Vec::with_capacity(samples.len());
+    for (i, w) in samples.windows(2).enumerate() {
+        if i == 0 {
+            out.push(w[0]);
+        }
+        split(w[0], w[1], turn(w[0], w[1]), 0, max_turn, &turn, &mut out);
+        out.push(w[1]);
+    }
+    out
+}
+
+/// The turning angle ∫ₐᵇ |κ| ds of [`refine_turning`], integrated in the
+/// toolpath's parameter: ∫ |κ(u)|·|r_u| du over [u(a), u(b)] by 16-point
+/// Gauss–Legendre on one polynomial piece (the span holding the middle; the
+/// sampling carries every toolpath break, [`with_breaks`]). Two inversions
+/// u(s) per interval (the last few are remembered) instead of one per node.
+pub(crate) struct TurnInU<'a> {
+    pub(crate) curve: &'a Nurbs,
+    pub(crate) arc: &'a ArcLength,
+    pub(crate) floor: f64,
+    pub(crate) memo: std::cell::RefCell<[(f64, f64); 4]>,
+}
+
+impl<'a> TurnInU<'a> {
+    pub(crate) fn new(curve: &'a Nurbs, arc: &'a ArcLength) -> Self {
+        TurnInU {
+            curve,
+            arc,
+            floor: crate::geometry::arc_length::speed_floor(curve, arc.total()),
+            memo: std::cell::RefCell::new([(f64::NAN, f64::NAN); 4]),
+        }
+    }
+
+    fn u_of_s(&self, s: f64) -> f64 {
+        let mut memo = self.memo.borrow_mut();
+        if let Some(&(_, u)) = memo.iter().find(|p| p.0 == s) {
+            return u;
+        }
+        let u = self.arc.u_of_s(s);
+        memo.rotate_right(1);
+        memo[0] = (s, u);
+        u
+    }
+
+    pub(crate) fn turning(&self, a: f64, b: f64) -> f64 {
+        let (ua, ub) = (self.u_of_s(a), self.u_of_s(b));
+        let (x, w) = crate::geometry::arc_length::GL16;
+        let (m, h) = (0.5 * (ua + ub), 0.5 * (ub - ua));
+        let span = self.curve.span_of(m);
+        (0..16)
+            .map(|i| {
+                let d = self.arc.polys().derivs_in_span(span, m + h * x[i], 2);
+                let sig = (d[1][0] * d[1][0] + d[1][1] * d[1][1] + d[1][2] * d[1][2]).sqrt();
+                w[i] * h * crate::geometry::arc_length::curvature_of(&d, self.floor) * sig
+            })
+            .sum()
+    }
+}
+
+/// The toolpath's own knots (as arc lengths) merged into the sampling Γ:
+/// r‴ of a cubic NURBS jumps at its knots, so the jerk (10) has a jump there
+/// and both one-sided values must be checked; with a knot of q at each
+/// break, every span of q sees smooth geometry. A break within 5 % of a
+/// span's length of a sample moves that sample onto it instead.
+pub fn with_breaks(samples: &[f64], arc: &ArcLength) -> Vec<f64> {
+    let mut v = samples.to_vec();
+    let n = v.len();
+    if n < 2 {
+        return v;
+    }
+    for sp in arc.spans().iter().skip(1) {
+        let b = sp.s0;
+        let i = v.partition_point(|&x| x < b);
+        if i == 0 || i >= v.len() {
+            continue;
+        }
+        let (lo, hi) = (v[i - 1], v[i]);
+        let tol = 0.05 * (hi - lo);
+        if hi - b <= tol && i < v.len() - 1 {
+            v[i] = b;
+        } else if b - lo <= tol && i > 1 {
+            v[i - 1] = b;
+        } else if b > lo && b < hi {
+            v.insert(i, b);
+        }
+    }
+    v
+}
+
+/// Samples whose knot vector leaves room for the joins of the jerk-limited
+/// end segments ([`EndRows::new`]): if it does not (a short path or a coarse
+/// sampling), the first and last sample intervals are halved, up to 8
+/// times; then [`PlanError::EndSegments`] (never a silent acceleration step).
+pub(crate) fn end_room(
+    mut samples: Vec<f64>,
+    limits: &Limits,
+    length: f64,
+    geo: &dyn Fn(f64) -> PathDerivs,
+) -> Result<Vec<f64>, PlanError> {
+    let mut added = 0;
+    for _ in 0..8 {
+        if EndRows::new(&basis_rows::knot_vector(&samples), limits, geo).is_some() {
+            return Ok(samples);
+        }
+        let n = samples.len();
+        if n < 2 {
+            break;
+        }
+        let (a, b) = (
+            0.5 * (samples[0] + samples[1]),
+            0.5 * (samples[n - 2] + samples[n - 1]),
+        );
+        samples.insert(1, a);
+        let n = samples.len();
+        samples.insert(n - 1, b);
+        samples.dedup();
+        added += 2;
+    }
+    if EndRows::new(&basis_rows::knot_vector(&samples), limits, geo).is_some() {
+        return Ok(samples);
+    }
+    Err(PlanError::EndSegments {
+        length_mm: length,
+        added,
+    })
+}

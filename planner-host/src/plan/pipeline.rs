@@ -1,0 +1,190 @@
+//! The planning pipeline: curve → sampling Γ → knot vector (17) and Greville
+//! points (18) → pseudo-jerk LP → plan LP → s → u map → firmware table.
+
+use std::time::Instant;
+
+use firmware_core::table::{self, TableParts};
+
+use crate::geometry::arc_length::{path_derivs_at, ArcLength};
+use crate::geometry::curve::Nurbs;
+use crate::geometry::junction;
+use crate::limits;
+use crate::lp::basis_rows::{self, BasisRow};
+use crate::lp::end_rows::EndMode;
+use crate::lp::problem::EvalPoint;
+use crate::plan::config::{Formulation, PlanConfig};
+use crate::plan::error::PlanError;
+use crate::plan::knots::{end_room, refine_turning, with_breaks, TurnInU};
+use crate::plan::levels::validate_levels;
+use crate::plan::lp_stage::{check_points, LpStage, Refine, Solved};
+use crate::plan::output::PlanOutput;
+use crate::plan::su_fit::SuMap;
+use crate::sampling;
+
+/// Plan a toolpath: both LPs of §2.1 on the sampling of `cfg`, then the table.
+pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanError> {
+    plan_curve_with_progress(curve, cfg, &|_, _| {})
+}
+
+/// [`plan_curve`], calling `progress(done, total)` after the base plan and
+/// after each override level (`total` = 1 + the number of levels), from
+/// whichever thread finished the step.
+pub fn plan_curve_with_progress(
+    curve: &Nurbs,
+    cfg: &PlanConfig,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<PlanOutput, PlanError> {
+    let t0 = Instant::now();
+    curve.validate()?;
+    limits::validate(&cfg.limits)?;
+    let steps = 1 + validate_levels(&cfg.override_levels)?.len();
+    let arc = ArcLength::new(curve);
+    let dbg_t = |what: &str| {
+        if std::env::var_os("FEEDLP_TIME_DEBUG").is_some() {
+            eprintln!("  {what}: {:.1} ms", t0.elapsed().as_secs_f64() * 1e3);
+        }
+    };
+    dbg_t("arc length");
+    let length = arc.total();
+    let m = sampling::points_for_density(length, cfg.density_per_mm);
+    if m < 2 {
+        return Err(PlanError::TooFewPoints {
+            density: cfg.density_per_mm,
+            points: m,
+            length_mm: length,
+        });
+    }
+    if let Some(c) = junction::corners(curve, &arc).first() {
+        return Err(PlanError::Corner {
+            s_mm: c.s_mm,
+            u: c.u,
+            angle_deg: c.angle_rad.to_degrees(),
+        });
+    }
+    let samples = sampling::sample(curve, &arc, cfg.sampling, m)?;
+    dbg_t("sampling");
+    let su = SuMap::fit(curve, &arc, cfg.su_tol_mm)?;
+    dbg_t("s-u map");
+    let samples = match cfg.formulation {
+        Formulation::Paper => samples,
+        Formulation::Certified => {
+            let turn = TurnInU::new(curve, &arc);
+            refine_turning(
+                &with_breaks(&samples, &arc),
+                cfg.certified.max_turn_rad,
+                |a, b| turn.turning(a, b),
+            )
+        }
+    };
+    dbg_t("refine");
+    let samples = match cfg.ends {
+        EndMode::Jerk => end_room(samples, &cfg.limits, length, &|s| path_derivs_at(curve, &arc, s))?,
+        EndMode::Step => samples,
+    };
+    let knots = basis_rows::knot_vector(&samples);
+    let eval = |s: f64| {
+        Some(EvalPoint {
+            s,
+            geo: path_derivs_at(curve, &arc, s),
+            basis: BasisRow::at(&knots, s)?,
+        })
+    };
+    let jumps = match cfg.formulation {
+        Formulation::Paper => Vec::new(),
+        Formulation::Certified => junction::curvature_jumps(curve, &arc, &cfg.limits, cfg.servo_period_s),
+    };
+    let (points, is_knot): (Vec<EvalPoint>, Vec<bool>) = match cfg.formulation {
+        Formulation::Paper => basis_rows::greville(&knots)
+            .into_iter()
+            .filter_map(|g| Some((eval(g)?, false)))
+            .unzip(),
+        Formulation::Certified => check_points(&knots, cfg.certified.checks_per_span)
+            .into_iter()
+            .filter_map(|(s, k)| Some((eval(s)?, k)))
+            .unzip(),
+    };
+    let geometry_time_s = t0.elapsed().as_secs_f64();
+    dbg_t("check points");
+
+    let stage = LpStage {
+        curve,
+        arc: &arc,
+        knots: &knots,
+        cfg,
+        length,
+        dense: std::sync::OnceLock::new(),
+        progress,
+        steps,
+        done: std::sync::atomic::AtomicUsize::new(0),
+    };
+    let base = stage.solve(&cfg.limits, &jumps, points, is_knot, Refine::Rounds)?;
+    stage.step_done();
+    dbg_t("LPs");
+    let levels = stage.levels(&base)?;
+    dbg_t("levels");
+    let Solved {
+        ctrl,
+        qhat_ctrl,
+        lps: lp_stats,
+        check,
+        pts,
+        forced,
+        rounds,
+        ends,
+        predicted_time_s,
+    } = base;
+    let check_points: Vec<(f64, bool)> = pts.iter().zip(&forced).map(|(p, &f)| (p.s, f)).collect();
+
+    let homogeneous = curve.to_homogeneous_table();
+    let level_parts: Vec<table::LevelParts> = levels
+        .iter()
+        .map(|l| table::LevelParts {
+            alpha: l.percent / 100.0,
+            ctrl: &l.ctrl,
+            ends: l.ends,
+        })
+        .collect();
+    let parts = TableParts {
+        limits: cfg.limits,
+        path_length_mm: length,
+        predicted_time_s,
+        nurbs_degree: curve.degree as u32,
+        nurbs_knots: &curve.knots,
+        nurbs_points: &homogeneous,
+        su_breaks: &su.breaks,
+        su_segments: &su.segments,
+        q_knots: &knots,
+        q_ctrl: &ctrl,
+        ends,
+        levels: &level_parts,
+    };
+    let mut bytes = vec![0u8; table::encoded_len(&parts)];
+    let written = table::encode(&parts, &mut bytes).map_err(PlanError::Table)?;
+    bytes.truncate(written);
+    dbg_t("table");
+
+    Ok(PlanOutput {
+        curve: curve.name.clone(),
+        config: cfg.clone(),
+        path_length_mm: length,
+        sampling_points: m,
+        control_points: ctrl.len(),
+        lp: lp_stats,
+        check,
+        curvature_jumps: jumps,
+        predicted_time_s,
+        ends,
+        su_segments: su.segments.len(),
+        su_max_err_mm: su.max_err_mm,
+        geometry_time_s,
+        total_time_s: t0.elapsed().as_secs_f64(),
+        table_bytes_len: bytes.len(),
+        q_knots: knots,
+        q_ctrl: ctrl,
+        qhat_ctrl,
+        table_bytes: bytes,
+        check_points,
+        refine_rounds: rounds,
+        levels,
+    })
+}
