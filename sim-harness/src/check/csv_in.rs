@@ -5,7 +5,7 @@
 //! Read here rather than with [`crate::csv::parse_csv`] so that the checker
 //! depends on nothing of the simulation it checks but the file itself.
 
-use super::CheckError;
+use crate::check::error::CheckError;
 
 /// Commanded positions at a fixed servo period.
 #[derive(Debug, Clone, PartialEq, Default)]

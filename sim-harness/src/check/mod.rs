@@ -37,11 +37,13 @@
 
 mod contour;
 mod csv_in;
+mod error;
 mod nurbs_ref;
 mod ratios;
 mod report;
 
 pub use csv_in::Trajectory;
+pub use error::CheckError;
 pub use ratios::Peak;
 pub use report::{CheckReport, ContourPeak, Ratios, SCHEMA_VERSION};
 
@@ -81,31 +83,6 @@ impl Default for CheckConfig {
             contour_tol: 1e-3,
         }
     }
-}
-
-/// Why setpoints could not be checked (bad input, not a failed check).
-#[derive(Debug, thiserror::Error)]
-#[non_exhaustive]
-pub enum CheckError {
-    /// The file could not be read.
-    #[error("cannot read {path}: {source}")]
-    Io {
-        /// The file.
-        path: String,
-        /// Why.
-        source: std::io::Error,
-    },
-    /// A line of the CSV is malformed.
-    #[error("CSV line {line}: {message}")]
-    Csv {
-        /// 1-based line number.
-        line: usize,
-        /// What is wrong.
-        message: String,
-    },
-    /// Fewer than two setpoints, or time not increasing at a fixed period.
-    #[error("{0}")]
-    Timing(String),
 }
 
 /// Check the setpoints `traj` against the curve and `cfg` (see the module
