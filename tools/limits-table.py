@@ -1,19 +1,19 @@
 #!/usr/bin/env python3
-"""The README's limits table: plan, simulate and check every curve x sampling x density.
+"""The limits table of docs/benchmarks.md: plan, simulate and check every curve x sampling x density.
 
 For each case it runs, from the repository root (release binaries must be built:
 `cargo build --release -p planner-host -p sim-harness`):
 
     target/release/feedplan plan CURVE --sampling S --density P [EXTRA...] -o T.bin --json
     target/release/feedsim run T.bin --csv T.csv --json
-    python3 ../shared/checks/check_traj.py T.csv CURVE --pad-rest 50
+    target/release/feedsim check T.csv --curve CURVE --pad-rest 50 --json
 
 and prints one Markdown row: predicted and simulated machining time, the largest
 ratio to each limit on the plan's dense re-evaluation (feedplan's `dense_check`),
-check_traj's verdict with --pad-rest 50 (the limits it fails, with their ratios),
+the project's checker's verdict with --pad-rest 50 (the limits it fails, with their ratios),
 and the planning time. Every figure is measured; nothing is copied.
 
-    python3 tools/limits-table.py [--curves a.json b.json] [--samplings par len ada]
+    python3 tools/limits-table.py [--curves a.json butterfly ...] [--samplings par len ada]
                                   [--densities 0.5 1 2] [-- EXTRA feedplan args]
 """
 
@@ -25,7 +25,7 @@ import sys
 import tempfile
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-SHARED = os.path.join(os.path.dirname(ROOT), "shared")
+CURVES = os.path.join(ROOT, "planner-host", "curves")
 LIMITS = ["vel", "acc", "jerk", "feed", "tacc", "tjerk"]
 
 
@@ -51,20 +51,16 @@ def one(curve, sampling, density, extra, tmp):
         msg = err.strip().splitlines()[-1] if err.strip() else f"exit {rc}"
         return head + f" {plan['predicted_time_s']:.4f} | sim error: {msg.replace('|', '/')} |" + " |" * 4
     sim = json.loads(out)
-    rc, out, err = run([sys.executable, os.path.join(SHARED, "checks/check_traj.py"), csv, curve,
-                        "--pad-rest", "50"])
-    try:
-        chk = json.loads(out.strip().splitlines()[-1])
-        fails = chk.get("fail", [])
-        verdict = "pass" if rc == 0 and not fails else "fail: " + ", ".join(
-            f"{k} {chk['ratios'][k]:.3g}" if k in chk.get("ratios", {}) else k for k in fails)
-    except (ValueError, IndexError):
-        # check_traj cannot load some curves (scipy refuses the circle's double
-        # knot): report feedsim's own central differences at rest instead
-        rest = sim["metrics"]["ratios_at_rest"]
-        k = max(rest, key=rest.get)
-        verdict = (f"checker cannot load the curve; feedsim at rest 50: worst {k} {rest[k]:.3f} "
-                   + ("pass" if rest[k] <= 1.02 else "FAIL"))
+    rc, out, err = run([os.path.join(ROOT, "target/release/feedsim"), "check", csv, "--curve", curve,
+                        "--pad-rest", "50", "--json"])
+    if rc not in (0, 5):
+        msg = err.strip().splitlines()[-1] if err.strip() else f"exit {rc}"
+        verdict = f"check error: {msg.replace('|', '/')}"
+    else:
+        chk = json.loads(out)
+        fails = chk["fail"]
+        verdict = "pass" if not fails else "fail: " + ", ".join(
+            f"{k} {chk['ratios'][k]['ratio']:.4g}" if k in chk["ratios"] else k for k in fails)
     ratios = " / ".join(f"{dense[k]:.3f}" for k in LIMITS)
     return (head + f" {plan['predicted_time_s']:.4f} | {sim['machining_time_s']:.4f} | {ratios} | {verdict} |"
             f" {1e3 * plan['total_time_s']:.0f} |")
@@ -78,9 +74,9 @@ def main():
     ap.add_argument("extra", nargs="*", help="extra feedplan arguments (after --)")
     a = ap.parse_args()
     curves = a.curves or sorted(
-        os.path.join(SHARED, "curves", f) for f in os.listdir(os.path.join(SHARED, "curves")) if f.endswith(".json"))
+        os.path.join(CURVES, f) for f in os.listdir(CURVES) if f.endswith(".json"))
     print("| curve | sampling | P /mm | T plan s | T sim s | dense ratios vel / acc / jerk / feed / tacc / tjerk"
-          " | check_traj --pad-rest 50 | plan ms |")
+          " | feedsim check --pad-rest 50 | plan ms |")
     print("|---|---|---|---|---|---|---|---|")
     with tempfile.TemporaryDirectory() as tmp:
         for c in curves:

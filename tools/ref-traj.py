@@ -1,8 +1,11 @@
 #!/usr/bin/env python3
 """Replay a feedsim CSV's arc length s(t) through an independent f64 evaluation
-of the toolpath (shared/checks/nurbs.py): r(u(s)) for each tick.
+of the toolpath, the external checker's `nurbs.py`: r(u(s)) for each tick.
 
-    python3 tools/ref-traj.py SIM.csv CURVE.json OUT.csv
+    python3 tools/ref-traj.py CHECKS_DIR SIM.csv CURVE.json OUT.csv
+
+CHECKS_DIR is the folder of the external reference checker (`check_traj.py`,
+`nurbs.py`); the project does not ship it.
 
 The output (t,x,y,z) checks the plan and the firmware's s(t) integration with
 check_traj.py, apart from the firmware's own position evaluation: the
@@ -14,13 +17,14 @@ import sys
 
 import numpy as np
 
-here = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, os.path.join(here, "..", "..", "shared", "checks"))
+if len(sys.argv) != 5:
+    sys.exit(__doc__)
+sys.path.insert(0, os.path.abspath(sys.argv[1]))
 from nurbs import Nurbs  # noqa: E402
 
 
 def main():
-    sim, curve, out = sys.argv[1:4]
+    sim, curve, out = sys.argv[2:5]
     c = Nurbs.load(curve)
     data = np.genfromtxt(sim, delimiter=",", names=True)
     t, s = data["t"], data["s"]

@@ -3,11 +3,10 @@
 # change): the planner's defaults (certified formulation, jerk end segments,
 # paper Table 1 limits). Density 1 point/mm for the 10 mm line (at 0.5 its
 # five points leave the end segments' join singular: EndJoinSingular), 0.5 for
-# the arc and the Trident (/work/shared/curves, or $SHARED/curves).
+# the arc and the built-in Trident (planner-host/curves).
 # Uses target/release/feedplan (built if missing; FEEDPLAN overrides).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
-SHARED=${SHARED:-../shared}
 FEEDPLAN=${FEEDPLAN:-./target/release/feedplan}
 if [ ! -x "$FEEDPLAN" ]; then
   cargo build --release -q -p planner-host --bin feedplan
@@ -23,6 +22,6 @@ plan fuzz/seeds/line.json 1
 # feedrate-override levels (table sections 16-19)
 plan fuzz/seeds/line.json 1 --override-levels 50,125
 plan fuzz/seeds/arc.json 0.5
-plan "$SHARED/curves/trident.json" 0.5
+plan planner-host/curves/trident.json 0.5
 cp fuzz/seeds/*.bin fuzz/corpus/table_parse/
 ls -l fuzz/seeds/*.bin

@@ -4,7 +4,7 @@
 //! Columns (header line first): `t,x,y,z,s,u,feed,ax,ay,az` — time (s),
 //! commanded position (mm), arc length s (mm), NURBS parameter u, planned
 //! feed √q(s) (mm/s), actual (servo) position (mm). The first four are what
-//! `shared/checks/check_traj.py` reads.
+//! `feedsim check` (and the external `check_traj.py`) read.
 //!
 //! Numbers are written in the shortest form that parses back to the same
 //! `f64` (Rust's `Display`/`LowerExp`), so positions round-trip exactly.

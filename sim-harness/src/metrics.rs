@@ -3,7 +3,7 @@
 //! and feedrate fluctuation.
 //!
 //! Derivatives are central finite differences at the servo period h, the
-//! same stencils as `shared/checks/check_traj.py`:
+//! same stencils as the checker ([`crate::check`]) and the external `check_traj.py`:
 //!
 //! ```text
 //! vᵢ = (xᵢ₊₁ − xᵢ₋₁) / 2h

@@ -4,7 +4,7 @@
 //! `span`; with τ = (s − s_j)/(s_{j+1} − s_j) ∈ [0, 1],
 //! u(s) = Σ_k c_k τ^k, evaluated by Horner's rule (highest power first), so
 //! τ = 0 gives `c_0` bit-exactly. The host fits the coefficients
-//! (planner-host `sumap`); the firmware only evaluates them, through
+//! (planner-host `plan::su_fit`); the firmware only evaluates them, through
 //! [`SuMapView`] (binary search) or [`SuCursor`] (span by span, O(1)
 //! amortised for monotone s).
 
