@@ -215,3 +215,24 @@ fn override_json_is_versioned_and_completions_print() {
     assert_eq!(code, Some(0));
     assert!(script.contains("feedplan") && script.contains("--period-us"));
 }
+
+/// A reader that goes away (`feedplan ... | head -c 0`) ends feedplan
+/// quietly, with status 0 and no panic, and the table is still whole.
+#[test]
+fn closed_stdout_is_not_a_panic() {
+    let table = tmp("closed_stdout.bin");
+    let mut child = feedplan()
+        .args(["plan", "butterfly", "--json", "-o"])
+        .arg(&table)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take()); // the reader is gone before anything is written
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+    let bytes = std::fs::read(&table).unwrap();
+    assert!(firmware_core::Table::parse(&bytes).is_ok());
+}

@@ -27,6 +27,27 @@ use planner_host::EndMode;
 use planner_host::Nurbs;
 use planner_host::{builtin, CurveError};
 
+/// `println!` to stdout. A closed pipe (`feedplan ... | head`) ends the
+/// program quietly with status 0 instead of a panic; any other write error
+/// exits 1.
+macro_rules! outln {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        if let Err(e) = writeln!(std::io::stdout(), $($arg)*) {
+            stdout_failed(e)
+        }
+    }};
+}
+
+/// Where [`outln!`] goes when stdout refuses a write.
+fn stdout_failed(e: std::io::Error) -> ! {
+    if e.kind() == std::io::ErrorKind::BrokenPipe {
+        std::process::exit(0);
+    }
+    eprintln!("feedplan: error: cannot write to stdout: {e}");
+    std::process::exit(1);
+}
+
 /// The exit codes, shown after `--help`.
 const EXIT_CODES: &str = "\
 Exit codes:
@@ -402,7 +423,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
                 )
             };
             plan::write_atomic(&output, &out.table_bytes)?;
-            println!("{text}");
+            outln!("{text}");
             Ok(())
         }
         Cmd::Override {
@@ -472,9 +493,9 @@ fn override_cmd(
                     "percent": to,
                     "from_percent": from,
                 });
-                println!("{}", with_schema_version(&v)?);
+                outln!("{}", with_schema_version(&v)?);
             } else {
-                println!("override at s = {at} mm from {from} % to {to} %: skipped ({why:?}); the active profile stays");
+                outln!("override at s = {at} mm from {from} % to {to} %: skipped ({why:?}); the active profile stays");
             }
         }
         OverrideOutcome::Profile(p) => {
@@ -507,10 +528,10 @@ fn override_cmd(
                 if let Some(out) = output {
                     o["profile_file"] = out.display().to_string().into();
                 }
-                println!("{}", with_schema_version(&o)?);
+                outln!("{}", with_schema_version(&o)?);
                 return Ok(());
             }
-            println!(
+            outln!(
                 "override at s = {at} mm from {from} % to {to} %: {:?}\n  splice s = {:.4} mm (first changed span {}), merge s = {:.4} mm\n  \
                  transition {:.3} mm (ArcLen estimate {}), {} new control points, {} LPs, retries {} (window) + {} (Algorithm 2)\n  \
                  override point used {:.4} mm, computed in {:.2} ms",
@@ -528,7 +549,7 @@ fn override_cmd(
                 p.compute_time_s * 1e3
             );
             if let Some(out) = output {
-                println!("  profile written to {}", out.display());
+                outln!("  profile written to {}", out.display());
             }
         }
     }

@@ -25,6 +25,36 @@ use sim_harness::plot::{self, FeedPlot};
 use sim_harness::servo::ServoConfig;
 use sim_harness::{run_table, SimConfig, SimError, SimResult};
 
+/// `print!` to stdout. A closed pipe (`feedsim ... | head`) ends the program
+/// quietly with status 0 instead of a panic; any other write error exits 1.
+macro_rules! out {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        if let Err(e) = write!(std::io::stdout(), $($arg)*) {
+            stdout_failed(e)
+        }
+    }};
+}
+
+/// `println!` to stdout, as [`out!`].
+macro_rules! outln {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        if let Err(e) = writeln!(std::io::stdout(), $($arg)*) {
+            stdout_failed(e)
+        }
+    }};
+}
+
+/// Where [`out!`] and [`outln!`] go when stdout refuses a write.
+fn stdout_failed(e: std::io::Error) -> ! {
+    if e.kind() == std::io::ErrorKind::BrokenPipe {
+        std::process::exit(0);
+    }
+    eprintln!("feedsim: error: cannot write to stdout: {e}");
+    std::process::exit(1);
+}
+
 /// Exit codes, shown after every `--help`.
 const EXIT_CODES: &str = "\
 Exit codes:
@@ -449,19 +479,19 @@ fn run(cli: Cli) -> Result<(), Failure> {
                     plot: plot.as_ref().map(|p| p.display().to_string()),
                     check: report.as_ref(),
                 };
-                println!("{}", serde_json::to_string(&out)?);
+                outln!("{}", serde_json::to_string(&out)?);
             } else {
-                println!("{}", table.display());
-                print!("{}", res.summary());
+                outln!("{}", table.display());
+                out!("{}", res.summary());
                 if let Some(p) = &csv {
-                    println!("  wrote {}", p.display());
+                    outln!("  wrote {}", p.display());
                 }
                 if let Some(p) = &plot {
-                    println!("  wrote {}", p.display());
+                    outln!("  wrote {}", p.display());
                 }
                 if let Some(r) = &report {
-                    println!("check against the table's curve and limits:");
-                    print!("{}", r.text());
+                    outln!("check against the table's curve and limits:");
+                    out!("{}", r.text());
                 }
             }
             report.as_ref().map_or(Ok(()), check_verdict)
@@ -501,10 +531,10 @@ fn run(cli: Cli) -> Result<(), Failure> {
                     csv: csv.display().to_string(),
                     curve,
                 };
-                println!("{}", serde_json::to_string(&out)?);
+                outln!("{}", serde_json::to_string(&out)?);
             } else {
-                println!("{} against {} ({}):", csv.display(), curve, nurbs.name);
-                print!("{}", rep.text());
+                outln!("{} against {} ({}):", csv.display(), curve, nurbs.name);
+                out!("{}", rep.text());
             }
             check_verdict(&rep)
         }
@@ -582,7 +612,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
             };
             let rep = run_report(&cfg)?;
             let failed = rep.rows.iter().filter(|r| r.outcome.is_err()).count();
-            println!(
+            outln!(
                 "wrote {} ({} files) in {:.1} s: {} curves, {} cases, {} without a plan",
                 out.join("README.md").display(),
                 rep.files.len(),
@@ -662,19 +692,19 @@ fn demo(out: &Path) -> Result<(), Failure> {
         &cfg.limits,
         20,
     );
-    println!("== plan");
-    print!("{}", planned.summary(Some(&check)));
+    outln!("== plan");
+    out!("{}", planned.summary(Some(&check)));
 
     let bin = out.join("butterfly.bin");
     sim_harness::csv::write_atomic(&bin, &planned.table_bytes)?;
     let res = run_table(&planned.table_bytes, &SimConfig::default())?;
-    println!("== simulation");
-    print!("{}", res.summary());
+    outln!("== simulation");
+    out!("{}", res.summary());
     let csv = out.join("butterfly.csv");
     sim_harness::csv::write_csv(&csv, &res.ticks)?;
     let png = out.join("butterfly_feed.png");
     write_plot(&png, &res, "Butterfly")?;
-    println!("== wrote {}, {}, {}", bin.display(), csv.display(), png.display());
+    outln!("== wrote {}, {}, {}", bin.display(), csv.display(), png.display());
     Ok(())
 }
 
@@ -721,7 +751,7 @@ fn override_report(
         eprintln!("feedsim override: {} ...", spec.name);
         let run = orep::run_spec(spec, period_us * 1e-6, true)?;
         let (row, files) = orep::write_run(out, &run)?;
-        println!("{row}");
+        outln!("{row}");
         md.push_str(&row);
         md.push('\n');
         let jitter = if spec.jitter.isr_latency_frac > 0.0 {
@@ -779,6 +809,6 @@ fn override_report(
     md.push('\n');
     md.push_str(&notes);
     sim_harness::csv::write_atomic(&out.join("README.md"), md.as_bytes())?;
-    println!("wrote {}", out.join("README.md").display());
+    outln!("wrote {}", out.join("README.md").display());
     Ok(())
 }
