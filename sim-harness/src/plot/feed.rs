@@ -140,7 +140,7 @@ fn draw(path: &Path, p: &FeedPlot, markers: &[Marker]) -> Result<(), String> {
     if let Some(vbar) = p.vbar_mm_s {
         lines.push((
             Line::new(
-                format!("programmed feed v̄ = {vbar:.1} mm/s"),
+                format!("programmed feed {vbar:.1} mm/s"),
                 BLACK,
                 2,
                 Dash::Dashed(10, 6),

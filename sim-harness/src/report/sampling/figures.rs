@@ -208,7 +208,7 @@ pub(crate) fn fig_feed(path: &Path, rep: &Report, cfg: &ReportConfig, curve: &st
                 .light_line_style(RGBColor(235, 235, 235))
                 .draw()
                 .map_err(&e)?;
-            let programmed = Line::new("programmed feed v̄", BLACK, 1, Dash::Dashed(8, 5));
+            let programmed = Line::new("programmed feed", BLACK, 1, Dash::Dashed(8, 5));
             programmed
                 .draw(&mut ch, vec![(0.0, vbar), (lmax, vbar)])
                 .map_err(draw_err(path))?;
