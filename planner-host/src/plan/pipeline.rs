@@ -18,7 +18,7 @@ use crate::plan::knots::{end_room, refine_turning, with_breaks, TurnInU};
 use crate::plan::levels::validate_levels;
 use crate::plan::lp_stage::{check_points, LpStage, Refine, Solved};
 use crate::plan::output::PlanOutput;
-use crate::plan::su_fit::SuMap;
+use crate::plan::su_fit::{SetpointBudget, SuMap};
 use crate::sampling;
 
 /// Plan a toolpath: both LPs of §2.1 on the sampling of `cfg`, then the table.
@@ -63,7 +63,8 @@ pub fn plan_curve_with_progress(
     }
     let samples = sampling::sample(curve, &arc, cfg.sampling, m)?;
     dbg_t("sampling");
-    let su = SuMap::fit(curve, &arc, cfg.su_tol_mm)?;
+    let budget = SetpointBudget::new(&cfg.limits, &cfg.override_levels, cfg.servo_period_s);
+    let su = SuMap::fit_within(curve, &arc, cfg.su_tol_mm, Some(&budget))?;
     dbg_t("s-u map");
     let samples = match cfg.formulation {
         Formulation::Paper => samples,

@@ -17,6 +17,42 @@
 //! along the polynomial (see `segment_error`); the tests measure it again,
 //! 200 points per segment, against [`ArcLength::s_of_u`].
 //!
+//! # Derivatives along the motion
+//!
+//! The firmware's position pieces reproduce r(u(s)) of this map exactly, so
+//! the setpoints run along the exact path at arc length σ = s + e(s), e the
+//! map's arc-length error; along s(t), σ̇ = ṡ(1 + e′),
+//! σ̈ = s̈(1 + e′) + ṡ²e″ and σ⃛ = s⃛(1 + e′) + 3ṡs̈e″ + ṡ³e‴. A map within
+//! 1e-6 mm still has e‴ ≈ σ·u⁽⁶⁾h³/120 at its breaks (the Hermite error,
+//! largest at the ends, where it jumps): at full feed that read as up to
+//! 1.004 of the jerk limit on the Butterfly and 1.157 on a curve with far
+//! weights, while the plan itself held 1.000. With a [`SetpointBudget`]
+//! ([`SuMap::fit_within`], what the planner uses) a segment is accepted only
+//! when, at τ = k/32 (k = 0 … 32), the added velocity v|e′|, acceleration
+//! (Ā + 2κv²)|e′| + v²|e″| and jerk
+//! (J + 6κvĀ + 3|r‴|v³)|e′| + 3v(Ā + κv²)|e″| + v³|e‴| stay within `share` (0.2 %) of the smallest limit of each
+//! kind, v the highest feed any motion within the limits can have there
+//! (the top override level's feed, capped by κv² ≤ |a| and κ²v³ ≤ 2|j|).
+//! Where a segment is shorter than what one servo tick travels this is
+//! loose: the sampled setpoints see a k-th difference of e of at most
+//! 2ᵏ·max|e|/Tᵏ, and the smaller of the two bounds is used (so a segment
+//! near a parametrisation singularity may be short without its e‴, which
+//! grows like 1/h³ for a fixed rounding of u, ever reaching the limits).
+//! The derivative criterion falls like h³, so the march grows a segment by
+//! (0.8/share)^(1/3) when it dominates. A finer check (256 points per
+//! segment) reads the same bound within 3 % (tests).
+//!
+//! The alternative — fitting the position pieces against the exact r(u(s))
+//! (u by Newton on the arc length) instead of this map — would leave the
+//! table's u and its pieces up to 1e-6 mm apart, beyond the 1e-9 mm the
+//! parse-time piece check holds them to, so the map itself is tightened;
+//! the table format is unchanged. The cost is table size: a piece never
+//! crosses a segment, and the Butterfly's map grows from 547 to 1,763
+//! segments (241,916 → 595,604 table bytes); machining time is unchanged.
+//! Interior nodes get their u by Newton on the segment's own arc length
+//! (`u_after`), so that a short segment carries no node error from the
+//! arc-length table (good to ~1e-11 mm; e‴ would amplify it by 60/h³).
+//!
 //! Coefficients are in the firmware's form ([`firmware_core::SuSegment`]):
 //! u(s) = Σₖ coeffs\[k\] τᵏ, τ = (s − s_j)/(s_{j+1} − s_j). Evaluated by
 //! Horner's rule (highest power first), τ = 0 gives the segment's start
@@ -29,8 +65,9 @@
 use firmware_core::{path::su_map::SU_COEFFS, SuSegment};
 
 use crate::geometry::arc_length::{speed_floor, ArcLength};
-use crate::geometry::curve::{dot, norm, Nurbs, SpanPolys};
+use crate::geometry::curve::{cross, dot, norm, Nurbs, SpanPolys};
 use crate::geometry::curve_error::CurveError;
+use crate::limits::Limits;
 
 /// Default tolerance of the s → u map, mm.
 pub const DEFAULT_TOL_MM: f64 = 1e-6;
@@ -64,6 +101,10 @@ pub struct SuMap {
     /// Largest relative feed error |σ(u(s))·u′(s) − 1| at the test points:
     /// the feedrate fluctuation the map alone causes.
     pub max_feed_err: f64,
+    /// Largest share of a limit the map adds to the setpoints, at the
+    /// derivative criterion's points, with the budget's highest feed (0
+    /// without a budget).
+    pub max_limit_share: f64,
 }
 
 /// One end of a segment: s, u, du/ds, d²u/ds².
@@ -88,6 +129,52 @@ fn node(curve: &SpanPolys, span: usize, s: f64, u: f64, floor: f64) -> Result<No
         us,
         uss: -dot(d[1], d[2]) * us.powi(4),
     })
+}
+
+/// The u at arc length `h` past node `a`, by Newton on the arc length of
+/// the segment itself (8-point Gauss–Legendre of σ over [u_a, u]) from
+/// `guess`: the nodes are consistent with each other to the last bits, so a
+/// short segment's Hermite error carries no node error (the arc-length
+/// table's u(s) is good to ~1e-11 mm, which a 1e-3 mm segment's e‴ would
+/// amplify by 60/h³).
+fn u_after(curve: &SpanPolys, span: usize, a: &Node, h: f64, guess: f64) -> f64 {
+    const X: [f64; 4] = [
+        0.183_434_642_495_649_8,
+        0.525_532_409_916_329,
+        0.796_666_477_413_626_7,
+        0.960_289_856_497_536_3,
+    ];
+    const W: [f64; 4] = [
+        0.362_683_783_378_362,
+        0.313_706_645_877_887_3,
+        0.222_381_034_453_374_5,
+        0.101_228_536_290_376_3,
+    ];
+    let mut u = guess;
+    for _ in 0..4 {
+        let (mid, half) = (0.5 * (a.u + u), 0.5 * (u - a.u));
+        let len: f64 = (0..4)
+            .map(|i| {
+                W[i] * (curve.speed_in_span(span, mid - half * X[i])
+                    + curve.speed_in_span(span, mid + half * X[i]))
+            })
+            .sum::<f64>()
+            * half;
+        let sig = curve.speed_in_span(span, u);
+        let step = (len - h) / sig;
+        if !step.is_finite() {
+            return guess;
+        }
+        u -= step;
+        if step.abs() <= 1e-17 * u.abs() {
+            break;
+        }
+    }
+    if u.is_finite() {
+        u
+    } else {
+        guess
+    }
 }
 
 /// Horner evaluation, highest power first.
@@ -158,11 +245,166 @@ fn segment_error(curve: &SpanPolys, span: usize, c: &[f64; SU_COEFFS], h: f64) -
     }
 }
 
+/// Share of every limit the map may add to the setpoints' ratios
+/// ([`SetpointBudget`]): half of the 0.2 % allowed for the map and the
+/// position pieces together, the rest left to the pieces' fit and rounding.
+pub const LIMIT_SHARE: f64 = 2e-3;
+
+/// What the setpoints can see of the map's arc-length error: the limits and
+/// the highest feed the table can run at, for the derivative criterion of
+/// [`SuMap::fit_within`] (module docs, "Derivatives along the motion").
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SetpointBudget {
+    /// Highest programmed feed, mm/s: v̄ times the highest override level
+    /// (≥ 100 %) the table holds.
+    pub feed: f64,
+    /// The plan's limits.
+    pub limits: Limits,
+    /// Share of each limit the map may add (e.g. [`LIMIT_SHARE`]).
+    pub share: f64,
+    /// Servo period T the setpoints are sampled at, s.
+    pub period_s: f64,
+}
+
+impl SetpointBudget {
+    /// The budget for a table planned to `limits` with override levels
+    /// `levels_percent` (100 % is always there).
+    pub fn new(limits: &Limits, levels_percent: &[f64], period_s: f64) -> SetpointBudget {
+        let top = levels_percent
+            .iter()
+            .copied()
+            .filter(|p| p.is_finite())
+            .fold(100.0f64, f64::max);
+        SetpointBudget {
+            feed: limits.vbar * top / 100.0,
+            limits: *limits,
+            share: LIMIT_SHARE,
+            period_s,
+        }
+    }
+}
+
+/// Scales of the limits the criterion needs: the smallest velocity,
+/// acceleration and jerk limit (tangential or axis: an added vector of
+/// length δ adds at most δ to every axis and to the tangential value), and
+/// the largest magnitude an acceleration or jerk vector can have (for the
+/// curvature caps of the feed and the bounds on s̈, s⃛).
+struct Scales {
+    v_min: f64,
+    a_min: f64,
+    j_min: f64,
+    a_max: f64,
+    j_max: f64,
+}
+
+impl Scales {
+    fn new(l: &Limits) -> Scales {
+        let min3 = |x: [f64; 3]| x[0].min(x[1]).min(x[2]);
+        let norm3 = |x: [f64; 3]| norm(x);
+        Scales {
+            v_min: l.vbar.min(min3(l.v)),
+            a_min: l.abar.min(min3(l.a)),
+            j_min: l.jbar.min(min3(l.j)),
+            a_max: l.abar.max(norm3(l.a)),
+            j_max: l.jbar.max(norm3(l.j)),
+        }
+    }
+}
+
+/// Points per segment at which the derivative criterion is evaluated:
+/// τ = k / `DERIV_DIV`, k = 0 … `DERIV_DIV` (the ends included: the
+/// Hermite error's third derivative is largest there).
+const DERIV_DIV: usize = 32;
+
+/// The largest share of a limit that the arc-length error e(s) = s(u_c(s)) − s
+/// of polynomial `c` on a segment of length `h` adds to the setpoints, at
+/// τ = k/32 (module docs, "Derivatives along the motion"): the motion runs
+/// along the exact path at arc length σ(t) = s(t) + e(s(t)) instead of s(t).
+fn deriv_share(
+    curve: &SpanPolys,
+    span: usize,
+    c: &[f64; SU_COEFFS],
+    h: f64,
+    err: f64,
+    b: &SetpointBudget,
+    div: usize,
+) -> f64 {
+    let sc = Scales::new(&b.limits);
+    // what the sampled setpoints can see of an error no larger than `err`:
+    // a k-th difference over k ticks is at most 2ᵏ·err / Tᵏ
+    let t = b.period_s;
+    let sampled = (2.0 * err / (t * sc.v_min))
+        .max(4.0 * err / (t * t * sc.a_min))
+        .max(8.0 * err / (t * t * t * sc.j_min));
+    let (ih, ih2, ih3) = (1.0 / h, 1.0 / (h * h), 1.0 / (h * h * h));
+    let mut worst = 0.0f64;
+    for k in 0..=div {
+        let t = k as f64 / div as f64;
+        // u and its τ-derivatives by Horner
+        let mut d = [0.0f64; 4];
+        for &ck in c.iter().rev() {
+            d[3] = d[3] * t + d[2];
+            d[2] = d[2] * t + d[1];
+            d[1] = d[1] * t + d[0];
+            d[0] = d[0] * t + ck;
+        }
+        let (u, u1, u2, u3) = (d[0], d[1] * ih, 2.0 * d[2] * ih2, 6.0 * d[3] * ih3);
+        let r = curve.derivs_in_span(span, u, 3);
+        let sig = norm(r[1]);
+        let su = dot(r[1], r[2]) / sig;
+        let suu = (dot(r[2], r[2]) + dot(r[1], r[3])) / sig - su * su / sig;
+        // e′, e″, e‴ of e(s) = S(u(s)) − s
+        let e1 = (sig * u1 - 1.0).abs();
+        let e2 = (su * u1 * u1 + sig * u2).abs();
+        let e3 = (suu * u1 * u1 * u1 + 3.0 * su * u1 * u2 + sig * u3).abs();
+        // the path's curvature and |r‴(s)| (s the arc length)
+        let kappa = norm(cross(r[1], r[2])) / (sig * sig * sig);
+        let mut r3 = [0.0; 3];
+        for (a, o) in r3.iter_mut().enumerate() {
+            *o = r[3][a] * u1 * u1 * u1 + 3.0 * r[2][a] * u1 * u2 + r[1][a] * u3;
+        }
+        let r3 = norm(r3);
+        // the highest feed any motion within the limits has here: the
+        // programmed one, capped by κṡ² ≤ |a| and κ²ṡ³ ≤ |j| + s⃛
+        let v = b
+            .feed
+            .min((sc.a_max / kappa).sqrt())
+            .min((2.0 * sc.j_max / (kappa * kappa)).cbrt());
+        let (a, j) = (sc.a_max, sc.j_max + kappa * kappa * v * v * v);
+        // ẋ = r′σ̇, ẍ = r′σ̈ + r″σ̇², x⃛ = r′σ⃛ + 3r″σ̇σ̈ + r‴σ̇³ with
+        // σ̇ = ṡ(1 + e′), σ̈ = s̈(1 + e′) + ṡ²e″, σ⃛ = s⃛(1 + e′) + 3ṡs̈e″ + ṡ³e‴
+        let dv = v * e1;
+        let da = (a + 2.0 * kappa * v * v) * e1 + v * v * e2;
+        let dj = (j + 6.0 * kappa * v * a + 3.0 * r3 * v * v * v) * e1
+            + (3.0 * v * a + 3.0 * kappa * v * v * v) * e2
+            + v * v * v * e3;
+        let share = (dv / sc.v_min).max(da / sc.a_min).max(dj / sc.j_min);
+        if share.is_nan() {
+            return f64::INFINITY;
+        }
+
+        worst = worst.max(share);
+    }
+    worst.min(sampled) / b.share
+}
+
 impl SuMap {
     /// Fit the map to `tol_mm` (> 0, mm): see the module docs. Errors: a bad
     /// tolerance, a point where the curve stands still (`ZeroSpeed`: u(s)
     /// has an infinite slope there), or 60 failed attempts in a row.
     pub fn fit(curve: &Nurbs, arc: &ArcLength, tol_mm: f64) -> Result<SuMap, CurveError> {
+        Self::fit_within(curve, arc, tol_mm, None)
+    }
+
+    /// [`SuMap::fit`], and with a `budget` also until the arc-length error's
+    /// derivatives add at most `budget.share` of any limit to the setpoints
+    /// (module docs, "Derivatives along the motion").
+    pub fn fit_within(
+        curve: &Nurbs,
+        arc: &ArcLength,
+        tol_mm: f64,
+        budget: Option<&SetpointBudget>,
+    ) -> Result<SuMap, CurveError> {
         if !(tol_mm > 0.0 && tol_mm.is_finite()) {
             return Err(CurveError::Argument {
                 name: "tol_mm",
@@ -178,6 +420,7 @@ impl SuMap {
             segments: Vec::new(),
             max_err_mm: 0.0,
             max_feed_err: 0.0,
+            max_limit_share: 0.0,
         };
         for sp in arc.spans() {
             if sp.s1 <= sp.s0 {
@@ -199,21 +442,33 @@ impl SuMap {
                 } else {
                     let h_try = rest / pieces;
                     let sb = a.s + h_try;
-                    node(polys, sp.span, sb, arc.u_of_s(sb).clamp(sp.u0, sp.u1), floor)?
+                    let guess = arc.u_of_s(sb).clamp(sp.u0, sp.u1);
+                    let ub = u_after(polys, sp.span, &a, sb - a.s, guess).clamp(sp.u0, sp.u1);
+                    node(polys, sp.span, sb, ub, floor)?
                 };
                 let h = b.s - a.s;
                 let c = hermite(&a, &b);
                 let (err, feed_err) = segment_error(polys, sp.span, &c, h);
-                // both criteria as a fraction of their tolerance
+                // every criterion as a fraction of its tolerance: the error
+                // and the feed error shrink like h⁶ and h⁵, the derivative
+                // criterion like h³ (e‴ of the Hermite error)
                 let ratio = (err / tol_mm).max(feed_err / FEED_TOL);
+                let share = budget.map_or(0.0, |b| deriv_share(polys, sp.span, &c, h, err, b, DERIV_DIV));
                 let grow = if ratio > 0.0 {
                     (TARGET / ratio).powf(1.0 / 6.0)
                 } else {
                     2.0
                 };
+                let grow = if share > 0.0 {
+                    grow.min((TARGET / share).cbrt())
+                } else {
+                    grow
+                };
+                let ratio = ratio.max(share);
                 if ratio <= ACCEPT {
                     map.max_err_mm = map.max_err_mm.max(err);
                     map.max_feed_err = map.max_feed_err.max(feed_err);
+                    map.max_limit_share = map.max_limit_share.max(share * budget.map_or(0.0, |b| b.share));
                     map.breaks.push(b.s);
                     map.segments.push(SuSegment {
                         span: sp.span as u32,
@@ -420,6 +675,37 @@ mod tests {
                     c.name
                 );
             }
+        }
+    }
+
+    #[test]
+    fn setpoint_budget_holds_densely() {
+        for c in [butterfly(), quintic_3d()] {
+            let arc = ArcLength::new(&c);
+            let b = SetpointBudget::new(&crate::limits::TABLE1, &[50.0, 125.0], 250e-6);
+            assert_eq!(b.feed, 1.25 * crate::limits::TABLE1.vbar);
+            let map = SuMap::fit_within(&c, &arc, DEFAULT_TOL_MM, Some(&b)).unwrap();
+            assert!(
+                map.max_limit_share > 0.0 && map.max_limit_share <= b.share,
+                "{}",
+                c.name
+            );
+            let polys = arc.polys();
+            let mut worst: f64 = 0.0;
+            for (j, seg) in map.segments.iter().enumerate() {
+                let h = map.breaks[j + 1] - map.breaks[j];
+                let (err, _) = segment_error(polys, seg.span as usize, &seg.coeffs, h);
+                let share = deriv_share(polys, seg.span as usize, &seg.coeffs, h, err, &b, 256);
+                worst = worst.max(share);
+            }
+            // 256 points per segment against the fit's 32: the same bound within 3 %
+            assert!(worst <= 1.03 * ACCEPT, "{}: {worst}", c.name);
+            println!(
+                "{}: {} segments, dense share {worst:.3} of {}",
+                c.name,
+                map.segments.len(),
+                b.share
+            );
         }
     }
 
