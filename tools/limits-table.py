@@ -59,8 +59,9 @@ def one(curve, sampling, density, extra, tmp):
     else:
         chk = json.loads(out)
         fails = chk["fail"]
-        verdict = "pass" if not fails else "fail: " + ", ".join(
-            f"{k} {chk['ratios'][k]['ratio']:.4g}" if k in chk["ratios"] else k for k in fails)
+        worst = max(chk["ratios"], key=lambda k: chk["ratios"][k]["ratio"])
+        verdict = (f"pass, worst {worst} {chk['ratios'][worst]['ratio']:.4f}" if not fails else "fail: " + ", ".join(
+            f"{k} {chk['ratios'][k]['ratio']:.4f}" if k in chk["ratios"] else k for k in fails))
     ratios = " / ".join(f"{dense[k]:.3f}" for k in LIMITS)
     return (head + f" {plan['predicted_time_s']:.4f} | {sim['machining_time_s']:.4f} | {ratios} | {verdict} |"
             f" {1e3 * plan['total_time_s']:.0f} |")
