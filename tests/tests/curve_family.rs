@@ -12,7 +12,7 @@
 //! row per curve.
 
 use e2e_tests::curve_family::sweep::{self, above, Failure, Run, KINDS, TOL};
-use e2e_tests::curve_family::{generate, Family};
+use e2e_tests::curve_family::{generate, Family, LENGTH_MM};
 
 /// Seed of the family.
 const SEED: u64 = 1;
@@ -149,6 +149,78 @@ fn setpoints_hold_every_limit_within_half_a_percent() {
             }
             Err(e) => bad.push(format!("{name}: {e}")),
         }
+    }
+    assert!(bad.is_empty(), "{}", bad.join("\n"));
+}
+
+/// The generator: the same seed and index give the same curve; every curve
+/// validates, has a length within [`LENGTH_MM`], a degree from 2 to 5, and
+/// the trait of its family (a C1 join: an interior knot of multiplicity
+/// degree − 1; a straight run: degree + 1 collinear control points in a
+/// row; weights within [0.05, 20] spread over more than a factor of 2, and
+/// over the family from below 0.1 to above 10; 1,000 control points or
+/// more).
+#[test]
+fn generated_curves_are_deterministic_valid_and_true_to_their_family() {
+    let cross = |a: [f64; 3], b: [f64; 3]| {
+        let c = [
+            a[1] * b[2] - a[2] * b[1],
+            a[2] * b[0] - a[0] * b[2],
+            a[0] * b[1] - a[1] * b[0],
+        ];
+        (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt()
+    };
+    let d = |a: [f64; 3], b: [f64; 3]| [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+    let mut bad = Vec::new();
+    let (mut w_lo, mut w_hi) = (f64::MAX, 0.0f64);
+    for i in 0..220 {
+        let c = generate(SEED, i);
+        let again = generate(SEED, i);
+        let name = c.curve.name.clone();
+        if c.curve != again.curve {
+            bad.push(format!("{name}: not deterministic"));
+        }
+        if let Err(e) = c.curve.validate() {
+            bad.push(format!("{name}: {e}"));
+        }
+        if !(LENGTH_MM.0..=LENGTH_MM.1).contains(&c.length_mm) || !(2..=5).contains(&c.curve.degree) {
+            bad.push(format!(
+                "{name}: length {} degree {}",
+                c.length_mm, c.curve.degree
+            ));
+        }
+        let p = c.curve.degree;
+        let pts = &c.curve.points;
+        let trait_ok = match c.family {
+            Family::C1Knots => {
+                let k = &c.curve.knots;
+                let inner = &k[p + 1..k.len() - p - 1];
+                inner.chunk_by(|a, b| a == b).any(|run| run.len() == p - 1) && p >= 3
+            }
+            Family::StraightTight => pts.windows(p + 1).any(|w| {
+                let u = d(w[0], w[p]);
+                let l = (u[0] * u[0] + u[1] * u[1] + u[2] * u[2]).sqrt();
+                l > 1.0 && w.iter().all(|&q| cross(u, d(w[0], q)) / l < 1e-9)
+            }),
+            Family::Weights => {
+                let (lo, hi) = c
+                    .curve
+                    .weights
+                    .iter()
+                    .fold((f64::MAX, 0.0f64), |(a, b), &w| (a.min(w), b.max(w)));
+                (w_lo, w_hi) = (w_lo.min(lo), w_hi.max(hi));
+                lo >= 0.05 && hi <= 20.0 && hi / lo > 2.0
+            }
+            Family::Large => pts.len() >= 1000,
+            Family::Smooth2d => pts.iter().all(|q| q[2] == 0.0),
+            Family::Smooth3d => pts.iter().any(|q| q[2] != 0.0),
+        };
+        if !trait_ok {
+            bad.push(format!("{name}: not true to its family"));
+        }
+    }
+    if !(w_lo < 0.1 && w_hi > 10.0) {
+        bad.push(format!("weights span only [{w_lo}, {w_hi}]"));
     }
     assert!(bad.is_empty(), "{}", bad.join("\n"));
 }

@@ -1,9 +1,10 @@
 //! A seeded family of random toolpaths, and the sweep that plans each one,
 //! runs it through the firmware and checks the setpoints.
 //!
-//! [`generate`] draws curve `index` of the family named by `seed`: the same
-//! pair gives the same curve on every machine (own SplitMix64 stream, no
-//! platform maths beyond IEEE arithmetic and `libm`-grade `sin`/`cos`/`exp`).
+//! [`generate`] draws curve `index` of the family named by `seed` from its
+//! own SplitMix64 stream: the same pair gives the same curve wherever the
+//! platform's `sin`, `cos`, `exp` and `ln` round alike (the draws use them;
+//! everything else is IEEE arithmetic).
 //! The families ([`Family`]) cover what a CAM system emits and what makes
 //! the planner and the firmware work hard:
 //!
