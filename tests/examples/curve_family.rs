@@ -96,6 +96,13 @@ fn summarize(files: &[PathBuf]) -> Result<Vec<Row>, Box<dyn std::error::Error>> 
             );
         }
     }
+    // job order: curve, then sampling, then density
+    let order = |r: &Row| sweep::samplings().iter().position(|s| s.0 == r.sampling);
+    rows.sort_by(|a, b| {
+        (a.index, order(a))
+            .cmp(&(b.index, order(b)))
+            .then(a.density.total_cmp(&b.density))
+    });
     Ok(rows)
 }
 
@@ -179,7 +186,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 }
                 if let Some(w) = &json_out {
                     if let Ok(mut w) = w.lock() {
-                        let _ = writeln!(w, "{}", run.json()).and_then(|_| w.flush());
+                        let _ = writeln!(w, "{}", run.json_line()).and_then(|_| w.flush());
                     }
                 }
                 bar.set_message(format!(

@@ -163,10 +163,19 @@ impl Run {
         matches!(&self.result, Ok(m) if above(m.worst_setpoint().0, 1.0 + TOL))
     }
 
-    /// One JSON object per run (a line of the `--json` output).
+    /// The run as one line of JSON (the `--json` output), `schema_version`
+    /// first as in every JSON output of the project.
+    pub fn json_line(&self) -> String {
+        let body = self.json().to_string();
+        format!(
+            "{{\"schema_version\":1,{}",
+            body.strip_prefix('{').unwrap_or(&body)
+        )
+    }
+
+    /// The run as a JSON object (keys sorted; without `schema_version`).
     pub fn json(&self) -> Value {
         let mut v = json!({
-            "schema_version": 1,
             "curve": self.curve,
             "index": self.index,
             "family": self.family.name(),
