@@ -1,0 +1,226 @@
+//! A fixed subset of the seeded random-toolpath family
+//! (`e2e_tests::curve_family`): ten short curves, two of each small family
+//! (planar and space walks, straight runs into tight turns, weights 0.05–20,
+//! C1 joins), degrees 2 to 5, each planned at one sampling and density,
+//! run through the firmware and checked on its setpoints with 50 ticks at
+//! rest before and after.
+//!
+//! The full family (200 curves × PAR/LEN/ADA × 0.5/1/2 points per mm) is
+//! the example `curve_family`; its figures are in docs/curve-family.md.
+//!
+//! `cargo test -p e2e-tests --test curve_family -- --nocapture` prints a
+//! row per curve.
+
+use e2e_tests::curve_family::sweep::{self, above, Failure, Run, KINDS, TOL};
+use e2e_tests::curve_family::{generate, Family, LENGTH_MM};
+
+/// Seed of the family.
+const SEED: u64 = 1;
+
+/// Curve indices of the subset: the shortest curves of each small family
+/// among the first 120 of seed 1 (a fast test), two per family, degrees 2
+/// to 5, planar and space ones.
+const SUBSET: [usize; 10] = [27, 22, 1, 12, 84, 68, 3, 102, 9, 31];
+
+/// Gross bound on every setpoint ratio.
+const GROSS: f64 = 1.10;
+
+/// Curve `k` of the subset at its sampling and density: the samplings
+/// cycle PAR, LEN, ADA and, every third curve, the density 1, 2, 0.5
+/// points per mm, so the subset meets every pair.
+fn subset_run(k: usize) -> Run {
+    let case = generate(SEED, SUBSET[k]);
+    let sampling = sweep::samplings()[k % 3];
+    let density = [1.0, 2.0, 0.5][(k / 3) % 3];
+    let run = sweep::run(&case, sampling, density);
+    match &run.result {
+        Ok(m) => {
+            let sp = m.setpoints().map(|p| p.ratio);
+            eprintln!(
+                "{:26} {} deg {} {:4} ctrl {:7.1} mm  T {:7.3} s  setpoints {}  dense max {:.4}",
+                run.curve,
+                run.sampling,
+                run.degree,
+                run.control_points,
+                run.length_mm,
+                m.machining_time_s,
+                KINDS
+                    .iter()
+                    .zip(sp)
+                    .map(|(k, r)| format!("{k} {r:.4}"))
+                    .collect::<Vec<_>>()
+                    .join(" "),
+                m.worst_dense().0,
+            );
+        }
+        Err(e) => eprintln!("{:26} {}: {e}", run.curve, run.sampling),
+    }
+    run
+}
+
+fn subset() -> Vec<Run> {
+    (0..SUBSET.len()).map(subset_run).collect()
+}
+
+#[test]
+fn subset_covers_every_small_family() {
+    let fams: Vec<Family> = SUBSET.iter().map(|&i| generate(SEED, i).family).collect();
+    for f in Family::ALL.into_iter().filter(|&f| f != Family::Large) {
+        assert_eq!(fams.iter().filter(|&&g| g == f).count(), 2, "{f}: {fams:?}");
+    }
+    let degrees: Vec<usize> = SUBSET.iter().map(|&i| generate(SEED, i).curve.degree).collect();
+    for p in 2..=5 {
+        assert!(degrees.contains(&p), "degree {p} missing: {degrees:?}");
+    }
+}
+
+/// What holds today on every curve of the subset: the plan succeeds or
+/// fails with a typed plan error (nothing panics, the simulation and the
+/// checker accept the table); the plan's own dense re-evaluation holds every
+/// limit within `1 + TOL`; the firmware's s(t) holds the tangential limits
+/// within `1 + TOL`; every setpoint ratio is within [`GROSS`] (the
+/// position pieces' arc-length error shows in the setpoints' jerk: 1.043
+/// at most on this subset, more on some curves of the full family, see
+/// docs/curve-family.md).
+#[test]
+fn plans_are_typed_and_hold_the_plan_limits_and_gross_setpoint_bounds() {
+    let mut bad = Vec::new();
+    for run in subset() {
+        let name = format!("{} {} {}", run.curve, run.sampling, run.density);
+        let m = match &run.result {
+            Ok(m) => m,
+            Err(Failure::Plan { .. }) => continue,
+            Err(e) => {
+                bad.push(format!("{name}: {e}"));
+                continue;
+            }
+        };
+        let (d, kind) = m.worst_dense();
+        if above(d, 1.0 + TOL) {
+            bad.push(format!(
+                "{name}: plan's dense {kind} ratio {d:.5} > {}",
+                1.0 + TOL
+            ));
+        }
+        for (k, r) in ["feed", "tacc", "tjerk"].iter().zip(m.firmware_s) {
+            if above(r, 1.0 + TOL) {
+                bad.push(format!("{name}: firmware s(t) {k} ratio {r:.5} > {}", 1.0 + TOL));
+            }
+        }
+        for (k, p) in KINDS.iter().zip(m.setpoints()) {
+            if above(p.ratio, GROSS) {
+                bad.push(format!(
+                    "{name}: setpoint {k} ratio {:.5} at t = {:.4} s",
+                    p.ratio, p.t_s
+                ));
+            }
+        }
+        if m.check
+            .fail
+            .iter()
+            .any(|f| ["contour", "endpoints", "monotone"].contains(&f.as_str()))
+        {
+            bad.push(format!("{name}: check failed {:?}", m.check.fail));
+        }
+    }
+    assert!(bad.is_empty(), "{}", bad.join("\n"));
+}
+
+/// Every setpoint ratio of the subset within `1 + TOL` (the checker's pass).
+#[test]
+#[ignore = "waits for setpoints as accurate as the plan: the position pieces' arc-length error lifts the setpoints' jerk to 1.043 of the limit on this subset while the plan's dense check reads at most 1.003"]
+fn setpoints_hold_every_limit_within_half_a_percent() {
+    let mut bad = Vec::new();
+    for run in subset() {
+        let name = format!("{} {} {}", run.curve, run.sampling, run.density);
+        match &run.result {
+            Ok(m) => {
+                for (k, p) in KINDS.iter().zip(m.setpoints()) {
+                    if above(p.ratio, 1.0 + TOL) {
+                        bad.push(format!(
+                            "{name}: setpoint {k} ratio {:.5} at t = {:.4} s",
+                            p.ratio, p.t_s
+                        ));
+                    }
+                }
+                if !m.check.ok {
+                    bad.push(format!("{name}: check failed {:?}", m.check.fail));
+                }
+            }
+            Err(e) => bad.push(format!("{name}: {e}")),
+        }
+    }
+    assert!(bad.is_empty(), "{}", bad.join("\n"));
+}
+
+/// The generator: the same seed and index give the same curve; every curve
+/// validates, has a length within [`LENGTH_MM`], a degree from 2 to 5, and
+/// the trait of its family (a C1 join: an interior knot of multiplicity
+/// degree − 1; a straight run: degree + 1 collinear control points in a
+/// row; weights within [0.05, 20] spread over more than a factor of 2, and
+/// over the family from below 0.1 to above 10; 1,000 control points or
+/// more).
+#[test]
+fn generated_curves_are_deterministic_valid_and_true_to_their_family() {
+    let cross = |a: [f64; 3], b: [f64; 3]| {
+        let c = [
+            a[1] * b[2] - a[2] * b[1],
+            a[2] * b[0] - a[0] * b[2],
+            a[0] * b[1] - a[1] * b[0],
+        ];
+        (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt()
+    };
+    let d = |a: [f64; 3], b: [f64; 3]| [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+    let mut bad = Vec::new();
+    let (mut w_lo, mut w_hi) = (f64::MAX, 0.0f64);
+    for i in 0..220 {
+        let c = generate(SEED, i);
+        let again = generate(SEED, i);
+        let name = c.curve.name.clone();
+        if c.curve != again.curve {
+            bad.push(format!("{name}: not deterministic"));
+        }
+        if let Err(e) = c.curve.validate() {
+            bad.push(format!("{name}: {e}"));
+        }
+        if !(LENGTH_MM.0..=LENGTH_MM.1).contains(&c.length_mm) || !(2..=5).contains(&c.curve.degree) {
+            bad.push(format!(
+                "{name}: length {} degree {}",
+                c.length_mm, c.curve.degree
+            ));
+        }
+        let p = c.curve.degree;
+        let pts = &c.curve.points;
+        let trait_ok = match c.family {
+            Family::C1Knots => {
+                let k = &c.curve.knots;
+                let inner = &k[p + 1..k.len() - p - 1];
+                inner.chunk_by(|a, b| a == b).any(|run| run.len() == p - 1) && p >= 3
+            }
+            Family::StraightTight => pts.windows(p + 1).any(|w| {
+                let u = d(w[0], w[p]);
+                let l = (u[0] * u[0] + u[1] * u[1] + u[2] * u[2]).sqrt();
+                l > 1.0 && w.iter().all(|&q| cross(u, d(w[0], q)) / l < 1e-9)
+            }),
+            Family::Weights => {
+                let (lo, hi) = c
+                    .curve
+                    .weights
+                    .iter()
+                    .fold((f64::MAX, 0.0f64), |(a, b), &w| (a.min(w), b.max(w)));
+                (w_lo, w_hi) = (w_lo.min(lo), w_hi.max(hi));
+                lo >= 0.05 && hi <= 20.0 && hi / lo > 2.0
+            }
+            Family::Large => pts.len() >= 1000,
+            Family::Smooth2d => pts.iter().all(|q| q[2] == 0.0),
+            Family::Smooth3d => pts.iter().any(|q| q[2] != 0.0),
+        };
+        if !trait_ok {
+            bad.push(format!("{name}: not true to its family"));
+        }
+    }
+    if !(w_lo < 0.1 && w_hi > 10.0) {
+        bad.push(format!("weights span only [{w_lo}, {w_hi}]"));
+    }
+    assert!(bad.is_empty(), "{}", bad.join("\n"));
+}
