@@ -78,10 +78,9 @@ fn subset_covers_every_small_family() {
 /// fails with a typed plan error (nothing panics, the simulation and the
 /// checker accept the table); the plan's own dense re-evaluation holds every
 /// limit within `1 + TOL`; the firmware's s(t) holds the tangential limits
-/// within `1 + TOL`; every setpoint ratio is within [`GROSS`] (the
-/// position pieces' arc-length error shows in the setpoints' jerk: 1.043
-/// at most on this subset, more on some curves of the full family, see
-/// docs/curve-family.md).
+/// within `1 + TOL`; every setpoint ratio is within [`GROSS`] (a coarse
+/// bound that tells a gross failure apart from a fine one; the next test
+/// holds the setpoints to `1 + TOL`).
 #[test]
 fn plans_are_typed_and_hold_the_plan_limits_and_gross_setpoint_bounds() {
     let mut bad = Vec::new();
@@ -128,7 +127,6 @@ fn plans_are_typed_and_hold_the_plan_limits_and_gross_setpoint_bounds() {
 
 /// Every setpoint ratio of the subset within `1 + TOL` (the checker's pass).
 #[test]
-#[ignore = "waits for setpoints as accurate as the plan: the position pieces' arc-length error lifts the setpoints' jerk to 1.043 of the limit on this subset while the plan's dense check reads at most 1.003"]
 fn setpoints_hold_every_limit_within_half_a_percent() {
     let mut bad = Vec::new();
     for run in subset() {
