@@ -8,6 +8,9 @@
 //!   build time; default `tables/butterfly.bin`. If the default is missing an
 //!   empty table is embedded (with a warning); a missing `MCU_TABLE` is an
 //!   error. The program sees the path as `env!("MCU_TABLE_PATH")`.
+//! * Override profiles for the worst-case tick sweep: `MCU_OVERRIDES` (a
+//!   file written by `wcet.py`, format in `src/main.rs`), default none (an
+//!   empty file). The program sees it as `env!("MCU_OVERRIDES_PATH")`.
 
 use std::env;
 use std::fs;
@@ -55,4 +58,22 @@ fn main() {
     };
     println!("cargo:rerun-if-changed={}", table.display());
     println!("cargo:rustc-env=MCU_TABLE_PATH={}", table.display());
+
+    println!("cargo:rerun-if-env-changed=MCU_OVERRIDES");
+    let overrides = match env::var_os("MCU_OVERRIDES") {
+        Some(p) => {
+            let p = manifest.join(p);
+            if !p.is_file() {
+                panic!("MCU_OVERRIDES={} is not a file", p.display());
+            }
+            p
+        }
+        None => {
+            let none = out.join("no-overrides.bin");
+            fs::write(&none, []).unwrap();
+            none
+        }
+    };
+    println!("cargo:rerun-if-changed={}", overrides.display());
+    println!("cargo:rustc-env=MCU_OVERRIDES_PATH={}", overrides.display());
 }

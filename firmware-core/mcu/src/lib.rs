@@ -176,3 +176,104 @@ impl core::fmt::Display for Dec {
         write!(f, "{}{}.{:09}", sign, a / 1_000_000_000, a % 1_000_000_000)
     }
 }
+
+/// Windows grouped by kind, with the tick index and arc length of each one,
+/// for the worst-case tick sweep (`wcet.py`).
+///
+/// Each maximal run of windows of one label (cut every [`TickLog::CAP`]
+/// bytes of text) is announced as usual with a `BENCH-GROUP <label> <n>`
+/// line, followed by `BENCH-S <first tick> <s µm> <s µm> ...`: the index
+/// of its first tick in the pass and the arc length after each tick, whole
+/// micrometres. One semihosting write per line, so the text costs QEMU time
+/// but no instructions inside the windows.
+pub struct TickLog {
+    out: Option<cortex_m_semihosting::hio::HostStream>,
+    label: &'static str,
+    first: u64,
+    n: u32,
+    len: usize,
+    buf: [u8; TickLog::CAP + 24],
+}
+
+impl TickLog {
+    /// Bytes of `BENCH-S` text buffered before a group is cut.
+    pub const CAP: usize = 8192;
+
+    /// An empty log writing to the host's stdout.
+    pub fn new() -> Self {
+        TickLog {
+            out: cortex_m_semihosting::hio::hstdout().ok(),
+            label: "",
+            first: 0,
+            n: 0,
+            len: 0,
+            buf: [0; TickLog::CAP + 24],
+        }
+    }
+
+    /// Records one window: its label, the tick's index in the pass and the
+    /// arc length after it (mm).
+    pub fn push(&mut self, label: &'static str, tick: u64, s_mm: f64) {
+        if self.n > 0 && (label != self.label || self.len >= Self::CAP) {
+            self.flush();
+        }
+        if self.n == 0 {
+            self.label = label;
+            self.first = tick;
+        }
+        self.n += 1;
+        let um = if s_mm > 0.0 {
+            (s_mm * 1000.0 + 0.5) as u32
+        } else {
+            0
+        };
+        self.buf[self.len] = b' ';
+        self.len += 1;
+        self.put(u64::from(um));
+    }
+
+    fn put(&mut self, v: u64) {
+        let mut d = [0u8; 20];
+        let digits = decimal(v, &mut d);
+        self.buf[self.len..self.len + digits.len()].copy_from_slice(digits);
+        self.len += digits.len();
+    }
+
+    /// Writes out the group being collected (call at the end of a pass).
+    pub fn flush(&mut self) {
+        if self.n == 0 {
+            return;
+        }
+        group(self.label, self.n);
+        let mut d = [0u8; 20];
+        let first = decimal(self.first, &mut d);
+        if let Some(out) = self.out.as_mut() {
+            let _ = out.write_all(b"BENCH-S ");
+            let _ = out.write_all(first);
+            let _ = out.write_all(&self.buf[..self.len]);
+            let _ = out.write_all(b"\n");
+        }
+        self.len = 0;
+        self.n = 0;
+    }
+}
+
+/// `v` in decimal digits, written at the end of `d`.
+fn decimal(mut v: u64, d: &mut [u8; 20]) -> &[u8] {
+    let mut i = d.len();
+    loop {
+        i -= 1;
+        d[i] = b'0' + (v % 10) as u8;
+        v /= 10;
+        if v == 0 {
+            break;
+        }
+    }
+    &d[i..]
+}
+
+impl Default for TickLog {
+    fn default() -> Self {
+        Self::new()
+    }
+}

@@ -9,8 +9,13 @@
 //!
 //! Each tick runs inside an instruction-count window (`BENCH-GROUP tick N`),
 //! for `bench-insn.sh`.
+//!
+//! With `MCU_HOLDS` or `MCU_OVERRIDES` set at build time, the worst-case tick
+//! sweep ([`sweep`]) runs after the plain pass.
 #![no_std]
 #![no_main]
+
+mod sweep;
 
 use core::hint::black_box;
 use cortex_m_rt::entry;
@@ -67,6 +72,7 @@ fn main() -> ! {
             Some(at) => run_hold(at),
             None => true,
         };
+    let ok = ok && (!sweep::wanted() || sweep::run());
     hprintln!(
         "stack: {} bytes used at most (of {} KiB RAM)",
         stack_high_water(),
@@ -173,6 +179,14 @@ fn run() -> bool {
 /// instruction-count window around the call (as it would in a timer ISR).
 #[inline(never)]
 fn servo_tick(ip: &mut Interpolator<'_>) -> Result<Setpoint, Fault> {
+    ip.tick()
+}
+
+/// [`servo_tick`] for an interpolator with room for override profiles.
+#[inline(never)]
+fn servo_tick_sized<const Q: usize, const W: usize>(
+    ip: &mut Interpolator<'_, Q, W>,
+) -> Result<Setpoint, Fault> {
     ip.tick()
 }
 
