@@ -100,15 +100,26 @@ impl<'a> TurnInU<'a> {
 /// r‴ of a cubic NURBS jumps at its knots, so the jerk (10) has a jump there
 /// and both one-sided values must be checked; with a knot of q at each
 /// break, every span of q sees smooth geometry. A break within 5 % of a
-/// span's length of a sample moves that sample onto it instead.
+/// span's length of a sample moves that sample onto it instead
+/// ([`merge_breaks`]).
 pub fn with_breaks(samples: &[f64], arc: &ArcLength) -> Vec<f64> {
+    merge_breaks(samples, arc.spans().iter().skip(1).map(|sp| sp.s0))
+}
+
+/// [`with_breaks`] on the break positions themselves (increasing arc
+/// lengths). A sample that already stands on a break is never moved onto
+/// the next one: two breaks closer than 5 % of the span between them each
+/// keep a knot of q, so no span of q straddles a knot of the toolpath (a
+/// short, sharp bend between two close knots would otherwise lie inside one
+/// span of q, between its check points, and the plan would cross it unseen).
+fn merge_breaks(samples: &[f64], breaks: impl Iterator<Item = f64>) -> Vec<f64> {
     let mut v = samples.to_vec();
     let n = v.len();
     if n < 2 {
         return v;
     }
-    for sp in arc.spans().iter().skip(1) {
-        let b = sp.s0;
+    let mut last_break = f64::NAN;
+    for b in breaks {
         let i = v.partition_point(|&x| x < b);
         if i == 0 || i >= v.len() {
             continue;
@@ -117,11 +128,12 @@ pub fn with_breaks(samples: &[f64], arc: &ArcLength) -> Vec<f64> {
         let tol = 0.05 * (hi - lo);
         if hi - b <= tol && i < v.len() - 1 {
             v[i] = b;
-        } else if b - lo <= tol && i > 1 {
+        } else if b - lo <= tol && i > 1 && lo != last_break {
             v[i - 1] = b;
         } else if b > lo && b < hi {
             v.insert(i, b);
         }
+        last_break = b;
     }
     v
 }
@@ -162,4 +174,34 @@ pub(crate) fn end_room(
         length_mm: length,
         added,
     })
+}
+
+#[cfg(test)]
+mod merge_breaks_tests {
+    use super::merge_breaks;
+
+    #[test]
+    fn a_break_near_a_sample_moves_the_sample_onto_it() {
+        let v = merge_breaks(&[0.0, 10.0, 20.0, 30.0], [10.2, 19.9].into_iter());
+        assert_eq!(v, [0.0, 10.2, 19.9, 30.0]);
+    }
+
+    #[test]
+    fn a_break_far_from_every_sample_is_inserted() {
+        let v = merge_breaks(&[0.0, 10.0, 20.0], [5.0].into_iter());
+        assert_eq!(v, [0.0, 5.0, 10.0, 20.0]);
+    }
+
+    /// Two breaks closer than 5 % of the span after the first: the second
+    /// must not take the first one's knot (the sampling of a weighted
+    /// curve's short bend at s ≈ 10.109 and 10.173 mm did, and the plan
+    /// crossed the bend at 30 × the jerk limit).
+    #[test]
+    fn close_breaks_each_keep_a_knot() {
+        let samples = [0.0, 8.3713, 10.119249, 12.3898, 20.0];
+        let v = merge_breaks(&samples, [10.108902, 10.172784].into_iter());
+        assert!(v.contains(&10.108902), "{v:?}");
+        assert!(v.contains(&10.172784), "{v:?}");
+        assert!(v.windows(2).all(|w| w[0] < w[1]), "{v:?}");
+    }
 }
