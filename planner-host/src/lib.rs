@@ -18,12 +18,15 @@
 //!   ArcLen (Appendix C) and the window LP between the active profile and
 //!   the target level.
 //! - [`limits`]: the paper's Table 1 and the limits file.
+//! - [`cli`]: what `feedplan` and `feedsim` share: exit codes, the curve
+//!   argument (a file or a built-in name), stdout that may close.
 //!
 //! Start from [`plan_curve`] with a [`Nurbs`] (from a file, [`Nurbs::load`],
 //! or built in, [`builtin::by_name`]) and a [`PlanConfig`]; the
 //! [`PlanOutput`] holds the encoded table. An [`OverrideContext`] built from
 //! the plan answers feedrate override requests.
 
+pub mod cli;
 pub mod feed_override;
 pub mod geometry;
 pub mod limits;

@@ -23,41 +23,12 @@ use planner_host::plan::verify;
 use planner_host::plan::{self, Formulation, PlanConfig, PlanError};
 use planner_host::sampling::Sampling;
 use planner_host::ArcLength;
+use planner_host::CurveError;
 use planner_host::EndMode;
 use planner_host::Nurbs;
-use planner_host::{builtin, CurveError};
 
-/// `println!` to stdout. A closed pipe (`feedplan ... | head`) ends the
-/// program quietly with status 0 instead of a panic; any other write error
-/// exits 1.
-macro_rules! outln {
-    ($($arg:tt)*) => {{
-        use std::io::Write as _;
-        if let Err(e) = writeln!(std::io::stdout(), $($arg)*) {
-            stdout_failed(e)
-        }
-    }};
-}
-
-/// Where [`outln!`] goes when stdout refuses a write.
-fn stdout_failed(e: std::io::Error) -> ! {
-    if e.kind() == std::io::ErrorKind::BrokenPipe {
-        std::process::exit(0);
-    }
-    eprintln!("feedplan: error: cannot write to stdout: {e}");
-    std::process::exit(1);
-}
-
-/// The exit codes, shown after `--help`.
-const EXIT_CODES: &str = "\
-Exit codes:
-  0  success
-  1  I/O or internal error (e.g. the table cannot be written)
-  2  usage: unknown option, bad option value (clap), or an option that does not fit
-  3  bad input: unreadable or invalid curve, limits file or table
-  4  infeasible plan: an LP or the plan has no solution (stall, no room for the end segments,
-     the override window LP)
-  5  (feedsim only) a limit exceeded in a check";
+use planner_host::cli::{EXIT_CODES_HELP as EXIT_CODES, EXIT_INFEASIBLE, EXIT_INPUT, EXIT_IO, EXIT_USAGE};
+use planner_host::outln;
 
 #[derive(Parser)]
 #[command(
@@ -209,15 +180,6 @@ struct Failure {
     message: String,
 }
 
-/// I/O or internal error.
-const EXIT_IO: u8 = 1;
-/// Usage.
-const EXIT_USAGE: u8 = 2;
-/// Bad input file.
-const EXIT_INPUT: u8 = 3;
-/// Infeasible plan.
-const EXIT_INFEASIBLE: u8 = 4;
-
 impl Failure {
     fn new(code: u8, message: impl std::fmt::Display) -> Self {
         Failure {
@@ -247,7 +209,7 @@ impl From<serde_json::Error> for Failure {
 
 impl From<PlanError> for Failure {
     fn from(e: PlanError) -> Self {
-        Failure::new(plan_exit_code(&e), e)
+        Failure::new(planner_host::cli::plan_exit_code(&e), e)
     }
 }
 
@@ -259,19 +221,6 @@ impl From<OverrideError> for Failure {
             _ => EXIT_INPUT,
         };
         Failure::new(code, e)
-    }
-}
-
-/// The exit code of a failed plan: the curve or the limits are bad input
-/// (3), a bad option value is usage (2), writing is I/O (1), and everything
-/// the LPs or the plan could not satisfy is infeasible (4).
-fn plan_exit_code(e: &PlanError) -> u8 {
-    match e {
-        PlanError::Curve(_) | PlanError::Limits(_) | PlanError::Corner { .. } => EXIT_INPUT,
-        PlanError::TooFewPoints { .. } | PlanError::OverrideLevel { .. } => EXIT_USAGE,
-        PlanError::Io { .. } | PlanError::Table(_) => EXIT_IO,
-        PlanError::Level { source, .. } => plan_exit_code(source),
-        _ => EXIT_INFEASIBLE,
     }
 }
 
@@ -296,25 +245,9 @@ fn with_schema_version(v: &serde_json::Value) -> Result<String, Failure> {
     })
 }
 
-/// The curve argument: a file if one exists at that path, else a built-in
-/// curve of that name.
+/// The curve argument (see [`planner_host::cli::load_curve`]).
 fn load_curve(arg: &std::path::Path) -> Result<Nurbs, Failure> {
-    if !arg.exists() {
-        if let Some(c) = arg.to_str().and_then(builtin::by_name) {
-            return Ok(c?);
-        }
-        if arg.extension().is_none() && arg.components().count() == 1 {
-            return Err(Failure::new(
-                EXIT_INPUT,
-                format!(
-                    "{}: no such file, and not a built-in curve ({})",
-                    arg.display(),
-                    builtin::NAMES.join(", ")
-                ),
-            ));
-        }
-    }
-    Ok(Nurbs::load(arg)?)
+    planner_host::cli::load_curve(arg).map_err(|e| Failure::new(EXIT_INPUT, e))
 }
 
 /// A progress bar on stderr for the base plan and each override level,

@@ -25,45 +25,8 @@ use sim_harness::plot::{self, FeedPlot};
 use sim_harness::servo::ServoConfig;
 use sim_harness::{run_table, SimConfig, SimError, SimResult};
 
-/// `print!` to stdout. A closed pipe (`feedsim ... | head`) ends the program
-/// quietly with status 0 instead of a panic; any other write error exits 1.
-macro_rules! out {
-    ($($arg:tt)*) => {{
-        use std::io::Write as _;
-        if let Err(e) = write!(std::io::stdout(), $($arg)*) {
-            stdout_failed(e)
-        }
-    }};
-}
-
-/// `println!` to stdout, as [`out!`].
-macro_rules! outln {
-    ($($arg:tt)*) => {{
-        use std::io::Write as _;
-        if let Err(e) = writeln!(std::io::stdout(), $($arg)*) {
-            stdout_failed(e)
-        }
-    }};
-}
-
-/// Where [`out!`] and [`outln!`] go when stdout refuses a write.
-fn stdout_failed(e: std::io::Error) -> ! {
-    if e.kind() == std::io::ErrorKind::BrokenPipe {
-        std::process::exit(0);
-    }
-    eprintln!("feedsim: error: cannot write to stdout: {e}");
-    std::process::exit(1);
-}
-
-/// Exit codes, shown after every `--help`.
-const EXIT_CODES: &str = "\
-Exit codes:
-  0  success
-  1  I/O or internal error
-  2  usage (unknown option, missing argument)
-  3  bad input: unreadable or invalid curve, table, limits file, servo file or CSV
-  4  infeasible plan: the LP or the plan has no solution
-  5  a limit exceeded in a check";
+use planner_host::cli::{EXIT_CODES_HELP as EXIT_CODES, EXIT_INPUT, EXIT_IO, EXIT_LIMIT};
+use planner_host::{out, outln};
 
 #[derive(Parser)]
 #[command(
@@ -231,21 +194,14 @@ impl Failure {
     /// 3: the input is unreadable or invalid.
     fn input(e: impl Display) -> Failure {
         Failure {
-            code: 3,
-            message: e.to_string(),
-        }
-    }
-    /// 4: the plan has no solution.
-    fn infeasible(e: impl Display) -> Failure {
-        Failure {
-            code: 4,
+            code: EXIT_INPUT,
             message: e.to_string(),
         }
     }
     /// 5: a limit is exceeded.
     fn limit(e: impl Display) -> Failure {
         Failure {
-            code: 5,
+            code: EXIT_LIMIT,
             message: e.to_string(),
         }
     }
@@ -255,23 +211,18 @@ impl Failure {
 impl<E: Into<BoxError>> From<E> for Failure {
     fn from(e: E) -> Failure {
         Failure {
-            code: 1,
+            code: EXIT_IO,
             message: e.into().to_string(),
         }
     }
 }
 
-/// A planner error's exit code: bad input 3, no solution 4, else 1.
+/// A planner error with the exit code both tools give it
+/// ([`planner_host::cli::plan_exit_code`]).
 fn plan_failure(e: PlanError) -> Failure {
-    match e {
-        PlanError::Curve(_) | PlanError::Limits(_) | PlanError::OverrideLevel { .. } => Failure::input(e),
-        PlanError::Lp(_)
-        | PlanError::TooFewPoints { .. }
-        | PlanError::EndSegments { .. }
-        | PlanError::Stall { .. }
-        | PlanError::Corner { .. }
-        | PlanError::Level { .. } => Failure::infeasible(e),
-        e => e.into(),
+    Failure {
+        code: planner_host::cli::plan_exit_code(&e),
+        message: e.to_string(),
     }
 }
 
@@ -297,28 +248,10 @@ fn main() -> ExitCode {
     }
 }
 
-/// The JSON text of a built-in curve by name (case-insensitive).
-fn builtin_json(name: &str) -> Option<&'static str> {
-    planner_host::builtin::json(name)
-}
-
-fn builtin_names() -> String {
-    planner_host::builtin::NAMES.join(", ")
-}
-
-/// A curve argument: an existing JSON file, else the name of a built-in curve.
+/// A curve argument: an existing JSON file, else the name of a built-in
+/// curve ([`planner_host::cli::load_curve`]).
 fn load_curve(arg: &str) -> Result<Nurbs, Failure> {
-    let path = Path::new(arg);
-    if path.exists() {
-        return Nurbs::load(path).map_err(Failure::input);
-    }
-    match builtin_json(arg) {
-        Some(json) => Nurbs::from_json_str(json).map_err(|e| format!("built-in curve {arg}: {e}").into()),
-        None => Err(Failure::input(format!(
-            "{arg}: no such file, and not a built-in curve ({})",
-            builtin_names()
-        ))),
-    }
+    planner_host::cli::load_curve(Path::new(arg)).map_err(Failure::input)
 }
 
 /// Curve arguments of `feedsim report` as files (the report reads files): an
@@ -341,10 +274,9 @@ fn report_curve_files(args: &[String]) -> Result<(Vec<PathBuf>, TempDir), Failur
             files.push(path.to_path_buf());
             continue;
         }
-        let Some(json) = builtin_json(arg) else {
-            return Err(Failure::input(format!(
-                "{arg}: no such file, and not a built-in curve ({})",
-                builtin_names()
+        let Some(json) = planner_host::builtin::json(arg) else {
+            return Err(Failure::input(planner_host::cli::CurveArgError::Unknown(
+                arg.clone(),
             )));
         };
         std::fs::create_dir_all(&tmp.0).map_err(|e| format!("cannot create {}: {e}", tmp.0.display()))?;
