@@ -396,13 +396,6 @@ impl Interp {
                         "rotary and extra axes are not supported on a 3-axis machine",
                     ))
                 }
-                b'o' => {
-                    return Err(unsupported(
-                        line,
-                        "O",
-                        "O-word control flow (subroutines, loops, conditions) is not supported",
-                    ))
-                }
                 b'd' | b'h' => {
                     return Err(unsupported(
                         line,

@@ -22,7 +22,7 @@
 //!   parameters as they were before the line, and the assignments take
 //!   effect after it (LinuxCNC's documented order).
 
-use super::error::{not_text, syntax, GcodeError};
+use super::error::{not_text, syntax, unsupported, GcodeError};
 use super::expr::{read_param_key, read_value, Cursor};
 use super::params::{ParamKey, Params};
 
@@ -156,7 +156,14 @@ pub(crate) fn read_block(cl: &CleanLine, params: &Params) -> Result<Block, Gcode
                 let v = read_value(&mut c, params)?;
                 block.assignments.push((key, v));
             }
-            b'a'..=b'z' => {
+            b'o' => {
+                return Err(unsupported(
+                    cl.line,
+                    "O",
+                    "O-word control flow (subroutines, loops, conditions) is not supported",
+                ))
+            }
+            b'a'..=b'z' | b'@' | b'^' => {
                 c.i += 1;
                 c.word = (ch as char).to_ascii_uppercase().to_string();
                 let v = read_value(&mut c, params)?;
