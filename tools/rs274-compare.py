@@ -116,6 +116,9 @@ def run_feedplan(feedplan, path):
     return json.loads(p.stdout), None
 
 
+KINDS = {"rapid": 0, "line": 0, "arc": 0, "nurbs": 0}
+
+
 def compare(path, feedplan, rs274, verbose):
     """(ok, moves compared, worst end/centre difference mm in mm and in inch output,
     worst feed difference mm/min, notes)"""
@@ -138,6 +141,7 @@ def compare(path, feedplan, rs274, verbose):
         notes.append(f"rs274 printed {len(theirs)} moves before refusing, feedplan has {len(mine)}")
     for i in range(n):
         a, b = mine[i], theirs[i]
+        KINDS[b["kind"]] = KINDS.get(b["kind"], 0) + 1
         where = f"move {i} (line {a['line']})"
         if a["kind"] != b["kind"]:
             ok = False
@@ -224,7 +228,7 @@ def main():
             print(f"         … {len(notes) - 20} more")
         bad += not ok
     print(f"{len(args.programs)} programs ({partial} compared only up to an older rs274's limit), "
-          f"{total_moves} moves compared; largest end/centre difference {worst[0]:.2e} mm where "
+          f"{total_moves} moves compared ({', '.join(f'{k} {v}' for k, v in KINDS.items())}); largest end/centre difference {worst[0]:.2e} mm where "
           f"rs274 prints mm, {worst[1]:.2e} mm where it prints inches (its 4 decimals: "
           f"{PRINT_HALF_UNIT * MM_PER_INCH:.2e} mm); largest feed difference {worst_feed:.2e} mm/min; "
           f"{bad} mismatching")
