@@ -20,7 +20,8 @@ PROGRAM --json`, and compares the moves one by one:
   the current point included; G6.2: control points + order, the knot-only
   lines included).
 
-When rs274 refuses a program the moves it printed before the refusal are
+When both refuse a program, they must refuse the same line (rs274 prints its
+text, feedplan its number). When only rs274 refuses, the moves it printed before the refusal are
 still compared. A refusal that is a known limit of an older rs274 (G6.2 and
 G5.2 outside G17 arrived in LinuxCNC in 2023, after the 2.9.0~pre1 of Debian
 12) is reported as such and does not fail; any other refusal of a program
@@ -101,11 +102,12 @@ def run_rs274(rs274, path):
         elif name.startswith("NURBS"):
             moves.append({"kind": "nurbs", "count": int(nums(args)[0]) if nums(args) else None,
                           "feed": feed, "scale": scale})
-    refusal = None
+    refusal, refused_text = None, None
     if p.returncode != 0:
         err = [l for l in p.stderr.splitlines() if l.strip() and l.strip() != "executing"]
         refusal = err[0] if err else f"exit status {p.returncode}"
-    return moves, refusal
+        refused_text = err[1].strip() if len(err) > 1 else None
+    return moves, refusal, refused_text
 
 
 def run_feedplan(feedplan, path):
@@ -122,12 +124,21 @@ KINDS = {"rapid": 0, "line": 0, "arc": 0, "nurbs": 0}
 def compare(path, feedplan, rs274, verbose):
     """(ok, moves compared, worst end/centre difference mm in mm and in inch output,
     worst feed difference mm/min, notes)"""
-    theirs, refusal = run_rs274(rs274, path)
+    theirs, refusal, refused_text = run_rs274(rs274, path)
     ours, our_err = run_feedplan(feedplan, path)
     notes = []
     if ours is None:
         if refusal is not None:
-            return True, 0, [0.0, 0.0], 0.0, [f"both refuse (rs274: {refusal}; feedplan: {our_err})"]
+            # the same line? rs274 prints the refused line's text, feedplan its number
+            m = re.search(r"LINE (\d+):", our_err)
+            with open(path, encoding="utf-8", errors="replace") as f:
+                lines = f.read().split("\n")
+            ours_text = lines[int(m.group(1)) - 1].strip() if m and int(m.group(1)) <= len(lines) else None
+            same = refused_text is None or ours_text == refused_text
+            note = f"both refuse{' the same line' if same else ''} (rs274: {refusal}; {our_err})"
+            if not same:
+                note += f"; rs274 refuses '{refused_text}', feedplan '{ours_text}'"
+            return same, 0, [0.0, 0.0], 0.0, [note]
         return False, 0, [0.0, 0.0], 0.0, [f"feedplan refuses a program rs274 reads: {our_err}"]
     mine = ours["moves"]
     worst, worst_feed = [0.0, 0.0], 0.0  # mm output, inch output
@@ -212,13 +223,14 @@ def main():
     if not feedplan or not rs274:
         print(f"rs274-compare: missing tool (feedplan: {feedplan}, rs274: {rs274})", file=sys.stderr)
         return 2
-    total_moves, worst, worst_feed, bad, partial = 0, [0.0, 0.0], 0.0, 0, 0
+    total_moves, worst, worst_feed, bad, partial, both_refuse = 0, [0.0, 0.0], 0.0, 0, 0, 0
     for path in args.programs:
         ok, n, w, wf, notes = compare(path, feedplan, rs274, args.verbose)
         total_moves += n
         worst = [max(worst[0], w[0]), max(worst[1], w[1])]
         worst_feed = max(worst_feed, wf)
         partial += any("stops after" in x for x in notes)
+        both_refuse += ok and any(x.startswith("both refuse the same line") for x in notes)
         status = "ok" if ok else "MISMATCH"
         print(f"{status:8} {path}: {n} moves compared, largest end/centre difference "
               f"{max(w):.2e} mm, feed {wf:.2e} mm/min")
@@ -227,7 +239,8 @@ def main():
         if len(notes) > 20:
             print(f"         … {len(notes) - 20} more")
         bad += not ok
-    print(f"{len(args.programs)} programs ({partial} compared only up to an older rs274's limit), "
+    print(f"{len(args.programs)} programs ({both_refuse} refused by both on the same line, "
+          f"{partial} compared only up to an older rs274's limit), "
           f"{total_moves} moves compared ({', '.join(f'{k} {v}' for k, v in KINDS.items())}); largest end/centre difference {worst[0]:.2e} mm where "
           f"rs274 prints mm, {worst[1]:.2e} mm where it prints inches (its 4 decimals: "
           f"{PRINT_HALF_UNIT * MM_PER_INCH:.2e} mm); largest feed difference {worst_feed:.2e} mm/min; "

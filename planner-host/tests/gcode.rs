@@ -393,6 +393,34 @@ fn spindle_coolant_and_tool_words_are_listed() {
     assert!(words(&p.spindle).contains(&"M3".to_string()));
 }
 
+/// `programs/refused/`: each program's first line says which kind of error
+/// it must give (LinuxCNC's rs274 refuses the same line: docs/gcode.md).
+#[test]
+fn the_refused_programs_are_refused_with_their_kind() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("programs/refused");
+    let mut n = 0;
+    for e in std::fs::read_dir(dir).unwrap() {
+        let p = e.unwrap().path();
+        if p.extension() != Some(std::ffi::OsStr::new("ngc")) {
+            continue;
+        }
+        let bytes = std::fs::read(&p).unwrap();
+        let text = String::from_utf8(bytes.clone()).unwrap();
+        let kind = text
+            .lines()
+            .next()
+            .and_then(|l| l.strip_prefix("(refused: "))
+            .and_then(|l| l.split('.').next())
+            .unwrap_or_else(|| panic!("{}: no '(refused: Kind.' first line", p.display()));
+        let e = read_bytes(&bytes, ReadOptions::default())
+            .err()
+            .unwrap_or_else(|| panic!("{} reads", p.display()));
+        assert!(format!("{e:?}").starts_with(kind), "{}: {e:?}", p.display());
+        n += 1;
+    }
+    assert!(n >= 20, "{n} refused programs");
+}
+
 /// The error of a small program: its kind, line and word.
 #[track_caller]
 fn refused(text: &str) -> GcodeError {
