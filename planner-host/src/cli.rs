@@ -15,7 +15,7 @@ pub const EXIT_IO: u8 = 1;
 /// Exit code: usage (clap's own, and an option value that does not fit).
 pub const EXIT_USAGE: u8 = 2;
 /// Exit code: bad input (an unreadable or invalid curve, table, limits file,
-/// servo file or CSV).
+/// servo file, CSV or G-code program).
 pub const EXIT_INPUT: u8 = 3;
 /// Exit code: an infeasible plan (an LP or the plan has no solution).
 pub const EXIT_INFEASIBLE: u8 = 4;
@@ -28,7 +28,8 @@ Exit codes:
   0  success
   1  I/O or internal error (e.g. an output file cannot be written)
   2  usage: unknown option, bad option value, or an option that does not fit
-  3  bad input: unreadable or invalid curve, table, limits file, servo file or CSV
+  3  bad input: unreadable or invalid curve, table, limits file, servo file, CSV or G-code
+     program (a word it refuses: LINE N: word 'G41': ...)
   4  infeasible plan: an LP or the plan has no solution (stall, no room for the end segments,
      the override window LP)
   5  a limit exceeded in a check (feedsim run --check, feedsim check)";

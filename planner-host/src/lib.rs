@@ -18,6 +18,8 @@
 //!   ArcLen (Appendix C) and the window LP between the active profile and
 //!   the target level.
 //! - [`limits`]: the paper's Table 1 and the limits file.
+//! - [`gcode`]: part programs in RS274/NGC (LinuxCNC's G-code) to
+//!   canonical moves — lines, arcs, NURBS — in mm and mm/s.
 //! - [`cli`]: what `feedplan` and `feedsim` share: exit codes, the curve
 //!   argument (a file or a built-in name), stdout that may close.
 //!
@@ -28,6 +30,7 @@
 
 pub mod cli;
 pub mod feed_override;
+pub mod gcode;
 pub mod geometry;
 pub mod limits;
 pub mod lp;

@@ -5,6 +5,7 @@
 //!                     [--formulation certified|paper] [--ends jerk|step] [--period-us 250]
 //!                     [--override-levels 30,50,125 | 10:200:10] -o TABLE.bin [--json]
 //! feedplan override TABLE.bin --at S_MM --to PERCENT [--from PERCENT] [-o PROFILE.json] [--json]
+//! feedplan parse PART.ngc [--json] [--block-delete]
 //! feedplan completions bash|zsh|fish|elvish|powershell
 //! ```
 //!
@@ -130,6 +131,23 @@ enum Cmd {
         /// Print the outcome as one JSON object (the profile, or why the override was skipped).
         #[arg(long)]
         json: bool,
+    },
+    /// Read a G-code part program (RS274/NGC as LinuxCNC reads it, 3 axes) and print its
+    /// canonical moves: rapids, lines, arcs and NURBS in mm and mm/s, with the path-control mode
+    /// of each; spindle, coolant and tool words are listed. What it refuses (cutter
+    /// compensation, offsets, canned cycles, O-words, rotary axes…) exits 3 naming the line
+    /// and the word (docs/gcode.md).
+    #[command(after_help = EXIT_CODES)]
+    Parse {
+        /// The part program (.ngc).
+        program: PathBuf,
+        /// Print the program and its moves as one JSON object.
+        #[arg(long)]
+        json: bool,
+        /// Skip the lines that start with '/' (the block-delete switch; off by default, as in
+        /// LinuxCNC's rs274).
+        #[arg(long)]
+        block_delete: bool,
     },
     /// Print a shell completion script to stdout.
     Completions {
@@ -368,6 +386,11 @@ fn run(cli: Cli) -> Result<(), Failure> {
             output,
             json,
         } => override_cmd(&table, at, from, to, period_us, output.as_deref(), json),
+        Cmd::Parse {
+            program,
+            json,
+            block_delete,
+        } => parse_cmd(&program, json, block_delete),
         Cmd::Completions { shell } => {
             let mut script = Vec::new();
             clap_complete::generate(shell, &mut Cli::command(), "feedplan", &mut script);
@@ -485,6 +508,88 @@ fn override_cmd(
                 outln!("  profile written to {}", out.display());
             }
         }
+    }
+    Ok(())
+}
+
+/// `feedplan parse`.
+fn parse_cmd(path: &std::path::Path, json: bool, block_delete: bool) -> Result<(), Failure> {
+    use planner_host::gcode::{self, MoveKind, NoteWord};
+    let bytes = std::fs::read(path)
+        .map_err(|e| Failure::new(EXIT_INPUT, format!("cannot read {}: {e}", path.display())))?;
+    let prog = gcode::read_bytes(&bytes, gcode::ReadOptions { block_delete })
+        .map_err(|e| Failure::new(EXIT_INPUT, format!("{}: {e}", path.display())))?;
+    let kinds = [
+        ("rapid", MoveKind::Rapid),
+        ("line", MoveKind::Line),
+        ("arc", MoveKind::Arc),
+        ("nurbs", MoveKind::Nurbs),
+    ];
+    if json {
+        let mut v = serde_json::to_value(&prog)?;
+        v["program"] = path.display().to_string().into();
+        let counts: serde_json::Map<String, serde_json::Value> = kinds
+            .iter()
+            .map(|(name, k)| (name.to_string(), prog.count(*k).into()))
+            .collect();
+        v["counts"] = counts.into();
+        outln!("{}", with_schema_version(&v)?);
+        return Ok(());
+    }
+    let by_kind: Vec<String> = kinds
+        .iter()
+        .map(|(name, k)| format!("{name} {}", prog.count(*k)))
+        .collect();
+    outln!(
+        "{}: {} lines, {} blocks, {} moves ({})",
+        path.display(),
+        prog.lines,
+        prog.blocks,
+        prog.moves.len(),
+        by_kind.join(", ")
+    );
+    if let Some(first) = prog.moves.first() {
+        let (mut lo, mut hi) = (first.start, first.start);
+        for m in &prog.moves {
+            for k in 0..3 {
+                lo[k] = lo[k].min(m.end[k]);
+                hi[k] = hi[k].max(m.end[k]);
+            }
+        }
+        outln!(
+            "  end points within X {:.3} .. {:.3}, Y {:.3} .. {:.3}, Z {:.3} .. {:.3} mm",
+            lo[0],
+            hi[0],
+            lo[1],
+            hi[1],
+            lo[2],
+            hi[2]
+        );
+        let feeds: Vec<f64> = prog.moves.iter().filter_map(|m| m.feed_mm_s).collect();
+        if let (Some(fmin), Some(fmax)) = (
+            feeds.iter().copied().reduce(f64::min),
+            feeds.iter().copied().reduce(f64::max),
+        ) {
+            outln!("  feed {:.1} .. {:.1} mm/min", fmin * 60.0, fmax * 60.0);
+        }
+    }
+    let list = |name: &str, words: &[NoteWord]| {
+        if words.is_empty() {
+            outln!("  {name}: none");
+        } else {
+            let w: Vec<String> = words
+                .iter()
+                .map(|n| format!("{} (line {})", n.word, n.line))
+                .collect();
+            outln!("  {name}: {}", w.join(", "));
+        }
+    };
+    list("spindle", &prog.spindle);
+    list("coolant", &prog.coolant);
+    list("tool", &prog.tool);
+    list("program control", &prog.program_control);
+    for w in &prog.warnings {
+        outln!("  warning: {w}");
     }
     Ok(())
 }
