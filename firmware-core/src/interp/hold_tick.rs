@@ -29,8 +29,8 @@
 //! - After the end, or after a fault, [`Interpolator::hold`] and
 //!   [`Interpolator::resume`] return a [`HoldError`] and change nothing.
 
-use crate::feed_hold::constraints::{Ahead, Kin};
-use crate::feed_hold::controller::{scaled_step, FeedHold};
+use crate::feed_hold::constraints::{mn, mx, sqrt32, Ahead, Kin};
+use crate::feed_hold::controller::{scaled_step, FeedHold, TickScale, LAM_ONE};
 use crate::feed_hold::{HoldError, HoldState, HoldStats};
 use crate::interp::cursor::{q_eval, tau_of};
 use crate::interp::hold_run::{
@@ -39,7 +39,7 @@ use crate::interp::hold_run::{
 use crate::interp::interpolator::{Interpolator, Phase};
 use crate::interp::setpoint::{Fault, Setpoint};
 use crate::math::source::F64Array;
-use crate::servo_forms::fixed::{fx_small_f32, fx_to_f64, to_fx, Q_ONE};
+use crate::servo_forms::fixed::{f32_to_fx, fx_small_f32, fx_to_f64, mul_hi, to_fx};
 use crate::servo_forms::piece::pos_derivs;
 
 impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
@@ -70,8 +70,10 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
                 // longest horizon: the ticks then refresh it a few points
                 // at a time.
                 let mut sw = self.start_sweep(self.s, AHEAD_MAX_MM);
-                self.sweep_points(&mut sw, usize::MAX);
+                let mut joined = Ahead::default();
+                self.sweep_points(&mut sw, &mut joined, usize::MAX);
                 self.fh.ahead = sw.part;
+                self.fh.joined = sw.part;
                 self.fh.reach = sw.reach;
                 self.fh.sweep = None;
             }
@@ -85,6 +87,9 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
         self.hold_allowed()?;
         self.fh.to_end = false;
         self.fh.ctl.resume();
+        // (a resume plans without the stop's look-ahead)
+        self.fh.sweep = None;
+        self.fh.joined = Ahead::default();
         Ok(())
     }
 
@@ -121,7 +126,7 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
     }
 
     /// A look-ahead sweep from s (see [`Sweep`]) over `d` mm.
-    fn start_sweep(&self, s: i64, d: f64) -> Sweep {
+    fn start_sweep(&self, s: i64, d: f32) -> Sweep {
         Sweep {
             base: s,
             d,
@@ -129,7 +134,7 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
             part: Ahead::default(),
             reach: false,
             into_stop: false,
-            stop_near: self.ends.is_some() && self.stop_at.wrapping_sub(s) <= to_fx(AHEAD_MAX_MM),
+            stop_near: self.ends.is_some() && self.stop_at.wrapping_sub(s) <= f32_to_fx(AHEAD_MAX_MM),
             done: false,
         }
     }
@@ -137,14 +142,14 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
     /// The horizon of a sweep starting now: the arc length the stop can
     /// still cover (its time to go at the planned braking rate times the
     /// plan's feed `v`, × [`AHEAD_FACTOR`]), at most [`AHEAD_MAX_MM`].
-    fn sweep_len(&self, kin: &Kin, v: f64) -> f64 {
+    fn sweep_len(&self, kin: &Kin, v: f32) -> f32 {
         let b = FeedHold::braking(kin, &self.fh.lim);
-        let (x, mu) = (self.fh.ctl.lambda(), self.fh.ctl.mu());
+        let (x, mu) = (self.fh.ctl.lambda_f32(), self.fh.ctl.mu_f32());
         if !(b > 0.0 && v > 0.0) {
             return 0.0;
         }
-        let t_go = 2.0 * libm::sqrt(2.0 * x.max(0.0) / b) + mu.abs() / b;
-        (AHEAD_FACTOR * v * t_go).min(AHEAD_MAX_MM)
+        let t_go = 2.0 * sqrt32(2.0 * mx(x, 0.0) / b) + mu.abs() / b;
+        mn(AHEAD_FACTOR * v * t_go, AHEAD_MAX_MM)
     }
 
     /// Evaluate up to `count` more points of the sweep `sw` (the look-ahead
@@ -154,18 +159,17 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
     /// within [`AHEAD_MAX_MM`]; points already passed are skipped. Pieces
     /// and q spans are read from the views (the current ones from their
     /// cursors).
-    fn sweep_points(&self, sw: &mut Sweep, count: usize) {
+    fn sweep_points(&self, sw: &mut Sweep, joined: &mut Ahead, count: usize) {
         let s = self.s;
         let v_ = &self.views;
-        let (mut pi, mut qi) = (self.pc.idx, self.qc.idx);
         let mut left = count;
         while !sw.done && left > 0 {
             let k = sw.next;
             sw.next = k.saturating_add(1);
             let mut sk = match k {
                 k if k <= AHEAD_N => {
-                    let f = k as f64 / AHEAD_N as f64;
-                    sw.base.saturating_add(to_fx(sw.d * f * f))
+                    let f = k as f32 * (1.0 / AHEAD_N as f32);
+                    sw.base.saturating_add(f32_to_fx(sw.d * f * f))
                 }
                 _ if sw.stop_near && !sw.into_stop => self.stop_at,
                 _ => {
@@ -193,14 +197,16 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
                 }
             }
             left -= 1;
-            while pi < v_.p_last
-                && v_
-                    .piece_breaks
-                    .get(pi.wrapping_add(1))
-                    .is_some_and(|b| sk >= to_fx(b))
-            {
-                pi = pi.wrapping_add(1);
-            }
+            // The piece and the q span of sk (binary searches over the
+            // breaks and knots ahead of the cursors: a bounded cost however
+            // many pieces the look-ahead spans).
+            let at = fx_to_f64(sk.saturating_add(1)).to_bits();
+            let pi = self.pc.idx.wrapping_add(count_below(
+                &v_.piece_breaks,
+                self.pc.idx.wrapping_add(1),
+                v_.p_last,
+                at,
+            ));
             let Some(pc) = (if pi == self.pc.idx {
                 Some(self.pc)
             } else {
@@ -214,12 +220,17 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
                 break;
             };
             let dr = pos_derivs(coeffs, tau_of(sk, pc.centre, pc.shift), pc.shift, pc.constant);
-            while sk >= self.qc.next
-                && qi < v_.q_last
-                && v_.q_knots.get(qi.wrapping_add(4)).is_some_and(|e| sk >= to_fx(e))
-            {
-                qi = qi.wrapping_add(1);
-            }
+            let qi = if sk >= self.qc.next {
+                let i = self.qc.idx;
+                i.wrapping_add(count_below(
+                    &v_.q_knots,
+                    i.wrapping_add(4),
+                    v_.q_last.wrapping_add(3),
+                    at,
+                ))
+            } else {
+                self.qc.idx
+            };
             let qc = if qi == self.qc.idx {
                 Some(self.qc)
             } else {
@@ -242,24 +253,29 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
                 }
             };
             sw.part.add(&k);
+            joined.add(&k);
             if sw.into_stop {
                 sw.done = true;
             }
         }
     }
 
-    /// The look-ahead for this tick (stopping only; zeros otherwise): the
-    /// last complete sweep joined with the one in progress, which advances
-    /// by [`AHEAD_PER_TICK`] points (a new one starts when it is complete).
-    /// A hold request runs a whole sweep at once ([`Interpolator::hold`]),
-    /// outside the tick.
-    fn ahead_acc(&mut self, kin: &Kin, v: f64) -> (Ahead, bool) {
+    /// The look-ahead for this tick (stopping only; zeros otherwise):
+    /// `fh.joined`, the last complete sweep joined with the one in
+    /// progress, which advances by `points` points (a new one starts when
+    /// it is complete); returns whether the plan's stop segment is within
+    /// the stop's reach. A hold request runs a whole sweep at once
+    /// ([`Interpolator::hold`]), outside the tick.
+    fn ahead_acc(&mut self, kin: &Kin, v: f32, points: usize) -> bool {
         // Stopping only: a resume plans its cap at λ = 1 already, and a
         // look-ahead cap dropping under μ on its exponential tail forces μ
         // down against the tail law (measured: up to 1.07× j at landing).
         if self.fh.ctl.state() != HoldState::Stopping {
-            self.fh.sweep = None;
-            return (Ahead::default(), false);
+            if self.fh.sweep.is_some() {
+                self.fh.sweep = None;
+                self.fh.joined = Ahead::default();
+            }
+            return false;
         }
         let mut sw = match self.fh.sweep {
             Some(sw) if !sw.done => sw,
@@ -268,12 +284,16 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
                     self.fh.ahead = d.part;
                     self.fh.reach = d.reach;
                 }
+                // (a new sweep: nothing of it yet)
+                self.fh.joined = self.fh.ahead;
                 self.start_sweep(self.s, self.sweep_len(kin, v))
             }
         };
-        self.sweep_points(&mut sw, AHEAD_PER_TICK);
+        let mut joined = self.fh.joined;
+        self.sweep_points(&mut sw, &mut joined, points);
+        self.fh.joined = joined;
         self.fh.sweep = Some(sw);
-        (self.fh.ahead.join(&sw.part), self.fh.reach || sw.reach)
+        self.fh.reach || sw.reach
     }
 
     /// One tick under time-scaling (module docs); `phase` is `Run`.
@@ -285,28 +305,71 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
         if self.fh.ctl.state() == HoldState::Held {
             return self.place(t_s, (fx_to_f64(s), s), 0.0);
         }
-        let h = self.period_s;
-        let j2 = self.ends.map_or(0.0, |e| e.jerk_stop);
+        if let Some(tau) = self.fh.seg_tau {
+            return self.hold_seg_tick(t_s, tau);
+        }
+        let h = self.h;
         // The plan's ṡ_p, s̈_p, s⃛_p, s⁗_p at s.
-        let plan = match self.fh.seg_tau {
-            Some(tau) => [0.5 * j2 * tau * tau, -j2 * tau, j2, 0.0],
-            None => {
-                let [_, dq, ddq, dddq] = self.qs.qd.map(f64::from);
-                let v = self.qs.v_fx as f64 * (1.0 / Q_ONE);
-                [v, 0.5 * dq, 0.5 * ddq * v, 0.5 * dddq * v * v + 0.25 * ddq * dq]
-            }
-        };
-        let Some(coeffs) = self.views.coeffs(&self.pc) else {
+        let [_, dq, ddq, dddq] = self.qs.qd;
+        let v = self.qs.v;
+        let plan = [v, 0.5 * dq, 0.5 * ddq * v, 0.5 * dddq * v * v + 0.25 * ddq * dq];
+        let Some((kin, extra)) = self.hold_kin(plan, s) else {
             return self.fault(Fault::Eval { s_mm: fx_to_f64(s) });
         };
+        // (a tick that evaluated the next piece too leaves the look-ahead
+        // for the next)
+        let points = if extra { 0 } else { AHEAD_PER_TICK };
+        let stop_in_reach = self.ahead_acc(&kin, v, points);
+        // (below λ = ½ the plan's λ³J and 3λμA leave room to finish)
+        self.fh
+            .ctl
+            .set_coast(stop_in_reach && self.fh.ctl.lambda_f32() > COAST_ABOVE);
+        let ts = self.fh.ctl.control_ahead(&kin, &self.fh.joined, &self.fh.lim, h);
+        if self.fh.ctl.state() == HoldState::Running {
+            self.fh.prev_j = None;
+        }
+        let vh = mul_hi(self.qs.v_fx, self.tk.0).wrapping_shl(self.tk.1);
+        let Some(ds) = scaled_step(vh, plan, &ts, h) else {
+            return self.fault(Fault::NonFinite { s_mm: fx_to_f64(s) });
+        };
+        let s_new = s.saturating_add(ds);
+        if s_new >= self.stop_at {
+            let rest = fx_to_f64(self.len_fx.wrapping_sub(s_new));
+            let j2 = self.ends.map_or(0.0, |e| e.jerk_stop);
+            if self.ends.is_none() || !(rest > 0.0) || !(j2 > 0.0) {
+                return Ok(self.finish(t_s));
+            }
+            // Into the stop segment at its own time to go τ (L − s = J₂τ³/6).
+            let tau = libm::cbrt(6.0 * rest / j2);
+            self.fh.seg_tau = Some(tau);
+            let feed = (self.fh.ctl.lambda() * 0.5 * j2 * tau * tau) as f32;
+            return self.place(t_s, (fx_to_f64(s_new), s_new), feed);
+        }
+        let guess = self.qs.v;
+        let sp = self.place(t_s, (fx_to_f64(s_new), s_new), 0.0)?;
+        let tq = fx_small_f32(s_new.wrapping_sub(self.qc.anchor), 20);
+        let poly = self.qc.poly;
+        self.qs = q_eval(&self.qc, &poly, s_new, tq, guess);
+        Ok(Setpoint {
+            feed_mm_s: f64::from(self.fh.ctl.lambda_f32() * self.qs.v),
+            ..sp
+        })
+    }
+
+    /// The plan's kinematics at s ([`Kin`]) for the controller, from the
+    /// plan's `[ṡ_p, s̈_p, s⃛_p, …]` there: with J's change since the last
+    /// tick, or the jump of the path's r‴ at a piece break within the next
+    /// two ticks when that is larger.
+    fn hold_kin(&mut self, plan: [f32; 4], s: i64) -> Option<(Kin, bool)> {
+        let [p1, p2, p3, _] = plan;
+        let coeffs = self.views.coeffs(&self.pc)?;
         let dr = pos_derivs(
             coeffs,
             tau_of(s, self.pc.centre, self.pc.shift),
             self.pc.shift,
             self.pc.constant,
         );
-        let [p1, p2, p3, _] = plan;
-        let mut kin = Kin::new(dr, [p1 as f32, p2 as f32, p3 as f32]);
+        let mut kin = Kin::new(dr, [p1, p2, p3]);
         if let Some(pj) = self.fh.prev_j {
             for ((d, j), p) in kin.dj.iter_mut().zip(kin.j.iter()).zip(pj.iter()) {
                 *d = j - p;
@@ -315,13 +378,16 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
         self.fh.prev_j = Some(kin.j);
         // A piece break within the next two ticks: the path's r‴ (so the
         // plan's axis jerk) jumps there; the jump counts as J's change.
-        let reach = s.saturating_add(to_fx(2.0 * h * p1.max(0.0) * self.fh.ctl.lambda().max(0.0)));
-        if self.pc.next <= reach && self.pc.idx < self.views.p_last {
+        let reach = s.saturating_add(f32_to_fx(
+            2.0 * self.h * p1.max(0.0) * self.fh.ctl.lambda_f32().max(0.0),
+        ));
+        let extra = self.pc.next <= reach && self.pc.idx < self.views.p_last;
+        if extra {
             if let Some(next) = self.views.piece(self.pc.idx.wrapping_add(1)) {
                 if let Some(c) = self.views.coeffs(&next) {
                     let at = self.pc.next;
                     let dr_n = pos_derivs(c, tau_of(at, next.centre, next.shift), next.shift, next.constant);
-                    let kin_n = Kin::new(dr_n, [p1 as f32, p2 as f32, p3 as f32]);
+                    let kin_n = Kin::new(dr_n, [p1, p2, p3]);
                     for ((d, jn), j) in kin.dj.iter_mut().zip(kin_n.j.iter()).zip(kin.j.iter()) {
                         let jump = jn - j;
                         if jump.abs() > d.abs() {
@@ -331,63 +397,79 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
                 }
             }
         }
-        let (ahead, stop_in_reach) = match self.fh.seg_tau {
-            // (in the stop segment: coast through it)
-            Some(_) => (Ahead::default(), true),
-            None => self.ahead_acc(&kin, p1),
-        };
-        // (below λ = ½ the plan's λ³J and 3λμA leave room to finish)
-        self.fh
-            .ctl
-            .set_coast(stop_in_reach && self.fh.ctl.lambda() > COAST_ABOVE);
-        let ts = self.fh.ctl.control_ahead(&kin, &ahead, &self.fh.lim, h);
-        let lam = self.fh.ctl.lambda();
-        if self.fh.ctl.state() == HoldState::Running {
+        Some((kin, extra))
+    }
+
+    /// A tick in the stop segment under scaling: the segment followed in
+    /// its own time θ (τ = t₂ − θ to go, s = L − J₂τ³/6, dθ/dt = λ; f64).
+    #[inline(never)]
+    fn hold_seg_tick(&mut self, t_s: f64, tau: f64) -> Result<Setpoint, Fault> {
+        let s = self.s;
+        let h = self.h;
+        let j2 = self.ends.map_or(0.0, |e| e.jerk_stop);
+        let ts = if self.fh.ctl.state() == HoldState::Running {
+            // (resumed: λ = 1 and the segment runs at its own pace)
             self.fh.prev_j = None;
-        }
-        if let Some(tau) = self.fh.seg_tau {
-            // dθ = ∫λ dt over the tick (exact: λ is a quadratic in t).
-            let dth = h * (ts.lam + h * (0.5 * ts.mu + h * ts.nu / 6.0));
-            let tau1 = tau - dth.max(0.0);
-            if !tau1.is_finite() {
-                return self.fault(Fault::NonFinite { s_mm: fx_to_f64(s) });
+            TickScale {
+                lam: LAM_ONE,
+                lam_f: 1.0,
+                ..TickScale::default()
             }
-            if tau1 <= 0.0 {
-                self.fh.seg_tau = None;
-                return Ok(self.finish(t_s));
+        } else {
+            let (j2f, tf) = (j2 as f32, tau as f32);
+            let plan = [0.5 * j2f * tf * tf, -j2f * tf, j2f, 0.0];
+            let Some((kin, _)) = self.hold_kin(plan, s) else {
+                return self.fault(Fault::Eval { s_mm: fx_to_f64(s) });
+            };
+            // (in the stop segment: coast through it)
+            self.fh.ctl.set_coast(self.fh.ctl.lambda_f32() > COAST_ABOVE);
+            let ts = self
+                .fh
+                .ctl
+                .control_ahead(&kin, &Ahead::default(), &self.fh.lim, h);
+            if self.fh.ctl.state() == HoldState::Running {
+                self.fh.prev_j = None;
             }
-            self.fh.seg_tau = Some(tau1);
-            let s_new = self
-                .len_fx
-                .wrapping_sub(to_fx(j2 * tau1 * tau1 * tau1 / 6.0))
-                .max(s);
-            let feed = (lam * 0.5 * j2 * tau1 * tau1) as f32;
-            return self.place(t_s, (fx_to_f64(s_new), s_new), feed);
-        }
-        let ds = scaled_step(plan, &ts, h);
-        if !ds.is_finite() {
+            ts
+        };
+        // dθ = ∫λ dt over the tick (exact: λ is a quadratic in t).
+        let hd = self.period_s;
+        let dth = hd * (ts.lam_f64() + hd * (0.5 * f64::from(ts.mu) + hd * f64::from(ts.nu) / 6.0));
+        let tau1 = tau - dth.max(0.0);
+        if !tau1.is_finite() {
             return self.fault(Fault::NonFinite { s_mm: fx_to_f64(s) });
         }
-        let s_new = s.saturating_add(to_fx(ds));
-        if s_new >= self.stop_at {
-            let rest = fx_to_f64(self.len_fx.wrapping_sub(s_new));
-            if self.ends.is_none() || !(rest > 0.0) || !(j2 > 0.0) {
-                return Ok(self.finish(t_s));
-            }
-            // Into the stop segment at its own time to go τ (L − s = J₂τ³/6).
-            let tau = libm::cbrt(6.0 * rest / j2);
-            self.fh.seg_tau = Some(tau);
-            let feed = (lam * 0.5 * j2 * tau * tau) as f32;
-            return self.place(t_s, (fx_to_f64(s_new), s_new), feed);
+        if tau1 <= 0.0 {
+            self.fh.seg_tau = None;
+            return Ok(self.finish(t_s));
         }
-        let guess = self.qs.v;
-        let sp = self.place(t_s, (fx_to_f64(s_new), s_new), 0.0)?;
-        let tq = fx_small_f32(s_new.wrapping_sub(self.qc.anchor), 20);
-        let poly = self.qc.poly;
-        self.qs = q_eval(&self.qc, &poly, s_new, tq, guess);
-        Ok(Setpoint {
-            feed_mm_s: lam * f64::from(self.qs.v),
-            ..sp
-        })
+        self.fh.seg_tau = Some(tau1);
+        let s_new = self
+            .len_fx
+            .wrapping_sub(to_fx(j2 * tau1 * tau1 * tau1 / 6.0))
+            .max(s);
+        let feed = self.fh.ctl.lambda_f32() * (0.5 * j2 * tau1 * tau1) as f32;
+        self.place(t_s, (fx_to_f64(s_new), s_new), feed)
     }
+}
+
+/// How many of the values `arr[first ..= last]` (ascending, ≥ 0) lie below
+/// the non-negative f64 with bits `at` (i.e. are ≤ s for `at` the bits of
+/// s + 2⁻⁴⁰ mm, as the cursors' Q40 compare `to_fx(b) ≤ s` counts them):
+/// a binary search on the bit patterns (integer compares; a non-negative
+/// f64's bits order as its value).
+fn count_below<A: F64Array>(arr: &A, first: usize, last: usize, at: u64) -> usize {
+    let (mut lo, mut hi) = (first, last.wrapping_add(1).max(first));
+    while lo < hi {
+        let mid = lo + (hi - lo) / 2;
+        let b = arr.get(mid).map_or(u64::MAX, |x| x.to_bits());
+        // (a negative value counts as 0)
+        let b = if b >> 63 != 0 && b != u64::MAX { 0 } else { b };
+        if b < at {
+            lo = mid + 1;
+        } else {
+            hi = mid;
+        }
+    }
+    lo - first
 }

@@ -109,6 +109,14 @@ impl PieceU {
     }
 }
 
+/// An i64 as f32 through the FPU's 32-bit conversions (the high half
+/// exactly below 2²⁴, the low half, one addition: within an ulp of `x as
+/// f32`, without the soft-float call).
+#[inline(always)]
+fn i64_f32(x: i64) -> f32 {
+    ((x >> 32) as i32 as f32) * 4294967296.0 + (x as u32) as f32
+}
+
 /// r′, r″, r‴ of a piece's position polynomial (Σ b_k τ^k per axis, b_k
 /// Q40 mm) with respect to arc length at τ (Q61), f32: `[r′, r″, r‴]`, each
 /// `[x, y, z]` (mm/mm, 1/mm, 1/mm²). With τ = (s − c)/2^e, d/ds = 2^−e d/dτ
@@ -128,7 +136,7 @@ pub fn pos_derivs(b: &[u8; POS_BYTES], tau: i64, shift: u32, constant: u32) -> [
         let base = 8 * POS_COEFFS * a;
         let (mut d1, mut d2, mut d3) = (0.0f32, 0.0f32, 0.0f32);
         for k in (1..POS_COEFFS).rev() {
-            let c = rd_i64(b, base + 8 * k) as f32 * unit;
+            let c = i64_f32(rd_i64(b, base + 8 * k)) * unit;
             let kf = k as f32;
             d1 = d1 * t + kf * c;
             if k >= 2 {
