@@ -3,7 +3,7 @@
 //! and the scaled step of s ([`scaled_step`]).
 
 use crate::feed_hold::constraints::{
-    constraints, interval, mn, mu_cap_ahead, mx, sqrt32, Ahead, HoldLimits, Kin, N_CONS, RHO_J,
+    constraints, interval, mn, mu_cap_ahead, mx, sqrt32, Ahead, HoldLimits, Interval, Kin, N_CONS, RHO_J,
 };
 use crate::feed_hold::{HoldState, HoldStats};
 use crate::servo_forms::fixed::f32_to_fx;
@@ -287,7 +287,28 @@ impl FeedHold {
         };
         self.cap_prev = if hold { mu_max } else { f32::INFINITY };
         let cons = constraints(kin, lim, (lam_f, mu_f), h, mu_max);
-        let mut iv = interval(&cons);
+        // The intersection directly where every constraint is normalised
+        // (c = 1; c = 0 ones ν cannot change): the common case; else, and
+        // when it is empty, [`interval`].
+        let (mut lo, mut hi, mut plain) = (f32::NEG_INFINITY, f32::INFINITY, true);
+        for k in &cons {
+            if k.c == 1.0 {
+                lo = mx(lo, -k.m - k.d);
+                hi = mn(hi, k.m - k.d);
+            } else if k.c != 0.0 {
+                plain = false;
+            }
+        }
+        let mut iv = if plain && lo <= hi {
+            Interval {
+                lo,
+                hi,
+                relax: 1.0,
+                fixed: 0.0,
+            }
+        } else {
+            interval(&cons)
+        };
         if iv.relax > 1.0 {
             // Infeasible: |μ| still does not grow past the cap (the
             // relaxation would otherwise let it grow with the violation,
@@ -353,10 +374,10 @@ impl FeedHold {
         }
         let lands = lands && !coast;
         let (mut r, mut at) = (0.0f32, 0u8);
-        for (i, k) in cons.iter().enumerate() {
+        for (i, k) in (0u8..).zip(cons.iter().take(N_CONS - 1)) {
             let x = (k.d + k.c * nu).abs() / k.m;
-            if x > r && i < N_CONS - 1 {
-                (r, at) = (x, i as u8);
+            if x > r {
+                (r, at) = (x, i);
             }
         }
         self.stats.last_ratio = r;

@@ -15,8 +15,8 @@ pub(crate) const END_FACTOR: f32 = 2.0;
 pub(crate) const COAST_ABOVE: f32 = 0.5;
 /// Points the μ cap's look-ahead evaluates the plan at.
 pub(crate) const AHEAD_N: usize = 32;
-/// Look-ahead points evaluated per hold tick (a whole sweep is
-/// [`AHEAD_N`] + 2 points).
+/// Look-ahead steps ([`Stage`]) per hold tick: a point is three steps, a
+/// whole sweep [`AHEAD_N`] + 2 points.
 pub(crate) const AHEAD_PER_TICK: usize = 1;
 /// Safety factor on the look-ahead distance.
 pub(crate) const AHEAD_FACTOR: f32 = 1.5;
@@ -60,6 +60,25 @@ pub(crate) struct Sweep {
     /// The stop segment's entry is within [`AHEAD_MAX_MM`] of `base`.
     pub(crate) stop_near: bool,
     pub(crate) done: bool,
+    /// The point in progress: what is next for it, where it is (Q40 mm),
+    /// its piece and q span, and the path's derivatives there.
+    pub(crate) stage: Stage,
+    pub(crate) sk: i64,
+    pub(crate) pi: usize,
+    pub(crate) qi: usize,
+    pub(crate) dr: [[f32; 3]; 3],
+}
+
+/// The steps of one look-ahead point, one per tick.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub(crate) enum Stage {
+    /// Place the point and find its piece and q span.
+    #[default]
+    Locate,
+    /// The path's derivatives there.
+    Derivs,
+    /// The plan there, into the maxima.
+    Plan,
 }
 
 impl HoldRun {

@@ -34,7 +34,7 @@ use crate::feed_hold::controller::{scaled_step, FeedHold, TickScale, LAM_ONE};
 use crate::feed_hold::{HoldError, HoldState, HoldStats};
 use crate::interp::cursor::{q_eval, tau_of};
 use crate::interp::hold_run::{
-    Sweep, AHEAD_FACTOR, AHEAD_MAX_MM, AHEAD_N, AHEAD_PER_TICK, COAST_ABOVE, END_FACTOR,
+    Stage, Sweep, AHEAD_FACTOR, AHEAD_MAX_MM, AHEAD_N, AHEAD_PER_TICK, COAST_ABOVE, END_FACTOR,
 };
 use crate::interp::interpolator::{Interpolator, Phase};
 use crate::interp::setpoint::{Fault, Setpoint};
@@ -135,7 +135,7 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
             reach: false,
             into_stop: false,
             stop_near: self.ends.is_some() && self.stop_at.wrapping_sub(s) <= f32_to_fx(AHEAD_MAX_MM),
-            done: false,
+            ..Sweep::default()
         }
     }
 
@@ -162,100 +162,120 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
     fn sweep_points(&self, sw: &mut Sweep, joined: &mut Ahead, count: usize) {
         let s = self.s;
         let v_ = &self.views;
-        let mut left = count;
+        // Work units left: a point is three (locate, derivatives, plan),
+        // a point passed since the sweep began an eighth of one.
+        let mut left = count.saturating_mul(8);
         while !sw.done && left > 0 {
-            let k = sw.next;
-            sw.next = k.saturating_add(1);
-            let mut sk = match k {
-                k if k <= AHEAD_N => {
-                    let f = k as f32 * (1.0 / AHEAD_N as f32);
-                    sw.base.saturating_add(f32_to_fx(sw.d * f * f))
-                }
-                _ if sw.stop_near && !sw.into_stop => self.stop_at,
-                _ => {
-                    sw.done = true;
-                    break;
-                }
-            };
-            if sk < s {
-                continue; // passed since the sweep began
-            }
-            if sk >= self.stop_at {
-                // The stop segment ahead: its entry (the largest |A| of the
-                // segment, J = J₂ at the jerk limit all along) with the
-                // path's derivatives just before s₂.
-                match self.ends {
-                    Some(_) if !sw.into_stop && self.stop_at > s => {
-                        sw.into_stop = true;
-                        sw.reach |= k <= AHEAD_N;
-                        sk = self.stop_at.wrapping_sub(1);
+            match sw.stage {
+                Stage::Locate => {
+                    let k = sw.next;
+                    sw.next = k.saturating_add(1);
+                    let mut sk = match k {
+                        k if k <= AHEAD_N => {
+                            let f = k as f32 * (1.0 / AHEAD_N as f32);
+                            sw.base.saturating_add(f32_to_fx(sw.d * f * f))
+                        }
+                        _ if sw.stop_near && !sw.into_stop => self.stop_at,
+                        _ => {
+                            sw.done = true;
+                            break;
+                        }
+                    };
+                    if sk < s {
+                        left = left.saturating_sub(1);
+                        continue; // passed since the sweep began
                     }
-                    _ => {
+                    if sk >= self.stop_at {
+                        // The stop segment ahead: its entry (the largest |A|
+                        // of the segment, J = J₂ at the jerk limit all
+                        // along) with the path's derivatives just before s₂.
+                        match self.ends {
+                            Some(_) if !sw.into_stop && self.stop_at > s => {
+                                sw.into_stop = true;
+                                sw.reach |= k <= AHEAD_N;
+                                sk = self.stop_at.wrapping_sub(1);
+                            }
+                            _ => {
+                                sw.done = true;
+                                break;
+                            }
+                        }
+                    }
+                    // The piece and the q span of sk (binary searches over
+                    // the breaks and knots ahead of the cursors: a bounded
+                    // cost however many pieces the look-ahead spans).
+                    let at = fx_to_f64(sk.saturating_add(1)).to_bits();
+                    let pi = self.pc.idx.wrapping_add(count_below(
+                        &v_.piece_breaks,
+                        self.pc.idx.wrapping_add(1),
+                        v_.p_last,
+                        at,
+                    ));
+                    let qi = if sk >= self.qc.next {
+                        let i = self.qc.idx;
+                        i.wrapping_add(count_below(
+                            &v_.q_knots,
+                            i.wrapping_add(4),
+                            v_.q_last.wrapping_add(3),
+                            at,
+                        ))
+                    } else {
+                        self.qc.idx
+                    };
+                    (sw.sk, sw.pi, sw.qi) = (sk, pi, qi);
+                    sw.stage = Stage::Derivs;
+                    left = left.saturating_sub(8);
+                }
+                Stage::Derivs => {
+                    let pi = sw.pi;
+                    let pc = if pi == self.pc.idx {
+                        Some(self.pc)
+                    } else {
+                        v_.piece(pi)
+                    };
+                    let Some(pc) = pc else {
                         sw.done = true;
                         break;
+                    };
+                    let Some(coeffs) = v_.coeffs(&pc) else {
+                        sw.done = true;
+                        break;
+                    };
+                    sw.dr = pos_derivs(coeffs, tau_of(sw.sk, pc.centre, pc.shift), pc.shift, pc.constant);
+                    sw.stage = Stage::Plan;
+                    left = left.saturating_sub(8);
+                }
+                Stage::Plan => {
+                    let qc = if sw.qi == self.qc.idx {
+                        Some(self.qc)
+                    } else {
+                        v_.q(sw.qi)
+                    };
+                    let Some(qc) = qc else {
+                        sw.done = true;
+                        break;
+                    };
+                    let (sk, dr) = (sw.sk, sw.dr);
+                    let k = match (sw.into_stop, self.ends) {
+                        (true, Some(e)) => {
+                            let (j2, t2) = (e.jerk_stop as f32, e.t_stop as f32);
+                            Kin::new(dr, [0.5 * j2 * t2 * t2, -j2 * t2, j2])
+                        }
+                        _ => {
+                            let tq = fx_small_f32(sk.wrapping_sub(qc.anchor), 20);
+                            let qs = q_eval(&qc, &qc.poly, sk, tq, self.qs.v);
+                            let [_, dq, ddq, _] = qs.qd;
+                            Kin::new(dr, [qs.v, 0.5 * dq, 0.5 * ddq * qs.v])
+                        }
+                    };
+                    sw.part.add(&k);
+                    joined.add(&k);
+                    if sw.into_stop {
+                        sw.done = true;
                     }
+                    sw.stage = Stage::Locate;
+                    left = left.saturating_sub(8);
                 }
-            }
-            left -= 1;
-            // The piece and the q span of sk (binary searches over the
-            // breaks and knots ahead of the cursors: a bounded cost however
-            // many pieces the look-ahead spans).
-            let at = fx_to_f64(sk.saturating_add(1)).to_bits();
-            let pi = self.pc.idx.wrapping_add(count_below(
-                &v_.piece_breaks,
-                self.pc.idx.wrapping_add(1),
-                v_.p_last,
-                at,
-            ));
-            let Some(pc) = (if pi == self.pc.idx {
-                Some(self.pc)
-            } else {
-                v_.piece(pi)
-            }) else {
-                sw.done = true;
-                break;
-            };
-            let Some(coeffs) = v_.coeffs(&pc) else {
-                sw.done = true;
-                break;
-            };
-            let dr = pos_derivs(coeffs, tau_of(sk, pc.centre, pc.shift), pc.shift, pc.constant);
-            let qi = if sk >= self.qc.next {
-                let i = self.qc.idx;
-                i.wrapping_add(count_below(
-                    &v_.q_knots,
-                    i.wrapping_add(4),
-                    v_.q_last.wrapping_add(3),
-                    at,
-                ))
-            } else {
-                self.qc.idx
-            };
-            let qc = if qi == self.qc.idx {
-                Some(self.qc)
-            } else {
-                v_.q(qi)
-            };
-            let Some(qc) = qc else {
-                sw.done = true;
-                break;
-            };
-            let k = match (sw.into_stop, self.ends) {
-                (true, Some(e)) => {
-                    let (j2, t2) = (e.jerk_stop as f32, e.t_stop as f32);
-                    Kin::new(dr, [0.5 * j2 * t2 * t2, -j2 * t2, j2])
-                }
-                _ => {
-                    let tq = fx_small_f32(sk.wrapping_sub(qc.anchor), 20);
-                    let qs = q_eval(&qc, &qc.poly, sk, tq, self.qs.v);
-                    let [_, dq, ddq, _] = qs.qd;
-                    Kin::new(dr, [qs.v, 0.5 * dq, 0.5 * ddq * qs.v])
-                }
-            };
-            sw.part.add(&k);
-            joined.add(&k);
-            if sw.into_stop {
-                sw.done = true;
             }
         }
     }
