@@ -51,9 +51,8 @@ pub(crate) fn mn(a: f32, b: f32) -> f32 {
     }
 }
 
-/// √x in f32 by three Newton steps (hardware division) from the exponent
-/// halved: within an ulp or two of the correctly rounded root for a
-/// normal x > 0 (libm's `sqrtf` is a bit-by-bit loop on the M4F, which
+/// √x in f32 by two Newton steps (hardware division) from the exponent
+/// halved: within 1e-6 of the root for a normal x > 0 (libm's `sqrtf` is a bit-by-bit loop on the M4F, which
 /// core cannot reach its VSQRT from); 0 for x = 0, NaN below, ∞ for ∞.
 #[inline]
 pub(crate) fn sqrt32(x: f32) -> f32 {
@@ -65,7 +64,7 @@ pub(crate) fn sqrt32(x: f32) -> f32 {
         };
     }
     let mut y = f32::from_bits((x.to_bits() >> 1).wrapping_add(0x1fbd_1df5));
-    for _ in 0..3 {
+    for _ in 0..2 {
         y = 0.5 * (y + x / y);
     }
     y
@@ -198,8 +197,7 @@ pub(crate) fn interval(cons: &[Lin]) -> Interval {
 }
 
 /// The plan's own kinematics at one point: per axis (x, y, z) and, index 3,
-/// tangentially: V, A, J (see the module docs), and per axis the parts of A
-/// and J normal to the path.
+/// tangentially: V, A, J (see the module docs).
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
 pub(crate) struct Kin {
     /// Velocity, mm/s.
@@ -208,17 +206,9 @@ pub(crate) struct Kin {
     pub a: [f32; 4],
     /// Jerk, mm/s³.
     pub j: [f32; 4],
-    /// Normal part of A per axis.
-    pub an: [f32; 3],
-    /// Normal part of J per axis.
-    pub jn: [f32; 3],
     /// Change of J expected over the next tick (the last tick's change),
     /// mm/s³: J may grow within a tick, and ν is chosen at its start.
     pub dj: [f32; 4],
-}
-
-fn dot([a0, a1, a2]: [f32; 3], [b0, b1, b2]: [f32; 3]) -> f32 {
-    a0 * b0 + a1 * b1 + a2 * b2
 }
 
 impl Kin {
@@ -234,17 +224,12 @@ impl Kin {
         let jx = |d1: f32, d2: f32, d3: f32| d3 * v * v * v + 3.0 * d2 * v * a + d1 * j;
         let av = [ax(x1, x2), ax(y1, y2), ax(z1, z2)];
         let jv = [jx(x1, x2, x3), jx(y1, y2, y3), jx(z1, z2, z3)];
-        let n2 = dot(r1, r1);
-        let inv = if n2 > 0.0 { 1.0 / n2 } else { 0.0 };
-        let (pa, pj) = (dot(av, r1) * inv, dot(jv, r1) * inv);
         let [ax_, ay_, az_] = av;
         let [jx_, jy_, jz_] = jv;
         Kin {
             v: [x1 * v, y1 * v, z1 * v, v],
             a: [ax_, ay_, az_, a],
             j: [jx_, jy_, jz_, j],
-            an: [ax_ - pa * x1, ay_ - pa * y1, az_ - pa * z1],
-            jn: [jx_ - pj * x1, jy_ - pj * y1, jz_ - pj * z1],
             dj: [0.0; 4],
         }
     }

@@ -5,9 +5,13 @@
 //! tick to [`Interpolator::hold_tick`]: the plan's ṡ_p, s̈_p, s⃛_p, s⁗_p at
 //! s (from q, or from the stop segment's cubic), the path's r′, r″, r‴
 //! from the piece polynomial ([`crate::servo_forms::piece::pos_derivs`]), one controller
-//! step (ν), then s advances by the scaled order-4 Taylor step in f64
-//! ([`crate::feed_hold::controller::scaled_step`]; never backwards) and the position comes
-//! from the same fixed-point piece polynomial as on the normal tick. The
+//! step (ν), then s advances by the scaled order-4 Taylor step in Q40
+//! ([`crate::feed_hold::controller::scaled_step`]: the first-order term in
+//! fixed point, the rest in f32; never backwards) and the position comes
+//! from the same fixed-point piece polynomial as on the normal tick.
+//! While stopping, the μ cap's look-ahead advances one step a tick (a
+//! point is three: locate it, the path's derivatives, the plan there),
+//! none on a tick that also evaluates the next piece. The
 //! stall checks do not run on these ticks; held, the tick returns the same
 //! position with feed 0 and the clock advancing.
 //!
@@ -152,13 +156,14 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
         mn(AHEAD_FACTOR * v * t_go, AHEAD_MAX_MM)
     }
 
-    /// Evaluate up to `count` more points of the sweep `sw` (the look-ahead
-    /// of the μ cap): the plan's |A|, |V|, |J| per axis and tangentially at
-    /// [`AHEAD_N`] + 1 points spaced quadratically over `sw.d` from
-    /// `sw.base` (denser near) and at the stop segment's entry when it is
-    /// within [`AHEAD_MAX_MM`]; points already passed are skipped. Pieces
-    /// and q spans are read from the views (the current ones from their
-    /// cursors).
+    /// Take up to `count` more steps ([`Stage`]) of the sweep `sw` (the
+    /// look-ahead of the μ cap), each point into `sw.part` and `joined`:
+    /// the plan's |A|, |V|, |J| per axis and tangentially at [`AHEAD_N`] + 1
+    /// points spaced quadratically over `sw.d` from `sw.base` (denser near)
+    /// and at the stop segment's entry when it is within [`AHEAD_MAX_MM`];
+    /// points already passed are skipped (eight to a step). Pieces and q
+    /// spans are found by binary search and read from the views (the
+    /// current ones from their cursors).
     fn sweep_points(&self, sw: &mut Sweep, joined: &mut Ahead, count: usize) {
         let s = self.s;
         let v_ = &self.views;
