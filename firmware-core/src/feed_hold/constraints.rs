@@ -29,6 +29,47 @@ pub(crate) const MU_FLOOR_J: f32 = 0.05;
 /// the cap on |μ| ([`mu_cap`]).
 pub(crate) const N_CONS: usize = 17;
 
+/// max of two f32 in one compare (`f32::max` is a libm call on the M4F,
+/// which has no VMAXNM): a NaN `b` is ignored, as by `f32::max`; a NaN
+/// `a` stays (the accumulators and bounds it is used on start finite).
+#[inline(always)]
+pub(crate) fn mx(a: f32, b: f32) -> f32 {
+    if b > a {
+        b
+    } else {
+        a
+    }
+}
+
+/// min of two f32 in one compare (see [`mx`]).
+#[inline(always)]
+pub(crate) fn mn(a: f32, b: f32) -> f32 {
+    if b < a {
+        b
+    } else {
+        a
+    }
+}
+
+/// √x in f32 by two Newton steps (hardware division) from the exponent
+/// halved: within 1e-6 of the root for a normal x > 0 (libm's `sqrtf` is a bit-by-bit loop on the M4F, which
+/// core cannot reach its VSQRT from); 0 for x = 0, NaN below, ∞ for ∞.
+#[inline]
+pub(crate) fn sqrt32(x: f32) -> f32 {
+    if !(x > 0.0) || x == f32::INFINITY {
+        return if x == 0.0 || x == f32::INFINITY {
+            x
+        } else {
+            f32::NAN
+        };
+    }
+    let mut y = f32::from_bits((x.to_bits() >> 1).wrapping_add(0x1fbd_1df5));
+    for _ in 0..2 {
+        y = 0.5 * (y + x / y);
+    }
+    y
+}
+
 /// One linear constraint |d + c ν| ≤ m.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
 pub(crate) struct Lin {
@@ -57,6 +98,10 @@ pub(crate) struct Interval {
 /// c > 0 form of a constraint with c ≠ 0: (d/c, m/c).
 #[inline]
 fn norm(k: &Lin) -> Option<(f32, f32)> {
+    if k.c == 1.0 {
+        // (normalised by [`constraints`])
+        return (k.m > 0.0 && k.d.is_finite()).then_some((k.d, k.m));
+    }
     if k.c == 0.0 || !(k.m > 0.0) || !k.c.is_finite() || !k.d.is_finite() {
         return None;
     }
@@ -65,22 +110,40 @@ fn norm(k: &Lin) -> Option<(f32, f32)> {
     Some((dc, k.m / ac))
 }
 
+/// Newton steps [`interval`] takes at most for the smallest relaxation.
+pub(crate) const RELAX_STEPS: usize = 4;
+
 /// The intersection of the constraints' ν intervals; if empty, the
 /// minimiser of the largest relative violation max |d + cν|/m: the
 /// smallest r with max_i L_i(r) ≤ min_j U_j(r), L_i(r) = −r m_i/c_i −
-/// d_i/c_i, U_j(r) = r m_j/c_j − d_j/c_j (c > 0 after a sign flip), is the
-/// largest over pairs (i, j) of (d_j/c_j − d_i/c_i)/(m_i/c_i + m_j/c_j).
+/// d_i/c_i, U_j(r) = r m_j/c_j − d_j/c_j (c > 0 after a sign flip), i.e.
+/// the largest over pairs (i, j) of (d_j/c_j − d_i/c_i)/(m_i/c_i + m_j/c_j).
+/// f(r) = max_i L_i(r) − min_j U_j(r) is convex, piecewise linear and
+/// decreasing, and positive at r = 1 (the intersection is empty there):
+/// Newton's method from r = 1 (the root of the line through the pair that
+/// is extreme at r, that pair's value) climbs to the root monotonically,
+/// one linear piece per step, in O(n) per step instead of the O(n²) pairs
+/// (at most [`RELAX_STEPS`] steps; measured over 1,000 holds on the
+/// Butterfly: never more than two; a step that gains less than 1e-6 of r
+/// ends it).
 pub(crate) fn interval(cons: &[Lin]) -> Interval {
     let (mut lo, mut hi, mut fixed) = (f32::NEG_INFINITY, f32::INFINITY, 0.0f32);
+    // The normalised constraints (−d/c, m/c), for the relaxation.
+    let mut nk = [(0.0f32, 0.0f32); N_CONS];
+    let mut n = 0usize;
     for k in cons {
         match norm(k) {
             Some((dc, mc)) => {
-                lo = lo.max(-mc - dc);
-                hi = hi.min(mc - dc);
+                lo = mx(lo, -mc - dc);
+                hi = mn(hi, mc - dc);
+                if let Some(o) = nk.get_mut(n) {
+                    *o = (dc, mc);
+                    n += 1;
+                }
             }
             None => {
                 if k.m > 0.0 {
-                    fixed = fixed.max(k.d.abs() / k.m);
+                    fixed = mx(fixed, k.d.abs() / k.m);
                 }
             }
         }
@@ -93,20 +156,28 @@ pub(crate) fn interval(cons: &[Lin]) -> Interval {
             fixed,
         };
     }
-    let mut r = 0.0f32;
-    for a in cons {
-        let Some((da, ma)) = norm(a) else { continue };
-        for b in cons {
-            let Some((db, mb)) = norm(b) else { continue };
-            r = r.max((db - da) / (ma + mb));
-        }
-    }
+    // (empty at r = 1, so the root is above: start there)
+    let mut r = 1.0f32;
     let (mut l, mut u) = (f32::NEG_INFINITY, f32::INFINITY);
-    for k in cons {
-        if let Some((dc, mc)) = norm(k) {
-            l = l.max(-r * mc - dc);
-            u = u.min(r * mc - dc);
+    for step in 0..=RELAX_STEPS {
+        // The extreme pair at r (and the bounds at r).
+        let (mut li, mut ui) = ((0.0f32, 0.0f32), (0.0f32, 0.0f32));
+        (l, u) = (f32::NEG_INFINITY, f32::INFINITY);
+        for &(dc, mc) in nk.get(..n).unwrap_or(&[]) {
+            let (x, y) = (-r * mc - dc, r * mc - dc);
+            if x > l {
+                (l, li) = (x, (dc, mc));
+            }
+            if y < u {
+                (u, ui) = (y, (dc, mc));
+            }
         }
+        let r1 = (ui.0 - li.0) / (li.1 + ui.1);
+        // (converged to rounding: the next pair is the same line)
+        if step == RELAX_STEPS || !(r1 > r * (1.0 + 1e-6)) {
+            break;
+        }
+        r = r1;
     }
     let nu = if l.is_finite() && u.is_finite() {
         0.5 * (l + u)
@@ -120,14 +191,13 @@ pub(crate) fn interval(cons: &[Lin]) -> Interval {
     Interval {
         lo: nu,
         hi: nu,
-        relax: r.max(1.0),
+        relax: mx(r, 1.0),
         fixed,
     }
 }
 
 /// The plan's own kinematics at one point: per axis (x, y, z) and, index 3,
-/// tangentially: V, A, J (see the module docs), and per axis the parts of A
-/// and J normal to the path.
+/// tangentially: V, A, J (see the module docs).
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
 pub(crate) struct Kin {
     /// Velocity, mm/s.
@@ -136,17 +206,9 @@ pub(crate) struct Kin {
     pub a: [f32; 4],
     /// Jerk, mm/s³.
     pub j: [f32; 4],
-    /// Normal part of A per axis.
-    pub an: [f32; 3],
-    /// Normal part of J per axis.
-    pub jn: [f32; 3],
     /// Change of J expected over the next tick (the last tick's change),
     /// mm/s³: J may grow within a tick, and ν is chosen at its start.
     pub dj: [f32; 4],
-}
-
-fn dot([a0, a1, a2]: [f32; 3], [b0, b1, b2]: [f32; 3]) -> f32 {
-    a0 * b0 + a1 * b1 + a2 * b2
 }
 
 impl Kin {
@@ -162,17 +224,12 @@ impl Kin {
         let jx = |d1: f32, d2: f32, d3: f32| d3 * v * v * v + 3.0 * d2 * v * a + d1 * j;
         let av = [ax(x1, x2), ax(y1, y2), ax(z1, z2)];
         let jv = [jx(x1, x2, x3), jx(y1, y2, y3), jx(z1, z2, z3)];
-        let n2 = dot(r1, r1);
-        let inv = if n2 > 0.0 { 1.0 / n2 } else { 0.0 };
-        let (pa, pj) = (dot(av, r1) * inv, dot(jv, r1) * inv);
         let [ax_, ay_, az_] = av;
         let [jx_, jy_, jz_] = jv;
         Kin {
             v: [x1 * v, y1 * v, z1 * v, v],
             a: [ax_, ay_, az_, a],
             j: [jx_, jy_, jz_, j],
-            an: [ax_ - pa * x1, ay_ - pa * y1, az_ - pa * z1],
-            jn: [jx_ - pj * x1, jy_ - pj * y1, jz_ - pj * z1],
             dj: [0.0; 4],
         }
     }
@@ -184,18 +241,24 @@ impl Kin {
     /// tangent.
     /// |V| is taken at its limit ([`HoldLimits::v`], where known): the
     /// tail must hold along the path it still covers, not only here.
+    /// (The rate at |V| = the limit is [`HoldLimits::tail`]: computed
+    /// here only where |V| is above its limit or the limit is unknown.)
     pub fn tail_rate(&self, lim: &HoldLimits) -> f32 {
         let mut k = f32::INFINITY;
-        for (((v, vl), a), j) in self
+        for ((((v, vl), a), j), t) in self
             .v
             .iter()
             .zip(lim.v.iter())
             .zip(lim.a.iter())
             .zip(lim.j.iter())
+            .zip(lim.tail.iter())
         {
-            let (v, c) = (v.abs().max(*vl), 3.0 * RHO_J * j);
-            let r = 2.0 * c / (3.0 * a + libm::sqrtf(9.0 * a * a + 4.0 * v * c));
-            k = k.min(r);
+            let r = if *vl > 0.0 && v.abs() <= *vl {
+                *t
+            } else {
+                tail_rate_at(mx(v.abs(), *vl), *a, *j)
+            };
+            k = mn(k, r);
         }
         k
     }
@@ -213,7 +276,7 @@ impl Kin {
                     f32::INFINITY
                 }
             })
-            .fold(f32::INFINITY, f32::min)
+            .fold(f32::INFINITY, mn)
     }
 }
 
@@ -227,17 +290,29 @@ pub(crate) struct HoldLimits {
     pub a: [f32; 4],
     /// j_x, j_y, j_z, j̄ (mm/s³).
     pub j: [f32; 4],
+    /// The resume's tail rate at |V| = v ([`Kin::tail_rate`]), 1/s.
+    pub tail: [f32; 4],
 }
 
 impl HoldLimits {
     /// From the table's limits.
     pub fn new(l: &Limits) -> Self {
-        HoldLimits {
-            v: [l.v[0] as f32, l.v[1] as f32, l.v[2] as f32, l.vbar as f32],
-            a: [l.a[0] as f32, l.a[1] as f32, l.a[2] as f32, l.abar as f32],
-            j: [l.j[0] as f32, l.j[1] as f32, l.j[2] as f32, l.jbar as f32],
+        let v = [l.v[0] as f32, l.v[1] as f32, l.v[2] as f32, l.vbar as f32];
+        let a = [l.a[0] as f32, l.a[1] as f32, l.a[2] as f32, l.abar as f32];
+        let j = [l.j[0] as f32, l.j[1] as f32, l.j[2] as f32, l.jbar as f32];
+        let mut tail = [0.0f32; 4];
+        for (t, ((v, a), j)) in tail.iter_mut().zip(v.iter().zip(a.iter()).zip(j.iter())) {
+            *t = tail_rate_at(*v, *a, *j);
         }
+        HoldLimits { v, a, j, tail }
     }
+}
+
+/// The tail rate κ of one axis (or the tangent) at |V| = `v`
+/// ([`Kin::tail_rate`]): the root of κ²v + 3κa = 3 RHO_J j.
+fn tail_rate_at(v: f32, a: f32, j: f32) -> f32 {
+    let c = 3.0 * RHO_J * j;
+    2.0 * c / (3.0 * a + sqrt32(9.0 * a * a + 4.0 * v * c))
 }
 
 /// The largest |μ| (1/s) at λ that keeps the jerk the braking rate drives
@@ -268,7 +343,7 @@ pub(crate) fn mu_cap_ahead(k: &Kin, ahead: &Ahead, lim: &HoldLimits, lam: f32, n
             // (braking adds to the plan's acceleration only where A is
             // against V)
             let room = RHO_AHEAD * am - lam * lam * at(&ahead.a_acc);
-            cap = cap.min((room / va).max(MU_FLOOR));
+            cap = mn(cap, mx(room / va, MU_FLOOR));
             // The jerk the plan's λ³|J| ahead leaves for 3λμA.
             // On the axes, 3λμA adds to the plan's jerk only where J is
             // against A (tangentially, where the stop segment and the q
@@ -281,25 +356,25 @@ pub(crate) fn mu_cap_ahead(k: &Kin, ahead: &Ahead, lim: &HoldLimits, lam: f32, n
             };
             let room = RHO_AHEAD * (RHO_J * j - lam * lam * lam * ja);
             if aj > 0.0 && lam > 0.0 {
-                cap = cap.min((room / (3.0 * lam * aj)).max(MU_FLOOR_J));
+                cap = mn(cap, mx(room / (3.0 * lam * aj), MU_FLOOR_J));
             }
             if aa > 0.0 && lam > 0.0 {
                 // (and not overshooting the limit the other way)
-                cap = cap.min(RHO_AHEAD * RHO_J * j / (3.0 * lam * aa));
+                cap = mn(cap, RHO_AHEAD * RHO_J * j / (3.0 * lam * aa));
             }
         }
-        let a = a.abs().max(aa);
+        let a = mx(a.abs(), aa);
         let c2 = 3.0 * lam * lam * j / nu_r;
         let c1 = 3.0 * lam * a;
         let c0 = RHO_M * j;
         let m = if c2 > 0.0 && c2.is_finite() {
-            2.0 * c0 / (c1 + libm::sqrtf(c1 * c1 + 4.0 * c2 * c0))
+            2.0 * c0 / (c1 + sqrt32(c1 * c1 + 4.0 * c2 * c0))
         } else if c1 > 0.0 {
             c0 / c1
         } else {
             f32::INFINITY
         };
-        cap = cap.min(m);
+        cap = mn(cap, m);
     }
     cap
 }
@@ -333,7 +408,7 @@ impl Ahead {
             };
             let up = |x: &mut [f32; 4], y: f32| {
                 if let Some(o) = x.get_mut(i) {
-                    *o = o.max(y.abs());
+                    *o = mx(*o, y.abs());
                 }
             };
             up(&mut self.a, a);
@@ -348,30 +423,12 @@ impl Ahead {
             }
         }
     }
-
-    /// The larger of both, row by row.
-    pub fn join(&self, o: &Ahead) -> Ahead {
-        let m = |x: [f32; 4], y: [f32; 4]| {
-            let mut r = x;
-            for (a, b) in r.iter_mut().zip(y.iter()) {
-                *a = a.max(*b);
-            }
-            r
-        };
-        Ahead {
-            a: m(self.a, o.a),
-            v: m(self.v, o.v),
-            j: m(self.j, o.j),
-            a_acc: m(self.a_acc, o.a_acc),
-            j_jerk: m(self.j_jerk, o.j_jerk),
-            a_jerk: m(self.a_jerk, o.a_jerk),
-        }
-    }
 }
 
 /// The [`N_CONS`] constraints on ν at (λ, μ) for a tick of h seconds (see
-/// the module docs); `nu_r` the braking rate planned with, `lam_cap` the
-/// largest λ the μ cap must hold for (λ itself holding, 1 resuming).
+/// the module docs), `cap` the bound on |μ| after the tick. Each comes
+/// normalised where its c is not 0 (c = 1: d and m divided by c, one
+/// division per axis), so [`interval`] divides no more.
 pub(crate) fn constraints(
     k: &Kin,
     lim: &HoldLimits,
@@ -379,62 +436,88 @@ pub(crate) fn constraints(
     h: f32,
     cap: f32,
 ) -> [Lin; N_CONS] {
-    let mut out = [Lin::default(); N_CONS];
     let (l2, l3) = (lam * lam, lam * lam * lam);
-    let mut slots = out.iter_mut();
-    for i in 0..4usize {
-        let (Some(&v), Some(&a), Some(&j), Some(&am), Some(&jm)) =
-            (k.v.get(i), k.a.get(i), k.j.get(i), lim.a.get(i), lim.j.get(i))
-        else {
-            continue;
-        };
+    let inv_h = 1.0 / h;
+    let at = |x: &[f32; 4], i: usize| x.get(i).copied().unwrap_or(0.0);
+    let axis = |i: usize| -> [Lin; 4] {
+        let (v, a, j) = (at(&k.v, i), at(&k.a, i), at(&k.j, i));
+        let (am, jm) = (at(&lim.a, i), at(&lim.j, i));
         let jd = l3 * j + 3.0 * lam * mu * a;
         // The plan's own scaled jerk λ³|J| (it may sit at the limit) plus
         // the slack (1 − λ³)·RHO_J·j the scaling may use.
-        let jm_ = (RHO_J * jm).max(l3 * j.abs() + (1.0 - l3) * RHO_J * jm);
-        if let Some(s) = slots.next() {
-            *s = Lin { c: v, d: jd, m: jm_ };
-        }
+        let jm_ = mx(RHO_J * jm, l3 * j.abs() + (1.0 - l3) * RHO_J * jm);
         // The same with the plan's J reversed: J jumps at the q knots (the
         // plan's jerk may switch from −j to +j within a tick), so the
         // scaling's part 3λμA + νV keeps within jm_ − λ³|J| whatever the
         // sign J takes next.
-        if let Some(s) = slots.next() {
-            *s = Lin {
-                c: v,
-                d: jd - 2.0 * l3 * j,
-                m: jm_,
-            };
-        }
+        let jd_rev = jd - 2.0 * l3 * j;
         // The same at the end of the tick, J grown by the last tick's change.
-        let je = j + k.dj.get(i).copied().unwrap_or(0.0);
-        if let Some(s) = slots.next() {
-            *s = Lin {
-                c: v,
-                d: l3 * je + 3.0 * lam * mu * a,
-                m: (RHO_J * jm).max(l3 * je.abs() + (1.0 - l3) * RHO_J * jm),
-            };
-        }
-        // (bound: the margin, or the plan's own scaled acceleration at the
-        // end of the tick where it is above that, never above a; bounding
-        // it by the acceleration now instead made ν cancel the plan's jerk
-        // wherever the plan's acceleration was still growing above RHO_A·a)
-        let acc = l2 * a + mu * v;
+        let je = j + at(&k.dj, i);
+        let jd_end = l3 * je + 3.0 * lam * mu * a;
+        let jm_end = mx(RHO_J * jm, l3 * je.abs() + (1.0 - l3) * RHO_J * jm);
+        // The acceleration at the end of the tick (c = hV; bound: the
+        // margin, or the plan's own scaled acceleration at the end of the
+        // tick where it is above that, never above a; bounding it by the
+        // acceleration now instead made ν cancel the plan's jerk wherever
+        // the plan's acceleration was still growing above RHO_A·a).
+        let acc = l2 * a + mu * v + h * jd;
         let own = l2 * a + h * l3 * j;
-        if let Some(s) = slots.next() {
-            *s = Lin {
-                c: h * v,
-                d: acc + h * jd,
-                m: (RHO_A * am).max(own.abs().min(am)),
-            };
+        let am_ = mx(RHO_A * am, mn(own.abs(), am));
+        if v != 0.0 && v.is_finite() {
+            let f = 1.0 / v;
+            let g = f.abs();
+            let (fh, gh) = (f * inv_h, g * inv_h);
+            [
+                Lin {
+                    c: 1.0,
+                    d: jd * f,
+                    m: jm_ * g,
+                },
+                Lin {
+                    c: 1.0,
+                    d: jd_rev * f,
+                    m: jm_ * g,
+                },
+                Lin {
+                    c: 1.0,
+                    d: jd_end * f,
+                    m: jm_end * g,
+                },
+                Lin {
+                    c: 1.0,
+                    d: acc * fh,
+                    m: am_ * gh,
+                },
+            ]
+        } else {
+            [
+                Lin { c: v, d: jd, m: jm_ },
+                Lin {
+                    c: v,
+                    d: jd_rev,
+                    m: jm_,
+                },
+                Lin {
+                    c: v,
+                    d: jd_end,
+                    m: jm_end,
+                },
+                Lin {
+                    c: h * v,
+                    d: acc,
+                    m: am_,
+                },
+            ]
         }
-    }
-    if let Some(s) = slots.next() {
-        *s = Lin {
-            c: h,
-            d: mu,
-            m: cap.max(mu.abs()),
-        };
-    }
-    out
+    };
+    let [x0, x1, x2, x3] = axis(0);
+    let [y0, y1, y2, y3] = axis(1);
+    let [z0, z1, z2, z3] = axis(2);
+    let [t0, t1, t2, t3] = axis(3);
+    let m = Lin {
+        c: 1.0,
+        d: mu * inv_h,
+        m: mx(cap, mu.abs()) * inv_h,
+    };
+    [x0, x1, x2, x3, y0, y1, y2, y3, z0, z1, z2, z3, t0, t1, t2, t3, m]
 }

@@ -3,74 +3,120 @@
 //! and the scaled step of s ([`scaled_step`]).
 
 use crate::feed_hold::constraints::{
-    constraints, interval, mu_cap_ahead, Ahead, HoldLimits, Kin, N_CONS, RHO_J,
+    constraints, interval, mn, mu_cap_ahead, mx, sqrt32, Ahead, HoldLimits, Interval, Kin, N_CONS, RHO_J,
 };
 use crate::feed_hold::{HoldState, HoldStats};
+use crate::servo_forms::fixed::f32_to_fx;
 
 /// Fastest rise of the μ cap while stopping, 1/s².
 pub(crate) const CAP_RISE: f32 = 20.0;
 /// Fraction of the braking capacity the braking curve plans with.
-pub(crate) const THETA: f64 = 0.7;
+pub(crate) const THETA: f32 = 0.7;
 /// A resume within this of λ = 1 lands (rounding only: snapping λ by x
 /// steps the velocity by x·|V|, a finite-difference jerk of ~x|V|/T²,
 /// so the landing itself must be exact).
-pub(crate) const X_SNAP: f64 = 1e-12;
+pub(crate) const X_SNAP: f32 = 1e-12;
+/// Fractional bits of λ and of the step of λ per tick μh: Q62.
+pub(crate) const LAM_FRAC: u32 = 62;
+/// λ = 1 in Q62.
+pub(crate) const LAM_ONE: i64 = 1 << LAM_FRAC;
+
+/// A Q62 value as f32: the two 32-bit halves through the FPU's integer
+/// conversions (no soft-float call; the sum rounds twice, an ulp at most).
+#[inline(always)]
+pub(crate) fn q62_f32(x: i64) -> f32 {
+    let hi = (x >> 32) as i32 as f32;
+    let lo = (x as u32) as f32;
+    hi * f32::from_bits((127 - 30) << 23) + lo * f32::from_bits((127 - 62) << 23)
+}
+
+/// f32 → Q62, truncated toward zero (saturating).
+#[inline(always)]
+pub(crate) fn f32_to_q62(x: f32) -> i64 {
+    // (the Q40 conversion of x·2²²)
+    f32_to_fx(x * f32::from_bits((127 + 22) << 23))
+}
+
+/// x clamped to [lo, hi] in compares (lo ≤ hi; no panic otherwise: then
+/// hi wins).
+#[inline(always)]
+pub(crate) fn clampf(x: f32, lo: f32, hi: f32) -> f32 {
+    mn(mx(x, lo), hi)
+}
 
 /// The control u for one tick of the double integrator ẋ = −w, ẇ = u (x
 /// the distance to go, w the approach rate), u within [ulo, uhi], planning
 /// with braking deceleration b (module docs); and whether this tick lands
 /// (x = w = 0 at its end).
-pub(crate) fn approach(x: f64, w: f64, (ulo, uhi): (f64, f64), b: f64, kappa: f64, h: f64) -> (f64, bool) {
+pub(crate) fn approach(x: f32, w: f32, (ulo, uhi): (f32, f32), b: f32, kappa: f32, h: f32) -> (f32, bool) {
     let h2 = h * h;
     // The exponential tail w₁ ≤ κ x₁ (resume): u ≤ (κ(x − wh) − w)/(h + κh²/2).
     let uhi = if kappa.is_finite() {
-        uhi.min((kappa * (x - w * h) - w) / (h + 0.5 * kappa * h2))
+        mn(uhi, (kappa * (x - w * h) - w) / (h + 0.5 * kappa * h2))
     } else {
         uhi
     };
     // The largest u with w₁²/(2x₁) ≤ b after the tick (x₁ = x − wh − uh²/2,
-    // w₁ = w + uh): h²u² + (2wh + bh²)u + w² − 2bx + 2bwh ≤ 0.
+    // w₁ = w + uh): h²u² + pu + c ≤ 0, p = 2wh + bh², c = w² − 2b(x − wh);
+    // the discriminant p² − 4h²c = bh²(bh² − 4wh + 8x) without the
+    // cancelling w²h² terms, and the root (−p + √D)/(2h²) = −2c/(p + √D)
+    // for p > 0 (f32).
     let p = 2.0 * w * h + b * h2;
-    let disc = p * p - 4.0 * h2 * (w * w - 2.0 * b * x + 2.0 * b * w * h);
+    let c = w * w - 2.0 * b * (x - w * h);
+    let disc = b * h2 * (b * h2 - 4.0 * w * h + 8.0 * x);
     let curve = if disc >= 0.0 {
-        Some((-p + libm::sqrt(disc)) / (2.0 * h2))
+        let sd = sqrt32(disc);
+        Some(if p > 0.0 {
+            -2.0 * c / (p + sd)
+        } else {
+            (sd - p) / (2.0 * h2)
+        })
     } else {
         None
     };
     // The landing law for n ticks (n ≥ 2 lands on a tick boundary later).
-    let land = |n: f64| 2.0 * (x - w * h * (n + 1.0) * 0.5) / (n * h2);
+    let land = |n: f32| 2.0 * (x - w * h * (n + 1.0) * 0.5) / (n * h2);
     // A u that would leave less than two ticks to go without being on the
     // landing parabola is replaced by the two-tick landing.
-    let settle = |u: f64, n_land: f64| {
+    let settle = |u: f32, n_land: f32| {
         let (x1, w1) = (x - w * h - 0.5 * u * h2, w + u * h);
         if w1 > 0.0 && x1 < w1 * h {
-            land(n_land.max(2.0))
+            land(mx(n_land, 2.0))
         } else {
             u
         }
     };
+    let top = mx(uhi, ulo);
     if w > 0.0 {
-        let n = libm::ceil(2.0 * x / (w * h)).max(1.0);
+        let n = mx(libm::ceilf(2.0 * x / (w * h)), 1.0);
         if n <= 1.0 {
-            return (land(1.0).clamp(ulo, uhi.max(ulo)), true);
+            return (clampf(land(1.0), ulo, top), true);
         }
         let u = match curve {
-            Some(c) => settle(c.min(uhi).max(land(n)), n),
+            Some(c) => settle(mx(mn(c, uhi), land(n)), n),
             None => land(n),
         };
         // Keep approaching (w₁ ≥ 0).
-        (u.clamp(ulo, uhi.max(ulo)).max(-w / h), false)
+        (mx(clampf(u, ulo, top), -w / h), false)
     } else {
-        let u = settle(curve.unwrap_or(0.0).min(uhi), 2.0);
-        (u.clamp(ulo, uhi.max(ulo)), false)
+        let u = settle(mn(curve.unwrap_or(0.0), uhi), 2.0);
+        (clampf(u, ulo, top), false)
     }
 }
 
-/// The hold controller: λ, μ and the state.
+/// The hold controller: λ, μ and the state. λ and the step of λ per tick
+/// μh are Q62 fixed point, integrated exactly (λ₁ = λ + μh + νh²/2,
+/// μ₁h = μh + νh², with νh²/2 rounded once to Q62): their rounding would
+/// otherwise show in the finite-difference jerk. The control itself (ν)
+/// is f32.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct FeedHold {
-    lam: f64,
-    mu: f64,
+    /// λ, Q62.
+    lam: i64,
+    /// μh, Q62 (h the tick length of the last control step).
+    m: i64,
+    /// The tick length μh is per, s (0 before the first step).
+    h: f32,
     state: HoldState,
     stats: HoldStats,
     coast: bool,
@@ -81,8 +127,9 @@ pub(crate) struct FeedHold {
 impl Default for FeedHold {
     fn default() -> Self {
         FeedHold {
-            lam: 1.0,
-            mu: 0.0,
+            lam: LAM_ONE,
+            m: 0,
+            h: 0.0,
             state: HoldState::Running,
             stats: HoldStats::default(),
             coast: false,
@@ -94,12 +141,23 @@ impl Default for FeedHold {
 /// (λ, μ, ν) of one tick: λ and μ at its start, ν over it.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
 pub(crate) struct TickScale {
-    /// λ at the start of the tick.
-    pub lam: f64,
-    /// μ = λ̇ at the start of the tick, 1/s.
-    pub mu: f64,
+    /// λ at the start of the tick, Q62.
+    pub lam: i64,
+    /// μh at the start of the tick, Q62.
+    pub m: i64,
+    /// λ at the start of the tick (f32).
+    pub lam_f: f32,
+    /// μ = λ̇ at the start of the tick, 1/s (f32).
+    pub mu: f32,
     /// ν = λ̈ over the tick, 1/s².
-    pub nu: f64,
+    pub nu: f32,
+}
+
+impl TickScale {
+    /// λ (f64, exact).
+    pub fn lam_f64(&self) -> f64 {
+        self.lam as f64 * (1.0 / LAM_ONE as f64)
+    }
 }
 
 impl FeedHold {
@@ -110,12 +168,30 @@ impl FeedHold {
 
     /// λ (1 = the plan, 0 = at rest).
     pub fn lambda(&self) -> f64 {
-        self.lam
+        self.lam as f64 * (1.0 / LAM_ONE as f64)
+    }
+
+    /// λ as f32.
+    pub fn lambda_f32(&self) -> f32 {
+        q62_f32(self.lam)
     }
 
     /// μ = λ̇, 1/s.
     pub fn mu(&self) -> f64 {
-        self.mu
+        if self.h > 0.0 {
+            self.m as f64 * (1.0 / LAM_ONE as f64) / f64::from(self.h)
+        } else {
+            0.0
+        }
+    }
+
+    /// μ = λ̇ as f32, 1/s.
+    pub fn mu_f32(&self) -> f32 {
+        if self.h > 0.0 {
+            q62_f32(self.m) / self.h
+        } else {
+            0.0
+        }
     }
 
     /// The counters.
@@ -160,23 +236,35 @@ impl FeedHold {
     /// tick's (λ, μ, ν) for the step of s.
     // The tick runs with a look-ahead (`control_ahead`); the unit tests drive this.
     #[cfg_attr(not(test), allow(dead_code))]
-    pub fn control(&mut self, kin: &Kin, lim: &HoldLimits, h: f64) -> TickScale {
+    pub fn control(&mut self, kin: &Kin, lim: &HoldLimits, h: f32) -> TickScale {
         self.control_ahead(kin, &Ahead::default(), lim, h)
     }
 
     /// The braking deceleration of λ (1/s²) the controller plans with at
     /// `kin` ([`THETA`] × the jerk-limited ν at λ = 0).
-    pub fn braking(kin: &Kin, lim: &HoldLimits) -> f64 {
-        THETA * f64::from(kin.nu_cap(lim)).min(1e9)
+    pub fn braking(kin: &Kin, lim: &HoldLimits) -> f32 {
+        THETA * mn(kin.nu_cap(lim), 1e9)
     }
 
     /// [`FeedHold::control`] with a look-ahead: `ahead` the largest |A| and
     /// |V| per axis and tangentially the plan reaches over the arc length
     /// the stop can still cover (the μ cap, [`mu_cap_ahead`]).
-    pub fn control_ahead(&mut self, kin: &Kin, ahead: &Ahead, lim: &HoldLimits, h: f64) -> TickScale {
+    pub fn control_ahead(&mut self, kin: &Kin, ahead: &Ahead, lim: &HoldLimits, h: f32) -> TickScale {
+        // μh was per the last tick's length: per this one's (the same
+        // every tick of an interpolator).
+        if self.h != h {
+            if self.h > 0.0 {
+                self.m = f32_to_q62(q62_f32(self.m) * (h / self.h));
+            }
+            self.h = h;
+        }
+        let lam_f = q62_f32(self.lam);
+        let mu_f = q62_f32(self.m) / h;
         let now = TickScale {
             lam: self.lam,
-            mu: self.mu,
+            m: self.m,
+            lam_f,
+            mu: mu_f,
             nu: 0.0,
         };
         let hold = match self.state {
@@ -184,22 +272,43 @@ impl FeedHold {
             HoldState::Resuming => false,
             _ => return now,
         };
-        let cap = f64::from(kin.nu_cap(lim)).min(1e9);
+        let cap = mn(kin.nu_cap(lim), 1e9);
         let b0 = THETA * cap;
-        let lam_cap = if hold { self.lam } else { 1.0 };
+        let lam_cap = if hold { lam_f } else { 1.0 };
         // The μ cap; while stopping it rises at most CAP_RISE per second
         // (it falls at once): the look-ahead samples the plan at points, and
         // a tick whose samples straddle a narrow peak of the plan's jerk
         // would otherwise let μ grow, which the cap never takes back.
-        let cap_now = mu_cap_ahead(kin, ahead, lim, lam_cap as f32, b0 as f32);
+        let cap_now = mu_cap_ahead(kin, ahead, lim, lam_cap, b0);
         let mu_max = if hold {
-            cap_now.min(self.cap_prev + CAP_RISE * h as f32)
+            mn(cap_now, self.cap_prev + CAP_RISE * h)
         } else {
             cap_now
         };
         self.cap_prev = if hold { mu_max } else { f32::INFINITY };
-        let cons = constraints(kin, lim, (self.lam as f32, self.mu as f32), h as f32, mu_max);
-        let mut iv = interval(&cons);
+        let cons = constraints(kin, lim, (lam_f, mu_f), h, mu_max);
+        // The intersection directly where every constraint is normalised
+        // (c = 1; c = 0 ones ν cannot change): the common case; else, and
+        // when it is empty, [`interval`].
+        let (mut lo, mut hi, mut plain) = (f32::NEG_INFINITY, f32::INFINITY, true);
+        for k in &cons {
+            if k.c == 1.0 {
+                lo = mx(lo, -k.m - k.d);
+                hi = mn(hi, k.m - k.d);
+            } else if k.c != 0.0 {
+                plain = false;
+            }
+        }
+        let mut iv = if plain && lo <= hi {
+            Interval {
+                lo,
+                hi,
+                relax: 1.0,
+                fixed: 0.0,
+            }
+        } else {
+            interval(&cons)
+        };
         if iv.relax > 1.0 {
             // Infeasible: |μ| still does not grow past the cap (the
             // relaxation would otherwise let it grow with the violation,
@@ -209,8 +318,8 @@ impl FeedHold {
                 if k.c > 0.0 {
                     let (cl, ch) = ((-k.m - k.d) / k.c, (k.m - k.d) / k.c);
                     if cl <= ch {
-                        iv.lo = iv.lo.clamp(cl, ch);
-                        iv.hi = iv.hi.clamp(cl, ch);
+                        iv.lo = clampf(iv.lo, cl, ch);
+                        iv.hi = clampf(iv.hi, cl, ch);
                     }
                 }
             }
@@ -219,16 +328,17 @@ impl FeedHold {
         s.ticks = s.ticks.saturating_add(1);
         if iv.relax > 1.0 {
             s.infeasible = s.infeasible.saturating_add(1);
-            s.worst_relax = s.worst_relax.max(iv.relax);
+            s.worst_relax = mx(s.worst_relax, iv.relax);
             if iv.relax * RHO_J > 1.0 {
                 s.violating = s.violating.saturating_add(1);
             }
         }
-        let (lo, hi) = (f64::from(iv.lo), f64::from(iv.hi));
+        let (lo, hi) = (iv.lo, iv.hi);
+        // (x = 1 − λ from the exact Q62 difference: precise near λ = 1)
         let (x, w, ulo, uhi) = if hold {
-            (self.lam, -self.mu, -hi, -lo)
+            (lam_f, -mu_f, -hi, -lo)
         } else {
-            (1.0 - self.lam, self.mu, lo, hi)
+            (q62_f32(LAM_ONE.wrapping_sub(self.lam)), mu_f, lo, hi)
         };
         // Resuming past λ = 1 (x < 0: the tail was broken by an infeasible
         // tick and λ overshot by ~w²/2|u|, a speed of a fraction 1e-7 over
@@ -240,11 +350,11 @@ impl FeedHold {
         } else {
             (x, w, ulo, uhi)
         };
-        let b = b0.min(THETA * (-la).max(0.25 * cap));
+        let b = mn(b0, THETA * mx(-la, 0.25 * cap));
         let kappa = if hold || mirror || xa < X_SNAP {
-            f64::INFINITY
+            f32::INFINITY
         } else {
-            f64::from(kin.tail_rate(lim))
+            kin.tail_rate(lim)
         };
         let (ua, lands) = approach(xa, wa, (la, ha), b, kappa, h);
         let u = if mirror { -ua } else { ua };
@@ -257,83 +367,97 @@ impl FeedHold {
         if coast {
             let lim_iv = interval(cons.get(..N_CONS - 1).unwrap_or(&[]));
             nu = if lim_iv.relax <= 1.0 {
-                (-self.mu / h).clamp(f64::from(lim_iv.lo), f64::from(lim_iv.hi))
+                clampf(-mu_f / h, lim_iv.lo, lim_iv.hi)
             } else {
-                f64::from(lim_iv.lo)
+                lim_iv.lo
             };
         }
-        let (u, lands) = if coast { (-nu, false) } else { (u, lands) };
+        let lands = lands && !coast;
         let (mut r, mut at) = (0.0f32, 0u8);
-        for (i, k) in cons.iter().enumerate() {
-            let x = libm::fabsf(k.d + k.c * nu as f32) / k.m;
-            if x > r && i < N_CONS - 1 {
-                (r, at) = (x, i as u8);
+        for (i, k) in (0u8..).zip(cons.iter().take(N_CONS - 1)) {
+            // (|d + cν| > r·m, m > 0: the division only where r grows)
+            let e = (k.d + k.c * nu).abs();
+            if e > r * k.m {
+                (r, at) = (e / k.m, i);
             }
         }
         self.stats.last_ratio = r;
         self.stats.last_binding = at;
-        self.stats.last_cap = cons.last().map_or(f32::INFINITY, |k| k.m);
-        let x1 = x - w * h - 0.5 * u * h * h;
-        let w1 = w + u * h;
+        self.stats.last_cap = mx(mu_max, mu_f.abs());
+        // The step, exact in Q62: λ₁ = λ + μh + νh²/2, μ₁h = μh + νh².
+        let half = f32_to_q62(0.5 * nu * h * h);
+        let lam1 = self.lam.wrapping_add(self.m).wrapping_add(half);
+        let m1 = self.m.wrapping_add(half.wrapping_mul(2));
+        // The same in the approach's coordinates (w₁h in Q62).
+        let (x1q, w1q) = if hold {
+            (lam1, m1.wrapping_neg())
+        } else {
+            (LAM_ONE.wrapping_sub(lam1), m1)
+        };
+        let (x1, w1) = (q62_f32(x1q), q62_f32(w1q) / h);
         // A resume's landing that the constraints clamped does not land
         // (it crosses and comes back); a hold's does (λ < 0 would run
         // backwards).
         let lands = lands && (hold || w1.abs() < 1e-4);
         let crossed = x1 <= 0.0 && (hold || (w1.abs() < 1e-4 && x1 > -1e-9));
-        let (x1, w1) = if lands || crossed {
+        let (x1q, w1q) = if lands || crossed {
             if w1.abs() > 1e-4 || x1 < -1e-12 {
                 self.stats.forced = self.stats.forced.saturating_add(1);
             }
-            (0.0, 0.0)
+            (0, 0)
         } else if x1 >= 1.0 && w1 < 0.0 {
             // Moving away and at the other end (λ = 1 holding, λ = 0
             // resuming): stay there.
-            (1.0, 0.0)
+            (LAM_ONE, 0)
         } else {
-            (x1, w1)
+            (x1q, w1q)
         };
         if hold {
-            self.lam = x1;
-            self.mu = -w1;
+            self.lam = x1q;
+            self.m = w1q.wrapping_neg();
         } else {
-            self.lam = 1.0 - x1;
-            self.mu = w1;
+            self.lam = LAM_ONE.wrapping_sub(x1q);
+            self.m = w1q;
         }
-        if x1 == 0.0 && w1 == 0.0 {
+        if x1q == 0 && w1q == 0 {
             self.state = if hold { HoldState::Held } else { HoldState::Running };
-            self.lam = if hold { 0.0 } else { 1.0 };
-            self.mu = 0.0;
+            self.lam = if hold { 0 } else { LAM_ONE };
+            self.m = 0;
         }
         TickScale { nu, ..now }
     }
 }
 
-/// The step of s over a tick (order-4 Taylor, module docs) from the plan's
-/// `[ṡ_p, s̈_p, s⃛_p, s⁗_p]` and the tick's (λ, μ, ν); never negative.
-pub(crate) fn scaled_step(p: [f64; 4], t: &TickScale, h: f64) -> f64 {
+/// The step of s over a tick, Q40 mm (order-4 Taylor, module docs): the
+/// first-order term λṡ_p h exact in fixed point (λ Q62 times `vh`, the
+/// plan's ṡ_p h in Q40, as the normal tick computes it), the rest in f32
+/// from the plan's `[ṡ_p, s̈_p, s⃛_p, s⁗_p]` and the tick's (λ, μ, ν);
+/// never negative; `None` if the f32 part is not finite.
+pub(crate) fn scaled_step(vh: i64, p: [f32; 4], t: &TickScale, h: f32) -> Option<i64> {
     let [v, a, j, sn] = p;
-    let (l, m, n) = (t.lam, t.mu, t.nu);
-    let s1 = l * v;
+    let (l, m, n) = (t.lam_f, t.mu, t.nu);
     let s2 = l * l * a + m * v;
     let s3 = l * l * l * j + 3.0 * l * m * a + n * v;
     let s4 = l * l * l * l * sn + 6.0 * l * l * m * j + (3.0 * m * m + 4.0 * l * n) * a;
-    let ds = h * (s1 + h * (0.5 * s2 + h * (s3 / 6.0 + h * s4 / 24.0)));
-    if ds > 0.0 {
-        ds
-    } else {
-        0.0
+    let rest = h * h * (0.5 * s2 + h * (s3 * (1.0 / 6.0) + h * s4 * (1.0 / 24.0)));
+    let first = ((i128::from(vh) * i128::from(t.lam)) >> LAM_FRAC) as i64;
+    if !rest.is_finite() {
+        return None;
     }
+    Some(first.wrapping_add(f32_to_fx(rest)).max(0))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::feed_hold::constraints::*;
+    use crate::servo_forms::fixed::{fx_to_f64, to_fx};
 
     const LIM: HoldLimits = HoldLimits {
         v: [0.0; 4],
         a: [1500.0; 4],
         j: [16000.0; 4],
+        tail: [0.0; 4],
     };
 
     /// A straight line along x at a constant planned feed v.
@@ -439,11 +563,8 @@ mod tests {
         let k = line(v);
         for _ in 0..4000 {
             let t = ctl.control(&k, &LIM, 250e-6);
-            assert!(
-                (t.nu * f64::from(v)).abs() <= f64::from(RHO_J * 16000.0) * 1.0001,
-                "{t:?}"
-            );
-            let acc = (t.mu * f64::from(v)).abs();
+            assert!((t.nu * v).abs() <= RHO_J * 16000.0 * 1.0001, "{t:?}");
+            let acc = (t.mu * v).abs();
             assert!(acc <= 1500.0 * 1.0001, "{t:?}");
         }
     }
@@ -462,19 +583,38 @@ mod tests {
 
     #[test]
     fn step_is_the_plan_at_lambda_one_and_zero_at_rest() {
-        let p = [100.0, 50.0, 10.0, 1.0];
-        let h = 1e-3;
-        let plan = h * (100.0 + h * (25.0 + h * (10.0 / 6.0 + h / 24.0)));
-        let ds = scaled_step(
-            p,
-            &TickScale {
-                lam: 1.0,
-                mu: 0.0,
-                nu: 0.0,
-            },
-            h,
-        );
-        assert!((ds - plan).abs() < 1e-15);
-        assert_eq!(scaled_step(p, &TickScale::default(), h), 0.0);
+        let p = [100.0f32, 50.0, 10.0, 1.0];
+        let h = 1e-3f32;
+        let vh = to_fx(0.1);
+        let plan = 0.1 + 1e-6 * (25.0 + 1e-3 * (10.0 / 6.0 + 1e-3 / 24.0));
+        let one = TickScale {
+            lam: LAM_ONE,
+            lam_f: 1.0,
+            ..TickScale::default()
+        };
+        let ds = fx_to_f64(scaled_step(vh, p, &one, h).unwrap());
+        assert!((ds - plan).abs() < 1e-11, "{ds} {plan}");
+        assert_eq!(scaled_step(vh, p, &TickScale::default(), h), Some(0));
+    }
+
+    #[test]
+    fn q62_conversions() {
+        for x in [0.0f32, 1.0, 0.5, -0.25, 1e-9, -3e-7, 0.999_999_9] {
+            assert_eq!(q62_f32(f32_to_q62(x)), x, "{x}");
+        }
+        assert_eq!(q62_f32(LAM_ONE), 1.0);
+        assert!((q62_f32(LAM_ONE - 1) - 1.0).abs() <= f32::EPSILON);
+    }
+
+    #[test]
+    fn sqrt32_is_within_1e_6() {
+        for i in 1..20_000u32 {
+            let x = f32::from_bits(0x0080_0000 + i.wrapping_mul(104_729) % 0x7e00_0000);
+            let (y, r) = (sqrt32(x), (f64::from(x)).sqrt());
+            assert!(((f64::from(y) - r) / r).abs() < 1e-6, "{x}: {y} vs {r}");
+        }
+        assert_eq!((sqrt32(0.0), sqrt32(f32::INFINITY)), (0.0, f32::INFINITY));
+        assert!((sqrt32(4.0) - 2.0).abs() < 1e-6);
+        assert!(sqrt32(-1.0).is_nan() && sqrt32(f32::NAN).is_nan());
     }
 }

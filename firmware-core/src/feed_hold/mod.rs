@@ -62,9 +62,10 @@
 //!   compensates brakes harder — up to 1.2× j before the end.)
 //!
 //! and intersects them (`interval`). If the intersection is empty it
-//! takes the ν that minimises the largest relative violation (exactly: the
-//! smallest common relaxation factor over all pairs of bounds) and counts
-//! the tick ([`HoldStats::infeasible`]).
+//! takes the ν that minimises the largest relative violation (the
+//! smallest common relaxation factor over all pairs of bounds, found by
+//! Newton's method on the piecewise-linear gap between the bounds) and
+//! counts the tick ([`HoldStats::infeasible`]).
 //!
 //! In distance-to-go coordinates (hold: x = λ, w = −μ, u = −ν; resume:
 //! x = 1 − λ, w = μ, u = ν; the double integrator ẋ = −w, ẇ = u) the target
@@ -90,8 +91,20 @@
 //! the constraints did not allow is snapped (counted in
 //! [`HoldStats::forced`]).
 //!
-//! λ, μ and the step are f64 (their rounding would otherwise show in the
-//! finite-difference jerk); the constraints are f32.
+//! # Arithmetic
+//!
+//! The tick runs on the M4F's single-precision FPU, without soft-float f64
+//! (see `docs/wcet.md`). λ and the step of λ per tick μh are Q62 fixed
+//! point (i64), integrated exactly: λ₁ = λ + μh + νh²/2, μ₁h = μh + νh²,
+//! with νh²/2 rounded once to Q62 (their rounding in f32 would show in
+//! the finite-difference jerk). The step of s is Q40 like the normal
+//! tick's: its first-order term λṡ_p h is the Q62 λ times the plan's ṡ_p h
+//! in fixed point, the higher terms (order 2 to 4, well below 10⁻⁴ mm a
+//! tick) are f32. The constraints, the interval, the μ cap and the
+//! approach law are f32 (the approach in the distance-to-go coordinates
+//! from the exact Q62 λ and 1 − λ; its braking curve written without the
+//! cancelling w²h² terms). Only the time of the scaled stop segment, τ and
+//! s = L − J₂τ³/6, stays f64.
 
 pub(crate) mod constraints;
 pub(crate) mod controller;

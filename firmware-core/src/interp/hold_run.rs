@@ -12,16 +12,16 @@ use crate::limits::Limits;
 pub(crate) const END_FACTOR: f32 = 2.0;
 /// A stop still above this λ when the plan's stop segment comes within its
 /// reach coasts ([`crate::feed_hold::controller::FeedHold::set_coast`]).
-pub(crate) const COAST_ABOVE: f64 = 0.5;
+pub(crate) const COAST_ABOVE: f32 = 0.5;
 /// Points the μ cap's look-ahead evaluates the plan at.
 pub(crate) const AHEAD_N: usize = 32;
-/// Look-ahead points evaluated per hold tick (a whole sweep is
-/// [`AHEAD_N`] + 2 points).
-pub(crate) const AHEAD_PER_TICK: usize = 4;
+/// Look-ahead steps ([`Stage`]) per hold tick: a point is three steps, a
+/// whole sweep [`AHEAD_N`] + 2 points.
+pub(crate) const AHEAD_PER_TICK: usize = 1;
 /// Safety factor on the look-ahead distance.
-pub(crate) const AHEAD_FACTOR: f64 = 1.5;
+pub(crate) const AHEAD_FACTOR: f32 = 1.5;
 /// Longest look-ahead, mm.
-pub(crate) const AHEAD_MAX_MM: f64 = 40.0;
+pub(crate) const AHEAD_MAX_MM: f32 = 40.0;
 
 /// The interpolator's feed-hold state.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
@@ -40,6 +40,8 @@ pub(crate) struct HoldRun {
     /// segment within the stop's reach.
     pub(crate) ahead: Ahead,
     pub(crate) reach: bool,
+    /// `ahead` joined with the sweep in progress (what the tick uses).
+    pub(crate) joined: Ahead,
 }
 
 /// One pass of the look-ahead over the plan ahead, spread over ticks.
@@ -47,7 +49,7 @@ pub(crate) struct HoldRun {
 pub(crate) struct Sweep {
     /// Where it started (Q40 mm) and how far it looks, mm.
     pub(crate) base: i64,
-    pub(crate) d: f64,
+    pub(crate) d: f32,
     /// The next point.
     pub(crate) next: usize,
     /// Maxima so far.
@@ -58,6 +60,25 @@ pub(crate) struct Sweep {
     /// The stop segment's entry is within [`AHEAD_MAX_MM`] of `base`.
     pub(crate) stop_near: bool,
     pub(crate) done: bool,
+    /// The point in progress: what is next for it, where it is (Q40 mm),
+    /// its piece and q span, and the path's derivatives there.
+    pub(crate) stage: Stage,
+    pub(crate) sk: i64,
+    pub(crate) pi: usize,
+    pub(crate) qi: usize,
+    pub(crate) dr: [[f32; 3]; 3],
+}
+
+/// The steps of one look-ahead point, one per tick.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub(crate) enum Stage {
+    /// Place the point and find its piece and q span.
+    #[default]
+    Locate,
+    /// The path's derivatives there.
+    Derivs,
+    /// The plan there, into the maxima.
+    Plan,
 }
 
 impl HoldRun {
@@ -81,6 +102,7 @@ impl HoldRun {
         self.prev_j = None;
         self.sweep = None;
         self.reach = false;
+        self.joined = Ahead::default();
     }
 
     /// The distance a tangential jerk-limited stop from `v` (mm/s) needs

@@ -5,9 +5,13 @@
 //! tick to [`Interpolator::hold_tick`]: the plan's ṡ_p, s̈_p, s⃛_p, s⁗_p at
 //! s (from q, or from the stop segment's cubic), the path's r′, r″, r‴
 //! from the piece polynomial ([`crate::servo_forms::piece::pos_derivs`]), one controller
-//! step (ν), then s advances by the scaled order-4 Taylor step in f64
-//! ([`crate::feed_hold::controller::scaled_step`]; never backwards) and the position comes
-//! from the same fixed-point piece polynomial as on the normal tick. The
+//! step (ν), then s advances by the scaled order-4 Taylor step in Q40
+//! ([`crate::feed_hold::controller::scaled_step`]: the first-order term in
+//! fixed point, the rest in f32; never backwards) and the position comes
+//! from the same fixed-point piece polynomial as on the normal tick.
+//! While stopping, the μ cap's look-ahead advances one step a tick (a
+//! point is three: locate it, the path's derivatives, the plan there),
+//! none on a tick that also evaluates the next piece. The
 //! stall checks do not run on these ticks; held, the tick returns the same
 //! position with feed 0 and the clock advancing.
 //!
@@ -29,17 +33,17 @@
 //! - After the end, or after a fault, [`Interpolator::hold`] and
 //!   [`Interpolator::resume`] return a [`HoldError`] and change nothing.
 
-use crate::feed_hold::constraints::{Ahead, Kin};
-use crate::feed_hold::controller::{scaled_step, FeedHold};
+use crate::feed_hold::constraints::{mn, mx, sqrt32, Ahead, Kin};
+use crate::feed_hold::controller::{scaled_step, FeedHold, TickScale, LAM_ONE};
 use crate::feed_hold::{HoldError, HoldState, HoldStats};
 use crate::interp::cursor::{q_eval, tau_of};
 use crate::interp::hold_run::{
-    Sweep, AHEAD_FACTOR, AHEAD_MAX_MM, AHEAD_N, AHEAD_PER_TICK, COAST_ABOVE, END_FACTOR,
+    Stage, Sweep, AHEAD_FACTOR, AHEAD_MAX_MM, AHEAD_N, AHEAD_PER_TICK, COAST_ABOVE, END_FACTOR,
 };
 use crate::interp::interpolator::{Interpolator, Phase};
 use crate::interp::setpoint::{Fault, Setpoint};
 use crate::math::source::F64Array;
-use crate::servo_forms::fixed::{fx_small_f32, fx_to_f64, to_fx, Q_ONE};
+use crate::servo_forms::fixed::{f32_to_fx, fx_small_f32, fx_to_f64, mul_hi, to_fx};
 use crate::servo_forms::piece::pos_derivs;
 
 impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
@@ -70,8 +74,10 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
                 // longest horizon: the ticks then refresh it a few points
                 // at a time.
                 let mut sw = self.start_sweep(self.s, AHEAD_MAX_MM);
-                self.sweep_points(&mut sw, usize::MAX);
+                let mut joined = Ahead::default();
+                self.sweep_points(&mut sw, &mut joined, usize::MAX);
                 self.fh.ahead = sw.part;
+                self.fh.joined = sw.part;
                 self.fh.reach = sw.reach;
                 self.fh.sweep = None;
             }
@@ -85,6 +91,9 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
         self.hold_allowed()?;
         self.fh.to_end = false;
         self.fh.ctl.resume();
+        // (a resume plans without the stop's look-ahead)
+        self.fh.sweep = None;
+        self.fh.joined = Ahead::default();
         Ok(())
     }
 
@@ -121,7 +130,7 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
     }
 
     /// A look-ahead sweep from s (see [`Sweep`]) over `d` mm.
-    fn start_sweep(&self, s: i64, d: f64) -> Sweep {
+    fn start_sweep(&self, s: i64, d: f32) -> Sweep {
         Sweep {
             base: s,
             d,
@@ -129,137 +138,169 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
             part: Ahead::default(),
             reach: false,
             into_stop: false,
-            stop_near: self.ends.is_some() && self.stop_at.wrapping_sub(s) <= to_fx(AHEAD_MAX_MM),
-            done: false,
+            stop_near: self.ends.is_some() && self.stop_at.wrapping_sub(s) <= f32_to_fx(AHEAD_MAX_MM),
+            ..Sweep::default()
         }
     }
 
     /// The horizon of a sweep starting now: the arc length the stop can
     /// still cover (its time to go at the planned braking rate times the
     /// plan's feed `v`, × [`AHEAD_FACTOR`]), at most [`AHEAD_MAX_MM`].
-    fn sweep_len(&self, kin: &Kin, v: f64) -> f64 {
+    fn sweep_len(&self, kin: &Kin, v: f32) -> f32 {
         let b = FeedHold::braking(kin, &self.fh.lim);
-        let (x, mu) = (self.fh.ctl.lambda(), self.fh.ctl.mu());
+        let (x, mu) = (self.fh.ctl.lambda_f32(), self.fh.ctl.mu_f32());
         if !(b > 0.0 && v > 0.0) {
             return 0.0;
         }
-        let t_go = 2.0 * libm::sqrt(2.0 * x.max(0.0) / b) + mu.abs() / b;
-        (AHEAD_FACTOR * v * t_go).min(AHEAD_MAX_MM)
+        let t_go = 2.0 * sqrt32(2.0 * mx(x, 0.0) / b) + mu.abs() / b;
+        mn(AHEAD_FACTOR * v * t_go, AHEAD_MAX_MM)
     }
 
-    /// Evaluate up to `count` more points of the sweep `sw` (the look-ahead
-    /// of the μ cap): the plan's |A|, |V|, |J| per axis and tangentially at
-    /// [`AHEAD_N`] + 1 points spaced quadratically over `sw.d` from
-    /// `sw.base` (denser near) and at the stop segment's entry when it is
-    /// within [`AHEAD_MAX_MM`]; points already passed are skipped. Pieces
-    /// and q spans are read from the views (the current ones from their
-    /// cursors).
-    fn sweep_points(&self, sw: &mut Sweep, count: usize) {
+    /// Take up to `count` more steps ([`Stage`]) of the sweep `sw` (the
+    /// look-ahead of the μ cap), each point into `sw.part` and `joined`:
+    /// the plan's |A|, |V|, |J| per axis and tangentially at [`AHEAD_N`] + 1
+    /// points spaced quadratically over `sw.d` from `sw.base` (denser near)
+    /// and at the stop segment's entry when it is within [`AHEAD_MAX_MM`];
+    /// points already passed are skipped (eight to a step). Pieces and q
+    /// spans are found by binary search and read from the views (the
+    /// current ones from their cursors).
+    fn sweep_points(&self, sw: &mut Sweep, joined: &mut Ahead, count: usize) {
         let s = self.s;
         let v_ = &self.views;
-        let (mut pi, mut qi) = (self.pc.idx, self.qc.idx);
-        let mut left = count;
+        // Work units left: a point is three (locate, derivatives, plan),
+        // a point passed since the sweep began an eighth of one.
+        let mut left = count.saturating_mul(8);
         while !sw.done && left > 0 {
-            let k = sw.next;
-            sw.next = k.saturating_add(1);
-            let mut sk = match k {
-                k if k <= AHEAD_N => {
-                    let f = k as f64 / AHEAD_N as f64;
-                    sw.base.saturating_add(to_fx(sw.d * f * f))
-                }
-                _ if sw.stop_near && !sw.into_stop => self.stop_at,
-                _ => {
-                    sw.done = true;
-                    break;
-                }
-            };
-            if sk < s {
-                continue; // passed since the sweep began
-            }
-            if sk >= self.stop_at {
-                // The stop segment ahead: its entry (the largest |A| of the
-                // segment, J = J₂ at the jerk limit all along) with the
-                // path's derivatives just before s₂.
-                match self.ends {
-                    Some(_) if !sw.into_stop && self.stop_at > s => {
-                        sw.into_stop = true;
-                        sw.reach |= k <= AHEAD_N;
-                        sk = self.stop_at.wrapping_sub(1);
+            match sw.stage {
+                Stage::Locate => {
+                    let k = sw.next;
+                    sw.next = k.saturating_add(1);
+                    let mut sk = match k {
+                        k if k <= AHEAD_N => {
+                            let f = k as f32 * (1.0 / AHEAD_N as f32);
+                            sw.base.saturating_add(f32_to_fx(sw.d * f * f))
+                        }
+                        _ if sw.stop_near && !sw.into_stop => self.stop_at,
+                        _ => {
+                            sw.done = true;
+                            break;
+                        }
+                    };
+                    if sk < s {
+                        left = left.saturating_sub(1);
+                        continue; // passed since the sweep began
                     }
-                    _ => {
+                    if sk >= self.stop_at {
+                        // The stop segment ahead: its entry (the largest |A|
+                        // of the segment, J = J₂ at the jerk limit all
+                        // along) with the path's derivatives just before s₂.
+                        match self.ends {
+                            Some(_) if !sw.into_stop && self.stop_at > s => {
+                                sw.into_stop = true;
+                                sw.reach |= k <= AHEAD_N;
+                                sk = self.stop_at.wrapping_sub(1);
+                            }
+                            _ => {
+                                sw.done = true;
+                                break;
+                            }
+                        }
+                    }
+                    // The piece and the q span of sk (binary searches over
+                    // the breaks and knots ahead of the cursors: a bounded
+                    // cost however many pieces the look-ahead spans).
+                    let at = fx_to_f64(sk.saturating_add(1)).to_bits();
+                    let pi = self.pc.idx.wrapping_add(count_below(
+                        &v_.piece_breaks,
+                        self.pc.idx.wrapping_add(1),
+                        v_.p_last,
+                        at,
+                    ));
+                    let qi = if sk >= self.qc.next {
+                        let i = self.qc.idx;
+                        i.wrapping_add(count_below(
+                            &v_.q_knots,
+                            i.wrapping_add(4),
+                            v_.q_last.wrapping_add(3),
+                            at,
+                        ))
+                    } else {
+                        self.qc.idx
+                    };
+                    (sw.sk, sw.pi, sw.qi) = (sk, pi, qi);
+                    sw.stage = Stage::Derivs;
+                    left = left.saturating_sub(8);
+                }
+                Stage::Derivs => {
+                    let pi = sw.pi;
+                    let pc = if pi == self.pc.idx {
+                        Some(self.pc)
+                    } else {
+                        v_.piece(pi)
+                    };
+                    let Some(pc) = pc else {
                         sw.done = true;
                         break;
+                    };
+                    let Some(coeffs) = v_.coeffs(&pc) else {
+                        sw.done = true;
+                        break;
+                    };
+                    sw.dr = pos_derivs(coeffs, tau_of(sw.sk, pc.centre, pc.shift), pc.shift, pc.constant);
+                    sw.stage = Stage::Plan;
+                    left = left.saturating_sub(8);
+                }
+                Stage::Plan => {
+                    let qc = if sw.qi == self.qc.idx {
+                        Some(self.qc)
+                    } else {
+                        v_.q(sw.qi)
+                    };
+                    let Some(qc) = qc else {
+                        sw.done = true;
+                        break;
+                    };
+                    let (sk, dr) = (sw.sk, sw.dr);
+                    let k = match (sw.into_stop, self.ends) {
+                        (true, Some(e)) => {
+                            let (j2, t2) = (e.jerk_stop as f32, e.t_stop as f32);
+                            Kin::new(dr, [0.5 * j2 * t2 * t2, -j2 * t2, j2])
+                        }
+                        _ => {
+                            let tq = fx_small_f32(sk.wrapping_sub(qc.anchor), 20);
+                            let qs = q_eval(&qc, &qc.poly, sk, tq, self.qs.v);
+                            let [_, dq, ddq, _] = qs.qd;
+                            Kin::new(dr, [qs.v, 0.5 * dq, 0.5 * ddq * qs.v])
+                        }
+                    };
+                    sw.part.add(&k);
+                    joined.add(&k);
+                    if sw.into_stop {
+                        sw.done = true;
                     }
+                    sw.stage = Stage::Locate;
+                    left = left.saturating_sub(8);
                 }
-            }
-            left -= 1;
-            while pi < v_.p_last
-                && v_
-                    .piece_breaks
-                    .get(pi.wrapping_add(1))
-                    .is_some_and(|b| sk >= to_fx(b))
-            {
-                pi = pi.wrapping_add(1);
-            }
-            let Some(pc) = (if pi == self.pc.idx {
-                Some(self.pc)
-            } else {
-                v_.piece(pi)
-            }) else {
-                sw.done = true;
-                break;
-            };
-            let Some(coeffs) = v_.coeffs(&pc) else {
-                sw.done = true;
-                break;
-            };
-            let dr = pos_derivs(coeffs, tau_of(sk, pc.centre, pc.shift), pc.shift, pc.constant);
-            while sk >= self.qc.next
-                && qi < v_.q_last
-                && v_.q_knots.get(qi.wrapping_add(4)).is_some_and(|e| sk >= to_fx(e))
-            {
-                qi = qi.wrapping_add(1);
-            }
-            let qc = if qi == self.qc.idx {
-                Some(self.qc)
-            } else {
-                v_.q(qi)
-            };
-            let Some(qc) = qc else {
-                sw.done = true;
-                break;
-            };
-            let k = match (sw.into_stop, self.ends) {
-                (true, Some(e)) => {
-                    let (j2, t2) = (e.jerk_stop as f32, e.t_stop as f32);
-                    Kin::new(dr, [0.5 * j2 * t2 * t2, -j2 * t2, j2])
-                }
-                _ => {
-                    let tq = fx_small_f32(sk.wrapping_sub(qc.anchor), 20);
-                    let qs = q_eval(&qc, &qc.poly, sk, tq, self.qs.v);
-                    let [_, dq, ddq, _] = qs.qd;
-                    Kin::new(dr, [qs.v, 0.5 * dq, 0.5 * ddq * qs.v])
-                }
-            };
-            sw.part.add(&k);
-            if sw.into_stop {
-                sw.done = true;
             }
         }
     }
 
-    /// The look-ahead for this tick (stopping only; zeros otherwise): the
-    /// last complete sweep joined with the one in progress, which advances
-    /// by [`AHEAD_PER_TICK`] points (a new one starts when it is complete).
-    /// A hold request runs a whole sweep at once ([`Interpolator::hold`]),
-    /// outside the tick.
-    fn ahead_acc(&mut self, kin: &Kin, v: f64) -> (Ahead, bool) {
+    /// The look-ahead for this tick (stopping only; zeros otherwise):
+    /// `fh.joined`, the last complete sweep joined with the one in
+    /// progress, which advances by `points` points (a new one starts when
+    /// it is complete); returns whether the plan's stop segment is within
+    /// the stop's reach. A hold request runs a whole sweep at once
+    /// ([`Interpolator::hold`]), outside the tick.
+    fn ahead_acc(&mut self, kin: &Kin, v: f32, points: usize) -> bool {
         // Stopping only: a resume plans its cap at λ = 1 already, and a
         // look-ahead cap dropping under μ on its exponential tail forces μ
         // down against the tail law (measured: up to 1.07× j at landing).
         if self.fh.ctl.state() != HoldState::Stopping {
-            self.fh.sweep = None;
-            return (Ahead::default(), false);
+            if self.fh.sweep.is_some() {
+                self.fh.sweep = None;
+                self.fh.joined = Ahead::default();
+            }
+            return false;
         }
         let mut sw = match self.fh.sweep {
             Some(sw) if !sw.done => sw,
@@ -268,12 +309,16 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
                     self.fh.ahead = d.part;
                     self.fh.reach = d.reach;
                 }
+                // (a new sweep: nothing of it yet)
+                self.fh.joined = self.fh.ahead;
                 self.start_sweep(self.s, self.sweep_len(kin, v))
             }
         };
-        self.sweep_points(&mut sw, AHEAD_PER_TICK);
+        let mut joined = self.fh.joined;
+        self.sweep_points(&mut sw, &mut joined, points);
+        self.fh.joined = joined;
         self.fh.sweep = Some(sw);
-        (self.fh.ahead.join(&sw.part), self.fh.reach || sw.reach)
+        self.fh.reach || sw.reach
     }
 
     /// One tick under time-scaling (module docs); `phase` is `Run`.
@@ -285,28 +330,71 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
         if self.fh.ctl.state() == HoldState::Held {
             return self.place(t_s, (fx_to_f64(s), s), 0.0);
         }
-        let h = self.period_s;
-        let j2 = self.ends.map_or(0.0, |e| e.jerk_stop);
+        if let Some(tau) = self.fh.seg_tau {
+            return self.hold_seg_tick(t_s, tau);
+        }
+        let h = self.h;
         // The plan's ṡ_p, s̈_p, s⃛_p, s⁗_p at s.
-        let plan = match self.fh.seg_tau {
-            Some(tau) => [0.5 * j2 * tau * tau, -j2 * tau, j2, 0.0],
-            None => {
-                let [_, dq, ddq, dddq] = self.qs.qd.map(f64::from);
-                let v = self.qs.v_fx as f64 * (1.0 / Q_ONE);
-                [v, 0.5 * dq, 0.5 * ddq * v, 0.5 * dddq * v * v + 0.25 * ddq * dq]
-            }
-        };
-        let Some(coeffs) = self.views.coeffs(&self.pc) else {
+        let [_, dq, ddq, dddq] = self.qs.qd;
+        let v = self.qs.v;
+        let plan = [v, 0.5 * dq, 0.5 * ddq * v, 0.5 * dddq * v * v + 0.25 * ddq * dq];
+        let Some((kin, extra)) = self.hold_kin(plan, s) else {
             return self.fault(Fault::Eval { s_mm: fx_to_f64(s) });
         };
+        // (a tick that evaluated the next piece too leaves the look-ahead
+        // for the next)
+        let points = if extra { 0 } else { AHEAD_PER_TICK };
+        let stop_in_reach = self.ahead_acc(&kin, v, points);
+        // (below λ = ½ the plan's λ³J and 3λμA leave room to finish)
+        self.fh
+            .ctl
+            .set_coast(stop_in_reach && self.fh.ctl.lambda_f32() > COAST_ABOVE);
+        let ts = self.fh.ctl.control_ahead(&kin, &self.fh.joined, &self.fh.lim, h);
+        if self.fh.ctl.state() == HoldState::Running {
+            self.fh.prev_j = None;
+        }
+        let vh = mul_hi(self.qs.v_fx, self.tk.0).wrapping_shl(self.tk.1);
+        let Some(ds) = scaled_step(vh, plan, &ts, h) else {
+            return self.fault(Fault::NonFinite { s_mm: fx_to_f64(s) });
+        };
+        let s_new = s.saturating_add(ds);
+        if s_new >= self.stop_at {
+            let rest = fx_to_f64(self.len_fx.wrapping_sub(s_new));
+            let j2 = self.ends.map_or(0.0, |e| e.jerk_stop);
+            if self.ends.is_none() || !(rest > 0.0) || !(j2 > 0.0) {
+                return Ok(self.finish(t_s));
+            }
+            // Into the stop segment at its own time to go τ (L − s = J₂τ³/6).
+            let tau = cbrt64(6.0 * rest / j2);
+            self.fh.seg_tau = Some(tau);
+            let feed = (self.fh.ctl.lambda() * 0.5 * j2 * tau * tau) as f32;
+            return self.place(t_s, (fx_to_f64(s_new), s_new), feed);
+        }
+        let guess = self.qs.v;
+        let sp = self.place(t_s, (fx_to_f64(s_new), s_new), 0.0)?;
+        let tq = fx_small_f32(s_new.wrapping_sub(self.qc.anchor), 20);
+        let poly = self.qc.poly;
+        self.qs = q_eval(&self.qc, &poly, s_new, tq, guess);
+        Ok(Setpoint {
+            feed_mm_s: f64::from(self.fh.ctl.lambda_f32() * self.qs.v),
+            ..sp
+        })
+    }
+
+    /// The plan's kinematics at s ([`Kin`]) for the controller, from the
+    /// plan's `[ṡ_p, s̈_p, s⃛_p, …]` there: with J's change since the last
+    /// tick, or the jump of the path's r‴ at a piece break within the next
+    /// two ticks when that is larger.
+    fn hold_kin(&mut self, plan: [f32; 4], s: i64) -> Option<(Kin, bool)> {
+        let [p1, p2, p3, _] = plan;
+        let coeffs = self.views.coeffs(&self.pc)?;
         let dr = pos_derivs(
             coeffs,
             tau_of(s, self.pc.centre, self.pc.shift),
             self.pc.shift,
             self.pc.constant,
         );
-        let [p1, p2, p3, _] = plan;
-        let mut kin = Kin::new(dr, [p1 as f32, p2 as f32, p3 as f32]);
+        let mut kin = Kin::new(dr, [p1, p2, p3]);
         if let Some(pj) = self.fh.prev_j {
             for ((d, j), p) in kin.dj.iter_mut().zip(kin.j.iter()).zip(pj.iter()) {
                 *d = j - p;
@@ -315,13 +403,16 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
         self.fh.prev_j = Some(kin.j);
         // A piece break within the next two ticks: the path's r‴ (so the
         // plan's axis jerk) jumps there; the jump counts as J's change.
-        let reach = s.saturating_add(to_fx(2.0 * h * p1.max(0.0) * self.fh.ctl.lambda().max(0.0)));
-        if self.pc.next <= reach && self.pc.idx < self.views.p_last {
+        let reach = s.saturating_add(f32_to_fx(
+            2.0 * self.h * p1.max(0.0) * self.fh.ctl.lambda_f32().max(0.0),
+        ));
+        let extra = self.pc.next <= reach && self.pc.idx < self.views.p_last;
+        if extra {
             if let Some(next) = self.views.piece(self.pc.idx.wrapping_add(1)) {
                 if let Some(c) = self.views.coeffs(&next) {
                     let at = self.pc.next;
                     let dr_n = pos_derivs(c, tau_of(at, next.centre, next.shift), next.shift, next.constant);
-                    let kin_n = Kin::new(dr_n, [p1 as f32, p2 as f32, p3 as f32]);
+                    let kin_n = Kin::new(dr_n, [p1, p2, p3]);
                     for ((d, jn), j) in kin.dj.iter_mut().zip(kin_n.j.iter()).zip(kin.j.iter()) {
                         let jump = jn - j;
                         if jump.abs() > d.abs() {
@@ -331,63 +422,111 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
                 }
             }
         }
-        let (ahead, stop_in_reach) = match self.fh.seg_tau {
-            // (in the stop segment: coast through it)
-            Some(_) => (Ahead::default(), true),
-            None => self.ahead_acc(&kin, p1),
-        };
-        // (below λ = ½ the plan's λ³J and 3λμA leave room to finish)
-        self.fh
-            .ctl
-            .set_coast(stop_in_reach && self.fh.ctl.lambda() > COAST_ABOVE);
-        let ts = self.fh.ctl.control_ahead(&kin, &ahead, &self.fh.lim, h);
-        let lam = self.fh.ctl.lambda();
-        if self.fh.ctl.state() == HoldState::Running {
+        Some((kin, extra))
+    }
+
+    /// A tick in the stop segment under scaling: the segment followed in
+    /// its own time θ (τ = t₂ − θ to go, s = L − J₂τ³/6, dθ/dt = λ; f64).
+    #[inline(never)]
+    fn hold_seg_tick(&mut self, t_s: f64, tau: f64) -> Result<Setpoint, Fault> {
+        let s = self.s;
+        let h = self.h;
+        let j2 = self.ends.map_or(0.0, |e| e.jerk_stop);
+        let ts = if self.fh.ctl.state() == HoldState::Running {
+            // (resumed: λ = 1 and the segment runs at its own pace)
             self.fh.prev_j = None;
-        }
-        if let Some(tau) = self.fh.seg_tau {
-            // dθ = ∫λ dt over the tick (exact: λ is a quadratic in t).
-            let dth = h * (ts.lam + h * (0.5 * ts.mu + h * ts.nu / 6.0));
-            let tau1 = tau - dth.max(0.0);
-            if !tau1.is_finite() {
-                return self.fault(Fault::NonFinite { s_mm: fx_to_f64(s) });
+            TickScale {
+                lam: LAM_ONE,
+                lam_f: 1.0,
+                ..TickScale::default()
             }
-            if tau1 <= 0.0 {
-                self.fh.seg_tau = None;
-                return Ok(self.finish(t_s));
+        } else {
+            let (j2f, tf) = (j2 as f32, tau as f32);
+            let plan = [0.5 * j2f * tf * tf, -j2f * tf, j2f, 0.0];
+            let Some((kin, _)) = self.hold_kin(plan, s) else {
+                return self.fault(Fault::Eval { s_mm: fx_to_f64(s) });
+            };
+            // (in the stop segment: coast through it)
+            self.fh.ctl.set_coast(self.fh.ctl.lambda_f32() > COAST_ABOVE);
+            let ts = self
+                .fh
+                .ctl
+                .control_ahead(&kin, &Ahead::default(), &self.fh.lim, h);
+            if self.fh.ctl.state() == HoldState::Running {
+                self.fh.prev_j = None;
             }
-            self.fh.seg_tau = Some(tau1);
-            let s_new = self
-                .len_fx
-                .wrapping_sub(to_fx(j2 * tau1 * tau1 * tau1 / 6.0))
-                .max(s);
-            let feed = (lam * 0.5 * j2 * tau1 * tau1) as f32;
-            return self.place(t_s, (fx_to_f64(s_new), s_new), feed);
-        }
-        let ds = scaled_step(plan, &ts, h);
-        if !ds.is_finite() {
+            ts
+        };
+        // dθ = ∫λ dt over the tick (exact: λ is a quadratic in t).
+        let hd = self.period_s;
+        let dth = hd * (ts.lam_f64() + hd * (0.5 * f64::from(ts.mu) + hd * f64::from(ts.nu) / 6.0));
+        let tau1 = tau - dth.max(0.0);
+        if !tau1.is_finite() {
             return self.fault(Fault::NonFinite { s_mm: fx_to_f64(s) });
         }
-        let s_new = s.saturating_add(to_fx(ds));
-        if s_new >= self.stop_at {
-            let rest = fx_to_f64(self.len_fx.wrapping_sub(s_new));
-            if self.ends.is_none() || !(rest > 0.0) || !(j2 > 0.0) {
-                return Ok(self.finish(t_s));
-            }
-            // Into the stop segment at its own time to go τ (L − s = J₂τ³/6).
-            let tau = libm::cbrt(6.0 * rest / j2);
-            self.fh.seg_tau = Some(tau);
-            let feed = (lam * 0.5 * j2 * tau * tau) as f32;
-            return self.place(t_s, (fx_to_f64(s_new), s_new), feed);
+        if tau1 <= 0.0 {
+            self.fh.seg_tau = None;
+            return Ok(self.finish(t_s));
         }
-        let guess = self.qs.v;
-        let sp = self.place(t_s, (fx_to_f64(s_new), s_new), 0.0)?;
-        let tq = fx_small_f32(s_new.wrapping_sub(self.qc.anchor), 20);
-        let poly = self.qc.poly;
-        self.qs = q_eval(&self.qc, &poly, s_new, tq, guess);
-        Ok(Setpoint {
-            feed_mm_s: lam * f64::from(self.qs.v),
-            ..sp
-        })
+        self.fh.seg_tau = Some(tau1);
+        let s_new = self
+            .len_fx
+            .wrapping_sub(to_fx(j2 * tau1 * tau1 * tau1 / 6.0))
+            .max(s);
+        let feed = self.fh.ctl.lambda_f32() * (0.5 * j2 * tau1 * tau1) as f32;
+        self.place(t_s, (fx_to_f64(s_new), s_new), feed)
+    }
+}
+
+/// How many of the values `arr[first ..= last]` (ascending, ≥ 0) lie below
+/// the non-negative f64 with bits `at` (i.e. are ≤ s for `at` the bits of
+/// s + 2⁻⁴⁰ mm, as the cursors' Q40 compare `to_fx(b) ≤ s` counts them):
+/// a binary search on the bit patterns (integer compares; a non-negative
+/// f64's bits order as its value).
+fn count_below<A: F64Array>(arr: &A, first: usize, last: usize, at: u64) -> usize {
+    let (mut lo, mut hi) = (first, last.wrapping_add(1).max(first));
+    while lo < hi {
+        let mid = lo + (hi - lo) / 2;
+        let b = arr.get(mid).map_or(u64::MAX, |x| x.to_bits());
+        // (a negative value counts as 0)
+        let b = if b >> 63 != 0 && b != u64::MAX { 0 } else { b };
+        if b < at {
+            lo = mid + 1;
+        } else {
+            hi = mid;
+        }
+    }
+    lo - first
+}
+
+/// ∛x for x > 0 (f64): an f32 root (the exponent divided by three, three
+/// Newton steps in hardware), then one Newton step in f64, which squares
+/// its relative error (~1e-7 → ~1e-14): a few soft-float operations
+/// instead of libm's `cbrt`. Not positive and finite: 0.
+fn cbrt64(x: f64) -> f64 {
+    let xf = x as f32;
+    if !(x > 0.0 && xf > 0.0 && xf < f32::INFINITY) {
+        return 0.0;
+    }
+    let mut y = f32::from_bits(xf.to_bits() / 3 + 0x2a51_19f2);
+    for _ in 0..3 {
+        y = (2.0 * y + xf / (y * y)) * (1.0 / 3.0);
+    }
+    let y = f64::from(y);
+    (2.0 * y + x / (y * y)) * (1.0 / 3.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::cbrt64;
+
+    #[test]
+    fn cbrt64_is_close_to_libm() {
+        for i in 0..2000 {
+            let x = 1e-9 * 1.02f64.powi(i);
+            let (y, r) = (cbrt64(x), libm::cbrt(x));
+            assert!(((y - r) / r).abs() < 1e-13, "{x}: {y} vs {r}");
+        }
+        assert_eq!((cbrt64(0.0), cbrt64(-1.0), cbrt64(f64::NAN)), (0.0, 0.0, 0.0));
     }
 }

@@ -109,6 +109,14 @@ impl PieceU {
     }
 }
 
+/// An i64 as f32 through the FPU's 32-bit conversions (the high half
+/// exactly below 2²⁴, the low half, one addition: within an ulp of `x as
+/// f32`, without the soft-float call).
+#[inline(always)]
+fn i64_f32(x: i64) -> f32 {
+    ((x >> 32) as i32 as f32) * 4294967296.0 + (x as u32) as f32
+}
+
 /// r′, r″, r‴ of a piece's position polynomial (Σ b_k τ^k per axis, b_k
 /// Q40 mm) with respect to arc length at τ (Q61), f32: `[r′, r″, r‴]`, each
 /// `[x, y, z]` (mm/mm, 1/mm, 1/mm²). With τ = (s − c)/2^e, d/ds = 2^−e d/dτ
@@ -121,29 +129,31 @@ pub fn pos_derivs(b: &[u8; POS_BYTES], tau: i64, shift: u32, constant: u32) -> [
     let g = f32::from_bits((127 + shift.min(100)).saturating_sub(21) << 23);
     let unit = f32::from_bits((127 - FX_FRAC) << 23);
     let mut d = [[0.0f32; 3]; 3];
-    for a in 0..3usize {
+    let [r1, r2, r3] = &mut d;
+    for (a, ((x1, x2), x3)) in r1.iter_mut().zip(r2.iter_mut()).zip(r3.iter_mut()).enumerate() {
         if constant & (1 << a) != 0 {
             continue;
         }
-        let base = 8 * POS_COEFFS * a;
-        let (mut d1, mut d2, mut d3) = (0.0f32, 0.0f32, 0.0f32);
-        for k in (1..POS_COEFFS).rev() {
-            let c = rd_i64(b, base + 8 * k) as f32 * unit;
-            let kf = k as f32;
-            d1 = d1 * t + kf * c;
-            if k >= 2 {
-                d2 = d2 * t + kf * (kf - 1.0) * c;
-            }
-            if k >= 3 {
-                d3 = d3 * t + kf * (kf - 1.0) * (kf - 2.0) * c;
-            }
+        // b₁ … b₇ of the axis (b₀ does not enter the derivatives).
+        let Some(blk) = b.get(8 * POS_COEFFS * a + 8..8 * POS_COEFFS * (a + 1)) else {
+            continue;
+        };
+        let mut c = [0.0f32; POS_DEG];
+        for (o, w) in c.iter_mut().zip(blk.chunks_exact(8)) {
+            *o = i64_f32(i64::from_le_bytes(<[u8; 8]>::try_from(w).unwrap_or([0; 8]))) * unit;
         }
-        let [r1, r2, r3] = &mut d;
-        if let (Some(x1), Some(x2), Some(x3)) = (r1.get_mut(a), r2.get_mut(a), r3.get_mut(a)) {
-            *x1 = d1 * g;
-            *x2 = d2 * g * g;
-            *x3 = d3 * g * g * g;
-        }
+        let [c1, c2, c3, c4, c5, c6, c7] = c;
+        // Horner on k b_k, k(k − 1) b_k, k(k − 1)(k − 2) b_k.
+        let d1 = ((((((7.0 * c7 * t + 6.0 * c6) * t + 5.0 * c5) * t + 4.0 * c4) * t + 3.0 * c3) * t
+            + 2.0 * c2)
+            * t)
+            + c1;
+        let d2 =
+            (((((42.0 * c7 * t + 30.0 * c6) * t + 20.0 * c5) * t + 12.0 * c4) * t + 6.0 * c3) * t) + 2.0 * c2;
+        let d3 = ((((210.0 * c7 * t + 120.0 * c6) * t + 60.0 * c5) * t + 24.0 * c4) * t) + 6.0 * c3;
+        *x1 = d1 * g;
+        *x2 = d2 * g * g;
+        *x3 = d3 * g * g * g;
     }
     d
 }
