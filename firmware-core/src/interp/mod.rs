@@ -49,6 +49,7 @@
 //! an interior zero of q forever; the fault is sticky until
 //! [`Interpolator::reset`].
 
+pub(crate) mod crossing;
 pub(crate) mod cursor;
 pub(crate) mod end_segments;
 pub(crate) mod hold_run;
