@@ -43,10 +43,7 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         while self.qc.idx < self.views.q_last && est >= self.qc.next && self.qc.next < self.stop_at {
             let u = self.qc.next;
             let past = u > s;
-            let old = self
-                .qc
-                .poly
-                .eval(fx_small_f32(u.wrapping_sub(self.qc.anchor), 20));
+            let old = self.qc.poly.eval(self.qc.t_local(u));
             let (idx, start) = (self.qc.idx.checked_add(1)?, u);
             if idx.wrapping_sub(self.ov.lo) < self.ov.n {
                 self.enter_override_span(idx, start)?;
@@ -54,10 +51,7 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
                 self.views.fill_q(&mut self.qc, idx, start)?;
             }
             if past {
-                let new = self
-                    .qc
-                    .poly
-                    .eval(fx_small_f32(u.wrapping_sub(self.qc.anchor), 20));
+                let new = self.qc.poly.eval(self.qc.t_local(u));
                 let (tau, v) = time_left(ahead_f32(u.wrapping_sub(s)), h, taylor);
                 delta += jump_share(s_derivs(new, v), s_derivs(old, v), tau);
                 est = s_new.wrapping_add(f32_to_fx(delta));
@@ -302,10 +296,7 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         let k = self.segk;
         let s_new = if self.stop_at > s {
             let (tau, v) = time_left(ahead_f32(self.stop_at.wrapping_sub(s)), h, taylor);
-            let old = self
-                .qc
-                .poly
-                .eval(fx_small_f32(self.stop_at.wrapping_sub(self.qc.anchor), 20));
+            let old = self.qc.poly.eval(self.qc.t_local(self.stop_at));
             let seg = [2.0 * k.stop_v, 0.0, 0.0];
             s_new.wrapping_add(f32_to_fx(jump_share(seg, s_derivs(old, v), tau)))
         } else {
