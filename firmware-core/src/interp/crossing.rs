@@ -16,10 +16,13 @@
 //! (q, ṡ and s̈ = q′/2 are continuous: a jump in q′ would be a step in the
 //! acceleration, which no plan has.) θ solves p(θ) = U − s for the step's
 //! own Taylor polynomial p, by Newton in f32. δ vanishes like τ³ at the
-//! knot, so θ's f32 error (~1e-7 relative) moves δ by < 1e-14 mm; the
-//! terms beyond τ⁵ are below 1e-12 mm. Several knots in one step add up
-//! (the differences telescope); at the stop segment the new side is the
-//! segment's cubic in time, s⃛ = J₂, s⁗ = s⁽⁵⁾ = 0.
+//! knot, so θ's f32 error (~1e-7 relative) moves δ by ~1e-14 mm even where
+//! s⁗ jumps by 1e8 mm/s⁴. Measured against the exact s(t) on the family's
+//! worst runs, a crossing tick's error is then no larger than any other
+//! tick's (≤ 5e-11 mm, the order-4 truncation), where it was up to 1.8e-8
+//! mm. Several knots in one step add up (the differences telescope). At
+//! the stop segment the new side is the segment's cubic in time, s⃛ = J₂,
+//! s⁗ = s⁽⁵⁾ = 0 (there the step was up to 8e-10 mm off).
 
 use crate::servo_forms::fixed::{fx_small_f32, fx_to_f64};
 

@@ -161,7 +161,9 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
 
     /// One Taylor step of `h` seconds (step scale `tk`, [`step_scale`](crate::servo_forms::fixed::step_scale)) from
     /// (s, q) (see the module docs): ds = √q·h in fixed point (Q32 × the
-    /// scale) plus the higher Taylor terms in f32.
+    /// scale) plus the higher Taylor terms in f32; past a knot of q or s₂,
+    /// plus the share of the derivatives' jump ([`Self::cross_knots`],
+    /// [`Self::enter_stop`]).
     #[inline(always)]
     fn step(&mut self, t_s: f64, h: f32, tk: (i64, u32)) -> Result<Setpoint, Fault> {
         let s = self.s;
