@@ -4,7 +4,8 @@
 //!
 //! The reference integrates s(t) with the same order-4 Taylor step as the
 //! firmware, in f64 with the exact √q and q, q′, q″, q‴ from the f64 q
-//! spline, and places r(u(s)) with the table's f64 s → u map and the f64
+//! spline, with the same share of the derivatives' jump added at every knot
+//! of q a tick crosses (`firmware_core::interp` docs), and places r(u(s)) with the table's f64 s → u map and the f64
 //! NURBS. Both start from the firmware's s at the first full Taylor tick
 //! (after the jerk-limited start segment), so their difference is the
 //! firmware's rounding plus a smooth drift; the third difference of that
@@ -69,16 +70,50 @@ pub fn noise(table_bytes: &[u8]) -> Noise {
     let h = PERIOD_S;
     let mut s = fw[0].0;
     let mut rf: Vec<(f64, [f64; 3])> = Vec::with_capacity(fw.len());
+    let mut cur = q.cursor().unwrap();
     for _ in 0..fw.len() {
         let u = su.eval(s).unwrap().u;
         rf.push((s, curve.point(u).unwrap()));
-        let [qv, dq, ddq, dddq] = q.eval(s).unwrap();
+        let [qv, dq, ddq, dddq] = cur.seek(&q, s).unwrap();
         let qv = qv.max(0.0);
         let v = qv.sqrt();
         let a = 0.5 * dq;
         let j = 0.5 * ddq * v;
         let sn = 0.5 * dddq * qv + 0.25 * ddq * dq;
-        s += h * (v + h * (0.5 * a + h * (j / 6.0 + h * sn / 24.0)));
+        let p = |t: f64| t * (v + t * (0.5 * a + t * (j / 6.0 + t * sn / 24.0)));
+        let dp = |t: f64| v + t * (a + t * (0.5 * j + t * sn / 6.0));
+        // The jump's share at every knot of q the tick crosses, as the firmware
+        // adds it (s⃛, s⁗, s⁽⁵⁾ of the next span minus the old one's, over the
+        // time left after the knot).
+        let s_derivs = |d: [f64; 4], v: f64| {
+            let [_, q1, q2, q3] = d;
+            [
+                0.5 * q2 * v,
+                0.5 * q3 * v * v + 0.25 * q2 * q1,
+                v * (0.75 * q3 * q1 + 0.25 * q2 * q2),
+            ]
+        };
+        let mut next = s + p(h);
+        let mut share = 0.0;
+        while cur.poly().end <= next && cur.poly().end < s_last {
+            let knot = cur.poly().end;
+            let old = cur.poly().eval(knot);
+            let new = cur.seek(&q, knot).unwrap();
+            let mut t = (knot - s) / v;
+            for _ in 0..50 {
+                let step = (p(t) - (knot - s)) / dp(t);
+                t -= step;
+                if step.abs() <= 1e-18 {
+                    break;
+                }
+            }
+            let (tau, vk) = (h - t.clamp(0.0, h), dp(t.clamp(0.0, h)));
+            let (dn, dold) = (s_derivs(new, vk), s_derivs(old, vk));
+            let d = [dn[0] - dold[0], dn[1] - dold[1], dn[2] - dold[2]];
+            share += tau * tau * tau * (d[0] / 6.0 + tau * (d[1] / 24.0 + tau * d[2] / 120.0));
+            next = s + p(h) + share;
+        }
+        s = next;
     }
     let n = fw
         .iter()

@@ -23,6 +23,28 @@ pub(crate) struct QCur {
     pub(crate) poly: QLocal,
 }
 
+impl QCur {
+    /// The f32 form's local t at `x` (Q40): exact at the span's ends (0 and
+    /// h, or −h and 0 for the last span, whose form is anchored at its end),
+    /// elsewhere in steps of 2⁻²⁰ mm as on the tick. At a knot, q″ from a
+    /// rounded t would be off by q‴ · 1e-6 mm.
+    #[inline]
+    pub(crate) fn t_local(&self, x: i64) -> f32 {
+        let at_start = self.anchor == self.start;
+        if x == self.start {
+            if at_start {
+                0.0
+            } else {
+                -self.poly.h
+            }
+        } else if x == self.next && at_start {
+            self.poly.h
+        } else {
+            fx_small_f32(x.wrapping_sub(self.anchor), 20)
+        }
+    }
+}
+
 /// The current piece: index, start and next break (Q40, `i64::MAX` after
 /// the last piece), u_a, the centre (Q40) and the shift of τ.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]

@@ -1,6 +1,7 @@
 //! [`Interpolator::tick`]: the Taylor step, the start and stop segments,
 //! the end and the stall faults; [`Interpolator::run`] into a sink.
 
+use crate::interp::crossing::{ahead_f32, jump_share, s_derivs, time_left};
 use crate::interp::cursor::{q_eval, tau_of};
 use crate::interp::end_segments::{to_q80, SegRun};
 use crate::interp::interpolator::{Interpolator, Phase};
@@ -26,6 +27,37 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
             }
         }
         Some(())
+    }
+
+    /// A Taylor step from `s` with the old span's `taylor` ([ṡ, s̈, s⃛, s⁗])
+    /// reached `s_new` ≥ the span's end: moves the q cursor across every
+    /// knot U with s < U ≤ s_new (and U < the stop hand-over), adding for
+    /// each the share of the derivatives' jump over the rest of the step
+    /// ([`crate::interp::crossing`]); the corrected s_new. A knot at `s`
+    /// itself (the join tick's s₁, whose `taylor` is the new span's
+    /// already) only moves the cursor.
+    #[inline(never)]
+    fn cross_knots(&mut self, s: i64, s_new: i64, h: f32, taylor: [f32; 4]) -> Option<i64> {
+        let mut delta = 0.0f32;
+        let mut est = s_new;
+        while self.qc.idx < self.views.q_last && est >= self.qc.next && self.qc.next < self.stop_at {
+            let u = self.qc.next;
+            let past = u > s;
+            let old = self.qc.poly.eval(self.qc.t_local(u));
+            let (idx, start) = (self.qc.idx.checked_add(1)?, u);
+            if idx.wrapping_sub(self.ov.lo) < self.ov.n {
+                self.enter_override_span(idx, start)?;
+            } else {
+                self.views.fill_q(&mut self.qc, idx, start)?;
+            }
+            if past {
+                let new = self.qc.poly.eval(self.qc.t_local(u));
+                let (tau, v) = time_left(ahead_f32(u.wrapping_sub(s)), h, taylor);
+                delta += jump_share(s_derivs(new, v), s_derivs(old, v), tau);
+                est = s_new.wrapping_add(f32_to_fx(delta));
+            }
+        }
+        Some(est)
     }
 
     /// Entering q span `idx` where an override matters: the queue front
@@ -129,7 +161,9 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
 
     /// One Taylor step of `h` seconds (step scale `tk`, [`step_scale`](crate::servo_forms::fixed::step_scale)) from
     /// (s, q) (see the module docs): ds = √q·h in fixed point (Q32 × the
-    /// scale) plus the higher Taylor terms in f32.
+    /// scale) plus the higher Taylor terms in f32; past a knot of q or s₂,
+    /// plus the share of the derivatives' jump ([`Self::cross_knots`],
+    /// [`Self::enter_stop`]).
     #[inline(always)]
     fn step(&mut self, t_s: f64, h: f32, tk: (i64, u32)) -> Result<Setpoint, Fault> {
         let s = self.s;
@@ -147,10 +181,20 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         let ds_fx = mul_hi(self.qs.v_fx, tk.0)
             .wrapping_shl(tk.1)
             .wrapping_add(f32_to_fx(rest));
-        let s_new = s.wrapping_add(ds_fx);
+        let mut s_new = s.wrapping_add(ds_fx);
+        let taylor = [v, a, j, sn];
+        if s_new >= self.qc.next {
+            // The step crosses a knot of q (rare): its jump's share.
+            let Some(x) = self.cross_knots(s, s_new, h, taylor) else {
+                return self.fault(Fault::Eval {
+                    s_mm: fx_to_f64(s_new),
+                });
+            };
+            s_new = x;
+        }
         if s_new >= self.stop_at {
             if self.ends.is_some() {
-                return self.enter_stop(t_s, s_new);
+                return self.enter_stop(t_s, s_new, (s, h, taylor));
             }
             return Ok(self.finish(t_s));
         }
@@ -236,12 +280,30 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
     /// Δ = δ/v₂ + c (δ = s_new − s₂′, c = Δ²/t₂ − Δ³/(3t₂²) by fixed-point
     /// iteration in f32: c is ≤ ~T²/t₂, its f32 error ≤ 1e-12 s); Newton in
     /// f64 if t₂ < 20 T.
+    ///
+    /// `s_new` came from the Taylor step of `h` from `s` with q's `taylor`
+    /// ([ṡ, s̈, s⃛, s⁗]); past s₂ the motion is the segment's (s⃛ = J₂,
+    /// s⁗ = 0), so the share of that jump over the rest of the step is
+    /// added first ([`crate::interp::crossing`]).
     #[inline(never)]
-    fn enter_stop(&mut self, t_s: f64, s_new: i64) -> Result<Setpoint, Fault> {
+    fn enter_stop(
+        &mut self,
+        t_s: f64,
+        s_new: i64,
+        (s, h, taylor): (i64, f32, [f32; 4]),
+    ) -> Result<Setpoint, Fault> {
         let Some(e) = self.ends else {
             return Ok(self.finish(t_s));
         };
         let k = self.segk;
+        let s_new = if self.stop_at > s {
+            let (tau, v) = time_left(ahead_f32(self.stop_at.wrapping_sub(s)), h, taylor);
+            let old = self.qc.poly.eval(self.qc.t_local(self.stop_at));
+            let seg = [2.0 * k.stop_v, 0.0, 0.0];
+            s_new.wrapping_add(f32_to_fx(jump_share(seg, s_derivs(old, v), tau)))
+        } else {
+            s_new
+        };
         let s_mm = fx_to_f64(s_new);
         if k.fast {
             // Δ = t₂ − τ: Δ₀ = δ/v₂ in f64 (δ = s_new − s₂′ exact in Q40),
