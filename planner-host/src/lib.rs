@@ -20,6 +20,8 @@
 //! - [`limits`]: the paper's Table 1 and the limits file.
 //! - [`gcode`]: part programs in RS274/NGC (LinuxCNC's G-code) to
 //!   canonical moves — lines, arcs, NURBS — in mm and mm/s.
+//! - [`program`]: a program's moves to paths (tangent runs as one NURBS,
+//!   rapids, stops at corners), each planned, and the program file.
 //! - [`cli`]: what `feedplan` and `feedsim` share: exit codes, the curve
 //!   argument (a file or a built-in name), stdout that may close.
 //!
@@ -35,6 +37,7 @@ pub mod geometry;
 pub mod limits;
 pub mod lp;
 pub mod plan;
+pub mod program;
 pub mod sampling;
 
 pub use feed_override::{OverrideContext, OverrideOutcome};
