@@ -185,3 +185,123 @@ fn moves_under_a_micrometre_are_dropped_and_the_path_stays_connected() {
     let c = &p.paths[0].curve;
     assert!(norm(sub(c.point(1.0), [20.0, 0.0, 0.0])) < 1e-12);
 }
+
+mod planned {
+    use crate::gcode::{read_str, ReadOptions};
+    use crate::machine::Machine;
+    use crate::program::file::{ProgramFile, ProgramFileError};
+    use crate::program::plan::{plan_program, ProgramError, ProgramOptions};
+
+    use super::own;
+
+    pub(super) const OWN: [&str; 8] = [
+        "arcs-planes.ngc",
+        "circles-helices.ngc",
+        "corners-path-control.ngc",
+        "inch-incremental.ngc",
+        "lines-feeds.ngc",
+        "nurbs-g5-quarter.ngc",
+        "nurbs-g6-circle.ngc",
+        "params-expressions.ngc",
+    ];
+
+    fn plan(text: &str, machine: &Machine) -> Result<Vec<u8>, ProgramError> {
+        let prog = read_str(text, ReadOptions::default()).unwrap();
+        plan_program(&prog, machine, &ProgramOptions::default())?.encode()
+    }
+
+    #[test]
+    fn our_programs_plan_within_the_limits_and_round_trip() {
+        for name in OWN {
+            let prog = read_str(&own(name), ReadOptions::default()).unwrap();
+            let planned = plan_program(&prog, &Machine::table1(), &ProgramOptions::default()).unwrap();
+            for p in &planned.paths {
+                let r = p.worst_ratio.unwrap();
+                assert!(
+                    r <= 1.0 + 1e-6,
+                    "{name}: LINE {}..{}: {r}",
+                    p.first_line,
+                    p.last_line
+                );
+                assert!(p.vbar_mm_s <= p.feed_mm_s.unwrap_or(f64::INFINITY));
+            }
+            let bytes = planned.encode().unwrap();
+            let back = ProgramFile::parse(&bytes).unwrap();
+            assert_eq!(back, planned.file());
+            assert_eq!(back.entries.len(), planned.paths.len() + planned.stops.len());
+            let last = back.entries.iter().map(|e| e.last_line).max().unwrap() as usize;
+            let last_move = prog.moves.iter().map(|m| m.line).max().unwrap();
+            assert_eq!(last, last_move, "{name}: the last move is planned");
+        }
+    }
+
+    #[test]
+    fn a_corrupt_or_truncated_program_file_is_refused() {
+        let bytes = plan(&own("lines-feeds.ngc"), &Machine::table1()).unwrap();
+        for at in [0, 9, 13, 30, bytes.len() / 2, bytes.len() - 1] {
+            let mut b = bytes.clone();
+            b[at] ^= 0x40;
+            assert!(ProgramFile::parse(&b).is_err(), "byte {at}");
+        }
+        assert!(matches!(
+            ProgramFile::parse(&bytes[..bytes.len() - 8]),
+            Err(ProgramFileError::Length { .. })
+        ));
+        let mut b = bytes.clone();
+        b[bytes.len() / 2] ^= 1;
+        assert!(matches!(
+            ProgramFile::parse(&b),
+            Err(ProgramFileError::Crc { .. })
+        ));
+        assert!(matches!(
+            ProgramFile::parse(b"FLPT...."),
+            Err(ProgramFileError::Magic)
+        ));
+        // a wrong entry behind a valid CRC
+        let mut b = bytes.clone();
+        b[crate::program::file::HEADER_LEN] = 9;
+        firmware_core::table::reseal(&mut b);
+        assert!(matches!(
+            ProgramFile::parse(&b),
+            Err(ProgramFileError::Entry { index: 0, .. })
+        ));
+    }
+
+    #[test]
+    fn a_program_leaving_the_travel_is_refused_with_its_line() {
+        let machine =
+            Machine::from_toml_str("[axis.y]\nmin_limit = -5\nmax_limit = 100\n", "m.toml").unwrap();
+        let text = "G21 G17 F600\nG0 X0 Y0\nG1 X10\nG3 X20 Y0 I5 J0\nG1 X30\nM2\n";
+        // the G2 dips to Y-5 exactly: allowed
+        assert!(plan(text, &machine).is_ok());
+        let text = "G21 G17 F600\nG0 X0 Y0\nG1 X10\nG3 X22 Y0 I6 J0\nG1 X30\nM2\n";
+        match plan(text, &machine) {
+            Err(ProgramError::Travel(e)) => {
+                assert_eq!((e.line, e.axis), (4, 'Y'));
+                assert!(e.to_string().starts_with("LINE 4:"), "{e}");
+            }
+            Ok(_) => panic!("accepted"),
+            Err(other) => panic!("{other}"),
+        }
+    }
+
+    #[test]
+    fn feeds_above_the_machine_are_capped_and_rapids_use_the_rapid_velocity() {
+        let machine = Machine::from_toml_str(
+            "[traj]\nmax_linear_velocity = 50\nrapid_velocity = 120\n",
+            "m.toml",
+        )
+        .unwrap();
+        let prog = read_str(
+            "G21 F6000\nG0 X10\nG1 X20\nG1 Y10 F600\nM0\nG0 X0 Y0\nM2\n",
+            ReadOptions::default(),
+        )
+        .unwrap();
+        let p = plan_program(&prog, &machine, &ProgramOptions::default()).unwrap();
+        let v: Vec<f64> = p.paths.iter().map(|p| p.vbar_mm_s).collect();
+        assert_eq!(v, vec![120.0, 50.0, 10.0, 120.0]);
+        let f = p.file();
+        let kinds: Vec<u8> = f.entries.iter().map(|e| e.kind as u8).collect();
+        assert_eq!(kinds, vec![2, 1, 1, 3, 2]);
+    }
+}
