@@ -4,13 +4,15 @@
 //! Little-endian, offsets from the start of the file:
 //!
 //! ```text
-//! header (HEADER_LEN = 24)
+//! header (HEADER_LEN = 32)
 //!   0  8  MAGIC "FLPPROG\0"
 //!   8  2  VERSION (1)
 //!  10  2  reserved, 0
 //!  12  4  entry count E
 //!  16  4  piece count P (over all entries)
 //!  20  4  total length of the file, CRC included
+//!  24  4  offset of the warnings text (right after the pieces)
+//!  28  4  length of the warnings text, bytes (UTF-8, one warning a line)
 //! E entries (ENTRY_LEN = 32 each)
 //!   0  1  kind: 1 feed path, 2 rapid, 3 program stop (M0/M1: no table)
 //!   1  3  reserved, 0
@@ -25,6 +27,7 @@
 //!   0  8  arc length where the move ends on its path, mm (f64)
 //!   8  4  source line of the move
 //!  12  4  reserved, 0
+//! the warnings text (the reader's and the path builder's, for the run's summary)
 //! the tables, each starting at a multiple of TABLE_ALIGN (zero padding)
 //! CRC-32 (ISO-HDLC, as the tables' own) over every byte before it
 //! ```
@@ -43,7 +46,7 @@ pub const MAGIC: [u8; 8] = *b"FLPPROG\0";
 /// The format version.
 pub const VERSION: u16 = 1;
 /// Header length, bytes.
-pub const HEADER_LEN: usize = 24;
+pub const HEADER_LEN: usize = 32;
 /// Entry length, bytes.
 pub const ENTRY_LEN: usize = 32;
 /// Piece length, bytes.
@@ -108,6 +111,8 @@ pub struct Entry {
 pub struct ProgramFile {
     /// In program order.
     pub entries: Vec<Entry>,
+    /// Warnings of the planning (one per item, no newlines inside).
+    pub warnings: Vec<String>,
 }
 
 /// Why bytes are not a usable program file (exit code 3).
@@ -200,7 +205,13 @@ impl ProgramFile {
     pub fn encode(&self) -> Result<Vec<u8>, ProgramFileError> {
         let e = self.entries.len();
         let p: usize = self.entries.iter().map(|x| x.pieces.len()).sum();
-        let mut at = HEADER_LEN + e * ENTRY_LEN + p * PIECE_LEN;
+        let warnings: String = self
+            .warnings
+            .iter()
+            .map(|w| format!("{}\n", w.replace('\n', " ")))
+            .collect();
+        let warnings_at = HEADER_LEN + e * ENTRY_LEN + p * PIECE_LEN;
+        let mut at = warnings_at + warnings.len();
         let mut offsets = Vec::with_capacity(e);
         for x in &self.entries {
             if x.table.is_empty() {
@@ -218,6 +229,9 @@ impl ProgramFile {
         out[12..16].copy_from_slice(&len_u32(e, "entry count")?.to_le_bytes());
         out[16..20].copy_from_slice(&len_u32(p, "piece count")?.to_le_bytes());
         out[20..24].copy_from_slice(&len_u32(total, "file length")?.to_le_bytes());
+        out[24..28].copy_from_slice(&len_u32(warnings_at, "warnings offset")?.to_le_bytes());
+        out[28..32].copy_from_slice(&len_u32(warnings.len(), "warnings length")?.to_le_bytes());
+        out[warnings_at..warnings_at + warnings.len()].copy_from_slice(warnings.as_bytes());
         let mut piece = 0usize;
         for (i, (x, &off)) in self.entries.iter().zip(&offsets).enumerate() {
             let b = HEADER_LEN + i * ENTRY_LEN;
@@ -285,6 +299,20 @@ impl ProgramFile {
                 why: format!("{e} entries and {p} pieces do not fit in {n} bytes"),
             })?;
         let pieces_at = HEADER_LEN + e * ENTRY_LEN;
+        let (w_at, w_len) = (u32_at(bytes, 24) as usize, u32_at(bytes, 28) as usize);
+        if w_at != data_start || w_len > n - CRC_LEN - data_start {
+            return Err(ProgramFileError::Length {
+                why: format!("warnings text at {w_at}+{w_len}, expected at {data_start} inside the file"),
+            });
+        }
+        let warnings = std::str::from_utf8(&bytes[w_at..w_at + w_len])
+            .map_err(|_| ProgramFileError::Length {
+                why: "the warnings text is not UTF-8".into(),
+            })?
+            .lines()
+            .map(str::to_string)
+            .collect();
+        let data_start = data_start + w_len;
         let mut entries = Vec::with_capacity(e);
         let mut next_piece = 0usize;
         let mut data_end = data_start;
@@ -378,6 +406,6 @@ impl ProgramFile {
                 why: format!("{p} pieces stated, {next_piece} used"),
             });
         }
-        Ok(ProgramFile { entries })
+        Ok(ProgramFile { entries, warnings })
     }
 }

@@ -239,7 +239,10 @@ impl PlannedProgram {
             });
         }
         entries.extend(stops.map(|&s| stop(s)));
-        ProgramFile { entries }
+        ProgramFile {
+            entries,
+            warnings: self.warnings.clone(),
+        }
     }
 
     /// The encoded program file.
