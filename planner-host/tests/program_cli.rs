@@ -70,6 +70,9 @@ fn a_program_is_told_from_a_curve_by_its_content() {
     assert!(ProgramFile::is_program(&std::fs::read(&out).unwrap()));
 }
 
+/// A case: name, program, extra arguments, exit code, what the message names.
+type Case<'a> = (&'a str, PathBuf, Vec<&'a str>, u8, &'a [&'a str]);
+
 #[test]
 fn refusals_name_the_line_or_the_key_and_write_nothing() {
     let machine = tmp("small.toml");
@@ -80,7 +83,7 @@ fn refusals_name_the_line_or_the_key_and_write_nothing() {
     std::fs::write(&typo, "[traj]\nmax_linear_velocty = 3\n").unwrap();
     let cutter = tmp("cutter.ngc");
     std::fs::write(&cutter, "G21 F600\nG1 X1\nG41 D1\nG1 X2\nM2\n").unwrap();
-    let cases: [(&str, PathBuf, Vec<&str>, u8, &[&str]); 6] = [
+    let cases: [Case; 6] = [
         (
             "travel",
             own("lines-feeds.ngc"),
