@@ -32,8 +32,9 @@ Exit codes:
   0  success
   1  I/O or internal error (e.g. an output file cannot be written)
   2  usage: unknown option, bad option value, or an option that does not fit
-  3  bad input: unreadable or invalid curve, table, limits file, servo file, CSV or G-code
-     program (a word it refuses: LINE N: word 'G41': ...)
+  3  bad input: unreadable or invalid curve, table, program file, limits file, machine file,
+     servo file, CSV or G-code program (a word it refuses: LINE N: word 'G41': ...; a move
+     outside the machine's travel: LINE N: the move leaves the travel ...)
   4  infeasible plan: an LP or the plan has no solution (stall, no room for the end segments,
      the override window LP)
   5  a limit exceeded in a check (feedsim run --check, feedsim check)";

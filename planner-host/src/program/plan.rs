@@ -7,7 +7,10 @@
 //! `rapid_velocity`; both under every axis limit, from rest to rest
 //! (jerk-limited start and stop), at the machine's servo period. The
 //! sampling density is the larger of `density_per_mm` and
-//! [`MIN_POINTS`] per path, so that short paths still get a usable LP.
+//! [`MIN_POINTS`] per path, so that short paths still get a usable LP; a
+//! path whose plan fails for a numerical reason is planned again with
+//! [`RETRY_POINTS`] points, with a warning (an input error — a corner, a
+//! curve the planner refuses — is not retried).
 
 use std::time::Instant;
 
@@ -23,6 +26,12 @@ use crate::program::travel::{check_travel, TravelError};
 
 /// Fewest sampling points of a path.
 pub const MIN_POINTS: f64 = 16.0;
+
+/// Sampling point counts tried, in order, when a short path's plan fails
+/// for a numerical reason (no room for the end segments, a stall, an LP
+/// that does not solve, the table encoder's fixed-point check): the plan of
+/// a path a few tens of µm long depends on where its few samples fall.
+pub const RETRY_POINTS: [f64; 4] = [10.0, 12.0, 24.0, 32.0];
 
 /// Paths listed one by one in [`PlannedProgram::summary`].
 pub const SUMMARY_PATHS: usize = 40;
@@ -101,6 +110,9 @@ pub struct PlannedPath {
     /// The firmware table.
     #[serde(skip)]
     pub table: Vec<u8>,
+    /// Why the first plan failed, when a retry made it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub retried: Option<String>,
 }
 
 /// A planned program.
@@ -151,6 +163,7 @@ pub fn plan_program(
         .collect();
     let mut warnings = program.warnings.clone();
     warnings.extend(made.warnings);
+    warnings.extend(paths.iter().filter_map(|p| p.retried.clone()));
     Ok(PlannedProgram {
         machine: machine.clone(),
         blocks: program.blocks,
@@ -177,18 +190,43 @@ fn plan_path(
         PathKind::Feed => p.feed_mm_s.unwrap_or(limits.vbar).min(limits.vbar),
         PathKind::Rapid => machine.rapid_mm_s,
     };
-    let cfg = PlanConfig {
+    let cfg = |points: f64| PlanConfig {
         limits,
         servo_period_s: machine.servo_period_s,
-        density_per_mm: opts.density_per_mm.max(MIN_POINTS / length),
+        density_per_mm: opts.density_per_mm.max(points / length),
         ..PlanConfig::default()
     };
-    let out = plan_curve(&p.curve, &cfg).map_err(|source| ProgramError::Plan {
-        first_line: p.first_line,
-        last_line: p.last_line,
-        index,
-        source,
-    })?;
+    let mut retried = None;
+    let out = match plan_curve(&p.curve, &cfg(MIN_POINTS)) {
+        Ok(out) => out,
+        Err(first) => {
+            let numerical = !matches!(
+                first,
+                PlanError::Curve(_) | PlanError::Limits(_) | PlanError::Corner { .. }
+            );
+            let again = RETRY_POINTS
+                .iter()
+                .filter(|_| numerical)
+                .find_map(|&n| plan_curve(&p.curve, &cfg(n)).ok().map(|o| (n, o)));
+            match again {
+                Some((n, out)) => {
+                    retried = Some(format!(
+                        "LINE {}..{}: path {index} ({length:.4} mm) planned with {n} sampling points; with {MIN_POINTS}: {first}",
+                        p.first_line, p.last_line
+                    ));
+                    out
+                }
+                None => {
+                    return Err(ProgramError::Plan {
+                        first_line: p.first_line,
+                        last_line: p.last_line,
+                        index,
+                        source: first,
+                    })
+                }
+            }
+        }
+    };
     let n = p.pieces.len();
     let pieces = p
         .pieces
@@ -213,6 +251,7 @@ fn plan_path(
         plan_time_s: t0.elapsed().as_secs_f64(),
         pieces,
         table: out.table_bytes,
+        retried,
     })
 }
 
