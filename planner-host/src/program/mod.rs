@@ -19,7 +19,7 @@ pub mod plan;
 pub mod travel;
 
 pub use file::{Entry, EntryKind, FilePiece, ProgramFile, ProgramFileError};
-pub use paths::{paths_of, Path, PathError, PathKind, PathPiece, Paths};
+pub use paths::{paths_for, paths_of, Path, PathError, PathKind, PathPiece, Paths};
 pub use plan::{plan_program, PlannedPath, PlannedProgram, ProgramError, ProgramOptions};
 pub use travel::{check_travel, TravelError};
 

@@ -10,7 +10,8 @@
 //!   code accepts is never refused by the planner as a corner);
 //! - the feed is the same (a new `F` inside a tangent run ends the path
 //!   there, with a stop, and a warning: the LP plans one feed limit per
-//!   path);
+//!   path); feeds above the machine's feed limit count as the limit
+//!   ([`paths_for`]);
 //! - the move ending the run is not under G61 (exact stop: the machine
 //!   stops at the end of every move).
 //!
@@ -77,7 +78,8 @@ pub struct Path {
     pub kind: PathKind,
     /// The toolpath, u ∈ [0, 1].
     pub curve: Nurbs,
-    /// Programmed feed, mm/s (None for a rapid).
+    /// Programmed feed, mm/s, capped at the machine's feed limit when one
+    /// was given ([`paths_for`]) (None for a rapid).
     pub feed_mm_s: Option<f64>,
     /// The moves, in order.
     pub pieces: Vec<PathPiece>,
@@ -136,6 +138,14 @@ struct Open {
 
 /// The paths of `program` (see the module docs).
 pub fn paths_of(program: &Program) -> Result<Paths, PathError> {
+    paths_for(program, f64::INFINITY)
+}
+
+/// The paths of `program` for a machine whose feed limit is `feed_cap_mm_s`:
+/// two feeds above it are the same feed (both run at the cap), so they do
+/// not end a path.
+pub fn paths_for(program: &Program, feed_cap_mm_s: f64) -> Result<Paths, PathError> {
+    let cap = |f: Option<f64>| f.map(|f| f.min(feed_cap_mm_s));
     let mut out = Paths::default();
     let moves = drop_short(&program.moves, &mut out.warnings)?;
     let mut warned_tol: Vec<String> = Vec::new();
@@ -180,7 +190,8 @@ pub fn paths_of(program: &Program) -> Result<Paths, PathError> {
                     (Some(a), Some(b)) => angle_between(a, b) <= JOIN_ANGLE_RAD,
                     _ => false,
                 };
-                if tangent && o.feed != m.feed_mm_s {
+                let same_feed = cap(o.feed) == cap(m.feed_mm_s);
+                if tangent && !same_feed {
                     out.warnings.push(format!(
                         "LINE {}: the feed changes inside a tangent run ({:.3} to {:.3} mm/min): the machine stops there in this version",
                         m.line,
@@ -188,7 +199,7 @@ pub fn paths_of(program: &Program) -> Result<Paths, PathError> {
                         m.feed_mm_s.unwrap_or(0.0) * 60.0
                     ));
                 }
-                tangent && o.feed == m.feed_mm_s
+                tangent && same_feed
             }
             _ => false,
         };
@@ -198,7 +209,7 @@ pub fn paths_of(program: &Program) -> Result<Paths, PathError> {
             }
             open = Some(Open {
                 kind,
-                feed: m.feed_mm_s,
+                feed: cap(m.feed_mm_s),
                 pieces: Vec::new(),
             });
         }

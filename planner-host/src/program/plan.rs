@@ -8,8 +8,8 @@
 //! (jerk-limited start and stop), at the machine's servo period. The
 //! sampling density is the larger of `density_per_mm` and
 //! [`MIN_POINTS`] per path, so that short paths still get a usable LP; a
-//! path whose plan fails for a numerical reason is planned again with
-//! [`RETRY_POINTS`] points, with a warning (an input error — a corner, a
+//! path whose plan fails for a numerical reason is planned again with the
+//! samplings of [`RETRY`], with a warning (an input error — a corner, a
 //! curve the planner refuses — is not retried).
 
 use std::time::Instant;
@@ -21,17 +21,29 @@ use crate::geometry::arc_length::ArcLength;
 use crate::machine::Machine;
 use crate::plan::{plan_curve, PlanConfig, PlanError};
 use crate::program::file::{Entry, EntryKind, FilePiece, ProgramFile};
-use crate::program::paths::{paths_of, Path, PathError, PathKind};
+use crate::program::paths::{paths_for, Path, PathError, PathKind};
 use crate::program::travel::{check_travel, TravelError};
 
 /// Fewest sampling points of a path.
 pub const MIN_POINTS: f64 = 16.0;
 
-/// Sampling point counts tried, in order, when a short path's plan fails
-/// for a numerical reason (no room for the end segments, a stall, an LP
-/// that does not solve, the table encoder's fixed-point check): the plan of
-/// a path a few tens of µm long depends on where its few samples fall.
-pub const RETRY_POINTS: [f64; 4] = [10.0, 12.0, 24.0, 32.0];
+/// The samplings tried, in order, when a path's plan fails for a numerical
+/// reason (no room for the end segments, a stall, an LP that does not
+/// solve, the table encoder's fixed-point check): (fewest points, factor on
+/// the density). The plan of a path a few tens of µm long depends on where
+/// its few samples fall; a longer one is sampled more densely.
+pub const RETRY: [(f64, f64); 10] = [
+    (8.0, 1.0),
+    (10.0, 1.0),
+    (12.0, 1.0),
+    (14.0, 1.0),
+    (6.0, 1.0),
+    (20.0, 1.25),
+    (24.0, 1.5),
+    (32.0, 2.0),
+    (16.0, 0.75),
+    (16.0, 3.0),
+];
 
 /// Paths listed one by one in [`PlannedProgram::summary`].
 pub const SUMMARY_PATHS: usize = 40;
@@ -143,7 +155,7 @@ pub fn plan_program(
     opts: &ProgramOptions,
 ) -> Result<PlannedProgram, ProgramError> {
     let t0 = Instant::now();
-    let made = paths_of(program)?;
+    let made = paths_for(program, machine.limits.vbar)?;
     if made.paths.is_empty() {
         return Err(ProgramError::Empty);
     }
@@ -190,28 +202,28 @@ fn plan_path(
         PathKind::Feed => p.feed_mm_s.unwrap_or(limits.vbar).min(limits.vbar),
         PathKind::Rapid => machine.rapid_mm_s,
     };
-    let cfg = |points: f64| PlanConfig {
+    let cfg = |points: f64, factor: f64| PlanConfig {
         limits,
         servo_period_s: machine.servo_period_s,
-        density_per_mm: opts.density_per_mm.max(points / length),
+        density_per_mm: (opts.density_per_mm * factor).max(points / length),
         ..PlanConfig::default()
     };
     let mut retried = None;
-    let out = match plan_curve(&p.curve, &cfg(MIN_POINTS)) {
+    let out = match plan_curve(&p.curve, &cfg(MIN_POINTS, 1.0)) {
         Ok(out) => out,
         Err(first) => {
             let numerical = !matches!(
                 first,
                 PlanError::Curve(_) | PlanError::Limits(_) | PlanError::Corner { .. }
             );
-            let again = RETRY_POINTS
-                .iter()
-                .filter(|_| numerical)
-                .find_map(|&n| plan_curve(&p.curve, &cfg(n)).ok().map(|o| (n, o)));
+            let again = RETRY.iter().filter(|_| numerical).find_map(|&(n, f)| {
+                let c = cfg(n, f);
+                plan_curve(&p.curve, &c).ok().map(|o| (c.density_per_mm, o))
+            });
             match again {
-                Some((n, out)) => {
+                Some((d, out)) => {
                     retried = Some(format!(
-                        "LINE {}..{}: path {index} ({length:.4} mm) planned with {n} sampling points; with {MIN_POINTS}: {first}",
+                        "LINE {}..{}: path {index} ({length:.4} mm) planned at {d:.4} sampling points/mm; the first plan failed: {first}",
                         p.first_line, p.last_line
                     ));
                     out

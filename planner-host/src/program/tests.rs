@@ -165,6 +165,13 @@ fn corners_feed_changes_and_rapids_end_paths() {
         .warnings
         .iter()
         .any(|w| w.contains("LINE 6") && w.contains("feed changes")));
+    // two feeds above the machine's feed limit are the same feed
+    let prog = read_str("G21 G17 F60000\nG1 X10\nG1 X20 F90000\nM2\n", ReadOptions::default()).unwrap();
+    let capped = crate::program::paths::paths_for(&prog, 100.0).unwrap();
+    assert_eq!(capped.paths.len(), 1);
+    assert_eq!(capped.paths[0].feed_mm_s, Some(100.0));
+    assert!(capped.warnings.is_empty());
+    assert_eq!(paths_of(&prog).unwrap().paths.len(), 2);
     // G61 stops after every move, even a tangent one
     let (_, p) = read("G21 G17 G61 F600\nG1 X10\nG1 X20\nM2\n");
     assert_eq!(p.paths.len(), 2);
@@ -283,6 +290,21 @@ mod planned {
             Ok(_) => panic!("accepted"),
             Err(other) => panic!("{other}"),
         }
+    }
+
+    #[test]
+    fn a_path_of_a_few_micrometres_plans() {
+        // line 44 of LinuxCNC's 3D_Chips.ngc: 48 um; its first plan may fail numerically and is
+        // then planned again with another sampling, with a warning naming the line
+        let text = "G21 F37500\nG0 X53 Y-53.31 Z-30.496\nG1 Y-53.262 Z-30.5\nM2\n";
+        let prog = read_str(text, ReadOptions::default()).unwrap();
+        let p = plan_program(&prog, &Machine::table1(), &ProgramOptions::default()).unwrap();
+        assert_eq!(p.paths.len(), 2);
+        assert!((p.paths[1].length_mm - 0.0482).abs() < 1e-4);
+        for w in p.warnings.iter().filter(|w| w.contains("planned at")) {
+            assert!(w.starts_with("LINE 3..3: path 2"), "{w}");
+        }
+        assert!(p.encode().is_ok());
     }
 
     #[test]
