@@ -166,7 +166,11 @@ fn corners_feed_changes_and_rapids_end_paths() {
         .iter()
         .any(|w| w.contains("LINE 6") && w.contains("feed changes")));
     // two feeds above the machine's feed limit are the same feed
-    let prog = read_str("G21 G17 F60000\nG1 X10\nG1 X20 F90000\nM2\n", ReadOptions::default()).unwrap();
+    let prog = read_str(
+        "G21 G17 F60000\nG1 X10\nG1 X20 F90000\nM2\n",
+        ReadOptions::default(),
+    )
+    .unwrap();
     let capped = crate::program::paths::paths_for(&prog, 100.0).unwrap();
     assert_eq!(capped.paths.len(), 1);
     assert_eq!(capped.paths[0].feed_mm_s, Some(100.0));
