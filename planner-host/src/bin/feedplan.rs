@@ -63,7 +63,7 @@ enum Cmd {
         /// G-code program: skip the lines that start with '/' (block delete).
         #[arg(long)]
         block_delete: bool,
-        /// Sampling of the toolpath: par, len or ada (paper §3).
+        /// Sampling of the toolpath: par, len or ada (paper §3); a G-code program is sampled len.
         #[arg(long, default_value = "len")]
         sampling: Sampling,
         /// Sampling density, points per mm of arc length.

@@ -60,7 +60,7 @@ enum Cmd {
         /// path,block).
         #[arg(long)]
         csv: Option<PathBuf>,
-        /// Write the feedrate plot (PNG) here.
+        /// Write the feedrate plot (PNG) here (a program file: its toolpath, XY, coloured by feed).
         #[arg(long)]
         plot: Option<PathBuf>,
         /// Print one JSON object instead of the text summary.
