@@ -333,6 +333,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
                 .map_err(|e| Failure::new(e.exit_code(), e))?;
             if planner_host::cli::is_gcode_program(&curve) {
                 if formulation != Formulation::Certified
+                    || sampling != Sampling::Len
                     || override_levels.is_some()
                     || ends.is_some()
                     || checks_per_span.is_some()
@@ -340,7 +341,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
                 {
                     return Err(Failure::new(
                         EXIT_USAGE,
-                        "a G-code program is planned with the certified formulation, jerk-limited ends and the machine file's servo period: --formulation, --ends, --checks-per-span, --override-levels and --period-us go with a curve",
+                        "a G-code program is planned with the certified formulation, jerk-limited ends and the machine file's servo period: --formulation, --sampling, --ends, --checks-per-span, --override-levels and --period-us go with a curve",
                     ));
                 }
                 return plan_program_cmd(&curve, &machine, density, block_delete, &output, json);
