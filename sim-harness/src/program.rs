@@ -1,6 +1,9 @@
 //! Running a whole program file (`feedplan plan PART.ngc`): every table in
 //! order through the firmware interpolator and the servo models
-//! ([`run_table`]), each from rest where the previous one stopped.
+//! ([`run_table`]), each from rest where the previous one stopped, at the
+//! servo period of the [`SimConfig`] (`feedsim run` takes the program
+//! file's own, the period its tables were planned for, unless told
+//! otherwise).
 //!
 //! - **Continuity.** The first setpoint of each path must be the last
 //!   setpoint of the path before it within [`JOIN_TOL_MM`]; otherwise the run
@@ -188,7 +191,11 @@ pub fn run_program(bytes: &[u8], cfg: &SimConfig) -> Result<ProgramRun, ProgramR
         path_of_tick: Vec::new(),
         paths: Vec::new(),
         stops: Vec::new(),
-        file: ProgramFile::default(),
+        file: ProgramFile {
+            entries: Vec::new(),
+            warnings: Vec::new(),
+            servo_period_ns: file.servo_period_ns,
+        },
         period_s: cfg.period_s,
     };
     for entry in &file.entries {

@@ -99,6 +99,7 @@ fn paths_that_do_not_join_are_refused() {
             line_entry([10.0, 1e-6, 0.0], [10.0, 10.0, 0.0], 4),
         ],
         warnings: Vec::new(),
+        servo_period_ns: 250_000,
     };
     let bytes = file.encode().unwrap();
     match run_program(&bytes, &SimConfig::default()) {
@@ -170,5 +171,31 @@ fn feedsim_runs_and_checks_a_program_file() {
         .unwrap();
     assert_eq!(out.status.code(), Some(3));
     assert!(String::from_utf8_lossy(&out.stderr).contains("CRC"));
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn feedsim_runs_a_program_file_at_the_period_it_was_planned_for() {
+    let dir = std::env::temp_dir().join(format!("feedsim-program-period-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let machine = Machine::from_toml_str("[emcmot]\nservo_period_ns = 1000000\n", "m.toml").unwrap();
+    let prog = read_str("G21 F600\nG1 X5\nM2\n", ReadOptions::default()).unwrap();
+    let bytes = plan_program(&prog, &machine, &ProgramOptions::default())
+        .unwrap()
+        .encode()
+        .unwrap();
+    assert_eq!(ProgramFile::parse(&bytes).unwrap().servo_period_ns, 1_000_000);
+    let bin = dir.join("ms.bin");
+    std::fs::write(&bin, &bytes).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_feedsim"))
+        .arg("run")
+        .arg(&bin)
+        .args(["--json", "--check"])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["period_s"], 1e-3);
+    assert_eq!(v["last_block"], 2);
     std::fs::remove_dir_all(&dir).unwrap();
 }

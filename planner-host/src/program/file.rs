@@ -4,7 +4,7 @@
 //! Little-endian, offsets from the start of the file:
 //!
 //! ```text
-//! header (HEADER_LEN = 32)
+//! header (HEADER_LEN = 40)
 //!   0  8  MAGIC "FLPPROG\0"
 //!   8  2  VERSION (1)
 //!  10  2  reserved, 0
@@ -13,6 +13,8 @@
 //!  20  4  total length of the file, CRC included
 //!  24  4  offset of the warnings text (right after the pieces)
 //!  28  4  length of the warnings text, bytes (UTF-8, one warning a line)
+//!  32  4  servo period the tables were planned for, ns (> 0)
+//!  36  4  reserved, 0
 //! E entries (ENTRY_LEN = 32 each)
 //!   0  1  kind: 1 feed path, 2 rapid, 3 program stop (M0/M1: no table)
 //!   1  3  reserved, 0
@@ -46,7 +48,7 @@ pub const MAGIC: [u8; 8] = *b"FLPPROG\0";
 /// The format version.
 pub const VERSION: u16 = 1;
 /// Header length, bytes.
-pub const HEADER_LEN: usize = 32;
+pub const HEADER_LEN: usize = 40;
 /// Entry length, bytes.
 pub const ENTRY_LEN: usize = 32;
 /// Piece length, bytes.
@@ -107,12 +109,15 @@ pub struct Entry {
 }
 
 /// A program file's content.
-#[derive(Debug, Clone, PartialEq, Default)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct ProgramFile {
     /// In program order.
     pub entries: Vec<Entry>,
     /// Warnings of the planning (one per item, no newlines inside).
     pub warnings: Vec<String>,
+    /// The servo period the tables were planned for, ns (the feed caps at
+    /// curvature jumps depend on it: run them at this period).
+    pub servo_period_ns: u32,
 }
 
 /// Why bytes are not a usable program file (exit code 3).
@@ -231,6 +236,7 @@ impl ProgramFile {
         out[20..24].copy_from_slice(&len_u32(total, "file length")?.to_le_bytes());
         out[24..28].copy_from_slice(&len_u32(warnings_at, "warnings offset")?.to_le_bytes());
         out[28..32].copy_from_slice(&len_u32(warnings.len(), "warnings length")?.to_le_bytes());
+        out[32..36].copy_from_slice(&self.servo_period_ns.to_le_bytes());
         out[warnings_at..warnings_at + warnings.len()].copy_from_slice(warnings.as_bytes());
         let mut piece = 0usize;
         for (i, (x, &off)) in self.entries.iter().zip(&offsets).enumerate() {
@@ -287,6 +293,12 @@ impl ProgramFile {
         let computed = crc32(&bytes[..n - CRC_LEN]);
         if stored != computed {
             return Err(ProgramFileError::Crc { stored, computed });
+        }
+        let servo_period_ns = u32_at(bytes, 32);
+        if servo_period_ns == 0 {
+            return Err(ProgramFileError::Length {
+                why: "the servo period is 0 ns".into(),
+            });
         }
         let e = u32_at(bytes, 12) as usize;
         let p = u32_at(bytes, 16) as usize;
@@ -406,6 +418,10 @@ impl ProgramFile {
                 why: format!("{p} pieces stated, {next_piece} used"),
             });
         }
-        Ok(ProgramFile { entries, warnings })
+        Ok(ProgramFile {
+            entries,
+            warnings,
+            servo_period_ns,
+        })
     }
 }

@@ -293,6 +293,7 @@ impl PlannedProgram {
         ProgramFile {
             entries,
             warnings: self.warnings.clone(),
+            servo_period_ns: (self.machine.servo_period_s * 1e9).round() as u32,
         }
     }
 

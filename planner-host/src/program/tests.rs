@@ -239,6 +239,7 @@ mod planned {
             let bytes = planned.encode().unwrap();
             let back = ProgramFile::parse(&bytes).unwrap();
             assert_eq!(back, planned.file());
+            assert_eq!(back.servo_period_ns, 250_000);
             assert_eq!(back.entries.len(), planned.paths.len() + planned.stops.len());
             let last = back.entries.iter().map(|e| e.last_line).max().unwrap() as usize;
             let last_move = prog.moves.iter().map(|m| m.line).max().unwrap();

@@ -50,7 +50,8 @@ enum Cmd {
     Run {
         /// The firmware table or program file (feedplan's output).
         table: PathBuf,
-        /// Servo period, microseconds (default: the machine file's, else 250).
+        /// Servo period, microseconds (default: the machine file's; for a program file, the period
+        /// its tables were planned for; else 250).
         #[arg(long)]
         period_us: Option<f64>,
         /// Machine file (machine.toml): its servo period; default the built-in Table 1 machine.
@@ -385,9 +386,21 @@ fn run(cli: Cli) -> Result<(), Failure> {
             tol,
             pad_rest,
         } => {
+            let bytes = std::fs::read(&table).map_err(|e| format!("cannot read {}: {e}", table.display()))?;
+            let is_program = planner_host::program::ProgramFile::is_program(&bytes);
+            // a program file without --period-us or --machine runs at the period its tables
+            // were planned for
+            let program_period_us = match (is_program, period_us, &machine) {
+                (true, None, None) => planner_host::program::ProgramFile::parse(&bytes)
+                    .map(|f| f64::from(f.servo_period_ns) * 1e-3)
+                    .ok(),
+                _ => None,
+            };
             let machine =
                 planner_host::cli::load_machine(machine.as_deref(), None).map_err(Failure::input)?;
-            let period_us = period_us.unwrap_or(machine.servo_period_s * 1e6);
+            let period_us = period_us
+                .or(program_period_us)
+                .unwrap_or(machine.servo_period_s * 1e6);
             check_period(period_us)?;
             let mut cfg = SimConfig {
                 period_s: period_us * 1e-6,
@@ -396,8 +409,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
             if let Some(path) = servo {
                 cfg.servo = ServoConfig::load_axes(&path).map_err(Failure::input)?;
             }
-            let bytes = std::fs::read(&table).map_err(|e| format!("cannot read {}: {e}", table.display()))?;
-            if planner_host::program::ProgramFile::is_program(&bytes) {
+            if is_program {
                 let opts = ProgramRunOptions {
                     csv: csv.as_deref(),
                     plot: plot.as_deref(),
