@@ -1,14 +1,18 @@
 //! What the two command-line tools (`feedplan` here, `feedsim` in
 //! sim-harness) share, so that they speak alike: the exit codes and their
 //! help text, the exit code of a planner error, the curve argument (a file
-//! or a built-in name), and writing to a stdout that may close ([`outln!`](crate::outln)).
+//! or a built-in name), G-code programs told from curves, the machine
+//! options (`--machine`, `--limits`), and writing to a stdout that may close ([`outln!`](crate::outln)).
 
 use std::path::Path;
 
 use crate::geometry::builtin;
 use crate::geometry::curve::Nurbs;
 use crate::geometry::curve_error::CurveError;
+use crate::limits::{self, LimitsError};
+use crate::machine::{Machine, MachineError};
 use crate::plan::error::PlanError;
+use crate::program::plan::ProgramError;
 
 /// Exit code: an I/O or internal error.
 pub const EXIT_IO: u8 = 1;
@@ -28,8 +32,9 @@ Exit codes:
   0  success
   1  I/O or internal error (e.g. an output file cannot be written)
   2  usage: unknown option, bad option value, or an option that does not fit
-  3  bad input: unreadable or invalid curve, table, limits file, servo file, CSV or G-code
-     program (a word it refuses: LINE N: word 'G41': ...)
+  3  bad input: unreadable or invalid curve, table, program file, limits file, machine file,
+     servo file, CSV or G-code program (a word it refuses: LINE N: word 'G41': ...; a move
+     outside the machine's travel: LINE N: the move leaves the travel ...)
   4  infeasible plan: an LP or the plan has no solution (stall, no room for the end segments,
      the override window LP)
   5  a limit exceeded in a check (feedsim run --check, feedsim check)";
@@ -43,6 +48,77 @@ pub fn plan_exit_code(e: &PlanError) -> u8 {
         PlanError::Io { .. } | PlanError::Table(_) => EXIT_IO,
         PlanError::Level { source, .. } => plan_exit_code(source),
         _ => EXIT_INFEASIBLE,
+    }
+}
+
+/// The exit code of a program planning error: the planner's for a path that
+/// cannot be planned ([`plan_exit_code`]), bad input 3 for the rest.
+pub fn program_exit_code(e: &ProgramError) -> u8 {
+    match e {
+        ProgramError::Plan { source, .. } => plan_exit_code(source),
+        ProgramError::File(_) => EXIT_IO,
+        _ => EXIT_INPUT,
+    }
+}
+
+/// Extensions of G-code part programs.
+pub const PROGRAM_EXTENSIONS: [&str; 3] = ["ngc", "nc", "tap"];
+
+/// Is this argument a G-code program rather than a JSON curve? By its
+/// extension (`.ngc`, `.nc`, `.tap`, any case), else by its content: an
+/// existing file whose first non-blank byte is not `{`.
+pub fn is_gcode_program(arg: &Path) -> bool {
+    if let Some(ext) = arg.extension().and_then(|e| e.to_str()) {
+        if PROGRAM_EXTENSIONS.iter().any(|x| x.eq_ignore_ascii_case(ext)) {
+            return true;
+        }
+        if ext.eq_ignore_ascii_case("json") {
+            return false;
+        }
+    }
+    match std::fs::read(arg) {
+        Ok(b) => b
+            .iter()
+            .find(|c| !c.is_ascii_whitespace())
+            .is_some_and(|&c| c != b'{'),
+        Err(_) => false,
+    }
+}
+
+/// Why the machine options give no machine (exit 3; both options: 2).
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum MachineArgError {
+    /// The machine file cannot be used.
+    #[error(transparent)]
+    Machine(#[from] MachineError),
+    /// The limits file cannot be used.
+    #[error(transparent)]
+    Limits(#[from] LimitsError),
+    /// `--machine` and `--limits` together.
+    #[error("--machine and --limits do not go together: the machine file has the limits")]
+    Both,
+}
+
+impl MachineArgError {
+    /// The exit code: 2 for both options, 3 for a bad file.
+    pub fn exit_code(&self) -> u8 {
+        match self {
+            MachineArgError::Both => EXIT_USAGE,
+            _ => EXIT_INPUT,
+        }
+    }
+}
+
+/// The machine of `--machine FILE` or `--limits FILE` (the built-in machine
+/// with those limits, rapids at their feed limit), else Table 1
+/// ([`Machine::table1`]).
+pub fn load_machine(machine: Option<&Path>, limits_file: Option<&Path>) -> Result<Machine, MachineArgError> {
+    match (machine, limits_file) {
+        (Some(_), Some(_)) => Err(MachineArgError::Both),
+        (Some(m), None) => Ok(Machine::load(m)?),
+        (None, Some(l)) => Ok(Machine::with_limits(limits::load(l)?)),
+        (None, None) => Ok(Machine::table1()),
     }
 }
 
@@ -124,6 +200,27 @@ mod tests {
             load_curve(Path::new("no/such/file.json")),
             Err(CurveArgError::Curve(_))
         ));
+    }
+
+    #[test]
+    fn programs_are_told_from_curves_by_extension_or_content() {
+        assert!(is_gcode_program(Path::new("part.NGC")));
+        assert!(is_gcode_program(Path::new("part.tap")));
+        assert!(!is_gcode_program(Path::new("curve.json")));
+        assert!(!is_gcode_program(Path::new("fan")));
+        let dir = std::env::temp_dir().join(format!("feedlp-cli-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let (g, j) = (dir.join("part"), dir.join("curve"));
+        std::fs::write(&g, "G0 X1\n").unwrap();
+        std::fs::write(&j, " {\"degree\": 2}").unwrap();
+        assert!(is_gcode_program(&g));
+        assert!(!is_gcode_program(&j));
+        std::fs::remove_dir_all(&dir).unwrap();
+        assert!(matches!(
+            load_machine(Some(Path::new("a.toml")), Some(Path::new("b.json"))),
+            Err(MachineArgError::Both)
+        ));
+        assert_eq!(load_machine(None, None).unwrap(), Machine::table1());
     }
 
     #[test]

@@ -18,8 +18,12 @@
 //!   ArcLen (Appendix C) and the window LP between the active profile and
 //!   the target level.
 //! - [`limits`]: the paper's Table 1 and the limits file.
+//! - [`machine`]: the machine file `machine.toml` — limits, rapid velocity,
+//!   servo period, travel.
 //! - [`gcode`]: part programs in RS274/NGC (LinuxCNC's G-code) to
 //!   canonical moves — lines, arcs, NURBS — in mm and mm/s.
+//! - [`program`]: a program's moves to paths (tangent runs as one NURBS,
+//!   rapids, stops at corners), each planned, and the program file.
 //! - [`cli`]: what `feedplan` and `feedsim` share: exit codes, the curve
 //!   argument (a file or a built-in name), stdout that may close.
 //!
@@ -34,12 +38,15 @@ pub mod gcode;
 pub mod geometry;
 pub mod limits;
 pub mod lp;
+pub mod machine;
 pub mod plan;
+pub mod program;
 pub mod sampling;
 
 pub use feed_override::{OverrideContext, OverrideOutcome};
 pub use geometry::{builtin, ArcLength, CurveError, Nurbs};
 pub use limits::{Limits, LimitsError, Ratios, TABLE1};
 pub use lp::EndMode;
+pub use machine::{Machine, MachineError};
 pub use plan::{plan_curve, Formulation, PlanConfig, PlanError, PlanOutput};
 pub use sampling::Sampling;

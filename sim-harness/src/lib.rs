@@ -21,6 +21,9 @@
 //! - [`plot`]: feedrate against arc length as PNG (font embedded).
 //! - [`scenario`]: operator, host and link in front of the interpolator:
 //!   feedrate overrides (paper §4), feed hold, link faults, tick jitter.
+//! - [`program`]: a whole program file (`feedplan plan PART.ngc`), every
+//!   path's table in order, each from rest where the last one stopped, with
+//!   the source line of every tick and the checker over every path.
 //! - [`report`]: the sampling study PAR / LEN / ADA and the override
 //!   scenarios (Figs 13–15, storm, holds, faults) as Markdown with figures.
 //! - [`check`]: the independent trajectory checker: every limit on the
@@ -34,6 +37,7 @@ pub mod csv;
 pub mod geometry;
 pub mod metrics;
 pub mod plot;
+pub mod program;
 pub mod report;
 pub mod run;
 pub mod scenario;

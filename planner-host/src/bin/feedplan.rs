@@ -1,8 +1,9 @@
 //! `feedplan`: plan a NURBS toolpath and write the firmware table.
 //!
 //! ```text
+//! feedplan plan PART.ngc [--machine machine.toml | --limits FILE] [--density P] -o PART.bin [--json]
 //! feedplan plan CURVE [--sampling par|len|ada] [--density P] [--limits FILE]
-//!                     [--formulation certified|paper] [--ends jerk|step] [--period-us 250]
+//!                     [--machine machine.toml] [--formulation certified|paper] [--ends jerk|step] [--period-us 250]
 //!                     [--override-levels 30,50,125 | 10:200:10] -o TABLE.bin [--json]
 //! feedplan override TABLE.bin --at S_MM --to PERCENT [--from PERCENT] [-o PROFILE.json] [--json]
 //! feedplan parse PART.ngc [--json] [--block-delete]
@@ -18,7 +19,7 @@ use std::process::ExitCode;
 use clap::{CommandFactory, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use planner_host::feed_override::{OverrideContext, OverrideError, OverrideOutcome};
-use planner_host::limits::{self, LimitsError};
+use planner_host::limits::LimitsError;
 use planner_host::lp::{Objective, QhatBound};
 use planner_host::plan::verify;
 use planner_host::plan::{self, Formulation, PlanConfig, PlanError};
@@ -45,13 +46,24 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Cmd {
-    /// Plan a toolpath and write the firmware table.
+    /// Plan a toolpath and write the firmware table; or plan every path of a G-code program
+    /// and write one program file (the tables in order, with their source lines).
     #[command(after_help = EXIT_CODES)]
     Plan {
-        /// The toolpath: a JSON file (name, degree, weights, knots, control_points in mm), or
-        /// the name of a built-in curve: butterfly, circle, fan, star, trident.
+        /// The toolpath: a JSON file (name, degree, weights, knots, control_points in mm), the
+        /// name of a built-in curve (butterfly, circle, fan, star, trident), or a G-code program
+        /// (.ngc, .nc, .tap, or any file that does not start with '{'): its tangent runs of moves
+        /// become paths, each planned at min(F, the machine's feed) and rapids at the machine's
+        /// rapid velocity, stopping at every corner (docs/gcode.md).
         curve: PathBuf,
-        /// Sampling of the toolpath: par, len or ada (paper §3).
+        /// Machine file (machine.toml: per-axis and tangential limits, rapid velocity, servo
+        /// period, travel); default the built-in Table 1 machine with ±1000 mm of travel.
+        #[arg(long, conflicts_with = "limits")]
+        machine: Option<PathBuf>,
+        /// G-code program: skip the lines that start with '/' (block delete).
+        #[arg(long)]
+        block_delete: bool,
+        /// Sampling of the toolpath: par, len or ada (paper §3); a G-code program is sampled len.
         #[arg(long, default_value = "len")]
         sampling: Sampling,
         /// Sampling density, points per mm of arc length.
@@ -90,9 +102,9 @@ enum Cmd {
         ends: Option<EndMode>,
         /// Servo period the table is planned for, µs: the feed at curvature jumps is
         /// capped so that the acceleration step uses at most half the jerk limit over
-        /// one period (certified formulation).
-        #[arg(long, default_value_t = 250.0)]
-        period_us: f64,
+        /// one period (certified formulation). Default: the machine file's, else 250.
+        #[arg(long)]
+        period_us: Option<f64>,
         /// No progress bar (it is shown on stderr only when stderr is a terminal).
         #[arg(long, short = 'q')]
         quiet: bool,
@@ -294,6 +306,8 @@ fn run(cli: Cli) -> Result<(), Failure> {
     match cli.cmd {
         Cmd::Plan {
             curve,
+            machine,
+            block_delete,
             sampling,
             density,
             limits: lim_path,
@@ -315,11 +329,26 @@ fn run(cli: Cli) -> Result<(), Failure> {
                     "--objective and --qhat-bound go with --formulation paper",
                 ));
             }
+            let machine = planner_host::cli::load_machine(machine.as_deref(), lim_path.as_deref())
+                .map_err(|e| Failure::new(e.exit_code(), e))?;
+            if planner_host::cli::is_gcode_program(&curve) {
+                if formulation != Formulation::Certified
+                    || sampling != Sampling::Len
+                    || override_levels.is_some()
+                    || ends.is_some()
+                    || checks_per_span.is_some()
+                    || period_us.is_some()
+                {
+                    return Err(Failure::new(
+                        EXIT_USAGE,
+                        "a G-code program is planned with the certified formulation, jerk-limited ends and the machine file's servo period: --formulation, --sampling, --ends, --checks-per-span, --override-levels and --period-us go with a curve",
+                    ));
+                }
+                return plan_program_cmd(&curve, &machine, density, block_delete, &output, json);
+            }
             let curve = load_curve(&curve)?;
-            let limits = match lim_path {
-                Some(p) => limits::load(&p)?,
-                None => limits::TABLE1,
-            };
+            let limits = machine.limits;
+            let period_us = period_us.unwrap_or(machine.servo_period_s * 1e6);
             let mut cfg = PlanConfig {
                 formulation,
                 sampling,
@@ -400,6 +429,62 @@ fn run(cli: Cli) -> Result<(), Failure> {
             }
         }
     }
+}
+
+/// `feedplan plan PART.ngc`: every path planned, one program file written.
+fn plan_program_cmd(
+    path: &std::path::Path,
+    machine: &planner_host::Machine,
+    density: f64,
+    block_delete: bool,
+    output: &std::path::Path,
+    json: bool,
+) -> Result<(), Failure> {
+    use planner_host::gcode;
+    use planner_host::program::{plan_program, ProgramOptions};
+    let bytes = std::fs::read(path)
+        .map_err(|e| Failure::new(EXIT_INPUT, format!("cannot read {}: {e}", path.display())))?;
+    let prog = gcode::read_bytes(&bytes, gcode::ReadOptions { block_delete })
+        .map_err(|e| Failure::new(EXIT_INPUT, format!("{}: {e}", path.display())))?;
+    if !(density.is_finite() && density > 0.0) {
+        return Err(Failure::new(
+            EXIT_USAGE,
+            format!("--density {density}: must be a number > 0"),
+        ));
+    }
+    let fail = |e: planner_host::program::ProgramError| {
+        Failure::new(
+            planner_host::cli::program_exit_code(&e),
+            format!("{}: {e}", path.display()),
+        )
+    };
+    let planned = plan_program(
+        &prog,
+        machine,
+        &ProgramOptions {
+            density_per_mm: density,
+        },
+    )
+    .map_err(fail)?;
+    let file = planned.encode().map_err(fail)?;
+    let text = if json {
+        let mut v = serde_json::to_value(&planned)?;
+        v["program"] = path.display().to_string().into();
+        v["output"] = output.display().to_string().into();
+        v["output_bytes"] = file.len().into();
+        with_schema_version(&v)?
+    } else {
+        format!(
+            "{}: {}program file written to {} ({} bytes)",
+            path.display(),
+            planned.summary(),
+            output.display(),
+            file.len()
+        )
+    };
+    plan::write_atomic(output, &file)?;
+    outln!("{text}");
+    Ok(())
 }
 
 /// `feedplan override`.

@@ -2,6 +2,7 @@
 //! servos, measure the motion, and check setpoints against every limit.
 //!
 //! ```text
+//! feedsim run PART.bin [--machine machine.toml] [--csv OUT.csv] [--plot OUT.png] [--check [--tol 0.005]]
 //! feedsim run TABLE.bin [--period-us 250] [--csv OUT.csv] [--plot OUT.png] [--json] [--servo FILE]
 //!                       [--check [--tol 0.005] [--pad-rest 50]]
 //! feedsim check OUT.csv --curve CURVE [--limits FILE] [--pad-rest 50] [--tol 0.005] [--contour-tol 1e-3] [--json]
@@ -42,18 +43,25 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Cmd {
-    /// Simulate a table: machining time, ratios to the limits, contour and following error, feed fluctuation.
+    /// Simulate a table: machining time, ratios to the limits, contour and following error, feed
+    /// fluctuation. A program file (feedplan plan PART.ngc) runs every path in order, each from
+    /// rest where the previous one stopped; the CSV then has path and block (source line) columns.
     #[command(after_help = EXIT_CODES)]
     Run {
-        /// The firmware table (feedplan's output).
+        /// The firmware table or program file (feedplan's output).
         table: PathBuf,
-        /// Servo period, microseconds.
-        #[arg(long, default_value_t = 250.0)]
-        period_us: f64,
-        /// Write one CSV row per servo tick here (t,x,y,z,s,u,feed,ax,ay,az).
+        /// Servo period, microseconds (default: the machine file's; for a program file, the period
+        /// its tables were planned for; else 250).
+        #[arg(long)]
+        period_us: Option<f64>,
+        /// Machine file (machine.toml): its servo period; default the built-in Table 1 machine.
+        #[arg(long)]
+        machine: Option<PathBuf>,
+        /// Write one CSV row per servo tick here (t,x,y,z,s,u,feed,ax,ay,az; a program adds
+        /// path,block).
         #[arg(long)]
         csv: Option<PathBuf>,
-        /// Write the feedrate plot (PNG) here.
+        /// Write the feedrate plot (PNG) here (a program file: its toolpath, XY, coloured by feed).
         #[arg(long)]
         plot: Option<PathBuf>,
         /// Print one JSON object instead of the text summary.
@@ -93,6 +101,9 @@ enum Cmd {
         /// Limits file (JSON: vbar, abar, jbar, v, a, j); default the paper's Table 1.
         #[arg(long)]
         limits: Option<PathBuf>,
+        /// Machine file (machine.toml) whose limits to check against (instead of --limits).
+        #[arg(long, conflicts_with = "limits")]
+        machine: Option<PathBuf>,
         /// Ticks at rest added before the first and after the last setpoint: a start or stop with
         /// an acceleration step then shows up as a jerk violation.
         #[arg(long, default_value_t = 50)]
@@ -366,6 +377,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
         Cmd::Run {
             table,
             period_us,
+            machine,
             csv,
             plot,
             json,
@@ -374,6 +386,21 @@ fn run(cli: Cli) -> Result<(), Failure> {
             tol,
             pad_rest,
         } => {
+            let bytes = std::fs::read(&table).map_err(|e| format!("cannot read {}: {e}", table.display()))?;
+            let is_program = planner_host::program::ProgramFile::is_program(&bytes);
+            // a program file without --period-us or --machine runs at the period its tables
+            // were planned for
+            let program_period_us = match (is_program, period_us, &machine) {
+                (true, None, None) => planner_host::program::ProgramFile::parse(&bytes)
+                    .map(|f| f64::from(f.servo_period_ns) * 1e-3)
+                    .ok(),
+                _ => None,
+            };
+            let machine =
+                planner_host::cli::load_machine(machine.as_deref(), None).map_err(Failure::input)?;
+            let period_us = period_us
+                .or(program_period_us)
+                .unwrap_or(machine.servo_period_s * 1e6);
             check_period(period_us)?;
             let mut cfg = SimConfig {
                 period_s: period_us * 1e-6,
@@ -382,7 +409,15 @@ fn run(cli: Cli) -> Result<(), Failure> {
             if let Some(path) = servo {
                 cfg.servo = ServoConfig::load_axes(&path).map_err(Failure::input)?;
             }
-            let bytes = std::fs::read(&table).map_err(|e| format!("cannot read {}: {e}", table.display()))?;
+            if is_program {
+                let opts = ProgramRunOptions {
+                    csv: csv.as_deref(),
+                    plot: plot.as_deref(),
+                    json,
+                    check: check.then_some((tol, pad_rest)),
+                };
+                return run_program_cmd(&table, &bytes, &cfg, &opts);
+            }
             let res = run_table(&bytes, &cfg).map_err(|e| sim_failure(e, &table))?;
             if let Some(path) = &csv {
                 sim_harness::csv::write_csv(path, &res.ticks)?;
@@ -432,6 +467,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
             csv,
             curve,
             limits: limits_file,
+            machine,
             pad_rest,
             tol,
             contour_tol,
@@ -443,9 +479,10 @@ fn run(cli: Cli) -> Result<(), Failure> {
                 )));
             }
             let nurbs = load_curve(&curve)?;
-            let lim = match &limits_file {
-                Some(p) => limits::load(p).map_err(Failure::input)?,
-                None => limits::TABLE1,
+            let lim = match (&limits_file, &machine) {
+                (Some(p), _) => limits::load(p).map_err(Failure::input)?,
+                (None, Some(m)) => planner_host::Machine::load(m).map_err(Failure::input)?.limits,
+                (None, None) => limits::TABLE1,
             };
             let traj =
                 Trajectory::load(&csv).map_err(|e| Failure::input(format!("{}: {e}", csv.display())))?;
@@ -569,6 +606,191 @@ fn run(cli: Cli) -> Result<(), Failure> {
 }
 
 /// `run --check`: the run's setpoints against the table's own curve and limits.
+/// What `feedsim run` does with a program file besides running it.
+struct ProgramRunOptions<'a> {
+    csv: Option<&'a Path>,
+    plot: Option<&'a Path>,
+    json: bool,
+    /// --check: (tol, pad_rest).
+    check: Option<(f64, usize)>,
+}
+
+/// `feedsim run --json` for a program file.
+#[derive(serde::Serialize)]
+struct ProgramRunOut<'a> {
+    schema_version: u32,
+    program: String,
+    period_s: f64,
+    paths: &'a [sim_harness::program::PathRun],
+    stops: &'a [u32],
+    blocks_executed: usize,
+    last_block: Option<u32>,
+    machining_time_s: f64,
+    predicted_time_s: f64,
+    setpoints: usize,
+    warnings: &'a [String],
+    #[serde(skip_serializing_if = "Option::is_none")]
+    check: Option<&'a [CheckReport]>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    csv: Option<String>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    plot: Option<String>,
+}
+
+/// `feedsim run PART.bin` for a program file.
+fn run_program_cmd(
+    table: &Path,
+    bytes: &[u8],
+    cfg: &SimConfig,
+    o: &ProgramRunOptions,
+) -> Result<(), Failure> {
+    use sim_harness::program::{check_program, run_program, ProgramRunError};
+    let fail = |e: ProgramRunError| {
+        let message = format!("{}: {e}", table.display());
+        match e {
+            ProgramRunError::Sim { source, .. } => sim_failure(source, table),
+            ProgramRunError::Gap { .. } | ProgramRunError::File(_) | ProgramRunError::Check { .. } => {
+                Failure::input(message)
+            }
+            _ => message.into(),
+        }
+    };
+    let run = run_program(bytes, cfg).map_err(fail)?;
+    if let Some(path) = o.csv {
+        run.write_csv(path)?;
+    }
+    if let Some(path) = o.plot {
+        sim_harness::plot::plot_program(path, &run, &table.display().to_string())?;
+    }
+    let reports = match o.check {
+        Some((tol, pad_rest)) => Some(
+            check_program(
+                &run,
+                &CheckConfig {
+                    pad_rest,
+                    tol,
+                    ..CheckConfig::default()
+                },
+            )
+            .map_err(fail)?,
+        ),
+        None => None,
+    };
+    let predicted: f64 = run.paths.iter().map(|p| p.predicted_time_s).sum();
+    if o.json {
+        let out = ProgramRunOut {
+            schema_version: check::SCHEMA_VERSION,
+            program: table.display().to_string(),
+            period_s: run.period_s,
+            paths: &run.paths,
+            stops: &run.stops,
+            blocks_executed: run.blocks_executed(),
+            last_block: run.last_block(),
+            machining_time_s: run.machining_time_s(),
+            predicted_time_s: predicted,
+            setpoints: run.ticks.len(),
+            warnings: &run.file.warnings,
+            check: reports.as_deref(),
+            csv: o.csv.map(|p| p.display().to_string()),
+            plot: o.plot.map(|p| p.display().to_string()),
+        };
+        outln!("{}", serde_json::to_string(&out)?);
+    } else {
+        let feed = run
+            .paths
+            .iter()
+            .filter(|p| p.kind == planner_host::program::EntryKind::Feed)
+            .count();
+        outln!(
+            "{}: program of {} paths ({} feed, {} rapid), {} program stops; {} blocks executed, the last LINE {}",
+            table.display(),
+            run.paths.len(),
+            feed,
+            run.paths.len() - feed,
+            run.stops.len(),
+            run.blocks_executed(),
+            run.last_block().unwrap_or(0)
+        );
+        outln!(
+            "  simulation at {} us: machining time {:.4} s (tables predict {:.4} s, {:+.3} %), {} setpoints",
+            run.period_s * 1e6,
+            run.machining_time_s(),
+            predicted,
+            100.0 * (run.machining_time_s() / predicted - 1.0),
+            run.ticks.len()
+        );
+        for (i, p) in run.paths.iter().enumerate() {
+            if i == planner_host::program::plan::SUMMARY_PATHS {
+                outln!("  ... {} more paths (--json lists them all)", run.paths.len() - i);
+                break;
+            }
+            let chk = reports.as_ref().map_or(String::new(), |r| {
+                let r = &r[i];
+                format!(
+                    "  worst ratio {:.4}, contour {:.2e} mm{}",
+                    r.ratios.named().iter().map(|(_, p)| p.ratio).fold(0.0, f64::max),
+                    r.contour.max_mm,
+                    if r.ok { "" } else { "  FAIL" }
+                )
+            });
+            outln!(
+                "  path {:>3}  LINE {}..{}  {:<5} {:>10.3} mm  {:>8.4} s (predicted {:.4} s){chk}",
+                p.index,
+                p.first_line,
+                p.last_line,
+                match p.kind {
+                    planner_host::program::EntryKind::Rapid => "rapid",
+                    _ => "feed",
+                },
+                p.length_mm,
+                p.time_s,
+                p.predicted_time_s
+            );
+        }
+        for w in &run.file.warnings {
+            outln!("  warning: {w}");
+        }
+        if let Some(p) = o.csv {
+            outln!("  wrote {}", p.display());
+        }
+        if let Some(p) = o.plot {
+            outln!("  wrote {}", p.display());
+        }
+        if let Some(r) = &reports {
+            let worst = |f: &dyn Fn(&CheckReport) -> f64| r.iter().map(f).fold(0.0, f64::max);
+            outln!(
+                "check of every path against its curve and limits ({} ticks at rest around each): worst ratio {:.4} (vel {:.4}, acc {:.4}, jerk {:.4}, feed {:.4}, tacc {:.4}, tjerk {:.4}), contour {:.3e} mm; {}",
+                r.first().map_or(0, |x| x.pad_rest),
+                worst(&|x| x.ratios.named().iter().map(|(_, p)| p.ratio).fold(0.0, f64::max)),
+                worst(&|x| x.ratios.vel.ratio),
+                worst(&|x| x.ratios.acc.ratio),
+                worst(&|x| x.ratios.jerk.ratio),
+                worst(&|x| x.ratios.feed.ratio),
+                worst(&|x| x.ratios.tacc.ratio),
+                worst(&|x| x.ratios.tjerk.ratio),
+                worst(&|x| x.contour.max_mm),
+                if r.iter().all(|x| x.ok) { "pass" } else { "FAIL" }
+            );
+        }
+    }
+    if let Some(r) = &reports {
+        for (p, rep) in run.paths.iter().zip(r) {
+            check_verdict(rep).map_err(|f| Failure {
+                code: f.code,
+                message: format!(
+                    "{}: path {} (LINE {}..{}): {}",
+                    table.display(),
+                    p.index,
+                    p.first_line,
+                    p.last_line,
+                    f.message
+                ),
+            })?;
+        }
+    }
+    Ok(())
+}
+
 fn check_run(bytes: &[u8], res: &SimResult, tol: f64, pad_rest: usize) -> Result<CheckReport, Failure> {
     let table =
         firmware_core::Table::parse(bytes).map_err(|e| Failure::input(format!("table rejected: {e}")))?;

@@ -1,4 +1,5 @@
-//! PNG figures: feedrate against arc length (`feed.rs`), and the drawing
+//! PNG figures: feedrate against arc length (`feed.rs`), a whole program's
+//! toolpath coloured by feed (`program.rs`), and the drawing
 //! and encoding every figure of the crate shares (`png.rs`: font, errors,
 //! PNG writer; `style.rs`: line styles, legends beside the chart, titles
 //! that fit).
@@ -9,7 +10,9 @@
 
 pub(crate) mod feed;
 pub(crate) mod png;
+pub(crate) mod program;
 pub(crate) mod style;
 
 pub use self::feed::{plot_feed, plot_feed_marked, FeedPlot, Marker, MarkerKind};
 pub use self::png::PlotError;
+pub use self::program::plot_program;

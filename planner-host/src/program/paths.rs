@@ -1,0 +1,351 @@
+//! Moves to paths: the runs of moves the machine follows without stopping,
+//! each one NURBS curve the planner takes.
+//!
+//! **What joins.** Consecutive feed moves (G1, G2/G3, G5.2, G6.2) form one
+//! path while
+//!
+//! - the tangent is continuous: the end tangent of one move and the start
+//!   tangent of the next differ by at most [`JOIN_ANGLE_RAD`] (half the
+//!   planner's corner threshold [`CORNER_ANGLE_RAD`], so that a join this
+//!   code accepts is never refused by the planner as a corner);
+//! - the feed is the same (a new `F` inside a tangent run ends the path
+//!   there, with a stop, and a warning: the LP plans one feed limit per
+//!   path); feeds above the machine's feed limit count as the limit
+//!   ([`paths_for`]);
+//! - the move ending the run is not under G61 (exact stop: the machine
+//!   stops at the end of every move).
+//!
+//! Anything else — a corner, a rapid, a feed change, G61 — ends the path:
+//! the machine stops there. **G64 P/Q tolerances are not used yet**: corners
+//! are exact stops in this version, and a warning says so once per
+//! tolerance (`G64 P0.1: corners are exact stops in this version`).
+//!
+//! **Rapids** (G0) are each a straight path of their own, planned later at
+//! the machine's rapid velocity, from rest to rest.
+//!
+//! **Short moves.** A move shorter than [`MIN_MOVE_MM`] (LinuxCNC's `G1`
+//! with no axis word, a repeated point) is dropped with a warning; when it
+//! has a non-zero length the neighbouring straight move (the next if it is a
+//! line or rapid, else the previous) is stretched over it so that the
+//! toolpath stays connected, and a move between two curves that cannot
+//! absorb it is refused.
+//!
+//! **Joining.** The pieces of a path ([`super::pieces`]) are brought to the
+//! largest degree among them (Bézier decomposition, degree elevation), each
+//! given a parameter interval proportional to its length, and concatenated
+//! with a knot of multiplicity p at every join: the curve passes through the
+//! join point with a continuous unit tangent (G1), hence C1 in arc length,
+//! which is what the planner works in. A curvature jump there (line into
+//! arc) is capped by the planner (docs/design.md, "Curvature jumps and
+//! corners").
+
+use crate::gcode::{Move, MoveKind, PathControl, Program};
+use crate::geometry::curve::Nurbs;
+use crate::geometry::junction::CORNER_ANGLE_RAD;
+use crate::program::pieces::{self, angle_between, move_length, norm, sub, Piece, PieceError};
+
+/// Largest tangent turn between two moves that still joins them into one
+/// path, rad.
+pub const JOIN_ANGLE_RAD: f64 = 0.5 * CORNER_ANGLE_RAD;
+
+/// Moves shorter than this are dropped, mm (1 µm).
+pub const MIN_MOVE_MM: f64 = 1e-3;
+
+/// Feed moves or a rapid.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PathKind {
+    /// G1/G2/G3/G5.2/G6.2 at the programmed feed.
+    Feed,
+    /// G0 at the machine's rapid velocity.
+    Rapid,
+}
+
+/// One move inside a path: its source line and where it ends on the
+/// path's parameter.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct PathPiece {
+    /// Source line of the move.
+    pub line: usize,
+    /// Parameter u of the path's curve where the move ends.
+    pub u_end: f64,
+}
+
+/// A run of moves followed without stopping, as one curve.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Path {
+    /// Feed or rapid.
+    pub kind: PathKind,
+    /// The toolpath, u ∈ [0, 1].
+    pub curve: Nurbs,
+    /// Programmed feed, mm/s, capped at the machine's feed limit when one
+    /// was given ([`paths_for`]) (None for a rapid).
+    pub feed_mm_s: Option<f64>,
+    /// The moves, in order.
+    pub pieces: Vec<PathPiece>,
+    /// Source line of the first move.
+    pub first_line: usize,
+    /// Source line of the last move.
+    pub last_line: usize,
+}
+
+/// Why a program's moves do not give paths.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum PathError {
+    /// A move cannot be converted.
+    #[error("LINE {line}: {source}")]
+    Piece {
+        /// Source line.
+        line: usize,
+        /// Why.
+        source: PieceError,
+    },
+    /// A move shorter than 1 µm between two curves.
+    #[error("LINE {line}: a move of {length_mm:.3e} mm between two curves cannot be dropped or merged")]
+    ShortMove {
+        /// Source line.
+        line: usize,
+        /// Its length, mm.
+        length_mm: f64,
+    },
+    /// The joined curve is not a valid NURBS (a bug).
+    #[error("LINE {first}..{last}: the joined path is not a valid curve: {why}")]
+    Join {
+        /// First line.
+        first: usize,
+        /// Last line.
+        last: usize,
+        /// The curve error.
+        why: String,
+    },
+}
+
+/// The paths of a program, and the warnings their making raised.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Paths {
+    /// In order.
+    pub paths: Vec<Path>,
+    /// What was dropped, split or not done.
+    pub warnings: Vec<String>,
+}
+
+struct Open {
+    kind: PathKind,
+    feed: Option<f64>,
+    pieces: Vec<(usize, Piece, f64)>,
+}
+
+/// The paths of `program` (see the module docs).
+pub fn paths_of(program: &Program) -> Result<Paths, PathError> {
+    paths_for(program, f64::INFINITY)
+}
+
+/// The paths of `program` for a machine whose feed limit is `feed_cap_mm_s`:
+/// two feeds above it are the same feed (both run at the cap), so they do
+/// not end a path.
+pub fn paths_for(program: &Program, feed_cap_mm_s: f64) -> Result<Paths, PathError> {
+    let cap = |f: Option<f64>| f.map(|f| f.min(feed_cap_mm_s));
+    let mut out = Paths::default();
+    let moves = drop_short(&program.moves, &mut out.warnings)?;
+    let mut warned_tol: Vec<String> = Vec::new();
+    let mut open: Option<Open> = None;
+    let mut prev_exact_stop = false;
+    for m in &moves {
+        if let PathControl::Continuous {
+            tolerance_mm,
+            naive_cam_tolerance_mm,
+        } = m.path_control
+        {
+            if m.kind != MoveKind::Rapid && (tolerance_mm.is_some() || naive_cam_tolerance_mm.is_some()) {
+                let mut w = String::from("G64");
+                if let Some(p) = tolerance_mm {
+                    w.push_str(&format!(" P{p}"));
+                }
+                if let Some(q) = naive_cam_tolerance_mm {
+                    w.push_str(&format!(" Q{q}"));
+                }
+                if !warned_tol.contains(&w) {
+                    out.warnings.push(format!(
+                        "LINE {}: {w}: corners are exact stops in this version (no blending yet)",
+                        m.line
+                    ));
+                    warned_tol.push(w);
+                }
+            }
+        }
+        let piece = pieces::of_move(m).map_err(|source| PathError::Piece { line: m.line, source })?;
+        let len = move_length(m).max(MIN_MOVE_MM);
+        let kind = if m.kind == MoveKind::Rapid {
+            PathKind::Rapid
+        } else {
+            PathKind::Feed
+        };
+        let joins = match &open {
+            Some(o) if kind == PathKind::Feed && o.kind == PathKind::Feed && !prev_exact_stop => {
+                let tangent = match (
+                    o.pieces.last().and_then(|p| p.1.end_tangent()),
+                    piece.start_tangent(),
+                ) {
+                    (Some(a), Some(b)) => angle_between(a, b) <= JOIN_ANGLE_RAD,
+                    _ => false,
+                };
+                let same_feed = cap(o.feed) == cap(m.feed_mm_s);
+                if tangent && !same_feed {
+                    out.warnings.push(format!(
+                        "LINE {}: the feed changes inside a tangent run ({:.3} to {:.3} mm/min): the machine stops there in this version",
+                        m.line,
+                        o.feed.unwrap_or(0.0) * 60.0,
+                        m.feed_mm_s.unwrap_or(0.0) * 60.0
+                    ));
+                }
+                tangent && same_feed
+            }
+            _ => false,
+        };
+        if !joins {
+            if let Some(o) = open.take() {
+                out.paths.push(close(o)?);
+            }
+            open = Some(Open {
+                kind,
+                feed: cap(m.feed_mm_s),
+                pieces: Vec::new(),
+            });
+        }
+        if let Some(o) = open.as_mut() {
+            o.pieces.push((m.line, piece, len));
+        }
+        prev_exact_stop = m.path_control == PathControl::ExactStop || kind == PathKind::Rapid;
+    }
+    if let Some(o) = open.take() {
+        out.paths.push(close(o)?);
+    }
+    Ok(out)
+}
+
+/// Drop moves under 1 µm, stretching a neighbouring straight move over a
+/// non-zero one.
+fn drop_short(moves: &[Move], warnings: &mut Vec<String>) -> Result<Vec<Move>, PathError> {
+    let mut out: Vec<Move> = Vec::with_capacity(moves.len());
+    let mut gap: Option<(usize, [f64; 3], f64)> = None; // line, where the tool should start, length
+    let mut i = 0;
+    while i < moves.len() {
+        let m = &moves[i];
+        let len = move_length(m);
+        if len < MIN_MOVE_MM {
+            warnings.push(format!(
+                "LINE {}: a move of {len:.3e} mm (under 1 um) is dropped",
+                m.line
+            ));
+            if norm(sub(m.end, m.start)) > 0.0 {
+                let straight = |k: MoveKind| matches!(k, MoveKind::Line | MoveKind::Rapid);
+                if let Some(prev) = out.last_mut().filter(|p| straight(p.kind) && gap.is_none()) {
+                    // stretch the previous line unless the next one can take it
+                    let next_straight = moves.get(i + 1).is_some_and(|n| straight(n.kind));
+                    if !next_straight {
+                        prev.end = m.end;
+                    } else {
+                        gap = Some((m.line, m.start, len));
+                    }
+                } else {
+                    let origin = gap.map_or(m.start, |g| g.1);
+                    gap = Some((m.line, origin, len));
+                }
+            }
+            i += 1;
+            continue;
+        }
+        let mut m = m.clone();
+        if let Some((line, origin, length_mm)) = gap.take() {
+            if matches!(m.kind, MoveKind::Line | MoveKind::Rapid) {
+                m.start = origin;
+            } else {
+                return Err(PathError::ShortMove { line, length_mm });
+            }
+        }
+        out.push(m);
+        i += 1;
+    }
+    if let Some((line, _, length_mm)) = gap {
+        return Err(PathError::ShortMove { line, length_mm });
+    }
+    Ok(out)
+}
+
+/// Join the pieces of an open path into one curve.
+fn close(o: Open) -> Result<Path, PathError> {
+    let first = o.pieces.first().map_or(0, |p| p.0);
+    let last = o.pieces.last().map_or(0, |p| p.0);
+    let p = o.pieces.iter().map(|x| x.1.degree).max().unwrap_or(2);
+    let total: f64 = o.pieces.iter().map(|x| x.2).sum();
+    let mut knots: Vec<f64> = vec![0.0; p + 1];
+    let mut hpoints: Vec<[f64; 4]> = Vec::new();
+    let mut out_pieces = Vec::with_capacity(o.pieces.len());
+    let mut u0 = 0.0;
+    let n = o.pieces.len();
+    for (k, (line, piece, len)) in o.pieces.iter().enumerate() {
+        let mut e = piece.elevated(p);
+        let u1 = if k + 1 == n { 1.0 } else { u0 + len / total };
+        let (a, b) = (e.knots[0], e.knots[e.knots.len() - 1]);
+        for x in &mut e.knots {
+            *x = if *x == b {
+                u1
+            } else {
+                u0 + (*x - a) / (b - a) * (u1 - u0)
+            };
+        }
+        if let Some(&prev) = hpoints.last() {
+            // the same homogeneous point at the join: scale the piece's weights
+            let f = prev[3] / e.hpoints[0][3];
+            hpoints.extend(e.hpoints[1..].iter().map(|h| h.map(|c| c * f)));
+        } else {
+            hpoints.extend_from_slice(&e.hpoints);
+        }
+        knots.extend_from_slice(&e.knots[p + 1..e.knots.len() - p - 1]);
+        knots.resize(knots.len() + if k + 1 == n { p + 1 } else { p }, u1);
+        out_pieces.push(PathPiece {
+            line: *line,
+            u_end: u1,
+        });
+        u0 = u1;
+    }
+    let weights: Vec<f64> = hpoints.iter().map(|h| h[3]).collect();
+    let points: Vec<[f64; 3]> = hpoints
+        .iter()
+        .map(|h| [h[0] / h[3], h[1] / h[3], h[2] / h[3]])
+        .collect();
+    let mut curve = Nurbs::new(p, knots, weights, points).map_err(|e| PathError::Join {
+        first,
+        last,
+        why: e.to_string(),
+    })?;
+    curve.name = format!("LINE {first}..{last}");
+    Ok(Path {
+        kind: o.kind,
+        curve,
+        feed_mm_s: o.feed,
+        pieces: out_pieces,
+        first_line: first,
+        last_line: last,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::gcode::read_str;
+    use crate::gcode::ReadOptions;
+
+    fn paths(text: &str) -> Paths {
+        let prog = read_str(text, ReadOptions::default()).unwrap();
+        paths_of(&prog).unwrap()
+    }
+
+    #[test]
+    fn a_line_into_a_tangent_arc_is_one_path() {
+        let p = paths("G21 G90 G17 F600\nG1 X10\nG3 X20 Y10 I0 J10\nG1 Y20\nM2\n");
+        assert_eq!(p.paths.len(), 1);
+        assert_eq!(p.paths[0].pieces.len(), 3);
+    }
+}

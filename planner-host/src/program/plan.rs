@@ -1,0 +1,365 @@
+//! Planning a whole program: its paths ([`super::paths`]) checked against
+//! the machine's travel, each planned by [`plan_curve`] (in parallel, on
+//! rayon's pool), in order, into one [`ProgramFile`].
+//!
+//! A feed path is planned with v̄ = min(F, the machine's
+//! `max_linear_velocity`), a rapid with v̄ = the machine's
+//! `rapid_velocity`; both under every axis limit, from rest to rest
+//! (jerk-limited start and stop), at the machine's servo period. The
+//! sampling density is the larger of `density_per_mm` and
+//! [`MIN_POINTS`] per path, so that short paths still get a usable LP; a
+//! path whose plan fails for a numerical reason is planned again with the
+//! samplings of [`RETRY`], with a warning (an input error — a corner, a
+//! curve the planner refuses — is not retried).
+
+use std::time::Instant;
+
+use rayon::prelude::*;
+
+use crate::gcode::Program;
+use crate::geometry::arc_length::ArcLength;
+use crate::machine::Machine;
+use crate::plan::{plan_curve, PlanConfig, PlanError};
+use crate::program::file::{Entry, EntryKind, FilePiece, ProgramFile};
+use crate::program::paths::{paths_for, Path, PathError, PathKind};
+use crate::program::travel::{check_travel, TravelError};
+
+/// Fewest sampling points of a path.
+pub const MIN_POINTS: f64 = 16.0;
+
+/// The samplings tried, in order, when a path's plan fails for a numerical
+/// reason (no room for the end segments, a stall, an LP that does not
+/// solve, the table encoder's fixed-point check): (fewest points, factor on
+/// the density). The plan of a path a few tens of µm long depends on where
+/// its few samples fall; a longer one is sampled more densely.
+pub const RETRY: [(f64, f64); 10] = [
+    (8.0, 1.0),
+    (10.0, 1.0),
+    (12.0, 1.0),
+    (14.0, 1.0),
+    (6.0, 1.0),
+    (20.0, 1.25),
+    (24.0, 1.5),
+    (32.0, 2.0),
+    (16.0, 0.75),
+    (16.0, 3.0),
+];
+
+/// Paths listed one by one in [`PlannedProgram::summary`].
+pub const SUMMARY_PATHS: usize = 40;
+
+/// How to plan a program.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ProgramOptions {
+    /// Sampling density, points per mm (at least [`MIN_POINTS`] per path).
+    pub density_per_mm: f64,
+}
+
+impl Default for ProgramOptions {
+    fn default() -> Self {
+        ProgramOptions { density_per_mm: 1.0 }
+    }
+}
+
+/// Why a program cannot be planned.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ProgramError {
+    /// Its moves do not give paths.
+    #[error(transparent)]
+    Path(#[from] PathError),
+    /// It leaves the machine's travel.
+    #[error(transparent)]
+    Travel(#[from] TravelError),
+    /// A path cannot be planned.
+    #[error("LINE {first_line}..{last_line}: path {index}: {source}")]
+    Plan {
+        /// First line of the path.
+        first_line: usize,
+        /// Last line.
+        last_line: usize,
+        /// Path number, from 1.
+        index: usize,
+        /// Why.
+        source: PlanError,
+    },
+    /// The program moves nothing.
+    #[error("the program has no moves to plan")]
+    Empty,
+    /// The program file cannot be written (a bug: the plans are checked before).
+    #[error(transparent)]
+    File(#[from] crate::program::file::ProgramFileError),
+}
+
+/// One planned path.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct PlannedPath {
+    /// Feed or rapid.
+    pub kind: PathKind,
+    /// First source line.
+    pub first_line: usize,
+    /// Last source line.
+    pub last_line: usize,
+    /// Moves joined.
+    pub moves: usize,
+    /// Programmed feed, mm/s (None: rapid).
+    pub feed_mm_s: Option<f64>,
+    /// The feed limit it was planned with, mm/s.
+    pub vbar_mm_s: f64,
+    /// Length, mm.
+    pub length_mm: f64,
+    /// Degree of its curve.
+    pub degree: usize,
+    /// Predicted machining time, s.
+    pub predicted_time_s: f64,
+    /// Largest exact ratio to a limit at the planner's check points.
+    pub worst_ratio: Option<f64>,
+    /// Wall time of its plan, s.
+    pub plan_time_s: f64,
+    /// The moves' ends on the path.
+    #[serde(skip)]
+    pub pieces: Vec<FilePiece>,
+    /// The firmware table.
+    #[serde(skip)]
+    pub table: Vec<u8>,
+    /// Why the first plan failed, when a retry made it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub retried: Option<String>,
+}
+
+/// A planned program.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct PlannedProgram {
+    /// The machine it was planned for.
+    pub machine: Machine,
+    /// Blocks read.
+    pub blocks: usize,
+    /// Moves read.
+    pub moves: usize,
+    /// Paths, in order.
+    pub paths: Vec<PlannedPath>,
+    /// Program stops (M0, M1): their lines.
+    pub stops: Vec<usize>,
+    /// The reader's and the path builder's warnings.
+    pub warnings: Vec<String>,
+    /// Predicted machining time, s: the sum over the paths.
+    pub predicted_time_s: f64,
+    /// Wall time of all plans, s.
+    pub plan_wall_s: f64,
+}
+
+/// Plan a read program for `machine`.
+pub fn plan_program(
+    program: &Program,
+    machine: &Machine,
+    opts: &ProgramOptions,
+) -> Result<PlannedProgram, ProgramError> {
+    let t0 = Instant::now();
+    let made = paths_for(program, machine.limits.vbar)?;
+    if made.paths.is_empty() {
+        return Err(ProgramError::Empty);
+    }
+    check_travel(&made.paths, machine)?;
+    let planned: Vec<Result<PlannedPath, ProgramError>> = made
+        .paths
+        .par_iter()
+        .enumerate()
+        .map(|(i, p)| plan_path(i + 1, p, machine, opts))
+        .collect();
+    let paths = planned.into_iter().collect::<Result<Vec<_>, _>>()?;
+    let stops = program
+        .program_control
+        .iter()
+        .filter(|n| n.word == "M0" || n.word == "M1" || n.word == "M00" || n.word == "M01")
+        .map(|n| n.line)
+        .collect();
+    let mut warnings = program.warnings.clone();
+    warnings.extend(made.warnings);
+    warnings.extend(paths.iter().filter_map(|p| p.retried.clone()));
+    Ok(PlannedProgram {
+        machine: machine.clone(),
+        blocks: program.blocks,
+        moves: program.moves.len(),
+        predicted_time_s: paths.iter().map(|p| p.predicted_time_s).sum(),
+        paths,
+        stops,
+        warnings,
+        plan_wall_s: t0.elapsed().as_secs_f64(),
+    })
+}
+
+fn plan_path(
+    index: usize,
+    p: &Path,
+    machine: &Machine,
+    opts: &ProgramOptions,
+) -> Result<PlannedPath, ProgramError> {
+    let t0 = Instant::now();
+    let arc = ArcLength::new(&p.curve);
+    let length = arc.total();
+    let mut limits = machine.limits;
+    limits.vbar = match p.kind {
+        PathKind::Feed => p.feed_mm_s.unwrap_or(limits.vbar).min(limits.vbar),
+        PathKind::Rapid => machine.rapid_mm_s,
+    };
+    let cfg = |points: f64, factor: f64| PlanConfig {
+        limits,
+        servo_period_s: machine.servo_period_s,
+        density_per_mm: (opts.density_per_mm * factor).max(points / length),
+        ..PlanConfig::default()
+    };
+    let mut retried = None;
+    let out = match plan_curve(&p.curve, &cfg(MIN_POINTS, 1.0)) {
+        Ok(out) => out,
+        Err(first) => {
+            let numerical = !matches!(
+                first,
+                PlanError::Curve(_) | PlanError::Limits(_) | PlanError::Corner { .. }
+            );
+            let again = RETRY.iter().filter(|_| numerical).find_map(|&(n, f)| {
+                let c = cfg(n, f);
+                plan_curve(&p.curve, &c).ok().map(|o| (c.density_per_mm, o))
+            });
+            match again {
+                Some((d, out)) => {
+                    retried = Some(format!(
+                        "LINE {}..{}: path {index} ({length:.4} mm) planned at {d:.4} sampling points/mm; the first plan failed: {first}",
+                        p.first_line, p.last_line
+                    ));
+                    out
+                }
+                None => {
+                    return Err(ProgramError::Plan {
+                        first_line: p.first_line,
+                        last_line: p.last_line,
+                        index,
+                        source: first,
+                    })
+                }
+            }
+        }
+    };
+    let n = p.pieces.len();
+    let pieces = p
+        .pieces
+        .iter()
+        .enumerate()
+        .map(|(k, pc)| FilePiece {
+            s_end_mm: if k + 1 == n { length } else { arc.s_of_u(pc.u_end) },
+            line: pc.line as u32,
+        })
+        .collect();
+    Ok(PlannedPath {
+        kind: p.kind,
+        first_line: p.first_line,
+        last_line: p.last_line,
+        moves: n,
+        feed_mm_s: p.feed_mm_s,
+        vbar_mm_s: limits.vbar,
+        length_mm: length,
+        degree: p.curve.degree,
+        predicted_time_s: out.predicted_time_s,
+        worst_ratio: out.check.map(|c| c.worst()),
+        plan_time_s: t0.elapsed().as_secs_f64(),
+        pieces,
+        table: out.table_bytes,
+        retried,
+    })
+}
+
+impl PlannedProgram {
+    /// The program file: the paths' tables in order, the stops placed after
+    /// the last path that ends before them.
+    pub fn file(&self) -> ProgramFile {
+        let mut entries = Vec::with_capacity(self.paths.len() + self.stops.len());
+        let mut stops = self.stops.iter().peekable();
+        for p in &self.paths {
+            while let Some(&&s) = stops.peek().filter(|&&&s| s < p.first_line) {
+                entries.push(stop(s));
+                stops.next();
+            }
+            entries.push(Entry {
+                kind: match p.kind {
+                    PathKind::Feed => EntryKind::Feed,
+                    PathKind::Rapid => EntryKind::Rapid,
+                },
+                first_line: p.first_line as u32,
+                last_line: p.last_line as u32,
+                pieces: p.pieces.clone(),
+                table: p.table.clone(),
+            });
+        }
+        entries.extend(stops.map(|&s| stop(s)));
+        ProgramFile {
+            entries,
+            warnings: self.warnings.clone(),
+            servo_period_ns: (self.machine.servo_period_s * 1e9).round() as u32,
+        }
+    }
+
+    /// The encoded program file.
+    pub fn encode(&self) -> Result<Vec<u8>, ProgramError> {
+        Ok(self.file().encode()?)
+    }
+
+    /// Human-readable summary.
+    pub fn summary(&self) -> String {
+        let feed = self.paths.iter().filter(|p| p.kind == PathKind::Feed).count();
+        let length: f64 = self.paths.iter().map(|p| p.length_mm).sum();
+        let worst = self
+            .paths
+            .iter()
+            .filter_map(|p| p.worst_ratio)
+            .fold(0.0, f64::max);
+        let mut o = format!(
+            "program: {} blocks, {} moves -> {} paths ({} feed, {} rapid), {} program stops; {:.3} mm; predicted machining time {:.3} s; planned in {:.2} s; worst ratio to a limit at the check points {:.4}\n",
+            self.blocks,
+            self.moves,
+            self.paths.len(),
+            feed,
+            self.paths.len() - feed,
+            self.stops.len(),
+            length,
+            self.predicted_time_s,
+            self.plan_wall_s,
+            worst
+        );
+        for (i, p) in self.paths.iter().enumerate().take(SUMMARY_PATHS) {
+            o.push_str(&format!(
+                "  path {:>3}  LINE {}..{}  {:<5} {:>3} moves  {:>10.3} mm  v {:>8.3} mm/s  {:>8.4} s  (plan {:.1} ms)\n",
+                i + 1,
+                p.first_line,
+                p.last_line,
+                match p.kind {
+                    PathKind::Feed => "feed",
+                    PathKind::Rapid => "rapid",
+                },
+                p.moves,
+                p.length_mm,
+                p.vbar_mm_s,
+                p.predicted_time_s,
+                p.plan_time_s * 1e3
+            ));
+        }
+        if self.paths.len() > SUMMARY_PATHS {
+            o.push_str(&format!(
+                "  ... {} more paths (--json lists them all)\n",
+                self.paths.len() - SUMMARY_PATHS
+            ));
+        }
+        for w in &self.warnings {
+            o.push_str(&format!("  warning: {w}\n"));
+        }
+        o
+    }
+}
+
+fn stop(line: usize) -> Entry {
+    Entry {
+        kind: EntryKind::Stop,
+        first_line: line as u32,
+        last_line: line as u32,
+        pieces: Vec::new(),
+        table: Vec::new(),
+    }
+}

@@ -1,0 +1,334 @@
+//! Conversion exactness: every path reproduces its moves (lines and arcs
+//! within 1e-6 mm, helices within 1e-4 mm, NURBS as given), in all planes.
+
+use crate::gcode::{read_str, Move, MoveKind, ReadOptions};
+use crate::geometry::curve::Nurbs;
+use crate::program::paths::{paths_of, Paths};
+use crate::program::pieces::{norm, sub, ArcPath, HELIX_TOL_MM};
+
+/// Points per move in the dense check.
+const DENSE: usize = 2000;
+
+fn read(text: &str) -> (Vec<Move>, Paths) {
+    let prog = read_str(text, ReadOptions::default()).unwrap();
+    let paths = paths_of(&prog).unwrap();
+    (prog.moves, paths)
+}
+
+fn own(name: &str) -> String {
+    let p = format!("{}/programs/own/{name}", env!("CARGO_MANIFEST_DIR"));
+    std::fs::read_to_string(p).unwrap()
+}
+
+/// Distance from `p` to the exact geometry of `m` (an upper bound for a helix:
+/// the distance to the helix point at the same angle).
+fn distance(m: &Move, p: [f64; 3], t_guess: f64) -> f64 {
+    match m.kind {
+        MoveKind::Rapid | MoveKind::Line => {
+            let d = sub(m.end, m.start);
+            let l2 = d.iter().map(|x| x * x).sum::<f64>();
+            let t = (sub(p, m.start).iter().zip(&d).map(|(a, b)| a * b).sum::<f64>() / l2).clamp(0.0, 1.0);
+            norm(sub(p, std::array::from_fn(|k| m.start[k] + t * d[k])))
+        }
+        MoveKind::Arc => {
+            let a = ArcPath::of(m).unwrap();
+            let [i, j, _] = a.axes;
+            let phi = (p[j] - a.center[j]).atan2(p[i] - a.center[i]);
+            let tau = std::f64::consts::TAU;
+            let base = (phi - a.phi0) / a.sweep;
+            let step = tau / a.sweep.abs();
+            let k = ((t_guess - base) / step).round();
+            let t = (base + k * step).clamp(0.0, 1.0);
+            norm(sub(p, a.eval(t).0))
+        }
+        MoveKind::Nurbs => unreachable!(),
+    }
+}
+
+/// Largest distance between each path and its moves, per move kind:
+/// (lines and circular arcs, helices).
+fn worst(moves: &[Move], paths: &Paths) -> (f64, f64) {
+    let mut it = moves.iter().filter(|m| {
+        m.kind != MoveKind::Nurbs
+            && norm(sub(m.end, m.start)) + m.arc.as_ref().map_or(0.0, |a| a.sweep_rad) > 1e-3
+    });
+    let (mut exact, mut helix) = (0.0f64, 0.0f64);
+    for path in &paths.paths {
+        let mut u0 = 0.0;
+        for piece in &path.pieces {
+            let m = it.next().unwrap();
+            assert_eq!(m.line, piece.line);
+            let circular = ArcPath::of(m).is_none_or(|a| a.is_circular());
+            for k in 0..=DENSE {
+                let t = k as f64 / DENSE as f64;
+                let p = path.curve.point(u0 + t * (piece.u_end - u0));
+                let d = distance(m, p, t);
+                if circular {
+                    exact = exact.max(d);
+                } else {
+                    helix = helix.max(d);
+                }
+            }
+            assert!(
+                norm(sub(path.curve.point(piece.u_end), m.end)) < 1e-9,
+                "LINE {}",
+                m.line
+            );
+            u0 = piece.u_end;
+        }
+    }
+    (exact, helix)
+}
+
+#[test]
+fn lines_and_arcs_in_all_planes_are_exact() {
+    let (moves, paths) = read(&own("arcs-planes.ngc"));
+    let (exact, _) = worst(&moves, &paths);
+    assert!(exact <= 1e-6, "{exact}");
+    // the G17 run X10 → four quarter arcs is tangent: one path of lines and arcs
+    assert!(paths.paths.iter().any(|p| p.pieces.len() >= 2));
+}
+
+#[test]
+fn full_circles_and_helices_in_all_planes_are_within_tolerance() {
+    let (moves, paths) = read(&own("circles-helices.ngc"));
+    let (exact, helix) = worst(&moves, &paths);
+    assert!(exact <= 1e-6, "{exact}");
+    assert!(helix > 0.0 && helix <= HELIX_TOL_MM, "{helix}");
+    for text in [
+        "G21 G17 F600\nG0 X5\nG3 X-5 Y0 Z3 I-5 P4\nM2\n",
+        "G21 G18 F600\nG0 X5\nG2 X-5 Y7 Z0 I-5 K0\nM2\n",
+        "G21 G19 F600\nG0 Y50\nG3 X-2 Y-50 Z0 J-50 K0\nM2\n",
+    ] {
+        let (moves, paths) = read(text);
+        let (e, h) = worst(&moves, &paths);
+        assert!(e <= 1e-6 && h <= HELIX_TOL_MM && h > 0.0, "{text}: {e} {h}");
+    }
+}
+
+#[test]
+fn nurbs_blocks_are_kept_and_lines_elevated_beside_them() {
+    let (moves, paths) = read(&own("nurbs-g5-quarter.ngc"));
+    // the quarter circle: every point at radius 10 from the origin
+    let q = &paths.paths.iter().find(|p| p.first_line == 6).unwrap().curve;
+    for k in 0..=DENSE {
+        let p = q.point(k as f64 / DENSE as f64);
+        assert!(((p[0] * p[0] + p[1] * p[1]).sqrt() - 10.0).abs() < 1e-9);
+    }
+    // the cubic G5.2 against the curve read from the move, at the same parameters
+    for m in moves.iter().filter(|m| m.kind == MoveKind::Nurbs) {
+        let g = m.nurbs.as_ref().unwrap();
+        let direct = Nurbs::new(
+            g.degree,
+            g.knots.clone(),
+            g.weights.clone(),
+            g.control_points.clone(),
+        )
+        .unwrap();
+        let path = paths
+            .paths
+            .iter()
+            .find(|p| p.pieces.iter().any(|x| x.line == m.line))
+            .unwrap();
+        let idx = path.pieces.iter().position(|x| x.line == m.line).unwrap();
+        let u0 = if idx == 0 { 0.0 } else { path.pieces[idx - 1].u_end };
+        let u1 = path.pieces[idx].u_end;
+        let (a, b) = direct.u_range();
+        for k in 0..=DENSE {
+            let t = k as f64 / DENSE as f64;
+            let d = norm(sub(
+                path.curve.point(u0 + t * (u1 - u0)),
+                direct.point(a + t * (b - a)),
+            ));
+            assert!(d < 1e-9, "LINE {}: {d}", m.line);
+        }
+    }
+    // a line tangent into a cubic: the line is elevated to degree 3 and stays exact
+    let (moves, paths) = read("G21 G17 F600\nG1 X10\nG5.2 X20 Y0 P1 L4\nX30 Y10 P1\nX40 Y10 P1\nG5.3\nM2\n");
+    assert_eq!(paths.paths.len(), 1);
+    assert_eq!(paths.paths[0].curve.degree, 3);
+    let line = &moves[0];
+    for k in 0..=DENSE {
+        let p = paths.paths[0]
+            .curve
+            .point(paths.paths[0].pieces[0].u_end * k as f64 / DENSE as f64);
+        assert!(distance(line, p, 0.0) < 1e-12);
+    }
+}
+
+#[test]
+fn corners_feed_changes_and_rapids_end_paths() {
+    let (_, p) = read("G21 G17 G64 F600\nG0 X1 Y0\nG1 X10\nG1 X20\nG1 Y10\nG1 Y20 F300\nG0 Z5\nM2\n");
+    let shape: Vec<(usize, usize)> = p.paths.iter().map(|x| (x.first_line, x.last_line)).collect();
+    assert_eq!(shape, vec![(2, 2), (3, 4), (5, 5), (6, 6), (7, 7)]);
+    assert!(p
+        .warnings
+        .iter()
+        .any(|w| w.contains("LINE 6") && w.contains("feed changes")));
+    // two feeds above the machine's feed limit are the same feed
+    let prog = read_str(
+        "G21 G17 F60000\nG1 X10\nG1 X20 F90000\nM2\n",
+        ReadOptions::default(),
+    )
+    .unwrap();
+    let capped = crate::program::paths::paths_for(&prog, 100.0).unwrap();
+    assert_eq!(capped.paths.len(), 1);
+    assert_eq!(capped.paths[0].feed_mm_s, Some(100.0));
+    assert!(capped.warnings.is_empty());
+    assert_eq!(paths_of(&prog).unwrap().paths.len(), 2);
+    // G61 stops after every move, even a tangent one
+    let (_, p) = read("G21 G17 G61 F600\nG1 X10\nG1 X20\nM2\n");
+    assert_eq!(p.paths.len(), 2);
+    // G64 P is recorded as not blended
+    let (_, p) = read("G21 G17 G64 P0.1 F600\nG1 X10\nG1 Y10\nM2\n");
+    assert_eq!(p.paths.len(), 2);
+    assert!(p
+        .warnings
+        .iter()
+        .any(|w| w.contains("G64 P0.1: corners are exact stops in this version")));
+}
+
+#[test]
+fn moves_under_a_micrometre_are_dropped_and_the_path_stays_connected() {
+    let (_, p) = read("G21 G17 F600\nG1 X10\nG1\nG1 X10.0000004\nG1 X20\nM2\n");
+    assert_eq!(p.warnings.iter().filter(|w| w.contains("dropped")).count(), 2);
+    assert_eq!(p.paths.len(), 1);
+    let c = &p.paths[0].curve;
+    assert!(norm(sub(c.point(1.0), [20.0, 0.0, 0.0])) < 1e-12);
+}
+
+mod planned {
+    use crate::gcode::{read_str, ReadOptions};
+    use crate::machine::Machine;
+    use crate::program::file::{ProgramFile, ProgramFileError};
+    use crate::program::plan::{plan_program, ProgramError, ProgramOptions};
+
+    use super::own;
+
+    pub(super) const OWN: [&str; 8] = [
+        "arcs-planes.ngc",
+        "circles-helices.ngc",
+        "corners-path-control.ngc",
+        "inch-incremental.ngc",
+        "lines-feeds.ngc",
+        "nurbs-g5-quarter.ngc",
+        "nurbs-g6-circle.ngc",
+        "params-expressions.ngc",
+    ];
+
+    fn plan(text: &str, machine: &Machine) -> Result<Vec<u8>, ProgramError> {
+        let prog = read_str(text, ReadOptions::default()).unwrap();
+        plan_program(&prog, machine, &ProgramOptions::default())?.encode()
+    }
+
+    #[test]
+    fn our_programs_plan_within_the_limits_and_round_trip() {
+        for name in OWN {
+            let prog = read_str(&own(name), ReadOptions::default()).unwrap();
+            let planned = plan_program(&prog, &Machine::table1(), &ProgramOptions::default()).unwrap();
+            for p in &planned.paths {
+                let r = p.worst_ratio.unwrap();
+                assert!(
+                    r <= 1.0 + 1e-6,
+                    "{name}: LINE {}..{}: {r}",
+                    p.first_line,
+                    p.last_line
+                );
+                assert!(p.vbar_mm_s <= p.feed_mm_s.unwrap_or(f64::INFINITY));
+            }
+            let bytes = planned.encode().unwrap();
+            let back = ProgramFile::parse(&bytes).unwrap();
+            assert_eq!(back, planned.file());
+            assert_eq!(back.servo_period_ns, 250_000);
+            assert_eq!(back.entries.len(), planned.paths.len() + planned.stops.len());
+            let last = back.entries.iter().map(|e| e.last_line).max().unwrap() as usize;
+            let last_move = prog.moves.iter().map(|m| m.line).max().unwrap();
+            assert_eq!(last, last_move, "{name}: the last move is planned");
+        }
+    }
+
+    #[test]
+    fn a_corrupt_or_truncated_program_file_is_refused() {
+        let bytes = plan(&own("lines-feeds.ngc"), &Machine::table1()).unwrap();
+        for at in [0, 9, 13, 30, bytes.len() / 2, bytes.len() - 1] {
+            let mut b = bytes.clone();
+            b[at] ^= 0x40;
+            assert!(ProgramFile::parse(&b).is_err(), "byte {at}");
+        }
+        assert!(matches!(
+            ProgramFile::parse(&bytes[..bytes.len() - 8]),
+            Err(ProgramFileError::Length { .. })
+        ));
+        let mut b = bytes.clone();
+        b[bytes.len() / 2] ^= 1;
+        assert!(matches!(
+            ProgramFile::parse(&b),
+            Err(ProgramFileError::Crc { .. })
+        ));
+        assert!(matches!(
+            ProgramFile::parse(b"FLPT...."),
+            Err(ProgramFileError::Magic)
+        ));
+        // a wrong entry behind a valid CRC
+        let mut b = bytes.clone();
+        b[crate::program::file::HEADER_LEN] = 9;
+        firmware_core::table::reseal(&mut b);
+        assert!(matches!(
+            ProgramFile::parse(&b),
+            Err(ProgramFileError::Entry { index: 0, .. })
+        ));
+    }
+
+    #[test]
+    fn a_program_leaving_the_travel_is_refused_with_its_line() {
+        let machine =
+            Machine::from_toml_str("[axis.y]\nmin_limit = -5\nmax_limit = 100\n", "m.toml").unwrap();
+        let text = "G21 G17 F600\nG0 X0 Y0\nG1 X10\nG3 X20 Y0 I5 J0\nG1 X30\nM2\n";
+        // the G2 dips to Y-5 exactly: allowed
+        assert!(plan(text, &machine).is_ok());
+        let text = "G21 G17 F600\nG0 X0 Y0\nG1 X10\nG3 X22 Y0 I6 J0\nG1 X30\nM2\n";
+        match plan(text, &machine) {
+            Err(ProgramError::Travel(e)) => {
+                assert_eq!((e.line, e.axis), (4, 'Y'));
+                assert!(e.to_string().starts_with("LINE 4:"), "{e}");
+            }
+            Ok(_) => panic!("accepted"),
+            Err(other) => panic!("{other}"),
+        }
+    }
+
+    #[test]
+    fn a_path_of_a_few_micrometres_plans() {
+        // line 44 of LinuxCNC's 3D_Chips.ngc: 48 um; its first plan may fail numerically and is
+        // then planned again with another sampling, with a warning naming the line
+        let text = "G21 F37500\nG0 X53 Y-53.31 Z-30.496\nG1 Y-53.262 Z-30.5\nM2\n";
+        let prog = read_str(text, ReadOptions::default()).unwrap();
+        let p = plan_program(&prog, &Machine::table1(), &ProgramOptions::default()).unwrap();
+        assert_eq!(p.paths.len(), 2);
+        assert!((p.paths[1].length_mm - 0.0482).abs() < 1e-4);
+        for w in p.warnings.iter().filter(|w| w.contains("planned at")) {
+            assert!(w.starts_with("LINE 3..3: path 2"), "{w}");
+        }
+        assert!(p.encode().is_ok());
+    }
+
+    #[test]
+    fn feeds_above_the_machine_are_capped_and_rapids_use_the_rapid_velocity() {
+        let machine = Machine::from_toml_str(
+            "[traj]\nmax_linear_velocity = 50\nrapid_velocity = 120\n",
+            "m.toml",
+        )
+        .unwrap();
+        let prog = read_str(
+            "G21 F6000\nG0 X10\nG1 X20\nG1 Y10 F600\nM0\nG0 X0 Y0\nM2\n",
+            ReadOptions::default(),
+        )
+        .unwrap();
+        let p = plan_program(&prog, &machine, &ProgramOptions::default()).unwrap();
+        let v: Vec<f64> = p.paths.iter().map(|p| p.vbar_mm_s).collect();
+        assert_eq!(v, vec![120.0, 50.0, 10.0, 120.0]);
+        let f = p.file();
+        let kinds: Vec<u8> = f.entries.iter().map(|e| e.kind as u8).collect();
+        assert_eq!(kinds, vec![2, 1, 1, 3, 2]);
+    }
+}
