@@ -126,7 +126,7 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
 
     /// Counters of the hold/resume ticks ([`HoldStats`]).
     pub fn hold_stats(&self) -> HoldStats {
-        self.fh.ctl.stats()
+        self.fh.ctl.stats(&self.fh.lim)
     }
 
     /// A look-ahead sweep from s (see [`Sweep`]) over `d` mm.
@@ -404,7 +404,7 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
         // A piece break within the next two ticks: the path's r‴ (so the
         // plan's axis jerk) jumps there; the jump counts as J's change.
         let reach = s.saturating_add(f32_to_fx(
-            2.0 * self.h * p1.max(0.0) * self.fh.ctl.lambda_f32().max(0.0),
+            2.0 * self.h * mx(0.0, p1) * mx(0.0, self.fh.ctl.lambda_f32()),
         ));
         let extra = self.pc.next <= reach && self.pc.idx < self.views.p_last;
         if extra {
