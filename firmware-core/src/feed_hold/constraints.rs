@@ -156,6 +156,37 @@ pub(crate) fn interval(cons: &[Lin]) -> Interval {
             fixed,
         };
     }
+    let (r, nu) = relax(nk.get(..n).unwrap_or(&[]).iter().copied());
+    Interval {
+        lo: nu,
+        hi: nu,
+        relax: r,
+        fixed,
+    }
+}
+
+/// [`interval`] for constraints that all come normalised (c = 1) or that
+/// ν cannot change (c = 0, passed over), known to be empty at r = 1 (the
+/// tick's common infeasible case): the relaxation directly, without the
+/// normalising pass; `fixed` is not computed (0).
+pub(crate) fn interval_plain(cons: &[Lin]) -> Interval {
+    let (r, nu) = relax(
+        cons.iter()
+            .filter(|k| k.c == 1.0 && k.m > 0.0 && k.d.is_finite())
+            .map(|k| (k.d, k.m)),
+    );
+    Interval {
+        lo: nu,
+        hi: nu,
+        relax: r,
+        fixed: 0.0,
+    }
+}
+
+/// The smallest relaxation r ≥ 1 of the normalised constraints `nk`
+/// (d/c, m/c), empty at r = 1, and the ν it takes (see [`interval`]).
+#[inline(always)]
+fn relax<I: Iterator<Item = (f32, f32)> + Clone>(nk: I) -> (f32, f32) {
     // (empty at r = 1, so the root is above: start there)
     let mut r = 1.0f32;
     let (mut l, mut u) = (f32::NEG_INFINITY, f32::INFINITY);
@@ -163,7 +194,7 @@ pub(crate) fn interval(cons: &[Lin]) -> Interval {
         // The extreme pair at r (and the bounds at r).
         let (mut li, mut ui) = ((0.0f32, 0.0f32), (0.0f32, 0.0f32));
         (l, u) = (f32::NEG_INFINITY, f32::INFINITY);
-        for &(dc, mc) in nk.get(..n).unwrap_or(&[]) {
+        for (dc, mc) in nk.clone() {
             let (x, y) = (-r * mc - dc, r * mc - dc);
             if x > l {
                 (l, li) = (x, (dc, mc));
@@ -188,12 +219,7 @@ pub(crate) fn interval(cons: &[Lin]) -> Interval {
     } else {
         0.0
     };
-    Interval {
-        lo: nu,
-        hi: nu,
-        relax: mx(r, 1.0),
-        fixed,
-    }
+    (mx(r, 1.0), nu)
 }
 
 /// The plan's own kinematics at one point: per axis (x, y, z) and, index 3,

@@ -3,7 +3,7 @@
 //! and the scaled step of s ([`scaled_step`]).
 
 use crate::feed_hold::constraints::{
-    constraints, interval, mn, mu_cap_ahead, mx, sqrt32, Ahead, HoldLimits, Interval, Kin, N_CONS, RHO_J,
+    constraints, interval, interval_plain, mn, mu_cap_ahead, mx, sqrt32, Ahead, HoldLimits, Interval, Kin, N_CONS, RHO_J,
 };
 use crate::feed_hold::{HoldState, HoldStats};
 use crate::servo_forms::fixed::f32_to_fx;
@@ -339,7 +339,9 @@ impl FeedHold {
                 plain = false;
             }
         }
-        let mut iv = if plain && lo <= hi {
+        let mut iv = if !plain {
+            interval(&cons)
+        } else if lo <= hi {
             Interval {
                 lo,
                 hi,
@@ -347,7 +349,7 @@ impl FeedHold {
                 fixed: 0.0,
             }
         } else {
-            interval(&cons)
+            interval_plain(&cons)
         };
         if iv.relax > 1.0 {
             // Infeasible: |μ| still does not grow past the cap (the
