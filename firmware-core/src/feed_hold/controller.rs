@@ -195,6 +195,11 @@ impl FeedHold {
         q62_f32(self.lam)
     }
 
+    /// The infeasible ticks so far ([`HoldStats::infeasible`]).
+    pub fn infeasible(&self) -> u64 {
+        self.stats.infeasible
+    }
+
     /// μ = λ̇, 1/s.
     pub fn mu(&self) -> f64 {
         if self.h > 0.0 {

@@ -287,11 +287,11 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
 
     /// The look-ahead for this tick (stopping only; zeros otherwise):
     /// `fh.joined`, the last complete sweep joined with the one in
-    /// progress, which advances by `points` points (a new one starts when
-    /// it is complete); returns whether the plan's stop segment is within
-    /// the stop's reach. A hold request runs a whole sweep at once
-    /// ([`Interpolator::hold`]), outside the tick.
-    fn ahead_acc(&mut self, kin: &Kin, v: f32, points: usize) -> bool {
+    /// progress (a new one starts when it is complete; [`Self::ahead_step`]
+    /// advances it, after the controller); returns whether the plan's stop
+    /// segment is within the stop's reach. A hold request runs a whole
+    /// sweep at once ([`Interpolator::hold`]), outside the tick.
+    fn ahead_acc(&mut self, kin: &Kin, v: f32) -> bool {
         // Stopping only: a resume plans its cap at λ = 1 already, and a
         // look-ahead cap dropping under μ on its exponential tail forces μ
         // down against the tail law (measured: up to 1.07× j at landing).
@@ -302,23 +302,29 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
             }
             return false;
         }
-        let mut sw = match self.fh.sweep {
-            Some(sw) if !sw.done => sw,
-            done => {
-                if let Some(d) = done {
-                    self.fh.ahead = d.part;
-                    self.fh.reach = d.reach;
-                }
-                // (a new sweep: nothing of it yet)
-                self.fh.joined = self.fh.ahead;
-                self.start_sweep(self.s, self.sweep_len(kin, v))
+        if self.fh.sweep.as_ref().is_none_or(|sw| sw.done) {
+            if let Some(d) = &self.fh.sweep {
+                self.fh.ahead = d.part;
+                self.fh.reach = d.reach;
             }
-        };
-        let mut joined = self.fh.joined;
-        self.sweep_points(&mut sw, &mut joined, points);
-        self.fh.joined = joined;
-        self.fh.sweep = Some(sw);
-        self.fh.reach || sw.reach
+            // (a new sweep: nothing of it yet)
+            self.fh.joined = self.fh.ahead;
+            self.fh.sweep = Some(self.start_sweep(self.s, self.sweep_len(kin, v)));
+        }
+        self.fh.reach || self.fh.sweep.as_ref().is_some_and(|sw| sw.reach)
+    }
+
+    /// One step ([`AHEAD_PER_TICK`]) of the look-ahead sweep in progress
+    /// (stopping), for the next tick's controller.
+    fn ahead_step(&mut self) {
+        if let Some(mut sw) = self.fh.sweep {
+            if !sw.done {
+                let mut joined = self.fh.joined;
+                self.sweep_points(&mut sw, &mut joined, AHEAD_PER_TICK);
+                self.fh.joined = joined;
+                self.fh.sweep = Some(sw);
+            }
+        }
     }
 
     /// One tick under time-scaling (module docs); `phase` is `Run`.
@@ -341,15 +347,16 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
         let Some((kin, extra)) = self.hold_kin(plan, s) else {
             return self.fault(Fault::Eval { s_mm: fx_to_f64(s) });
         };
-        // (a tick that evaluated the next piece too leaves the look-ahead
-        // for the next)
-        let points = if extra { 0 } else { AHEAD_PER_TICK };
-        let stop_in_reach = self.ahead_acc(&kin, v, points);
+        let stop_in_reach = self.ahead_acc(&kin, v);
         // (below λ = ½ the plan's λ³J and 3λμA leave room to finish)
         self.fh
             .ctl
             .set_coast(stop_in_reach && self.fh.ctl.lambda_f32() > COAST_ABOVE);
+        let relaxed = self.fh.ctl.infeasible();
         let ts = self.fh.ctl.control_ahead(&kin, &self.fh.joined, &self.fh.lim, h);
+        // (an infeasible tick's relaxation, like the next piece's
+        // evaluation, leaves the look-ahead's step for a later tick)
+        let busy = extra || self.fh.ctl.infeasible() != relaxed;
         if self.fh.ctl.state() == HoldState::Running {
             self.fh.prev_j = None;
         }
@@ -371,10 +378,17 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
             return self.place(t_s, (fx_to_f64(s_new), s_new), feed);
         }
         let guess = self.qs.v;
+        let (pi, qi) = (self.pc.idx, self.qc.idx);
         let sp = self.place(t_s, (fx_to_f64(s_new), s_new), 0.0)?;
         let tq = fx_small_f32(s_new.wrapping_sub(self.qc.anchor), 20);
         let poly = self.qc.poly;
         self.qs = q_eval(&self.qc, &poly, s_new, tq, guess);
+        // The look-ahead's step, on a tick that did nothing else optional
+        // (no piece or q span entered either); the next tick's controller
+        // takes it.
+        if !busy && self.pc.idx == pi && self.qc.idx == qi {
+            self.ahead_step();
+        }
         Ok(Setpoint {
             feed_mm_s: f64::from(self.fh.ctl.lambda_f32() * self.qs.v),
             ..sp
