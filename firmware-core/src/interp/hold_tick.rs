@@ -64,6 +64,7 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
             }
             _ => false,
         };
+        self.next_piece_derivs();
         if running && near_end {
             self.fh.to_end = true;
         } else {
@@ -90,6 +91,7 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
     pub fn resume(&mut self) -> Result<(), HoldError> {
         self.hold_allowed()?;
         self.fh.to_end = false;
+        self.next_piece_derivs();
         self.fh.ctl.resume();
         // (a resume plans without the stop's look-ahead)
         self.fh.sweep = None;
@@ -384,10 +386,15 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
         let poly = self.qc.poly;
         self.qs = q_eval(&self.qc, &poly, s_new, tq, guess);
         // The look-ahead's step, on a tick that did nothing else optional
-        // (no piece or q span entered either); the next tick's controller
-        // takes it.
+        // (no piece or q span entered either), the next tick's controller
+        // takes it; the next piece's derivatives at its start go first
+        // when they are not there yet.
         if !busy && self.pc.idx == pi && self.qc.idx == qi {
-            self.ahead_step();
+            if self.next_dr_ready() || self.pc.idx >= self.views.p_last {
+                self.ahead_step();
+            } else {
+                self.next_piece_derivs();
+            }
         }
         Ok(Setpoint {
             feed_mm_s: f64::from(self.fh.ctl.lambda_f32() * self.qs.v),
@@ -420,23 +427,51 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
         let reach = s.saturating_add(f32_to_fx(
             2.0 * self.h * mx(0.0, p1) * mx(0.0, self.fh.ctl.lambda_f32()),
         ));
-        let extra = self.pc.next <= reach && self.pc.idx < self.views.p_last;
-        if extra {
-            if let Some(next) = self.views.piece(self.pc.idx.wrapping_add(1)) {
-                if let Some(c) = self.views.coeffs(&next) {
-                    let at = self.pc.next;
-                    let dr_n = pos_derivs(c, tau_of(at, next.centre, next.shift), next.shift, next.constant);
-                    let kin_n = Kin::new(dr_n, [p1, p2, p3]);
-                    for ((d, jn), j) in kin.dj.iter_mut().zip(kin_n.j.iter()).zip(kin.j.iter()) {
-                        let jump = jn - j;
-                        if jump.abs() > d.abs() {
-                            *d = jump;
-                        }
+        let near = self.pc.next <= reach && self.pc.idx < self.views.p_last;
+        // (the next piece's derivatives are usually there already:
+        // evaluating them here is an extra only when they are not)
+        let extra = near && !self.next_dr_ready();
+        if near {
+            if extra {
+                self.next_piece_derivs();
+            }
+            if let Some((_, dr_n)) = self.fh.next_dr {
+                let kin_n = Kin::new(dr_n, [p1, p2, p3]);
+                for ((d, jn), j) in kin.dj.iter_mut().zip(kin_n.j.iter()).zip(kin.j.iter()) {
+                    let jump = jn - j;
+                    if jump.abs() > d.abs() {
+                        *d = jump;
                     }
                 }
             }
         }
         Some((kin, extra))
+    }
+
+    /// [`HoldRun::next_dr`] is for the piece after the current one.
+    fn next_dr_ready(&self) -> bool {
+        matches!(self.fh.next_dr, Some((i, _)) if i == self.pc.idx.wrapping_add(1))
+    }
+
+    /// The path's derivatives at the start of the piece after the current
+    /// one into [`HoldRun::next_dr`] (unless there already, or the current
+    /// piece is the last: then none).
+    fn next_piece_derivs(&mut self) {
+        if self.next_dr_ready() {
+            return;
+        }
+        self.fh.next_dr = None;
+        if self.pc.idx >= self.views.p_last {
+            return;
+        }
+        let idx = self.pc.idx.wrapping_add(1);
+        if let Some(next) = self.views.piece(idx) {
+            if let Some(c) = self.views.coeffs(&next) {
+                let at = self.pc.next;
+                let dr = pos_derivs(c, tau_of(at, next.centre, next.shift), next.shift, next.constant);
+                self.fh.next_dr = Some((idx, dr));
+            }
+        }
     }
 
     /// A tick in the stop segment under scaling: the segment followed in
