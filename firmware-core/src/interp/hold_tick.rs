@@ -507,8 +507,11 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
             ts
         };
         // dθ = ∫λ dt over the tick (exact: λ is a quadratic in t).
+        // (the first-order term hλ in f64 from the Q62 λ; the rest,
+        // h²(μ/2 + hν/6), a small fraction of h, in f32)
         let hd = self.period_s;
-        let dth = hd * (ts.lam_f64() + hd * (0.5 * f64::from(ts.mu) + hd * f64::from(ts.nu) / 6.0));
+        let rest = h * h * (0.5 * ts.mu + h * ts.nu * (1.0 / 6.0));
+        let dth = hd * ts.lam_f64() + f64::from(rest);
         let tau1 = tau - dth.max(0.0);
         if !tau1.is_finite() {
             return self.fault(Fault::NonFinite { s_mm: fx_to_f64(s) });
@@ -520,9 +523,11 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
         self.fh.seg_tau = Some(tau1);
         let s_new = self
             .len_fx
-            .wrapping_sub(to_fx(j2 * tau1 * tau1 * tau1 / 6.0))
+            .wrapping_sub(to_fx(j2 * (1.0 / 6.0) * tau1 * tau1 * tau1))
             .max(s);
-        let feed = self.fh.ctl.lambda_f32() * (0.5 * j2 * tau1 * tau1) as f32;
+        // (the feed, reported only: f32)
+        let t1 = tau1 as f32;
+        let feed = self.fh.ctl.lambda_f32() * 0.5 * (j2 as f32) * t1 * t1;
         self.place(t_s, (fx_to_f64(s_new), s_new), feed)
     }
 }
