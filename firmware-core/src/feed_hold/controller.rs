@@ -122,6 +122,9 @@ pub(crate) struct FeedHold {
     coast: bool,
     /// The μ cap of the last stopping tick (∞ otherwise).
     cap_prev: f32,
+    /// The extreme pair of the last infeasible tick's relaxation (where
+    /// the next one's Newton steps start, [`interval_plain`]).
+    relax_pair: (u8, u8),
     /// What the last controlled tick's constraints came from: the
     /// diagnostics `HoldStats::last_*` are computed from it when asked
     /// ([`FeedHold::stats`]), not on the tick.
@@ -152,6 +155,7 @@ impl Default for FeedHold {
             stats: HoldStats::default(),
             coast: false,
             cap_prev: f32::INFINITY,
+            relax_pair: (0, 0),
             last: LastTick::default(),
         }
     }
@@ -354,7 +358,9 @@ impl FeedHold {
                 fixed: 0.0,
             }
         } else {
-            interval_plain(&cons)
+            let (iv, pair) = interval_plain(&cons, self.relax_pair);
+            self.relax_pair = pair;
+            iv
         };
         if iv.relax > 1.0 {
             // Infeasible: |μ| still does not grow past the cap (the
