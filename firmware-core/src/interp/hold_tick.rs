@@ -36,7 +36,8 @@
 use crate::feed_hold::constraints::{mn, mx, sqrt32, Ahead, Kin};
 use crate::feed_hold::controller::{scaled_step, FeedHold, TickScale, LAM_ONE};
 use crate::feed_hold::{HoldError, HoldState, HoldStats};
-use crate::interp::cursor::{q_eval, tau_of};
+use crate::interp::cursor::{q_eval, tau_of, PCur, QCur, Views};
+use crate::limits::EndSegments;
 use crate::interp::hold_run::{
     Stage, Sweep, AHEAD_FACTOR, AHEAD_MAX_MM, AHEAD_N, AHEAD_PER_TICK, COAST_ABOVE, END_FACTOR,
 };
@@ -46,7 +47,7 @@ use crate::math::source::F64Array;
 use crate::servo_forms::fixed::{f32_to_fx, fx_small_f32, fx_to_f64, mul_hi, to_fx};
 use crate::servo_forms::piece::pos_derivs;
 
-impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
+impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
     /// Request a feed hold: decelerate to rest on the path within the
     /// acceleration and jerk limits (see [`crate::feed_hold`]). Idempotent; a
     /// no-op while stopping or held.
@@ -76,7 +77,7 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
                 // at a time.
                 let mut sw = self.start_sweep(self.s, AHEAD_MAX_MM);
                 let mut joined = Ahead::default();
-                self.sweep_points(&mut sw, &mut joined, usize::MAX);
+                Self::sweep_points(&self.sweep_ctx(), &mut sw, &mut joined, usize::MAX);
                 self.fh.ahead = sw.part;
                 self.fh.joined = sw.part;
                 self.fh.reach = sw.reach;
@@ -166,9 +167,9 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
     /// points already passed are skipped (eight to a step). Pieces and q
     /// spans are found by binary search and read from the views (the
     /// current ones from their cursors).
-    fn sweep_points(&self, sw: &mut Sweep, joined: &mut Ahead, count: usize) {
-        let s = self.s;
-        let v_ = &self.views;
+    fn sweep_points(c: &SweepCtx<'_, '_>, sw: &mut Sweep, joined: &mut Ahead, count: usize) {
+        let s = c.s;
+        let v_ = c.views;
         // Work units left: a point is three (locate, derivatives, plan),
         // a point passed since the sweep began an eighth of one.
         let mut left = count.saturating_mul(8);
@@ -182,7 +183,7 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
                             let f = k as f32 * (1.0 / AHEAD_N as f32);
                             sw.base.saturating_add(f32_to_fx(sw.d * f * f))
                         }
-                        _ if sw.stop_near && !sw.into_stop => self.stop_at,
+                        _ if sw.stop_near && !sw.into_stop => c.stop_at,
                         _ => {
                             sw.done = true;
                             break;
@@ -192,15 +193,15 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
                         left = left.saturating_sub(1);
                         continue; // passed since the sweep began
                     }
-                    if sk >= self.stop_at {
+                    if sk >= c.stop_at {
                         // The stop segment ahead: its entry (the largest |A|
                         // of the segment, J = J₂ at the jerk limit all
                         // along) with the path's derivatives just before s₂.
-                        match self.ends {
-                            Some(_) if !sw.into_stop && self.stop_at > s => {
+                        match c.ends {
+                            Some(_) if !sw.into_stop && c.stop_at > s => {
                                 sw.into_stop = true;
                                 sw.reach |= k <= AHEAD_N;
-                                sk = self.stop_at.wrapping_sub(1);
+                                sk = c.stop_at.wrapping_sub(1);
                             }
                             _ => {
                                 sw.done = true;
@@ -212,14 +213,14 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
                     // the breaks and knots ahead of the cursors: a bounded
                     // cost however many pieces the look-ahead spans).
                     let at = fx_to_f64(sk.saturating_add(1)).to_bits();
-                    let pi = self.pc.idx.wrapping_add(count_below(
+                    let pi = c.pc.idx.wrapping_add(count_below(
                         &v_.piece_breaks,
-                        self.pc.idx.wrapping_add(1),
+                        c.pc.idx.wrapping_add(1),
                         v_.p_last,
                         at,
                     ));
-                    let qi = if sk >= self.qc.next {
-                        let i = self.qc.idx;
+                    let qi = if sk >= c.qc.next {
+                        let i = c.qc.idx;
                         i.wrapping_add(count_below(
                             &v_.q_knots,
                             i.wrapping_add(4),
@@ -227,7 +228,7 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
                             at,
                         ))
                     } else {
-                        self.qc.idx
+                        c.qc.idx
                     };
                     (sw.sk, sw.pi, sw.qi) = (sk, pi, qi);
                     sw.stage = Stage::Derivs;
@@ -235,16 +236,19 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
                 }
                 Stage::Derivs => {
                     let pi = sw.pi;
-                    let pc = if pi == self.pc.idx {
-                        Some(self.pc)
+                    // (the current piece by reference: no cursor copy)
+                    let other;
+                    let pc = if pi == c.pc.idx {
+                        c.pc
                     } else {
-                        v_.piece(pi)
+                        let Some(p) = v_.piece(pi) else {
+                            sw.done = true;
+                            break;
+                        };
+                        other = p;
+                        &other
                     };
-                    let Some(pc) = pc else {
-                        sw.done = true;
-                        break;
-                    };
-                    let Some(coeffs) = v_.coeffs(&pc) else {
+                    let Some(coeffs) = v_.coeffs(pc) else {
                         sw.done = true;
                         break;
                     };
@@ -253,24 +257,26 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
                     left = left.saturating_sub(8);
                 }
                 Stage::Plan => {
-                    let qc = if sw.qi == self.qc.idx {
-                        Some(self.qc)
+                    let other;
+                    let qc = if sw.qi == c.qc.idx {
+                        c.qc
                     } else {
-                        v_.q(sw.qi)
-                    };
-                    let Some(qc) = qc else {
-                        sw.done = true;
-                        break;
+                        let Some(q) = v_.q(sw.qi) else {
+                            sw.done = true;
+                            break;
+                        };
+                        other = q;
+                        &other
                     };
                     let (sk, dr) = (sw.sk, sw.dr);
-                    let k = match (sw.into_stop, self.ends) {
+                    let k = match (sw.into_stop, c.ends) {
                         (true, Some(e)) => {
                             let (j2, t2) = (e.jerk_stop as f32, e.t_stop as f32);
                             Kin::new(dr, [0.5 * j2 * t2 * t2, -j2 * t2, j2])
                         }
                         _ => {
                             let tq = fx_small_f32(sk.wrapping_sub(qc.anchor), 20);
-                            let qs = q_eval(&qc, &qc.poly, sk, tq, self.qs.v);
+                            let qs = q_eval(&qc, &qc.poly, sk, tq, c.v);
                             let [_, dq, ddq, _] = qs.qd;
                             Kin::new(dr, [qs.v, 0.5 * dq, 0.5 * ddq * qs.v])
                         }
@@ -317,15 +323,39 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
     }
 
     /// One step ([`AHEAD_PER_TICK`]) of the look-ahead sweep in progress
-    /// (stopping), for the next tick's controller.
+    /// (stopping), for the next tick's controller (in place: the sweep and
+    /// the maxima are not copied).
     fn ahead_step(&mut self) {
-        if let Some(mut sw) = self.fh.sweep {
+        // (field by field: the context borrows what the sweep reads, the
+        // sweep itself is written)
+        let c = SweepCtx {
+            s: self.s,
+            views: &self.views,
+            pc: &self.pc,
+            qc: &self.qc,
+            v: self.qs.v,
+            stop_at: self.stop_at,
+            ends: &self.ends,
+        };
+        let fh = &mut self.fh;
+        if let Some(sw) = fh.sweep.as_mut() {
             if !sw.done {
-                let mut joined = self.fh.joined;
-                self.sweep_points(&mut sw, &mut joined, AHEAD_PER_TICK);
-                self.fh.joined = joined;
-                self.fh.sweep = Some(sw);
+                Self::sweep_points(&c, sw, &mut fh.joined, AHEAD_PER_TICK);
             }
+        }
+    }
+
+    /// What [`Self::sweep_points`] reads of the interpolator.
+    #[inline(always)]
+    fn sweep_ctx(&self) -> SweepCtx<'_, 'a> {
+        SweepCtx {
+            s: self.s,
+            views: &self.views,
+            pc: &self.pc,
+            qc: &self.qc,
+            v: self.qs.v,
+            stop_at: self.stop_at,
+            ends: &self.ends,
         }
     }
 
@@ -530,6 +560,19 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
         let feed = self.fh.ctl.lambda_f32() * 0.5 * (j2 as f32) * t1 * t1;
         self.place(t_s, (fx_to_f64(s_new), s_new), feed)
     }
+}
+
+/// What the look-ahead's steps read of the interpolator
+/// ([`Interpolator::sweep_points`]): s, the views, the cursors, the plan's
+/// ṡ_p (a guess for q), the stop segment's entry and the end segments.
+struct SweepCtx<'c, 'a> {
+    s: i64,
+    views: &'c Views<'a>,
+    pc: &'c PCur,
+    qc: &'c QCur,
+    v: f32,
+    stop_at: i64,
+    ends: &'c Option<EndSegments>,
 }
 
 /// How many of the values `arr[first ..= last]` (ascending, ≥ 0) lie below
