@@ -181,7 +181,13 @@ pub(crate) fn interval_plain(cons: &[Lin], warm: (u8, u8)) -> (Interval, (u8, u8
         (Some(i), Some(j)) => (j.d - i.d) / (i.m + j.m),
         _ => 1.0,
     };
-    let (r, nu, pair) = relax((0u8..).zip(cons.iter()).filter(|(_, k)| ok(k)).map(|(i, k)| (i, (k.d, k.m))), r0);
+    let (r, nu, pair) = relax(
+        (0u8..)
+            .zip(cons.iter())
+            .filter(|(_, k)| ok(k))
+            .map(|(i, k)| (i, (k.d, k.m))),
+        r0,
+    );
     (
         Interval {
             lo: nu,

@@ -37,12 +37,12 @@ use crate::feed_hold::constraints::{mn, mx, sqrt32, Ahead, Kin};
 use crate::feed_hold::controller::{scaled_step, FeedHold, TickScale, LAM_ONE};
 use crate::feed_hold::{HoldError, HoldState, HoldStats};
 use crate::interp::cursor::{q_eval, tau_of, PCur, QCur, Views};
-use crate::limits::EndSegments;
 use crate::interp::hold_run::{
     Stage, Sweep, AHEAD_FACTOR, AHEAD_MAX_MM, AHEAD_N, AHEAD_PER_TICK, COAST_ABOVE, END_FACTOR,
 };
 use crate::interp::interpolator::{Interpolator, Phase};
 use crate::interp::setpoint::{Fault, Setpoint};
+use crate::limits::EndSegments;
 use crate::math::source::F64Array;
 use crate::servo_forms::fixed::{f32_to_fx, fx_small_f32, fx_to_f64, mul_hi, to_fx};
 use crate::servo_forms::piece::pos_derivs;
@@ -276,7 +276,7 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
                         }
                         _ => {
                             let tq = fx_small_f32(sk.wrapping_sub(qc.anchor), 20);
-                            let qs = q_eval(&qc, &qc.poly, sk, tq, c.v);
+                            let qs = q_eval(qc, &qc.poly, sk, tq, c.v);
                             let [_, dq, ddq, _] = qs.qd;
                             Kin::new(dr, [qs.v, 0.5 * dq, 0.5 * ddq * qs.v])
                         }
@@ -310,7 +310,7 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
             }
             return false;
         }
-        if self.fh.sweep.as_ref().is_none_or(|sw| sw.done) {
+        if !matches!(&self.fh.sweep, Some(sw) if !sw.done) {
             if let Some(d) = &self.fh.sweep {
                 self.fh.ahead = d.part;
                 self.fh.reach = d.reach;
