@@ -419,7 +419,29 @@ impl FeedHold {
         let mut nu = if hold { -u } else { u };
         let coast = hold && self.coast;
         if coast {
-            let lim_iv = interval(cons.get(..N_CONS - 1).unwrap_or(&[]));
+            // (without the μ cap; where every constraint is normalised,
+            // the intersection directly, and an empty one relaxed from r = 1
+            // without the normalising pass, as above)
+            let lim = cons.get(..N_CONS - 1).unwrap_or(&[]);
+            let lim_iv = if plain {
+                let (mut lo, mut hi) = (f32::NEG_INFINITY, f32::INFINITY);
+                for k in lim.iter().filter(|k| k.c == 1.0) {
+                    lo = mx(lo, -k.m - k.d);
+                    hi = mn(hi, k.m - k.d);
+                }
+                if lo <= hi {
+                    Interval {
+                        lo,
+                        hi,
+                        relax: 1.0,
+                        fixed: 0.0,
+                    }
+                } else {
+                    interval_plain(lim, (0, 0)).0
+                }
+            } else {
+                interval(lim)
+            };
             nu = if lim_iv.relax <= 1.0 {
                 clampf(-mu_f / h, lim_iv.lo, lim_iv.hi)
             } else {
