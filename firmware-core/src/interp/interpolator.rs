@@ -147,9 +147,6 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         ip
     }
 
-    // (not inlined: its frame, with the struct being built, is not added to
-    // the caller's, which holds the result)
-    #[inline(never)]
     fn build(table: Table<'a>, period_s: f64) -> Result<Self, InterpError> {
         if !(period_s.is_finite() && period_s > 0.0) {
             return Err(InterpError::BadPeriod);
