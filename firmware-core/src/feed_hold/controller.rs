@@ -420,8 +420,8 @@ impl FeedHold {
         let coast = hold && self.coast;
         if coast {
             // (without the μ cap; where every constraint is normalised,
-            // the intersection directly, and an empty one relaxed from r = 1
-            // without the normalising pass, as above)
+            // the intersection directly, and an empty one relaxed without
+            // the normalising pass, as above)
             let lim = cons.get(..N_CONS - 1).unwrap_or(&[]);
             let lim_iv = if plain {
                 let (mut lo, mut hi) = (f32::NEG_INFINITY, f32::INFINITY);
@@ -437,7 +437,9 @@ impl FeedHold {
                         fixed: 0.0,
                     }
                 } else {
-                    interval_plain(lim, (0, 0)).0
+                    // (from the tick's own extreme pair, where it relaxed:
+                    // in a run of infeasible ticks usually the same pair)
+                    interval_plain(lim, self.relax_pair).0
                 }
             } else {
                 interval(lim)
