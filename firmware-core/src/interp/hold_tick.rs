@@ -11,7 +11,12 @@
 //! from the same fixed-point piece polynomial as on the normal tick.
 //! While stopping, the μ cap's look-ahead advances one step a tick (a
 //! point is three: locate it, the path's derivatives, the plan there),
-//! none on a tick that also evaluates the next piece. The
+//! after the controller and for the next tick's, and only on a tick that
+//! did nothing else optional: no infeasible tick's relaxation, no
+//! evaluation of the next piece, no piece or q span entered. The path's
+//! derivatives at the next piece's start (for the jump of the plan's jerk
+//! at the break) are computed ahead the same way, before the look-ahead's
+//! step, or by the hold and resume requests. The
 //! stall checks do not run on these ticks; held, the tick returns the same
 //! position with feed 0 and the clock advancing.
 //!
