@@ -156,20 +156,70 @@ pub(crate) fn interval(cons: &[Lin]) -> Interval {
             fixed,
         };
     }
-    // (empty at r = 1, so the root is above: start there)
-    let mut r = 1.0f32;
+    let (r, nu, _) = relax((0u8..).zip(nk.get(..n).unwrap_or(&[]).iter().copied()), 1.0);
+    Interval {
+        lo: nu,
+        hi: nu,
+        relax: r,
+        fixed,
+    }
+}
+
+/// [`interval`] for constraints that all come normalised (c = 1) or that
+/// ν cannot change (c = 0, passed over), known to be empty at r = 1 (the
+/// tick's common infeasible case): the relaxation directly, without the
+/// normalising pass; `fixed` is not computed (0). Newton's method starts
+/// from the root of the pair `warm` (indices into `cons`; the last
+/// infeasible tick's extreme pair) where that is above 1: any pair's root
+/// is at most the relaxation (f is the largest over pairs), so the climb
+/// stays monotone, and where the pair still binds (infeasible ticks come
+/// in runs) the first step confirms it. Returns the pair that ends it too.
+pub(crate) fn interval_plain(cons: &[Lin], warm: (u8, u8)) -> (Interval, (u8, u8)) {
+    let ok = |k: &&Lin| k.c == 1.0 && k.m > 0.0 && k.d.is_finite();
+    let pick = |i: u8| cons.get(usize::from(i)).filter(ok);
+    let r0 = match (pick(warm.0), pick(warm.1)) {
+        (Some(i), Some(j)) => (j.d - i.d) / (i.m + j.m),
+        _ => 1.0,
+    };
+    let (r, nu, pair) = relax(
+        (0u8..)
+            .zip(cons.iter())
+            .filter(|(_, k)| ok(k))
+            .map(|(i, k)| (i, (k.d, k.m))),
+        r0,
+    );
+    (
+        Interval {
+            lo: nu,
+            hi: nu,
+            relax: r,
+            fixed: 0.0,
+        },
+        pair,
+    )
+}
+
+/// The smallest relaxation r ≥ 1 of the normalised constraints `nk`
+/// (an index, d/c, m/c), empty at r = 1, by Newton's method from
+/// max(`r0`, 1) (`r0` at most the root), the ν it takes and the indices of
+/// the last extreme pair (see [`interval`]).
+#[inline(always)]
+fn relax<I: Iterator<Item = (u8, (f32, f32))> + Clone>(nk: I, r0: f32) -> (f32, f32, (u8, u8)) {
+    // (empty at r = 1, so the root is above: start there, or at r0)
+    let mut r = mx(1.0f32, r0);
     let (mut l, mut u) = (f32::NEG_INFINITY, f32::INFINITY);
+    let mut pair = (0u8, 0u8);
     for step in 0..=RELAX_STEPS {
         // The extreme pair at r (and the bounds at r).
         let (mut li, mut ui) = ((0.0f32, 0.0f32), (0.0f32, 0.0f32));
         (l, u) = (f32::NEG_INFINITY, f32::INFINITY);
-        for &(dc, mc) in nk.get(..n).unwrap_or(&[]) {
+        for (i, (dc, mc)) in nk.clone() {
             let (x, y) = (-r * mc - dc, r * mc - dc);
             if x > l {
-                (l, li) = (x, (dc, mc));
+                (l, li, pair.0) = (x, (dc, mc), i);
             }
             if y < u {
-                (u, ui) = (y, (dc, mc));
+                (u, ui, pair.1) = (y, (dc, mc), i);
             }
         }
         let r1 = (ui.0 - li.0) / (li.1 + ui.1);
@@ -188,12 +238,7 @@ pub(crate) fn interval(cons: &[Lin]) -> Interval {
     } else {
         0.0
     };
-    Interval {
-        lo: nu,
-        hi: nu,
-        relax: mx(r, 1.0),
-        fixed,
-    }
+    (mx(r, 1.0), nu, pair)
 }
 
 /// The plan's own kinematics at one point: per axis (x, y, z) and, index 3,

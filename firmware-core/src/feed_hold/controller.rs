@@ -3,7 +3,8 @@
 //! and the scaled step of s ([`scaled_step`]).
 
 use crate::feed_hold::constraints::{
-    constraints, interval, mn, mu_cap_ahead, mx, sqrt32, Ahead, HoldLimits, Interval, Kin, N_CONS, RHO_J,
+    constraints, interval, interval_plain, mn, mu_cap_ahead, mx, sqrt32, Ahead, HoldLimits, Interval, Kin,
+    N_CONS, RHO_J,
 };
 use crate::feed_hold::{HoldState, HoldStats};
 use crate::servo_forms::fixed::f32_to_fx;
@@ -122,6 +123,27 @@ pub(crate) struct FeedHold {
     coast: bool,
     /// The μ cap of the last stopping tick (∞ otherwise).
     cap_prev: f32,
+    /// The extreme pair of the last infeasible tick's relaxation (where
+    /// the next one's Newton steps start, [`interval_plain`]).
+    relax_pair: (u8, u8),
+    /// What the last controlled tick's constraints came from: the
+    /// diagnostics `HoldStats::last_*` are computed from it when asked
+    /// ([`FeedHold::stats`]), not on the tick.
+    last: LastTick,
+}
+
+/// The inputs of the last controlled tick's constraints and its ν.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+struct LastTick {
+    kin: Kin,
+    lam: f32,
+    mu: f32,
+    h: f32,
+    /// The μ cap (the bound on |μ| after the tick).
+    cap: f32,
+    nu: f32,
+    /// A tick was controlled (else the diagnostics are 0).
+    set: bool,
 }
 
 impl Default for FeedHold {
@@ -134,6 +156,8 @@ impl Default for FeedHold {
             stats: HoldStats::default(),
             coast: false,
             cap_prev: f32::INFINITY,
+            relax_pair: (0, 0),
+            last: LastTick::default(),
         }
     }
 }
@@ -176,6 +200,11 @@ impl FeedHold {
         q62_f32(self.lam)
     }
 
+    /// The infeasible ticks so far ([`HoldStats::infeasible`]).
+    pub fn infeasible(&self) -> u64 {
+        self.stats.infeasible
+    }
+
     /// μ = λ̇, 1/s.
     pub fn mu(&self) -> f64 {
         if self.h > 0.0 {
@@ -194,9 +223,29 @@ impl FeedHold {
         }
     }
 
-    /// The counters.
-    pub fn stats(&self) -> HoldStats {
-        self.stats
+    /// The counters, with the last controlled tick's largest constraint
+    /// ratio, which constraint that was and its μ bound (computed here from
+    /// the tick's kinematics and ν, `lim` the limits it ran with).
+    pub fn stats(&self, lim: &HoldLimits) -> HoldStats {
+        let t = &self.last;
+        if !t.set {
+            return self.stats;
+        }
+        let cons = constraints(&t.kin, lim, (t.lam, t.mu), t.h, t.cap);
+        let (mut r, mut at) = (0.0f32, 0u8);
+        for (i, k) in (0u8..).zip(cons.iter().take(N_CONS - 1)) {
+            // (|d + cν| > r·m, m > 0: the division only where r grows)
+            let e = (k.d + k.c * t.nu).abs();
+            if e > r * k.m {
+                (r, at) = (e / k.m, i);
+            }
+        }
+        HoldStats {
+            last_ratio: r,
+            last_binding: at,
+            last_cap: mx(t.cap, t.mu.abs()),
+            ..self.stats
+        }
     }
 
     /// Coast instead of braking (stopping only): bring μ to 0 as fast as
@@ -227,6 +276,7 @@ impl FeedHold {
     pub fn clear(&mut self) {
         *self = FeedHold {
             stats: self.stats,
+            last: self.last,
             ..FeedHold::default()
         };
     }
@@ -299,7 +349,9 @@ impl FeedHold {
                 plain = false;
             }
         }
-        let mut iv = if plain && lo <= hi {
+        let mut iv = if !plain {
+            interval(&cons)
+        } else if lo <= hi {
             Interval {
                 lo,
                 hi,
@@ -307,7 +359,9 @@ impl FeedHold {
                 fixed: 0.0,
             }
         } else {
-            interval(&cons)
+            let (iv, pair) = interval_plain(&cons, self.relax_pair);
+            self.relax_pair = pair;
+            iv
         };
         if iv.relax > 1.0 {
             // Infeasible: |μ| still does not grow past the cap (the
@@ -365,7 +419,31 @@ impl FeedHold {
         let mut nu = if hold { -u } else { u };
         let coast = hold && self.coast;
         if coast {
-            let lim_iv = interval(cons.get(..N_CONS - 1).unwrap_or(&[]));
+            // (without the μ cap; where every constraint is normalised,
+            // the intersection directly, and an empty one relaxed without
+            // the normalising pass, as above)
+            let lim = cons.get(..N_CONS - 1).unwrap_or(&[]);
+            let lim_iv = if plain {
+                let (mut lo, mut hi) = (f32::NEG_INFINITY, f32::INFINITY);
+                for k in lim.iter().filter(|k| k.c == 1.0) {
+                    lo = mx(lo, -k.m - k.d);
+                    hi = mn(hi, k.m - k.d);
+                }
+                if lo <= hi {
+                    Interval {
+                        lo,
+                        hi,
+                        relax: 1.0,
+                        fixed: 0.0,
+                    }
+                } else {
+                    // (from the tick's own extreme pair, where it relaxed:
+                    // in a run of infeasible ticks usually the same pair)
+                    interval_plain(lim, self.relax_pair).0
+                }
+            } else {
+                interval(lim)
+            };
             nu = if lim_iv.relax <= 1.0 {
                 clampf(-mu_f / h, lim_iv.lo, lim_iv.hi)
             } else {
@@ -373,17 +451,15 @@ impl FeedHold {
             };
         }
         let lands = lands && !coast;
-        let (mut r, mut at) = (0.0f32, 0u8);
-        for (i, k) in (0u8..).zip(cons.iter().take(N_CONS - 1)) {
-            // (|d + cν| > r·m, m > 0: the division only where r grows)
-            let e = (k.d + k.c * nu).abs();
-            if e > r * k.m {
-                (r, at) = (e / k.m, i);
-            }
-        }
-        self.stats.last_ratio = r;
-        self.stats.last_binding = at;
-        self.stats.last_cap = mx(mu_max, mu_f.abs());
+        self.last = LastTick {
+            kin: *kin,
+            lam: lam_f,
+            mu: mu_f,
+            h,
+            cap: mu_max,
+            nu,
+            set: true,
+        };
         // The step, exact in Q62: λ₁ = λ + μh + νh²/2, μ₁h = μh + νh².
         let half = f32_to_q62(0.5 * nu * h * h);
         let lam1 = self.lam.wrapping_add(self.m).wrapping_add(half);
@@ -543,14 +619,14 @@ mod tests {
             let n = tr.iter().position(|&l| l == 0.0).unwrap();
             assert!(tr[n..].iter().all(|&l| l == 0.0), "stays at 0");
             // the μ before the landing went smoothly to 0 (no acceleration step)
-            assert_eq!(ctl.stats().forced, 0, "v = {v}: {:?}", ctl.stats());
+            assert_eq!(ctl.stats(&LIM).forced, 0, "v = {v}: {:?}", ctl.stats(&LIM));
             ctl.resume();
             let tr = drive(&mut ctl, v, 40_000);
             assert_eq!(ctl.state(), HoldState::Running, "v = {v}");
             assert!(tr.windows(2).all(|w| w[1] >= w[0]), "λ monotone up");
             assert!(tr.iter().all(|&l| (0.0..=1.0).contains(&l)));
             assert_eq!((ctl.lambda(), ctl.mu()), (1.0, 0.0));
-            assert_eq!(ctl.stats().infeasible, 0);
+            assert_eq!(ctl.stats(&LIM).infeasible, 0);
         }
     }
 

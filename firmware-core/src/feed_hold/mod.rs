@@ -64,8 +64,9 @@
 //! and intersects them (`interval`). If the intersection is empty it
 //! takes the ν that minimises the largest relative violation (the
 //! smallest common relaxation factor over all pairs of bounds, found by
-//! Newton's method on the piecewise-linear gap between the bounds) and
-//! counts the tick ([`HoldStats::infeasible`]).
+//! Newton's method on the piecewise-linear gap between the bounds, started
+//! from the last infeasible tick's extreme pair) and counts the tick
+//! ([`HoldStats::infeasible`]).
 //!
 //! In distance-to-go coordinates (hold: x = λ, w = −μ, u = −ν; resume:
 //! x = 1 − λ, w = μ, u = ν; the double integrator ẋ = −w, ẇ = u) the target

@@ -42,6 +42,11 @@ pub(crate) struct HoldRun {
     pub(crate) reach: bool,
     /// `ahead` joined with the sweep in progress (what the tick uses).
     pub(crate) joined: Ahead,
+    /// The path's r′, r″, r‴ at the start of piece `.0` (the one after the
+    /// current piece's break, for the jump of J there), computed ahead on
+    /// a tick with nothing else optional to do, or by a hold or resume
+    /// request.
+    pub(crate) next_dr: Option<(usize, [[f32; 3]; 3])>,
 }
 
 /// One pass of the look-ahead over the plan ahead, spread over ticks.
@@ -103,6 +108,7 @@ impl HoldRun {
         self.sweep = None;
         self.reach = false;
         self.joined = Ahead::default();
+        self.next_dr = None;
     }
 
     /// The distance a tangential jerk-limited stop from `v` (mm/s) needs

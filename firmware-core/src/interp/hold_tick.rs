@@ -11,7 +11,12 @@
 //! from the same fixed-point piece polynomial as on the normal tick.
 //! While stopping, the μ cap's look-ahead advances one step a tick (a
 //! point is three: locate it, the path's derivatives, the plan there),
-//! none on a tick that also evaluates the next piece. The
+//! after the controller and for the next tick's, and only on a tick that
+//! did nothing else optional: no infeasible tick's relaxation, no
+//! evaluation of the next piece, no piece or q span entered. The path's
+//! derivatives at the next piece's start (for the jump of the plan's jerk
+//! at the break) are computed ahead the same way, before the look-ahead's
+//! step, or by the hold and resume requests. The
 //! stall checks do not run on these ticks; held, the tick returns the same
 //! position with feed 0 and the clock advancing.
 //!
@@ -36,17 +41,18 @@
 use crate::feed_hold::constraints::{mn, mx, sqrt32, Ahead, Kin};
 use crate::feed_hold::controller::{scaled_step, FeedHold, TickScale, LAM_ONE};
 use crate::feed_hold::{HoldError, HoldState, HoldStats};
-use crate::interp::cursor::{q_eval, tau_of};
+use crate::interp::cursor::{q_eval, tau_of, PCur, QCur, Views};
 use crate::interp::hold_run::{
     Stage, Sweep, AHEAD_FACTOR, AHEAD_MAX_MM, AHEAD_N, AHEAD_PER_TICK, COAST_ABOVE, END_FACTOR,
 };
 use crate::interp::interpolator::{Interpolator, Phase};
 use crate::interp::setpoint::{Fault, Setpoint};
+use crate::limits::EndSegments;
 use crate::math::source::F64Array;
 use crate::servo_forms::fixed::{f32_to_fx, fx_small_f32, fx_to_f64, mul_hi, to_fx};
 use crate::servo_forms::piece::pos_derivs;
 
-impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
+impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
     /// Request a feed hold: decelerate to rest on the path within the
     /// acceleration and jerk limits (see [`crate::feed_hold`]). Idempotent; a
     /// no-op while stopping or held.
@@ -64,6 +70,7 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
             }
             _ => false,
         };
+        self.next_piece_derivs();
         if running && near_end {
             self.fh.to_end = true;
         } else {
@@ -75,7 +82,7 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
                 // at a time.
                 let mut sw = self.start_sweep(self.s, AHEAD_MAX_MM);
                 let mut joined = Ahead::default();
-                self.sweep_points(&mut sw, &mut joined, usize::MAX);
+                Self::sweep_points(&self.sweep_ctx(), &mut sw, &mut joined, usize::MAX);
                 self.fh.ahead = sw.part;
                 self.fh.joined = sw.part;
                 self.fh.reach = sw.reach;
@@ -90,6 +97,7 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
     pub fn resume(&mut self) -> Result<(), HoldError> {
         self.hold_allowed()?;
         self.fh.to_end = false;
+        self.next_piece_derivs();
         self.fh.ctl.resume();
         // (a resume plans without the stop's look-ahead)
         self.fh.sweep = None;
@@ -126,7 +134,7 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
 
     /// Counters of the hold/resume ticks ([`HoldStats`]).
     pub fn hold_stats(&self) -> HoldStats {
-        self.fh.ctl.stats()
+        self.fh.ctl.stats(&self.fh.lim)
     }
 
     /// A look-ahead sweep from s (see [`Sweep`]) over `d` mm.
@@ -164,9 +172,9 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
     /// points already passed are skipped (eight to a step). Pieces and q
     /// spans are found by binary search and read from the views (the
     /// current ones from their cursors).
-    fn sweep_points(&self, sw: &mut Sweep, joined: &mut Ahead, count: usize) {
-        let s = self.s;
-        let v_ = &self.views;
+    fn sweep_points(c: &SweepCtx<'_, '_>, sw: &mut Sweep, joined: &mut Ahead, count: usize) {
+        let s = c.s;
+        let v_ = c.views;
         // Work units left: a point is three (locate, derivatives, plan),
         // a point passed since the sweep began an eighth of one.
         let mut left = count.saturating_mul(8);
@@ -180,7 +188,7 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
                             let f = k as f32 * (1.0 / AHEAD_N as f32);
                             sw.base.saturating_add(f32_to_fx(sw.d * f * f))
                         }
-                        _ if sw.stop_near && !sw.into_stop => self.stop_at,
+                        _ if sw.stop_near && !sw.into_stop => c.stop_at,
                         _ => {
                             sw.done = true;
                             break;
@@ -190,15 +198,15 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
                         left = left.saturating_sub(1);
                         continue; // passed since the sweep began
                     }
-                    if sk >= self.stop_at {
+                    if sk >= c.stop_at {
                         // The stop segment ahead: its entry (the largest |A|
                         // of the segment, J = J₂ at the jerk limit all
                         // along) with the path's derivatives just before s₂.
-                        match self.ends {
-                            Some(_) if !sw.into_stop && self.stop_at > s => {
+                        match c.ends {
+                            Some(_) if !sw.into_stop && c.stop_at > s => {
                                 sw.into_stop = true;
                                 sw.reach |= k <= AHEAD_N;
-                                sk = self.stop_at.wrapping_sub(1);
+                                sk = c.stop_at.wrapping_sub(1);
                             }
                             _ => {
                                 sw.done = true;
@@ -210,14 +218,14 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
                     // the breaks and knots ahead of the cursors: a bounded
                     // cost however many pieces the look-ahead spans).
                     let at = fx_to_f64(sk.saturating_add(1)).to_bits();
-                    let pi = self.pc.idx.wrapping_add(count_below(
+                    let pi = c.pc.idx.wrapping_add(count_below(
                         &v_.piece_breaks,
-                        self.pc.idx.wrapping_add(1),
+                        c.pc.idx.wrapping_add(1),
                         v_.p_last,
                         at,
                     ));
-                    let qi = if sk >= self.qc.next {
-                        let i = self.qc.idx;
+                    let qi = if sk >= c.qc.next {
+                        let i = c.qc.idx;
                         i.wrapping_add(count_below(
                             &v_.q_knots,
                             i.wrapping_add(4),
@@ -225,7 +233,7 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
                             at,
                         ))
                     } else {
-                        self.qc.idx
+                        c.qc.idx
                     };
                     (sw.sk, sw.pi, sw.qi) = (sk, pi, qi);
                     sw.stage = Stage::Derivs;
@@ -233,16 +241,19 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
                 }
                 Stage::Derivs => {
                     let pi = sw.pi;
-                    let pc = if pi == self.pc.idx {
-                        Some(self.pc)
+                    // (the current piece by reference: no cursor copy)
+                    let other;
+                    let pc = if pi == c.pc.idx {
+                        c.pc
                     } else {
-                        v_.piece(pi)
+                        let Some(p) = v_.piece(pi) else {
+                            sw.done = true;
+                            break;
+                        };
+                        other = p;
+                        &other
                     };
-                    let Some(pc) = pc else {
-                        sw.done = true;
-                        break;
-                    };
-                    let Some(coeffs) = v_.coeffs(&pc) else {
+                    let Some(coeffs) = v_.coeffs(pc) else {
                         sw.done = true;
                         break;
                     };
@@ -251,24 +262,26 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
                     left = left.saturating_sub(8);
                 }
                 Stage::Plan => {
-                    let qc = if sw.qi == self.qc.idx {
-                        Some(self.qc)
+                    let other;
+                    let qc = if sw.qi == c.qc.idx {
+                        c.qc
                     } else {
-                        v_.q(sw.qi)
-                    };
-                    let Some(qc) = qc else {
-                        sw.done = true;
-                        break;
+                        let Some(q) = v_.q(sw.qi) else {
+                            sw.done = true;
+                            break;
+                        };
+                        other = q;
+                        &other
                     };
                     let (sk, dr) = (sw.sk, sw.dr);
-                    let k = match (sw.into_stop, self.ends) {
+                    let k = match (sw.into_stop, c.ends) {
                         (true, Some(e)) => {
                             let (j2, t2) = (e.jerk_stop as f32, e.t_stop as f32);
                             Kin::new(dr, [0.5 * j2 * t2 * t2, -j2 * t2, j2])
                         }
                         _ => {
                             let tq = fx_small_f32(sk.wrapping_sub(qc.anchor), 20);
-                            let qs = q_eval(&qc, &qc.poly, sk, tq, self.qs.v);
+                            let qs = q_eval(qc, &qc.poly, sk, tq, c.v);
                             let [_, dq, ddq, _] = qs.qd;
                             Kin::new(dr, [qs.v, 0.5 * dq, 0.5 * ddq * qs.v])
                         }
@@ -287,11 +300,11 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
 
     /// The look-ahead for this tick (stopping only; zeros otherwise):
     /// `fh.joined`, the last complete sweep joined with the one in
-    /// progress, which advances by `points` points (a new one starts when
-    /// it is complete); returns whether the plan's stop segment is within
-    /// the stop's reach. A hold request runs a whole sweep at once
-    /// ([`Interpolator::hold`]), outside the tick.
-    fn ahead_acc(&mut self, kin: &Kin, v: f32, points: usize) -> bool {
+    /// progress (a new one starts when it is complete; [`Self::ahead_step`]
+    /// advances it, after the controller); returns whether the plan's stop
+    /// segment is within the stop's reach. A hold request runs a whole
+    /// sweep at once ([`Interpolator::hold`]), outside the tick.
+    fn ahead_acc(&mut self, kin: &Kin, v: f32) -> bool {
         // Stopping only: a resume plans its cap at λ = 1 already, and a
         // look-ahead cap dropping under μ on its exponential tail forces μ
         // down against the tail law (measured: up to 1.07× j at landing).
@@ -302,23 +315,53 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
             }
             return false;
         }
-        let mut sw = match self.fh.sweep {
-            Some(sw) if !sw.done => sw,
-            done => {
-                if let Some(d) = done {
-                    self.fh.ahead = d.part;
-                    self.fh.reach = d.reach;
-                }
-                // (a new sweep: nothing of it yet)
-                self.fh.joined = self.fh.ahead;
-                self.start_sweep(self.s, self.sweep_len(kin, v))
+        if !matches!(&self.fh.sweep, Some(sw) if !sw.done) {
+            if let Some(d) = &self.fh.sweep {
+                self.fh.ahead = d.part;
+                self.fh.reach = d.reach;
             }
+            // (a new sweep: nothing of it yet)
+            self.fh.joined = self.fh.ahead;
+            self.fh.sweep = Some(self.start_sweep(self.s, self.sweep_len(kin, v)));
+        }
+        self.fh.reach || self.fh.sweep.as_ref().is_some_and(|sw| sw.reach)
+    }
+
+    /// One step ([`AHEAD_PER_TICK`]) of the look-ahead sweep in progress
+    /// (stopping), for the next tick's controller (in place: the sweep and
+    /// the maxima are not copied).
+    fn ahead_step(&mut self) {
+        // (field by field: the context borrows what the sweep reads, the
+        // sweep itself is written)
+        let c = SweepCtx {
+            s: self.s,
+            views: &self.views,
+            pc: &self.pc,
+            qc: &self.qc,
+            v: self.qs.v,
+            stop_at: self.stop_at,
+            ends: &self.ends,
         };
-        let mut joined = self.fh.joined;
-        self.sweep_points(&mut sw, &mut joined, points);
-        self.fh.joined = joined;
-        self.fh.sweep = Some(sw);
-        self.fh.reach || sw.reach
+        let fh = &mut self.fh;
+        if let Some(sw) = fh.sweep.as_mut() {
+            if !sw.done {
+                Self::sweep_points(&c, sw, &mut fh.joined, AHEAD_PER_TICK);
+            }
+        }
+    }
+
+    /// What [`Self::sweep_points`] reads of the interpolator.
+    #[inline(always)]
+    fn sweep_ctx(&self) -> SweepCtx<'_, 'a> {
+        SweepCtx {
+            s: self.s,
+            views: &self.views,
+            pc: &self.pc,
+            qc: &self.qc,
+            v: self.qs.v,
+            stop_at: self.stop_at,
+            ends: &self.ends,
+        }
     }
 
     /// One tick under time-scaling (module docs); `phase` is `Run`.
@@ -341,15 +384,16 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
         let Some((kin, extra)) = self.hold_kin(plan, s) else {
             return self.fault(Fault::Eval { s_mm: fx_to_f64(s) });
         };
-        // (a tick that evaluated the next piece too leaves the look-ahead
-        // for the next)
-        let points = if extra { 0 } else { AHEAD_PER_TICK };
-        let stop_in_reach = self.ahead_acc(&kin, v, points);
+        let stop_in_reach = self.ahead_acc(&kin, v);
         // (below λ = ½ the plan's λ³J and 3λμA leave room to finish)
         self.fh
             .ctl
             .set_coast(stop_in_reach && self.fh.ctl.lambda_f32() > COAST_ABOVE);
+        let relaxed = self.fh.ctl.infeasible();
         let ts = self.fh.ctl.control_ahead(&kin, &self.fh.joined, &self.fh.lim, h);
+        // (an infeasible tick's relaxation, like the next piece's
+        // evaluation, leaves the look-ahead's step for a later tick)
+        let busy = extra || self.fh.ctl.infeasible() != relaxed;
         if self.fh.ctl.state() == HoldState::Running {
             self.fh.prev_j = None;
         }
@@ -371,10 +415,22 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
             return self.place(t_s, (fx_to_f64(s_new), s_new), feed);
         }
         let guess = self.qs.v;
+        let (pi, qi) = (self.pc.idx, self.qc.idx);
         let sp = self.place(t_s, (fx_to_f64(s_new), s_new), 0.0)?;
         let tq = fx_small_f32(s_new.wrapping_sub(self.qc.anchor), 20);
         let poly = self.qc.poly;
         self.qs = q_eval(&self.qc, &poly, s_new, tq, guess);
+        // The look-ahead's step, on a tick that did nothing else optional
+        // (no piece or q span entered either), the next tick's controller
+        // takes it; the next piece's derivatives at its start go first
+        // when they are not there yet.
+        if !busy && self.pc.idx == pi && self.qc.idx == qi {
+            if self.next_dr_ready() || self.pc.idx >= self.views.p_last {
+                self.ahead_step();
+            } else {
+                self.next_piece_derivs();
+            }
+        }
         Ok(Setpoint {
             feed_mm_s: f64::from(self.fh.ctl.lambda_f32() * self.qs.v),
             ..sp
@@ -404,25 +460,53 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
         // A piece break within the next two ticks: the path's r‴ (so the
         // plan's axis jerk) jumps there; the jump counts as J's change.
         let reach = s.saturating_add(f32_to_fx(
-            2.0 * self.h * p1.max(0.0) * self.fh.ctl.lambda_f32().max(0.0),
+            2.0 * self.h * mx(0.0, p1) * mx(0.0, self.fh.ctl.lambda_f32()),
         ));
-        let extra = self.pc.next <= reach && self.pc.idx < self.views.p_last;
-        if extra {
-            if let Some(next) = self.views.piece(self.pc.idx.wrapping_add(1)) {
-                if let Some(c) = self.views.coeffs(&next) {
-                    let at = self.pc.next;
-                    let dr_n = pos_derivs(c, tau_of(at, next.centre, next.shift), next.shift, next.constant);
-                    let kin_n = Kin::new(dr_n, [p1, p2, p3]);
-                    for ((d, jn), j) in kin.dj.iter_mut().zip(kin_n.j.iter()).zip(kin.j.iter()) {
-                        let jump = jn - j;
-                        if jump.abs() > d.abs() {
-                            *d = jump;
-                        }
+        let near = self.pc.next <= reach && self.pc.idx < self.views.p_last;
+        // (the next piece's derivatives are usually there already:
+        // evaluating them here is an extra only when they are not)
+        let extra = near && !self.next_dr_ready();
+        if near {
+            if extra {
+                self.next_piece_derivs();
+            }
+            if let Some((_, dr_n)) = self.fh.next_dr {
+                let kin_n = Kin::new(dr_n, [p1, p2, p3]);
+                for ((d, jn), j) in kin.dj.iter_mut().zip(kin_n.j.iter()).zip(kin.j.iter()) {
+                    let jump = jn - j;
+                    if jump.abs() > d.abs() {
+                        *d = jump;
                     }
                 }
             }
         }
         Some((kin, extra))
+    }
+
+    /// [`HoldRun::next_dr`] is for the piece after the current one.
+    fn next_dr_ready(&self) -> bool {
+        matches!(self.fh.next_dr, Some((i, _)) if i == self.pc.idx.wrapping_add(1))
+    }
+
+    /// The path's derivatives at the start of the piece after the current
+    /// one into [`HoldRun::next_dr`] (unless there already, or the current
+    /// piece is the last: then none).
+    fn next_piece_derivs(&mut self) {
+        if self.next_dr_ready() {
+            return;
+        }
+        self.fh.next_dr = None;
+        if self.pc.idx >= self.views.p_last {
+            return;
+        }
+        let idx = self.pc.idx.wrapping_add(1);
+        if let Some(next) = self.views.piece(idx) {
+            if let Some(c) = self.views.coeffs(&next) {
+                let at = self.pc.next;
+                let dr = pos_derivs(c, tau_of(at, next.centre, next.shift), next.shift, next.constant);
+                self.fh.next_dr = Some((idx, dr));
+            }
+        }
     }
 
     /// A tick in the stop segment under scaling: the segment followed in
@@ -458,8 +542,11 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
             ts
         };
         // dθ = ∫λ dt over the tick (exact: λ is a quadratic in t).
+        // (the first-order term hλ in f64 from the Q62 λ; the rest,
+        // h²(μ/2 + hν/6), a small fraction of h, in f32)
         let hd = self.period_s;
-        let dth = hd * (ts.lam_f64() + hd * (0.5 * f64::from(ts.mu) + hd * f64::from(ts.nu) / 6.0));
+        let rest = h * h * (0.5 * ts.mu + h * ts.nu * (1.0 / 6.0));
+        let dth = hd * ts.lam_f64() + f64::from(rest);
         let tau1 = tau - dth.max(0.0);
         if !tau1.is_finite() {
             return self.fault(Fault::NonFinite { s_mm: fx_to_f64(s) });
@@ -471,11 +558,26 @@ impl<const Q: usize, const W: usize> Interpolator<'_, Q, W> {
         self.fh.seg_tau = Some(tau1);
         let s_new = self
             .len_fx
-            .wrapping_sub(to_fx(j2 * tau1 * tau1 * tau1 / 6.0))
+            .wrapping_sub(to_fx(j2 * (1.0 / 6.0) * tau1 * tau1 * tau1))
             .max(s);
-        let feed = self.fh.ctl.lambda_f32() * (0.5 * j2 * tau1 * tau1) as f32;
+        // (the feed, reported only: f32)
+        let t1 = tau1 as f32;
+        let feed = self.fh.ctl.lambda_f32() * 0.5 * (j2 as f32) * t1 * t1;
         self.place(t_s, (fx_to_f64(s_new), s_new), feed)
     }
+}
+
+/// What the look-ahead's steps read of the interpolator
+/// ([`Interpolator::sweep_points`]): s, the views, the cursors, the plan's
+/// ṡ_p (a guess for q), the stop segment's entry and the end segments.
+struct SweepCtx<'c, 'a> {
+    s: i64,
+    views: &'c Views<'a>,
+    pc: &'c PCur,
+    qc: &'c QCur,
+    v: f32,
+    stop_at: i64,
+    ends: &'c Option<EndSegments>,
 }
 
 /// How many of the values `arr[first ..= last]` (ascending, ≥ 0) lie below
