@@ -42,7 +42,13 @@ impl SpanPoly {
     /// t = s − start. Extrapolates outside the span.
     #[inline]
     pub fn eval(&self, s: f64) -> [f64; 4] {
-        let t = s - self.start;
+        self.eval_local(s - self.start)
+    }
+
+    /// `[q, q′, q″, q‴]` at the local coordinate t = s − start (mm), by
+    /// Horner: without the rounding of forming s − start.
+    #[inline]
+    pub fn eval_local(&self, t: f64) -> [f64; 4] {
         let [c0, c1, c2, c3] = self.c;
         [
             ((c3 * t + c2) * t + c1) * t + c0,

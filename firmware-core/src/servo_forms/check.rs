@@ -28,7 +28,9 @@ pub const SU_TOL: f64 = 1e-6;
 /// Parse tolerance for the fixed-point positions, mm (the host fits them
 /// to [`FIT_TOL_MM`](crate::servo_forms::fit::FIT_TOL_MM)).
 pub const POS_TOL_MM: f64 = 1e-9;
-/// Parse tolerance for the fixed-point q, absolute part, (mm/s)².
+/// Parse tolerance for the fixed-point q, absolute part, (mm/s)²: 50 × the
+/// form's arithmetic bound 8 · 2⁻³² = 1.9e-9 ([`check_q_fx`]; measured
+/// ≤ 1.8e-9 over the 44,868 q spans of LinuxCNC's 3D_Chips.ngc sample).
 pub const Q_FX_TOL_ABS: f64 = 1e-7;
 /// Parse tolerance for the fixed-point q, part relative to max q.
 pub const Q_FX_TOL_REL: f64 = 1e-12;
@@ -69,6 +71,22 @@ pub fn check_q<A: F64Array>(q: &QSpline<A>, span: usize, local: &QLocal, q_scale
 /// Fixed-point q span check: q from [`q_fx_eval`] within
 /// [`Q_FX_TOL_ABS`]` + `[`Q_FX_TOL_REL`]` · q_scale` of the f64 span
 /// polynomial at [`CHECK_POINTS`] points, and τ within Q61 over the span.
+///
+/// Both are compared at the same local coordinate: the tick's τ is
+/// (s − ⌊U_i⌋)·2^(21−e) with s and the span start ⌊U_i⌋ in Q40, so the
+/// check takes the f64 cubic at t = (s_Q40 − ⌊U_i⌋_Q40)·2⁻⁴⁰ mm, not at the
+/// f64 s. What it bounds is then the form's own arithmetic: the four
+/// coefficients rounded to Q32 (½ unit each, ≤ 2 units for |τ| ≤ 1) and
+/// three [`mul_tau`](crate::servo_forms::fixed::mul_tau) steps (0–2 units
+/// each, ≤ 6 units carried through Horner), ≤ 8 · 2⁻³² = 1.9e-9 (mm/s)²,
+/// plus the f64 reference's own rounding, far below [`Q_FX_TOL_ABS`].
+/// Comparing at the f64 s instead measured |q′| times the Q40 truncation
+/// of s and of U_i (each < 2⁻⁴⁰ mm): on a path tens of µm long |q′|
+/// reaches 1.4e6 (mm/s)²/mm, and 1.4e6 · 2⁻⁴⁰ = 1.3e-6 (mm/s)², 13 × the
+/// tolerance, refused tables whose forms were exact to 2e-9. That origin
+/// offset is real but below the resolution of s: the tick's q at s is the
+/// f64 q at s + δ, 0 ≤ δ = U_i − ⌊U_i⌋ < 2⁻⁴⁰ mm, the same quantum the s
+/// accumulator steps in.
 pub fn check_q_fx<A: F64Array>(q: &QSpline<A>, span: usize, c: [i64; Q_FX_LEN], q_scale: f64) -> bool {
     let (Some(a), Some(b)) = (q.knots().get(span), q.knots().get(span.saturating_add(1))) else {
         return false;
@@ -88,12 +106,14 @@ pub fn check_q_fx<A: F64Array>(q: &QSpline<A>, span: usize, c: [i64; Q_FX_LEN], 
     }
     let tol = Q_FX_TOL_ABS + Q_FX_TOL_REL * q_scale;
     check_nodes().all(|x| {
-        let s = a + x * (b - a);
-        let Some(t) = piece_tau(to_fx(s).max(ua), ua, shift) else {
+        let sx = to_fx(a + x * (b - a)).max(ua);
+        let Some(t) = piece_tau(sx, ua, shift) else {
             return false;
         };
         let qf = q_fx_eval([c[0], c[1], c[2], c[3]], t) as f64 / Q_ONE;
-        (qf - poly.eval(s)[0]).abs() <= tol
+        // against the f64 cubic at the local coordinate τ stands for,
+        // (sx − ua)·2⁻⁴⁰ mm (exact below 8192 mm), not at s
+        (qf - poly.eval_local(fx_to_f64(sx.wrapping_sub(ua)))[0]).abs() <= tol
     })
 }
 

@@ -93,7 +93,9 @@
 //! The host derives all local forms from the f64 data once
 //! ([`crate::table::encode()`]) and [`crate::table::Table::parse`] checks
 //! every one against the f64 data ([`check_q`](crate::servo_forms::check::check_q), [`check_q_fx`](crate::servo_forms::check::check_q_fx),
-//! [`check_piece`](crate::servo_forms::check::check_piece)): q within [`Q_FX_TOL_ABS`](crate::servo_forms::check::Q_FX_TOL_ABS) + [`Q_FX_TOL_REL`](crate::servo_forms::check::Q_FX_TOL_REL)·max q, u
+//! [`check_piece`](crate::servo_forms::check::check_piece)): q within [`Q_FX_TOL_ABS`](crate::servo_forms::check::Q_FX_TOL_ABS) + [`Q_FX_TOL_REL`](crate::servo_forms::check::Q_FX_TOL_REL)·max q
+//! (both at the same Q40 point: the f64 q at the f64 s would differ by |q′|
+//! times a quantum, up to 1.3e-6 (mm/s)² on a 16 µm path), u
 //! within [`SU_TOL`](crate::servo_forms::check::SU_TOL) of the span width, positions within [`POS_TOL_MM`](crate::servo_forms::check::POS_TOL_MM) =
 //! 1e-9 mm at [`POS_CHECK_POINTS`](crate::servo_forms::check::POS_CHECK_POINTS) points, τ within range over every piece
 //! and span; a table whose local forms would be inaccurate is refused

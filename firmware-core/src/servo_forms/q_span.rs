@@ -39,7 +39,9 @@ pub fn q_local<A: F64Array>(q: &QSpline<A>, span: usize, at_end: bool) -> [f32; 
 /// The fixed-point form of q span `span` (U_i ≤ s < U_{i+1}, h = U_{i+1} − U_i):
 /// `[C0, C1, C2, C3, 21 − e]` with 2^e ≥ h and C_k = c_k 2^(ek) in Q32, so
 /// that q = Σ C_k τ^k, τ = (s − U_i)/2^e ∈ [0, 1] ([`q_fx_eval`]); zeros for
-/// an empty span or one out of range.
+/// an empty span or one out of range. The tick forms τ from s and U_i in
+/// Q40 (U_i truncated), so its q at s is this cubic's at s + δ,
+/// 0 ≤ δ < 2⁻⁴⁰ mm: less than the quantum s itself steps in.
 pub fn q_fixed<A: F64Array>(q: &QSpline<A>, span: usize) -> [i64; Q_FX_LEN] {
     let (Some(a), Some(b)) = (q.knots().get(span), q.knots().get(span.saturating_add(1))) else {
         return [0; Q_FX_LEN];

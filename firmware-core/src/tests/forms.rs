@@ -170,3 +170,95 @@ fn integer_conversions_match_ieee() {
         }
     }
 }
+
+/// q of the plan of a path of LinuxCNC's 3D_Chips.ngc sample, line 44 (a
+/// 48 µm line at 166.67 mm/s, 16 len samples; the planner-host fixture
+/// `tests/curves/chips-line-44.json`): its end spans, where the start and
+/// stop segments take over, swing between 0.3 and 700 (mm/s)² within 3 µm,
+/// |q′| up to 5.6e5 (mm/s)²/mm.
+const CHIPS_Q_KNOTS: [f64; 22] = [
+    0.0,
+    0.0,
+    0.0,
+    0.0,
+    0.003211091887678074,
+    0.006422183775356148,
+    0.009633275663034221,
+    0.012844367550712296,
+    0.016055459438390367,
+    0.019266551326068443,
+    0.022477643213746516,
+    0.02568873510142459,
+    0.028899826989102664,
+    0.032110918876780734,
+    0.03532201076445881,
+    0.038533102652136886,
+    0.04174419453981496,
+    0.04495528642749303,
+    0.04816637831517111,
+    0.04816637831517111,
+    0.04816637831517111,
+    0.04816637831517111,
+];
+const CHIPS_Q_CTRL: [f64; 18] = [
+    0.0,
+    594.4970156999191,
+    574.5374254658029,
+    638.7357478583306,
+    706.2360740950824,
+    0.3905845597398395,
+    0.5267803781661563,
+    0.6723690116563569,
+    0.755948997042507,
+    0.7775933239221902,
+    0.7373221266144668,
+    0.6351010332225844,
+    0.47085076600984704,
+    0.3197405201741287,
+    686.5492006775394,
+    567.720774663725,
+    589.3805589939379,
+    0.0,
+];
+
+#[test]
+fn fixed_q_of_a_steep_short_path_passes_its_check_and_a_real_error_does_not() {
+    use crate::path::qspline::QSpline;
+    use crate::servo_forms::check::{check_q_fx, Q_FX_TOL_ABS};
+    use crate::servo_forms::fixed::{fx_to_f64, piece_tau, to_fx, Q_ONE};
+    use crate::servo_forms::q_span::{q_fixed, q_fx_eval};
+    let q = QSpline::new(&CHIPS_Q_KNOTS[..], &CHIPS_Q_CTRL[..]).unwrap();
+    let q_scale = CHIPS_Q_CTRL.iter().cloned().fold(0.0, f64::max);
+    let mut steepest = 0.0f64;
+    for span in 3..CHIPS_Q_CTRL.len() {
+        let c = q_fixed(&q, span);
+        // the whole table used to be refused here (span 14: the f64 q at the
+        // f64 s, 4.8e-7 (mm/s)² from the fixed q at the Q40 s)
+        assert!(check_q_fx(&q, span, c, q_scale), "span {span}");
+        // the form's own error at 33 Q40 points of the span: within the
+        // arithmetic bound 8·2⁻³² (mm/s)² of the f64 cubic at the local
+        // coordinate τ stands for
+        let poly = q.span_poly(span).unwrap();
+        let (a, b) = (CHIPS_Q_KNOTS[span], CHIPS_Q_KNOTS[span + 1]);
+        let ua = to_fx(a);
+        for k in 0..=32 {
+            let sx = to_fx(a + (b - a) * k as f64 / 32.0).max(ua);
+            let t = piece_tau(sx, ua, c[4] as u32).unwrap();
+            let qf = q_fx_eval([c[0], c[1], c[2], c[3]], t) as f64 / Q_ONE;
+            let q64 = poly.eval_local(fx_to_f64(sx - ua));
+            assert!((qf - q64[0]).abs() <= 8.0 / Q_ONE, "span {span} point {k}");
+            steepest = steepest.max(q64[1].abs());
+        }
+        // an error of 10 × the tolerance in C0 is still refused
+        let off = (10.0 * Q_FX_TOL_ABS * Q_ONE) as i64;
+        assert!(!check_q_fx(
+            &q,
+            span,
+            [c[0] + off, c[1], c[2], c[3], c[4]],
+            q_scale
+        ));
+    }
+    // why comparing at the f64 s could not work: one Q40 quantum of s is
+    // worth 5.6e5 · 2⁻⁴⁰ = 5.1e-7 (mm/s)² here, 5 × the tolerance
+    assert!(steepest / (1u64 << 40) as f64 > 4.0 * Q_FX_TOL_ABS, "{steepest}");
+}

@@ -7,10 +7,10 @@
 //! `rapid_velocity`; both under every axis limit, from rest to rest
 //! (jerk-limited start and stop), at the machine's servo period. The
 //! sampling density is the larger of `density_per_mm` and
-//! [`MIN_POINTS`] per path, so that short paths still get a usable LP; a
-//! path whose plan fails for a numerical reason is planned again with the
-//! samplings of [`RETRY`], with a warning (an input error — a corner, a
-//! curve the planner refuses — is not retried).
+//! [`MIN_POINTS`] per path, so that short paths still get a usable LP. A
+//! path whose plan fails makes the program's plan fail
+//! ([`ProgramError::Plan`], with the path's lines and the planner's
+//! reason); no path is planned again with another sampling.
 
 use std::time::Instant;
 
@@ -26,24 +26,6 @@ use crate::program::travel::{check_travel, TravelError};
 
 /// Fewest sampling points of a path.
 pub const MIN_POINTS: f64 = 16.0;
-
-/// The samplings tried, in order, when a path's plan fails for a numerical
-/// reason (no room for the end segments, a stall, an LP that does not
-/// solve, the table encoder's fixed-point check): (fewest points, factor on
-/// the density). The plan of a path a few tens of µm long depends on where
-/// its few samples fall; a longer one is sampled more densely.
-pub const RETRY: [(f64, f64); 10] = [
-    (8.0, 1.0),
-    (10.0, 1.0),
-    (12.0, 1.0),
-    (14.0, 1.0),
-    (6.0, 1.0),
-    (20.0, 1.25),
-    (24.0, 1.5),
-    (32.0, 2.0),
-    (16.0, 0.75),
-    (16.0, 3.0),
-];
 
 /// Paths listed one by one in [`PlannedProgram::summary`].
 pub const SUMMARY_PATHS: usize = 40;
@@ -122,9 +104,6 @@ pub struct PlannedPath {
     /// The firmware table.
     #[serde(skip)]
     pub table: Vec<u8>,
-    /// Why the first plan failed, when a retry made it.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub retried: Option<String>,
 }
 
 /// A planned program.
@@ -175,7 +154,6 @@ pub fn plan_program(
         .collect();
     let mut warnings = program.warnings.clone();
     warnings.extend(made.warnings);
-    warnings.extend(paths.iter().filter_map(|p| p.retried.clone()));
     Ok(PlannedProgram {
         machine: machine.clone(),
         blocks: program.blocks,
@@ -202,43 +180,18 @@ fn plan_path(
         PathKind::Feed => p.feed_mm_s.unwrap_or(limits.vbar).min(limits.vbar),
         PathKind::Rapid => machine.rapid_mm_s,
     };
-    let cfg = |points: f64, factor: f64| PlanConfig {
+    let cfg = PlanConfig {
         limits,
         servo_period_s: machine.servo_period_s,
-        density_per_mm: (opts.density_per_mm * factor).max(points / length),
+        density_per_mm: opts.density_per_mm.max(MIN_POINTS / length),
         ..PlanConfig::default()
     };
-    let mut retried = None;
-    let out = match plan_curve(&p.curve, &cfg(MIN_POINTS, 1.0)) {
-        Ok(out) => out,
-        Err(first) => {
-            let numerical = !matches!(
-                first,
-                PlanError::Curve(_) | PlanError::Limits(_) | PlanError::Corner { .. }
-            );
-            let again = RETRY.iter().filter(|_| numerical).find_map(|&(n, f)| {
-                let c = cfg(n, f);
-                plan_curve(&p.curve, &c).ok().map(|o| (c.density_per_mm, o))
-            });
-            match again {
-                Some((d, out)) => {
-                    retried = Some(format!(
-                        "LINE {}..{}: path {index} ({length:.4} mm) planned at {d:.4} sampling points/mm; the first plan failed: {first}",
-                        p.first_line, p.last_line
-                    ));
-                    out
-                }
-                None => {
-                    return Err(ProgramError::Plan {
-                        first_line: p.first_line,
-                        last_line: p.last_line,
-                        index,
-                        source: first,
-                    })
-                }
-            }
-        }
-    };
+    let out = plan_curve(&p.curve, &cfg).map_err(|source| ProgramError::Plan {
+        first_line: p.first_line,
+        last_line: p.last_line,
+        index,
+        source,
+    })?;
     let n = p.pieces.len();
     let pieces = p
         .pieces
@@ -263,7 +216,6 @@ fn plan_path(
         plan_time_s: t0.elapsed().as_secs_f64(),
         pieces,
         table: out.table_bytes,
-        retried,
     })
 }
 
