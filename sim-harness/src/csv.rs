@@ -50,30 +50,35 @@ pub(crate) fn push_f64(out: &mut String, x: f64) {
     };
 }
 
+/// One tick's columns of [`HEADER`], comma-separated, without the line end.
+pub(crate) fn push_row(out: &mut String, tk: &Tick) {
+    let vals = [
+        tk.t_s,
+        tk.cmd_mm[0],
+        tk.cmd_mm[1],
+        tk.cmd_mm[2],
+        tk.s_mm,
+        tk.u,
+        tk.feed_mm_s,
+        tk.act_mm[0],
+        tk.act_mm[1],
+        tk.act_mm[2],
+    ];
+    for (i, v) in vals.into_iter().enumerate() {
+        if i > 0 {
+            out.push(',');
+        }
+        push_f64(out, v);
+    }
+}
+
 /// The CSV text for `ticks`.
 pub(crate) fn to_csv_string(ticks: &[Tick]) -> String {
     let mut out = String::with_capacity(ticks.len() * 200 + 64);
     out.push_str(HEADER);
     out.push('\n');
     for tk in ticks {
-        let vals = [
-            tk.t_s,
-            tk.cmd_mm[0],
-            tk.cmd_mm[1],
-            tk.cmd_mm[2],
-            tk.s_mm,
-            tk.u,
-            tk.feed_mm_s,
-            tk.act_mm[0],
-            tk.act_mm[1],
-            tk.act_mm[2],
-        ];
-        for (i, v) in vals.into_iter().enumerate() {
-            if i > 0 {
-                out.push(',');
-            }
-            push_f64(&mut out, v);
-        }
+        push_row(&mut out, tk);
         out.push('\n');
     }
     out

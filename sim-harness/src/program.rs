@@ -28,7 +28,7 @@ use firmware_core::{Limits, Table};
 use planner_host::program::{EntryKind, ProgramFile, ProgramFileError};
 
 use crate::check::{check_trajectory, CheckConfig, CheckError, CheckReport, Trajectory};
-use crate::csv::{push_f64, write_atomic, CsvError, HEADER};
+use crate::csv::{push_row, write_atomic, CsvError, HEADER};
 use crate::geometry::CurveGeometry;
 use crate::metrics::Tick;
 use crate::run::{run_table, SimConfig, SimError};
@@ -158,24 +158,7 @@ impl ProgramRun {
         out.push_str(HEADER);
         out.push_str(",path,block\n");
         for ((tk, b), p) in self.ticks.iter().zip(&self.blocks).zip(&self.path_of_tick) {
-            let vals = [
-                tk.t_s,
-                tk.cmd_mm[0],
-                tk.cmd_mm[1],
-                tk.cmd_mm[2],
-                tk.s_mm,
-                tk.u,
-                tk.feed_mm_s,
-                tk.act_mm[0],
-                tk.act_mm[1],
-                tk.act_mm[2],
-            ];
-            for (i, v) in vals.into_iter().enumerate() {
-                if i > 0 {
-                    out.push(',');
-                }
-                push_f64(&mut out, v);
-            }
+            push_row(&mut out, tk);
             out.push_str(&format!(",{p},{b}\n"));
         }
         write_atomic(path, out.as_bytes())
