@@ -599,6 +599,21 @@ impl Interp {
         Ok(false)
     }
 
+    /// A NURBS block's move at the current feed; the block ends the NURBS
+    /// motion mode (G5.2 and G6.2 alike).
+    fn push_nurbs(&mut self, prog: &mut Program, line: usize, end: [f64; 3], geom: NurbsGeometry) {
+        self.push(
+            prog,
+            MoveKind::Nurbs,
+            line,
+            end,
+            Some(self.feed),
+            None,
+            Some(geom),
+        );
+        self.motion = None;
+    }
+
     #[allow(clippy::too_many_arguments)]
     fn push(
         &mut self,
@@ -934,16 +949,7 @@ impl Interp {
             knots,
             form: "G5.2",
         };
-        self.push(
-            prog,
-            MoveKind::Nurbs,
-            line,
-            end,
-            Some(self.feed),
-            None,
-            Some(geom),
-        );
-        self.motion = None;
+        self.push_nurbs(prog, line, end, geom);
         Ok(())
     }
 
@@ -1087,16 +1093,7 @@ impl Interp {
                 knots: g.knots,
                 form: "G6.2",
             };
-            self.push(
-                prog,
-                MoveKind::Nurbs,
-                line,
-                end,
-                Some(self.feed),
-                None,
-                Some(geom),
-            );
-            self.motion = None;
+            self.push_nurbs(prog, line, end, geom);
         }
         Ok(())
     }
