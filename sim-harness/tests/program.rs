@@ -12,16 +12,17 @@ use planner_host::{plan_curve, Machine, Nurbs, PlanConfig};
 use sim_harness::program::{check_program, run_program, ProgramRunError};
 use sim_harness::{CheckConfig, SimConfig};
 
-const OWN: [&str; 8] = [
-    "arcs-planes.ngc",
-    "circles-helices.ngc",
-    "corners-path-control.ngc",
-    "inch-incremental.ngc",
-    "lines-feeds.ngc",
-    "nurbs-g5-quarter.ngc",
-    "nurbs-g6-circle.ngc",
-    "params-expressions.ngc",
-];
+/// Every program of ours (planner-host's `programs/own/*.ngc`), sorted.
+fn own_names() -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(own(""))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .filter(|n| n.ends_with(".ngc"))
+        .collect();
+    names.sort();
+    assert!(names.len() >= 8, "our programs not found: {names:?}");
+    names
+}
 
 fn own(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -37,8 +38,8 @@ fn our_programs_run_to_their_last_block_within_every_limit() {
         pad_rest: 50,
         ..CheckConfig::default()
     };
-    for name in OWN {
-        let text = std::fs::read_to_string(own(name)).unwrap();
+    for name in own_names() {
+        let text = std::fs::read_to_string(own(&name)).unwrap();
         let prog = read_str(&text, ReadOptions::default()).unwrap();
         let planned = plan_program(&prog, &Machine::table1(), &ProgramOptions::default()).unwrap();
         let bytes = planned.encode().unwrap();

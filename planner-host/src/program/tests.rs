@@ -205,16 +205,18 @@ mod planned {
 
     use super::own;
 
-    pub(super) const OWN: [&str; 8] = [
-        "arcs-planes.ngc",
-        "circles-helices.ngc",
-        "corners-path-control.ngc",
-        "inch-incremental.ngc",
-        "lines-feeds.ngc",
-        "nurbs-g5-quarter.ngc",
-        "nurbs-g6-circle.ngc",
-        "params-expressions.ngc",
-    ];
+    /// Every program of ours (`programs/own/*.ngc`), by file name, sorted.
+    pub(super) fn own_names() -> Vec<String> {
+        let dir = format!("{}/programs/own", env!("CARGO_MANIFEST_DIR"));
+        let mut names: Vec<String> = std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().into_string().unwrap())
+            .filter(|n| n.ends_with(".ngc"))
+            .collect();
+        names.sort();
+        assert!(names.len() >= 8, "our programs not found: {names:?}");
+        names
+    }
 
     fn plan(text: &str, machine: &Machine) -> Result<Vec<u8>, ProgramError> {
         let prog = read_str(text, ReadOptions::default()).unwrap();
@@ -223,8 +225,8 @@ mod planned {
 
     #[test]
     fn our_programs_plan_within_the_limits_and_round_trip() {
-        for name in OWN {
-            let prog = read_str(&own(name), ReadOptions::default()).unwrap();
+        for name in own_names() {
+            let prog = read_str(&own(&name), ReadOptions::default()).unwrap();
             let planned = plan_program(&prog, &Machine::table1(), &ProgramOptions::default()).unwrap();
             for p in &planned.paths {
                 let r = p.worst_ratio.unwrap();
