@@ -212,6 +212,16 @@ pub(crate) struct FitInput<'a> {
     pub(crate) q_knots: &'a [f64],
     /// q control points.
     pub(crate) q_ctrl: &'a [f64],
+    /// The largest control point coordinate, mm ([`point_scale`]): the
+    /// scale of the fit tolerance [`fit_tol_mm`].
+    pub(crate) scale: f64,
+}
+
+/// The largest absolute coordinate of the control points, mm.
+pub(crate) fn point_scale(nurbs_points: &[[f64; 4]]) -> f64 {
+    nurbs_points
+        .iter()
+        .fold(0.0f64, |m, p| m.max(p[0].abs()).max(p[1].abs()).max(p[2].abs()))
 }
 
 /// The pieces of s → u segment `j` (see [`crate::servo_forms`]): from its start, each
@@ -259,11 +269,7 @@ fn fit_piece<F: FnMut(f64, f64, Option<&PieceData>)>(
     let piece = NurbsView::new(p, input.nurbs_knots, input.nurbs_points)
         .and_then(|c| piece_local(&c, seg, (s0, s1), (sa, sb)));
     let mid = 0.5 * (sa + sb);
-    let scale = input
-        .nurbs_points
-        .iter()
-        .fold(0.0f64, |m, p| m.max(p[0].abs()).max(p[1].abs()).max(p[2].abs()));
-    let fits = !matches!(&piece, Some(d) if d.fit_err > fit_tol_mm(scale));
+    let fits = !matches!(&piece, Some(d) if d.fit_err > fit_tol_mm(input.scale));
     if !fits && depth < MAX_SPLIT && mid > sa && mid < sb {
         fit_piece(input, j, (sa, mid), depth + 1, f);
         fit_piece(input, j, (mid, sb), depth + 1, f);

@@ -5,7 +5,7 @@
 use crate::limits::END_LEN;
 use crate::math::basis::MAX_DEGREE;
 use crate::path::qspline::QSpline;
-use crate::servo_forms::fit::{all_pieces, n_pieces, FitInput};
+use crate::servo_forms::fit::{all_pieces, n_pieces, point_scale, FitInput};
 use crate::servo_forms::piece::{piece_f32_len, PIECE_F64_LEN};
 use crate::servo_forms::q_span::{q_fixed, q_local, Q_FX_LEN, Q_LOCAL_LEN};
 use crate::table::crc::CRC;
@@ -110,6 +110,7 @@ fn fit_input<'a>(parts: &TableParts<'a>) -> FitInput<'a> {
         su_segments: parts.su_segments,
         q_knots: parts.q_knots,
         q_ctrl: parts.q_ctrl,
+        scale: point_scale(parts.nurbs_points),
     }
 }
 
@@ -219,6 +220,7 @@ pub fn encode(parts: &TableParts, out: &mut [u8]) -> Result<usize, EncodeError> 
         }
         offset = offset.saturating_add(pad8(len));
     }
+    let mut pieces_written = false;
     for (&(section, _, _), &off) in sizes.iter().zip(offsets.iter()).take(n_sec) {
         match section {
             Section::LevelMeta => {
@@ -299,37 +301,52 @@ pub fn encode(parts: &TableParts, out: &mut [u8]) -> Result<usize, EncodeError> 
                 }
             }
             Section::PieceBreaks | Section::PieceF64 | Section::PieceF32 => {
+                // fitting the pieces is the costly part of encoding: the three
+                // piece sections are written in one pass, at the first of them
+                if pieces_written {
+                    continue;
+                }
+                pieces_written = true;
+                let at_of = |want: Section| {
+                    sizes
+                        .iter()
+                        .zip(offsets.iter())
+                        .take(n_sec)
+                        .find(|((s, _, _), _)| *s == want)
+                        .map(|(_, &o)| o)
+                };
+                let (Some(off_b), Some(off_d), Some(off_f)) = (
+                    at_of(Section::PieceBreaks),
+                    at_of(Section::PieceF64),
+                    at_of(Section::PieceF32),
+                ) else {
+                    continue;
+                };
                 let per = piece_f32_len(encode_degree(parts));
                 let mut i = 0usize;
                 let mut res = Ok(());
                 all_pieces(&fit_input(parts), |_, sa, _, piece| {
                     if let (Some(pd), Ok(())) = (piece, res) {
-                        res = match section {
-                            Section::PieceBreaks => {
-                                wr_f64s(buf, off.saturating_add(i.saturating_mul(8)), [sa]).map(|_| ())
-                            }
-                            Section::PieceF64 => {
-                                let mut at = off.saturating_add(i.saturating_mul(8 * PIECE_F64_LEN));
+                        res = wr_f64s(buf, off_b.saturating_add(i.saturating_mul(8)), [sa])
+                            .and_then(|_| {
+                                let mut at = off_d.saturating_add(i.saturating_mul(8 * PIECE_F64_LEN));
                                 let mut r = Ok(());
                                 for w in pd.words {
                                     r = r.and_then(|_| wr(buf, at, &w.to_le_bytes()));
                                     at = at.saturating_add(8);
                                 }
                                 r
-                            }
-                            _ => {
-                                let at = off.saturating_add(i.saturating_mul(4 * per));
+                            })
+                            .and_then(|_| {
+                                let at = off_f.saturating_add(i.saturating_mul(4 * per));
                                 wr_f32s(buf, at, pd.f32s.iter().take(per).copied()).map(|_| ())
-                            }
-                        };
+                            });
                     }
                     i = i.saturating_add(1);
                 });
                 res?;
-                if section == Section::PieceBreaks {
-                    if let Some(&l) = parts.su_breaks.last() {
-                        wr_f64s(buf, off.saturating_add(i.saturating_mul(8)), [l])?;
-                    }
+                if let Some(&l) = parts.su_breaks.last() {
+                    wr_f64s(buf, off_b.saturating_add(i.saturating_mul(8)), [l])?;
                 }
             }
         }
