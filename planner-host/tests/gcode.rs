@@ -294,6 +294,48 @@ fn path_control_is_kept_on_every_move() {
 }
 
 #[test]
+fn surfacing_chords_lie_on_their_surface_under_their_tolerances() {
+    let p = own("chords-g64.ngc");
+    let surface = |x: f64, y: f64| 2.0 * (x / 8.0).sin() * (y / 10.0).cos();
+    let cont = |t: f64| PathControl::Continuous {
+        tolerance_mm: Some(t),
+        naive_cam_tolerance_mm: None,
+    };
+    // four rows of 100 chords of 0.4 mm and three step-overs of 4 mm at
+    // F1500; two plunges at F300
+    let lines = p
+        .moves
+        .iter()
+        .filter(|m| m.kind == MoveKind::Line && m.path_control == cont(0.02));
+    let (chords, plunges): (Vec<&Move>, Vec<&Move>) = lines.partition(|m| m.feed_mm_s == Some(25.0));
+    assert_eq!((chords.len(), plunges.len()), (400 + 3, 2));
+    for m in &chords {
+        // end points rounded to 1 µm in the program
+        assert!(
+            (m.end[2] - surface(m.end[0], m.end[1])).abs() <= 5e-4,
+            "LINE {}",
+            m.line
+        );
+    }
+    let rows = chords
+        .iter()
+        .filter(|m| (m.end[1] - m.start[1]).abs() > 0.0)
+        .count();
+    assert_eq!(rows, 3);
+    // the outline: four corners under G64 P0.05, three under G61
+    let outline: Vec<PathControl> = p
+        .moves
+        .iter()
+        .rev()
+        .skip(1)
+        .take(8)
+        .map(|m| m.path_control)
+        .collect();
+    assert_eq!(outline[..3], [PathControl::ExactStop; 3]);
+    assert!(outline[3..].iter().all(|&c| c == cont(0.05)));
+}
+
+#[test]
 fn g5_nurbs_start_at_the_current_point_with_uniform_knots() {
     let p = own("nurbs-g5-quarter.ngc");
     let m = &p.moves;

@@ -24,6 +24,8 @@
 //! - [`program`]: a whole program file (`feedplan plan PART.ngc`), every
 //!   path's table in order, each from rest where the last one stopped, with
 //!   the source line of every tick and the checker over every path.
+//! - [`programmed`]: a program's setpoints against the programmed geometry
+//!   (the G-code's lines, arcs and NURBS blocks), within 1 µm or `G64 P`.
 //! - [`report`]: the sampling study PAR / LEN / ADA and the override
 //!   scenarios (Figs 13–15, storm, holds, faults) as Markdown with figures.
 //! - [`check`]: the independent trajectory checker: every limit on the
@@ -38,6 +40,7 @@ pub mod geometry;
 pub mod metrics;
 pub mod plot;
 pub mod program;
+pub mod programmed;
 pub mod report;
 pub mod run;
 pub mod scenario;

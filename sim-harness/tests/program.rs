@@ -10,6 +10,7 @@ use planner_host::gcode::{read_str, ReadOptions};
 use planner_host::program::{plan_program, Entry, EntryKind, FilePiece, ProgramFile, ProgramOptions};
 use planner_host::{plan_curve, Machine, Nurbs, PlanConfig};
 use sim_harness::program::{check_program, run_program, ProgramRunError};
+use sim_harness::programmed::programmed_contour;
 use sim_harness::{CheckConfig, SimConfig};
 
 /// Every program of ours (planner-host's `programs/own/*.ngc`), sorted.
@@ -74,6 +75,39 @@ fn our_programs_run_to_their_last_block_within_every_limit() {
                 r.text()
             );
             assert!(r.contour.max_mm <= 1e-3);
+        }
+        // and against the programmed geometry: 1 µm, or the G64 P tolerance
+        let c = programmed_contour(&run, &prog).unwrap();
+        assert!(c.pass(), "{name}: {c:?}");
+        assert_eq!(c.setpoints, run.ticks.len());
+    }
+}
+
+#[test]
+fn chords_under_g64_are_fitted_within_the_tolerance_and_run_faster_than_exact_stops() {
+    let text = std::fs::read_to_string(own("chords-g64.ngc")).unwrap();
+    let prog = read_str(&text, ReadOptions::default()).unwrap();
+    let fitted = plan_program(&prog, &Machine::table1(), &ProgramOptions::default()).unwrap();
+    let exact = plan_program(
+        &prog,
+        &Machine::table1(),
+        &ProgramOptions {
+            fit_chords: false,
+            ..ProgramOptions::default()
+        },
+    )
+    .unwrap();
+    assert!(fitted.paths.len() * 10 < exact.paths.len());
+    assert!(fitted.predicted_time_s * 2.0 < exact.predicted_time_s);
+    for planned in [&fitted, &exact] {
+        let run = run_program(&planned.encode().unwrap(), &SimConfig::default()).unwrap();
+        let c = programmed_contour(&run, &prog).unwrap();
+        assert!(c.pass(), "{c:?}");
+        if std::ptr::eq(planned, &fitted) {
+            // the surfacing rows are rounded, by more than the exact allowance
+            assert!(c.toleranced.distance_mm > 1e-3, "{c:?}");
+        } else {
+            assert!(c.toleranced.distance_mm <= 1e-3, "{c:?}");
         }
     }
 }

@@ -63,6 +63,10 @@ enum Cmd {
         /// G-code program: skip the lines that start with '/' (block delete).
         #[arg(long)]
         block_delete: bool,
+        /// G-code program: stop at every corner, as under G61, instead of fitting runs of G1
+        /// chords under `G64 P` into smooth paths within the tolerance.
+        #[arg(long)]
+        exact_corners: bool,
         /// Sampling of the toolpath: par, len or ada (paper §3); a G-code program is sampled len.
         #[arg(long, default_value = "len")]
         sampling: Sampling,
@@ -308,6 +312,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
             curve,
             machine,
             block_delete,
+            exact_corners,
             sampling,
             density,
             limits: lim_path,
@@ -344,7 +349,11 @@ fn run(cli: Cli) -> Result<(), Failure> {
                         "a G-code program is planned with the certified formulation, jerk-limited ends and the machine file's servo period: --formulation, --sampling, --ends, --checks-per-span, --override-levels and --period-us go with a curve",
                     ));
                 }
-                return plan_program_cmd(&curve, &machine, density, block_delete, &output, json);
+                let opts = planner_host::program::ProgramOptions {
+                    density_per_mm: density,
+                    fit_chords: !exact_corners,
+                };
+                return plan_program_cmd(&curve, &machine, &opts, block_delete, &output, json);
             }
             let curve = load_curve(&curve)?;
             let limits = machine.limits;
@@ -435,13 +444,14 @@ fn run(cli: Cli) -> Result<(), Failure> {
 fn plan_program_cmd(
     path: &std::path::Path,
     machine: &planner_host::Machine,
-    density: f64,
+    opts: &planner_host::program::ProgramOptions,
     block_delete: bool,
     output: &std::path::Path,
     json: bool,
 ) -> Result<(), Failure> {
     use planner_host::gcode;
-    use planner_host::program::{plan_program, ProgramOptions};
+    use planner_host::program::plan_program;
+    let density = opts.density_per_mm;
     let bytes = std::fs::read(path)
         .map_err(|e| Failure::new(EXIT_INPUT, format!("cannot read {}: {e}", path.display())))?;
     let prog = gcode::read_bytes(&bytes, gcode::ReadOptions { block_delete })
@@ -458,14 +468,7 @@ fn plan_program_cmd(
             format!("{}: {e}", path.display()),
         )
     };
-    let planned = plan_program(
-        &prog,
-        machine,
-        &ProgramOptions {
-            density_per_mm: density,
-        },
-    )
-    .map_err(fail)?;
+    let planned = plan_program(&prog, machine, opts).map_err(fail)?;
     let file = planned.encode().map_err(fail)?;
     let text = if json {
         let mut v = serde_json::to_value(&planned)?;

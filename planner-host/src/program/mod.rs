@@ -4,6 +4,8 @@
 //!
 //! - [`pieces`]: one move as a NURBS piece (lines and arcs exactly, helices
 //!   fitted within 1e-4 mm, NURBS as given), degree elevation;
+//! - [`fit`]: runs of G1 chords under `G64 P` as one smooth spline within
+//!   the tolerance;
 //! - [`paths`]: runs of tangent-continuous feed moves joined into one curve,
 //!   rapids, stops at corners (docs/gcode.md, "What a program becomes");
 //! - [`travel`]: the machine's travel limits, checked before any motion;
@@ -13,13 +15,14 @@
 //!   lines, CRC-checked.
 
 pub mod file;
+pub mod fit;
 pub mod paths;
 pub mod pieces;
 pub mod plan;
 pub mod travel;
 
 pub use file::{Entry, EntryKind, FilePiece, ProgramFile, ProgramFileError};
-pub use paths::{paths_for, paths_of, Path, PathError, PathKind, PathPiece, Paths};
+pub use paths::{paths_for, paths_of, Fitted, Path, PathError, PathKind, PathOptions, PathPiece, Paths};
 pub use plan::{plan_program, PlannedPath, PlannedProgram, ProgramError, ProgramOptions};
 pub use travel::{check_travel, TravelError};
 

@@ -16,9 +16,22 @@
 //!   stops at the end of every move).
 //!
 //! Anything else — a corner, a rapid, a feed change, G61 — ends the path:
-//! the machine stops there. **G64 P/Q tolerances are not used yet**: corners
-//! are exact stops in this version, and a warning says so once per
-//! tolerance (`G64 P0.1: corners are exact stops in this version`).
+//! the machine stops there, except inside a run of chords.
+//!
+//! **Runs of chords under `G64 P tol`.** Consecutive G1 lines under a path
+//! tolerance (`G64 P` > 0 on both moves at the corner), at the same feed,
+//! whose direction turns by at most [`FIT_MAX_TURN_RAD`] at each corner, form
+//! one run; the run becomes one path, a smooth cubic B-spline within the
+//! smallest tolerance of its moves from the programmed lines
+//! ([`super::fit`]): the machine neither stops nor crawls at the chords'
+//! corners, and a corner between two long lines is rounded within the
+//! tolerance. A run whose fit does not reach the tolerance keeps its corners
+//! as exact stops (with a warning). Corners between arcs or NURBS blocks are
+//! exact stops even under G64 P (a warning says so once), and so are all
+//! corners under `G64` without P (LinuxCNC then blends without a bound on
+//! the deviation, which this planner does not do), under G61, and when the
+//! caller asks for exact corners ([`PathOptions::fit_chords`] false:
+//! the machine stops at every corner, as under G61).
 //!
 //! **Rapids** (G0) are each a straight path of their own, planned later at
 //! the machine's rapid velocity, from rest to rest.
@@ -42,11 +55,16 @@
 use crate::gcode::{Move, MoveKind, PathControl, Program};
 use crate::geometry::curve::Nurbs;
 use crate::geometry::junction::CORNER_ANGLE_RAD;
+use crate::program::fit::{fit_chords, FitError};
 use crate::program::pieces::{self, angle_between, move_length, norm, sub, Piece, PieceError};
 
 /// Largest tangent turn between two moves that still joins them into one
 /// path, rad.
 pub const JOIN_ANGLE_RAD: f64 = 0.5 * CORNER_ANGLE_RAD;
+
+/// Largest turn at a corner inside a run of chords that is fitted, rad
+/// (150°); a sharper corner is an exact stop.
+pub const FIT_MAX_TURN_RAD: f64 = 150.0 * std::f64::consts::PI / 180.0;
 
 /// Moves shorter than this are dropped, mm (1 µm).
 pub const MIN_MOVE_MM: f64 = 1e-3;
@@ -87,6 +105,21 @@ pub struct Path {
     pub first_line: usize,
     /// Source line of the last move.
     pub last_line: usize,
+    /// A fitted run of chords: how close it stays to the programmed lines.
+    pub fit: Option<Fitted>,
+}
+
+/// How a run of chords was fitted ([`super::fit`]).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct Fitted {
+    /// The path tolerance (`G64 P`, the smallest of the run), mm.
+    pub tolerance_mm: f64,
+    /// Largest distance measured between the spline and the lines, mm.
+    pub deviation_mm: f64,
+    /// Chords in the run.
+    pub chords: usize,
+    /// Knot spans of the spline.
+    pub spans: usize,
 }
 
 /// Why a program's moves do not give paths.
@@ -130,25 +163,61 @@ pub struct Paths {
     pub warnings: Vec<String>,
 }
 
+/// How moves become paths.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PathOptions {
+    /// The machine's feed limit, mm/s: two feeds above it are the same feed
+    /// (both run at the limit), so they do not end a path.
+    pub feed_cap_mm_s: f64,
+    /// Fit runs of G1 chords under `G64 P` (see the module docs); false
+    /// stops the machine at every corner.
+    pub fit_chords: bool,
+}
+
+impl Default for PathOptions {
+    fn default() -> Self {
+        PathOptions {
+            feed_cap_mm_s: f64::INFINITY,
+            fit_chords: true,
+        }
+    }
+}
+
 struct Open {
     kind: PathKind,
     feed: Option<f64>,
     pieces: Vec<(usize, Piece, f64)>,
+    /// A run of chords to fit: the tolerance so far (mm).
+    chords: Option<f64>,
+}
+
+/// The path tolerance of a G1 move under `G64 P` > 0.
+fn chord_tolerance(m: &Move) -> Option<f64> {
+    match (m.kind, m.path_control) {
+        (
+            MoveKind::Line,
+            PathControl::Continuous {
+                tolerance_mm: Some(t),
+                ..
+            },
+        ) if t > 0.0 => Some(t),
+        _ => None,
+    }
+}
+
+/// The paths of `program` with the default options (chords fitted, no feed
+/// cap).
+pub fn paths_of(program: &Program) -> Result<Paths, PathError> {
+    paths_for(program, &PathOptions::default())
 }
 
 /// The paths of `program` (see the module docs).
-pub fn paths_of(program: &Program) -> Result<Paths, PathError> {
-    paths_for(program, f64::INFINITY)
-}
-
-/// The paths of `program` for a machine whose feed limit is `feed_cap_mm_s`:
-/// two feeds above it are the same feed (both run at the cap), so they do
-/// not end a path.
-pub fn paths_for(program: &Program, feed_cap_mm_s: f64) -> Result<Paths, PathError> {
-    let cap = |f: Option<f64>| f.map(|f| f.min(feed_cap_mm_s));
+pub fn paths_for(program: &Program, opts: &PathOptions) -> Result<Paths, PathError> {
+    let cap = |f: Option<f64>| f.map(|f| f.min(opts.feed_cap_mm_s));
     let mut out = Paths::default();
     let moves = drop_short(&program.moves, &mut out.warnings)?;
     let mut warned_tol: Vec<String> = Vec::new();
+    let mut warned_curve_corner = false;
     let mut open: Option<Open> = None;
     let mut prev_exact_stop = false;
     for m in &moves {
@@ -157,7 +226,14 @@ pub fn paths_for(program: &Program, feed_cap_mm_s: f64) -> Result<Paths, PathErr
             naive_cam_tolerance_mm,
         } = m.path_control
         {
-            if m.kind != MoveKind::Rapid && (tolerance_mm.is_some() || naive_cam_tolerance_mm.is_some()) {
+            let unused = if !opts.fit_chords {
+                Some("corners are exact stops (exact corners asked for)")
+            } else if tolerance_mm.is_none() && naive_cam_tolerance_mm.is_some() {
+                Some("Q alone does not bound the path: corners are exact stops")
+            } else {
+                None
+            };
+            if let (Some(why), true) = (unused, m.kind != MoveKind::Rapid) {
                 let mut w = String::from("G64");
                 if let Some(p) = tolerance_mm {
                     w.push_str(&format!(" P{p}"));
@@ -166,10 +242,7 @@ pub fn paths_for(program: &Program, feed_cap_mm_s: f64) -> Result<Paths, PathErr
                     w.push_str(&format!(" Q{q}"));
                 }
                 if !warned_tol.contains(&w) {
-                    out.warnings.push(format!(
-                        "LINE {}: {w}: corners are exact stops in this version (no blending yet)",
-                        m.line
-                    ));
+                    out.warnings.push(format!("LINE {}: {w}: {why}", m.line));
                     warned_tol.push(w);
                 }
             }
@@ -181,47 +254,135 @@ pub fn paths_for(program: &Program, feed_cap_mm_s: f64) -> Result<Paths, PathErr
         } else {
             PathKind::Feed
         };
-        let joins = match &open {
+        let tol = chord_tolerance(m).filter(|_| opts.fit_chords);
+        // what the open path becomes: None (a stop before m), or its run
+        // tolerance after m joins (Some(None): not a run of chords)
+        let joined: Option<Option<f64>> = match &open {
             Some(o) if kind == PathKind::Feed && o.kind == PathKind::Feed && !prev_exact_stop => {
-                let tangent = match (
+                let turn = match (
                     o.pieces.last().and_then(|p| p.1.end_tangent()),
                     piece.start_tangent(),
                 ) {
-                    (Some(a), Some(b)) => angle_between(a, b) <= JOIN_ANGLE_RAD,
-                    _ => false,
+                    (Some(a), Some(b)) => angle_between(a, b),
+                    _ => f64::INFINITY,
                 };
+                let tangent = turn <= JOIN_ANGLE_RAD;
                 let same_feed = cap(o.feed) == cap(m.feed_mm_s);
-                if tangent && !same_feed {
+                let run = match (o.chords, tol) {
+                    (Some(r), Some(t)) if turn <= FIT_MAX_TURN_RAD => Some(Some(r.min(t))),
+                    // a single line under G64 P may still go on tangentially into a curve
+                    (Some(_), _) if tangent && o.pieces.len() == 1 && m.kind != MoveKind::Line => Some(None),
+                    (None, _) if tangent => Some(None),
+                    _ => None,
+                };
+                if run.is_some() && !same_feed {
                     out.warnings.push(format!(
-                        "LINE {}: the feed changes inside a tangent run ({:.3} to {:.3} mm/min): the machine stops there in this version",
+                        "LINE {}: the feed changes inside a continuous run ({:.3} to {:.3} mm/min): the machine stops there in this version",
                         m.line,
                         o.feed.unwrap_or(0.0) * 60.0,
                         m.feed_mm_s.unwrap_or(0.0) * 60.0
                     ));
                 }
-                tangent && same_feed
+                let curve_corner = run.is_none() && !tangent && turn <= FIT_MAX_TURN_RAD;
+                if curve_corner && tol.is_some() && !warned_curve_corner {
+                    out.warnings.push(format!(
+                        "LINE {}: a corner next to an arc or NURBS block is an exact stop even under G64 P (only runs of G1 lines are blended)",
+                        m.line
+                    ));
+                    warned_curve_corner = true;
+                }
+                run.filter(|_| same_feed)
             }
-            _ => false,
+            _ => None,
         };
-        if !joins {
-            if let Some(o) = open.take() {
-                out.paths.push(close(o)?);
+        match (joined, open.as_mut()) {
+            (Some(run), Some(o)) => {
+                o.chords = run;
+                o.pieces.push((m.line, piece, len));
             }
-            open = Some(Open {
-                kind,
-                feed: cap(m.feed_mm_s),
-                pieces: Vec::new(),
-            });
-        }
-        if let Some(o) = open.as_mut() {
-            o.pieces.push((m.line, piece, len));
+            _ => {
+                if let Some(o) = open.take() {
+                    close_into(o, &mut out)?;
+                }
+                open = Some(Open {
+                    kind,
+                    feed: cap(m.feed_mm_s),
+                    pieces: vec![(m.line, piece, len)],
+                    chords: tol,
+                });
+            }
         }
         prev_exact_stop = m.path_control == PathControl::ExactStop || kind == PathKind::Rapid;
     }
     if let Some(o) = open.take() {
-        out.paths.push(close(o)?);
+        close_into(o, &mut out)?;
     }
     Ok(out)
+}
+
+/// Close an open path: a run of chords is fitted (its corners kept as
+/// exact stops when the fit fails); anything else is joined.
+fn close_into(o: Open, out: &mut Paths) -> Result<(), PathError> {
+    let Some(tol) = o.chords.filter(|_| o.pieces.len() >= 2) else {
+        out.paths.push(close(o)?);
+        return Ok(());
+    };
+    let mut vertices = Vec::with_capacity(o.pieces.len() + 1);
+    vertices.push(o.pieces[0].1.start());
+    vertices.extend(o.pieces.iter().map(|p| p.1.end()));
+    let first = o.pieces[0].0;
+    let last = o.pieces[o.pieces.len() - 1].0;
+    match fit_chords(&vertices, tol) {
+        Ok(fit) => {
+            let weights = vec![1.0; fit.piece.hpoints.len()];
+            let points = fit.piece.hpoints.iter().map(|h| [h[0], h[1], h[2]]).collect();
+            let mut curve = Nurbs::new(fit.piece.degree, fit.piece.knots, weights, points).map_err(|e| {
+                PathError::Join {
+                    first,
+                    last,
+                    why: e.to_string(),
+                }
+            })?;
+            curve.name = format!("LINE {first}..{last}");
+            let pieces = o
+                .pieces
+                .iter()
+                .zip(&fit.vertex_u[1..])
+                .map(|(p, &u)| PathPiece { line: p.0, u_end: u })
+                .collect();
+            out.paths.push(Path {
+                kind: o.kind,
+                curve,
+                feed_mm_s: o.feed,
+                pieces,
+                first_line: first,
+                last_line: last,
+                fit: Some(Fitted {
+                    tolerance_mm: tol,
+                    deviation_mm: fit.max_dev_mm,
+                    chords: o.pieces.len(),
+                    spans: fit.spans,
+                }),
+            });
+        }
+        Err(e) => {
+            let why = match e {
+                FitError::NotWithin { .. } | FitError::Degenerate => e.to_string(),
+            };
+            out.warnings.push(format!(
+                "LINE {first}..{last}: the chords are not blended ({why}): their corners are exact stops"
+            ));
+            for p in o.pieces {
+                out.paths.push(close(Open {
+                    kind: o.kind,
+                    feed: o.feed,
+                    pieces: vec![p],
+                    chords: None,
+                })?);
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Drop moves under 1 µm, stretching a neighbouring straight move over a
@@ -328,6 +489,7 @@ fn close(o: Open) -> Result<Path, PathError> {
         pieces: out_pieces,
         first_line: first,
         last_line: last,
+        fit: None,
     })
 }
 

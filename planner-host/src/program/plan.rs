@@ -21,7 +21,7 @@ use crate::geometry::arc_length::ArcLength;
 use crate::machine::Machine;
 use crate::plan::{plan_curve, PlanConfig, PlanError};
 use crate::program::file::{Entry, EntryKind, FilePiece, ProgramFile};
-use crate::program::paths::{paths_for, Path, PathError, PathKind};
+use crate::program::paths::{paths_for, Path, PathError, PathKind, PathOptions};
 use crate::program::travel::{check_travel, TravelError};
 
 /// Fewest sampling points of a path.
@@ -35,11 +35,17 @@ pub const SUMMARY_PATHS: usize = 40;
 pub struct ProgramOptions {
     /// Sampling density, points per mm (at least [`MIN_POINTS`] per path).
     pub density_per_mm: f64,
+    /// Fit runs of G1 chords under `G64 P` into smooth paths
+    /// ([`crate::program::fit`]); false stops at every corner.
+    pub fit_chords: bool,
 }
 
 impl Default for ProgramOptions {
     fn default() -> Self {
-        ProgramOptions { density_per_mm: 1.0 }
+        ProgramOptions {
+            density_per_mm: 1.0,
+            fit_chords: true,
+        }
     }
 }
 
@@ -134,7 +140,13 @@ pub fn plan_program(
     opts: &ProgramOptions,
 ) -> Result<PlannedProgram, ProgramError> {
     let t0 = Instant::now();
-    let made = paths_for(program, machine.limits.vbar)?;
+    let made = paths_for(
+        program,
+        &PathOptions {
+            feed_cap_mm_s: machine.limits.vbar,
+            fit_chords: opts.fit_chords,
+        },
+    )?;
     if made.paths.is_empty() {
         return Err(ProgramError::Empty);
     }

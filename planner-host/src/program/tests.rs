@@ -171,7 +171,14 @@ fn corners_feed_changes_and_rapids_end_paths() {
         ReadOptions::default(),
     )
     .unwrap();
-    let capped = crate::program::paths::paths_for(&prog, 100.0).unwrap();
+    let capped = crate::program::paths::paths_for(
+        &prog,
+        &crate::program::paths::PathOptions {
+            feed_cap_mm_s: 100.0,
+            ..Default::default()
+        },
+    )
+    .unwrap();
     assert_eq!(capped.paths.len(), 1);
     assert_eq!(capped.paths[0].feed_mm_s, Some(100.0));
     assert!(capped.warnings.is_empty());
@@ -179,13 +186,38 @@ fn corners_feed_changes_and_rapids_end_paths() {
     // G61 stops after every move, even a tangent one
     let (_, p) = read("G21 G17 G61 F600\nG1 X10\nG1 X20\nM2\n");
     assert_eq!(p.paths.len(), 2);
-    // G64 P is recorded as not blended
-    let (_, p) = read("G21 G17 G64 P0.1 F600\nG1 X10\nG1 Y10\nM2\n");
-    assert_eq!(p.paths.len(), 2);
-    assert!(p
+    // G64 P rounds a corner between lines within the tolerance: one path
+    let text = "G21 G17 G64 P0.1 F600\nG1 X10\nG1 Y10\nG1 X0\nM2\n";
+    let (_, p) = read(text);
+    let prog = read_str(text, ReadOptions::default()).unwrap();
+    assert_eq!(p.paths.len(), 1);
+    let fit = p.paths[0].fit.expect("a fitted run");
+    assert_eq!(fit.chords, 3);
+    assert!(fit.deviation_mm <= 0.1, "{}", fit.deviation_mm);
+    let u_ends: Vec<f64> = p.paths[0].pieces.iter().map(|x| x.u_end).collect();
+    assert_eq!(u_ends.len(), 3);
+    assert!(u_ends.windows(2).all(|w| w[0] < w[1]) && u_ends[2] == 1.0);
+    // ... unless exact corners are asked for
+    let exact = crate::program::paths::paths_for(
+        &prog,
+        &crate::program::paths::PathOptions {
+            fit_chords: false,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(exact.paths.len(), 3);
+    assert!(exact
         .warnings
         .iter()
-        .any(|w| w.contains("G64 P0.1: corners are exact stops in this version")));
+        .any(|w| w.contains("G64 P0.1: corners are exact stops")));
+    // a reversal is sharper than a blend may turn: a stop
+    let (_, p) = read("G21 G17 G64 P0.1 F600\nG1 X10\nG1 X0.5 Y0.1\nM2\n");
+    assert_eq!(p.paths.len(), 2);
+    // a corner between an arc and a line stays a stop, with a warning
+    let (_, p) = read("G21 G17 G64 P0.1 F600\nG1 X10\nG3 X10 Y10 I-5 J5\nG1 X0\nM2\n");
+    assert!(p.paths.len() >= 2);
+    assert!(p.warnings.iter().any(|w| w.contains("next to an arc")));
 }
 
 #[test]

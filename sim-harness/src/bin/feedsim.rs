@@ -81,6 +81,11 @@ enum Cmd {
         /// With --check: ticks at rest added before the first and after the last setpoint.
         #[arg(long, default_value_t = 50, requires = "check")]
         pad_rest: usize,
+        /// With --check on a program file: the G-code program it was planned from; every
+        /// setpoint is measured against the programmed lines, arcs and NURBS blocks (within 1 um,
+        /// or within G64 P where the program allows rounding); exit 5 if one is farther.
+        #[arg(long, requires = "check")]
+        program: Option<PathBuf>,
     },
     /// Check setpoints against a curve and every limit, with the machine at rest before and after.
     ///
@@ -385,6 +390,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
             check,
             tol,
             pad_rest,
+            program,
         } => {
             let bytes = std::fs::read(&table).map_err(|e| format!("cannot read {}: {e}", table.display()))?;
             let is_program = planner_host::program::ProgramFile::is_program(&bytes);
@@ -415,8 +421,15 @@ fn run(cli: Cli) -> Result<(), Failure> {
                     plot: plot.as_deref(),
                     json,
                     check: check.then_some((tol, pad_rest)),
+                    program: program.as_deref(),
                 };
                 return run_program_cmd(&table, &bytes, &cfg, &opts);
+            }
+            if program.is_some() {
+                return Err(Failure {
+                    code: planner_host::cli::EXIT_USAGE,
+                    message: "--program goes with a program file (feedplan plan PART.ngc)".into(),
+                });
             }
             let res = run_table(&bytes, &cfg).map_err(|e| sim_failure(e, &table))?;
             if let Some(path) = &csv {
@@ -613,6 +626,8 @@ struct ProgramRunOptions<'a> {
     json: bool,
     /// --check: (tol, pad_rest).
     check: Option<(f64, usize)>,
+    /// --program: the G-code it was planned from.
+    program: Option<&'a Path>,
 }
 
 /// `feedsim run --json` for a program file.
@@ -631,6 +646,8 @@ struct ProgramRunOut<'a> {
     warnings: &'a [String],
     #[serde(skip_serializing_if = "Option::is_none")]
     check: Option<&'a [CheckReport]>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    programmed_contour: Option<sim_harness::programmed::ProgrammedContour>,
     #[serde(skip_serializing_if = "Option::is_none")]
     csv: Option<String>,
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -676,6 +693,18 @@ fn run_program_cmd(
         ),
         None => None,
     };
+    let programmed = match o.program {
+        Some(path) => {
+            let text = std::fs::read(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+            let prog = planner_host::gcode::read_bytes(&text, planner_host::gcode::ReadOptions::default())
+                .map_err(|e| Failure::input(format!("{}: {e}", path.display())))?;
+            Some(
+                sim_harness::programmed::programmed_contour(&run, &prog)
+                    .map_err(|e| Failure::input(format!("{}: {e}", path.display())))?,
+            )
+        }
+        None => None,
+    };
     let predicted: f64 = run.paths.iter().map(|p| p.predicted_time_s).sum();
     if o.json {
         let out = ProgramRunOut {
@@ -691,6 +720,7 @@ fn run_program_cmd(
             setpoints: run.ticks.len(),
             warnings: &run.file.warnings,
             check: reports.as_deref(),
+            programmed_contour: programmed,
             csv: o.csv.map(|p| p.display().to_string()),
             plot: o.plot.map(|p| p.display().to_string()),
         };
@@ -772,6 +802,34 @@ fn run_program_cmd(
                 if r.iter().all(|x| x.ok) { "pass" } else { "FAIL" }
             );
         }
+        if let Some(c) = &programmed {
+            outln!(
+                "contour against the programmed geometry ({} setpoints): exact moves {:.3e} mm (allowed {:.0e}, LINE {}), moves under G64 P {:.3e} mm (allowed {:.3e}, LINE {}); {}",
+                c.setpoints,
+                c.exact.distance_mm,
+                sim_harness::programmed::EXACT_MM,
+                c.exact.line,
+                c.toleranced.distance_mm,
+                c.toleranced.allowed_mm,
+                c.toleranced.line,
+                if c.pass() { "pass" } else { "FAIL" }
+            );
+        }
+    }
+    if let Some(c) = programmed.filter(|c| !c.pass()) {
+        return Err(Failure {
+            code: EXIT_LIMIT,
+            message: format!(
+                "{}: a setpoint leaves the programmed path: {:.3e} mm at LINE {} (allowed {:.0e}), {:.3e} mm at LINE {} (allowed {:.3e})",
+                table.display(),
+                c.exact.distance_mm,
+                c.exact.line,
+                sim_harness::programmed::EXACT_MM,
+                c.toleranced.distance_mm,
+                c.toleranced.line,
+                c.toleranced.allowed_mm
+            ),
+        });
     }
     if let Some(r) = &reports {
         for (p, rep) in run.paths.iter().zip(r) {
