@@ -27,7 +27,8 @@
 //! bound of the vertex's distance to the curve). A span whose error exceeds
 //! [`FIT_TARGET`]`·tol`, or whose parametric speed falls below
 //! [`MIN_SPEED`]`·L` (a fit about to fold over a sharp corner), is split at
-//! its middle, and the fit is solved again; at most [`MAX_ROUNDS`] rounds.
+//! its middle, and the fit is solved again; at most [`MAX_ROUNDS`] rounds
+//! and [`MAX_SPANS_PER_CHORD`] spans per chord.
 //! The result's error is measured once more at twice the density and
 //! reported; a fit that does not reach `tol` is refused ([`FitError`]) and
 //! the caller keeps the corners as exact stops.
@@ -70,6 +71,13 @@ pub const MIN_SPEED: f64 = 0.05;
 /// Most refinement rounds.
 pub const MAX_ROUNDS: usize = 40;
 
+/// Most knot spans per chord (and [`MAX_SPANS_EXTRA`] more): the refinement
+/// stops there, and a fit still over its tolerance is refused.
+pub const MAX_SPANS_PER_CHORD: usize = 8;
+
+/// Knot spans allowed beyond [`MAX_SPANS_PER_CHORD`] per chord.
+pub const MAX_SPANS_EXTRA: usize = 64;
+
 /// A knot span shorter than this (mm of chord length) is not split again.
 const MIN_SPAN_MM: f64 = 1e-5;
 
@@ -90,8 +98,8 @@ pub struct ChordFit {
 #[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
 #[non_exhaustive]
 pub enum FitError {
-    /// Fewer than two chords, or a chord of zero length.
-    #[error("a run of chords needs at least two chords of non-zero length")]
+    /// Fewer than two chords, or a chord of zero or non-finite length.
+    #[error("a run of chords needs at least two chords of finite, non-zero length")]
     Degenerate,
     /// The refinement did not bring the spline within the tolerance.
     #[error("the fitted spline stays {dev_mm:.3e} mm from the chords (tolerance {tol_mm:.3e} mm)")]
@@ -227,7 +235,7 @@ pub fn fit_chords(vertices: &[[f64; 3]], tol_mm: f64) -> Result<ChordFit, FitErr
             .map(|e| 0.5 * (e.0 .0 + e.0 .1))
             .collect();
         best = Some((spline, worst));
-        if split.is_empty() {
+        if split.is_empty() || breaks.len() + split.len() > MAX_SPANS_PER_CHORD * n_chords + MAX_SPANS_EXTRA {
             break;
         }
         breaks.append(&mut split);
