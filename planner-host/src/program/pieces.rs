@@ -410,7 +410,93 @@ fn bezier3(b: &[[f64; 3]; 4], t: f64) -> [f64; 3] {
     std::array::from_fn(|k| c[0] * b[0][k] + c[1] * b[1][k] + c[2] * b[2][k] + c[3] * b[3][k])
 }
 
-/// A NURBS move as a piece (degree 1 elevated to 2).
+/// Arc length cut from a NURBS end whose first (or last) two control points
+/// coincide, mm: there the curve stands still (dC/du = 0), which no
+/// arc-length parametrisation can follow ([`trim_still_ends`]).
+pub const STILL_END_TRIM_MM: f64 = 2e-4;
+
+/// A NURBS whose first two control points coincide (LinuxCNC's trident
+/// samples list the current point again as their first G5.2 point) stands
+/// still at its start: |dC/du| = 0 there, the s → u map is singular and the
+/// planner refuses the curve. The piece is split by knot insertion where it
+/// has run [`STILL_END_TRIM_MM`] (measured as a chord), the first part is
+/// dropped, and the second part's first control point is put back on the
+/// curve's start, so that the piece still starts exactly where the program
+/// says and now moves from there at once. The curve moves by at most about
+/// [`STILL_END_TRIM_MM`] near that end (the programmed-geometry check
+/// allows 1 µm); the last two control points are treated the same way.
+pub fn trim_still_ends(piece: Piece) -> Piece {
+    let piece = trim_still_start(piece);
+    reversed(&trim_still_start(reversed(&piece)))
+}
+
+fn reversed(p: &Piece) -> Piece {
+    let (a, b) = (p.knots[0], p.knots[p.knots.len() - 1]);
+    Piece {
+        degree: p.degree,
+        knots: p.knots.iter().rev().map(|&u| a + b - u).collect(),
+        hpoints: p.hpoints.iter().rev().copied().collect(),
+    }
+}
+
+fn trim_still_start(piece: Piece) -> Piece {
+    let p = piece.degree;
+    let (p0, p1) = (piece.start(), cart(piece.hpoints[1]));
+    let scale = 1.0 + norm(p0);
+    if norm(sub(p1, p0)) > 1e-12 * scale || piece.hpoints.len() <= p + 1 && p < 2 {
+        return piece;
+    }
+    let Some(curve) = piece_curve(&piece) else {
+        return piece;
+    };
+    let (a, b) = (piece.knots[0], piece.knots[piece.knots.len() - 1]);
+    // the parameter where the chord from the start reaches the trim length
+    let chord = |u: f64| norm(sub(curve.point(u), p0));
+    let mut hi = a + (b - a) * 1e-3;
+    while chord(hi) < STILL_END_TRIM_MM && hi < b {
+        hi = (a + 2.0 * (hi - a)).min(b);
+    }
+    if chord(hi) < STILL_END_TRIM_MM {
+        return piece;
+    }
+    let mut lo = a;
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if chord(mid) < STILL_END_TRIM_MM {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    let eps = hi;
+    if !(eps > a && eps < piece.knots[p + 1]) {
+        return piece;
+    }
+    let mut c = piece.clone();
+    for _ in 0..p {
+        c = c.insert_knot(eps);
+    }
+    // knots now: a (p+1 times), eps (p times), ...; the point at eps is
+    // control point p, where the right part starts
+    let mut knots = vec![eps; p + 1];
+    knots.extend_from_slice(&c.knots[2 * p + 1..]);
+    let mut hpoints = c.hpoints[p..].to_vec();
+    hpoints[0] = homog(p0, hpoints[0][3]);
+    Piece {
+        degree: p,
+        knots,
+        hpoints,
+    }
+}
+
+fn piece_curve(p: &Piece) -> Option<crate::geometry::curve::Nurbs> {
+    let w: Vec<f64> = p.hpoints.iter().map(|h| h[3]).collect();
+    let pts = p.hpoints.iter().map(|&h| cart(h)).collect();
+    crate::geometry::curve::Nurbs::new(p.degree, p.knots.clone(), w, pts).ok()
+}
+
+/// A NURBS move as a piece (degree 1 elevated to 2; ends where the curve
+/// stands still trimmed, [`trim_still_ends`]).
 pub fn nurbs(m: &Move) -> Result<Piece, PieceError> {
     let g = m.nurbs.as_ref().ok_or(PieceError::NoGeometry)?;
     let p = g.degree;
@@ -432,7 +518,7 @@ pub fn nurbs(m: &Move) -> Result<Piece, PieceError> {
             .map(|(&pt, &w)| homog(pt, w))
             .collect(),
     };
-    Ok(if p < 2 { piece.elevated(2) } else { piece })
+    Ok(trim_still_ends(if p < 2 { piece.elevated(2) } else { piece }))
 }
 
 /// The piece of a move: a line for a rapid or a line, [`arc`], [`nurbs`].

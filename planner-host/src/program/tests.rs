@@ -366,3 +366,68 @@ mod planned {
         assert_eq!(kinds, vec![2, 1, 1, 3, 2]);
     }
 }
+
+#[test]
+fn a_nurbs_that_stands_still_at_its_start_is_trimmed_onto_its_start() {
+    // LinuxCNC's trident: the current point listed again as the first G5.2 point
+    let text = "G21 G17 G0 X10 Y0\nG5.2 P1 L4 F600\nX10 Y0 P1\nX20 Y20 P1\nX12 Y8 P1\nX10 Y20 P1\nG5.3\nM2\n";
+    let (moves, p) = read(text);
+    let feed: Vec<_> = p
+        .paths
+        .iter()
+        .filter(|x| x.kind == crate::program::paths::PathKind::Feed)
+        .collect();
+    assert_eq!(feed.len(), 1);
+    let curve = &feed[0].curve;
+    // starts exactly on the programmed start, and moves from there at once
+    assert_eq!(curve.point(0.0), [10.0, 0.0, 0.0]);
+    let speed = curve.derivs_u(0.0)[1];
+    assert!(speed.iter().map(|c| c * c).sum::<f64>().sqrt() > 0.0);
+    // within 1 µm of the programmed curve everywhere
+    let m = moves.iter().find(|m| m.kind == MoveKind::Nurbs).unwrap();
+    let programmed = crate::program::pieces::Piece {
+        degree: 3,
+        knots: m.nurbs.as_ref().unwrap().knots.clone(),
+        hpoints: m
+            .nurbs
+            .as_ref()
+            .unwrap()
+            .control_points
+            .iter()
+            .map(|c| [c[0], c[1], c[2], 1.0])
+            .collect(),
+    };
+    let exact = crate::geometry::curve::Nurbs::new(
+        3,
+        programmed.knots.clone(),
+        vec![1.0; programmed.hpoints.len()],
+        programmed.hpoints.iter().map(|h| [h[0], h[1], h[2]]).collect(),
+    )
+    .unwrap();
+    let top = exact.u_range().1;
+    let n = 4_000;
+    let dist = |x: [f64; 3], u: f64| norm(sub(x, exact.point(u)));
+    for i in 0..=2_000 {
+        let x = curve.point(i as f64 / 2_000.0);
+        // nearest sample, then a ternary search around it
+        let k = (0..=n)
+            .min_by(|&a, &b| {
+                dist(x, a as f64 / n as f64 * top).total_cmp(&dist(x, b as f64 / n as f64 * top))
+            })
+            .unwrap();
+        let (mut lo, mut hi) = (
+            (k as f64 - 1.0).max(0.0) / n as f64 * top,
+            ((k + 1) as f64).min(n as f64) / n as f64 * top,
+        );
+        for _ in 0..100 {
+            let (m1, m2) = (lo + (hi - lo) / 3.0, hi - (hi - lo) / 3.0);
+            if dist(x, m1) < dist(x, m2) {
+                hi = m2;
+            } else {
+                lo = m1;
+            }
+        }
+        let d = dist(x, 0.5 * (lo + hi));
+        assert!(d < 1e-3, "{d} mm at {i}");
+    }
+}
