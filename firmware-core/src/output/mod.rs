@@ -2,7 +2,8 @@
 //! command queue, a DMA buffer, a host-side recorder).
 //!
 //! Implementations here: `&mut S`, [`FnSink`] (a closure),
-//! `heapless::Vec` (a recorder, [`Full`] when full) and, with the
+//! `heapless::Vec` (a recorder, [`Full`] when full), [`step_dir`] (step
+//! and direction pulses per servo period, no drift) and, with the
 //! `embedded-hal` feature, the examples of `output::hal`: setpoints as CRC-checked
 //! SPI frames to servo drives, and a sync strobe pin.
 
@@ -10,6 +11,7 @@ use crate::interp::setpoint::Setpoint;
 
 #[cfg(feature = "embedded-hal")]
 pub mod hal;
+pub mod step_dir;
 
 /// Receives setpoints from [`crate::interp::Interpolator::run`], one per tick.
 pub trait SetpointSink {
