@@ -28,7 +28,20 @@
 //! max_jerk = 16000                  # MAX_JERK, units/s³
 //! min_limit = -1000                 # MIN_LIMIT, units
 //! max_limit = 1000                  # MAX_LIMIT, units
+//! step_scale = 200                  # STEP_SCALE: steps per unit (with [stepgen])
+//! dir_invert = false                # the direction pin low for motion towards +
+//!
+//! [stepgen]                         # step and direction output (LinuxCNC's stepgen)
+//! steplen_ns = 2000                 # STEPLEN: step pulse high time, ns
+//! stepspace_ns = 2000               # STEPSPACE: low time between steps, ns
+//! dirsetup_ns = 5000                # DIRSETUP: direction stable before a step, ns
+//! max_step_rate_hz = 100000         # the drives' largest step rate
 //! ```
+//!
+//! With a `[stepgen]` section every axis needs its `step_scale`; the
+//! machine then has a step output ([`Machine::step_output`],
+//! `firmware_core::output::step_dir`), which `feedsim run` drives with the
+//! setpoints and checks against the drives' step rate.
 //!
 //! The feed of a path is min(F, `max_linear_velocity`); a rapid runs at
 //! `rapid_velocity` (both under the axis limits). A program whose toolpath
@@ -37,6 +50,7 @@
 
 use std::path::Path;
 
+use firmware_core::output::step_dir::{StepConfig, StepGen};
 use firmware_core::Limits;
 
 use crate::limits::{self, TABLE1};
@@ -60,6 +74,9 @@ pub struct Machine {
     pub servo_period_s: f64,
     /// Travel `[min, max]` per axis x, y, z, mm.
     pub travel_mm: [[f64; 2]; 3],
+    /// Step and direction output, when the file has a `[stepgen]` section
+    /// (steps per mm, pulse timing, direction polarity).
+    pub step_output: Option<StepConfig>,
 }
 
 impl Default for Machine {
@@ -113,6 +130,16 @@ struct File {
     traj: Traj,
     #[serde(default)]
     axis: Axes,
+    stepgen: Option<Stepgen>,
+}
+
+#[derive(Debug, Default, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Stepgen {
+    steplen_ns: Option<f64>,
+    stepspace_ns: Option<f64>,
+    dirsetup_ns: Option<f64>,
+    max_step_rate_hz: Option<f64>,
 }
 
 #[derive(Debug, Default, serde::Deserialize)]
@@ -153,6 +180,8 @@ struct AxisSection {
     max_jerk: Option<f64>,
     min_limit: Option<f64>,
     max_limit: Option<f64>,
+    step_scale: Option<f64>,
+    dir_invert: Option<bool>,
 }
 
 impl Machine {
@@ -166,6 +195,7 @@ impl Machine {
             rapid_mm_s: TABLE1.vbar,
             servo_period_s: 250e-6,
             travel_mm: [[-TABLE1_TRAVEL_MM, TABLE1_TRAVEL_MM]; 3],
+            step_output: None,
         }
     }
 
@@ -211,8 +241,8 @@ impl Machine {
             }
         };
         let mut m = Machine::table1();
-        if let Some(n) = f.machine.name {
-            m.name = n;
+        if let Some(n) = &f.machine.name {
+            m.name = n.clone();
         }
         m.servo_period_s = match f.emcmot.servo_period_ns {
             None => m.servo_period_s,
@@ -237,11 +267,11 @@ impl Machine {
         )?;
         m.limits.jbar = positive("traj.max_linear_jerk", f.traj.max_linear_jerk, TABLE1.jbar)?;
         m.rapid_mm_s = positive("traj.rapid_velocity", f.traj.rapid_velocity, m.limits.vbar)?;
-        for (k, (name, sec)) in [("x", f.axis.x), ("y", f.axis.y), ("z", f.axis.z)]
+        for (k, (name, sec)) in [("x", &f.axis.x), ("y", &f.axis.y), ("z", &f.axis.z)]
             .into_iter()
             .enumerate()
         {
-            let s = sec.unwrap_or_default();
+            let s = sec.clone().unwrap_or_default();
             m.limits.v[k] = positive(&format!("axis.{name}.max_velocity"), s.max_velocity, TABLE1.v[k])?;
             m.limits.a[k] = positive(
                 &format!("axis.{name}.max_acceleration"),
@@ -273,7 +303,13 @@ impl Machine {
             }
         }
         limits::validate(&m.limits).map_err(|e| bad("limits", e.to_string(), "must be usable"))?;
+        m.step_output = step_output(&f, scale, m.servo_period_s, &bad)?;
         Ok(m)
+    }
+
+    /// The servo period in whole ns.
+    pub fn servo_period_ns(&self) -> u32 {
+        (self.servo_period_s * 1e9).round() as u32
     }
 
     /// Read a machine file.
@@ -285,6 +321,87 @@ impl Machine {
         })?;
         Machine::from_toml_str(&text, &p)
     }
+}
+
+/// The `[stepgen]` section and the axes' `step_scale` and `dir_invert`.
+fn step_output(
+    f: &File,
+    scale: f64,
+    servo_period_s: f64,
+    bad: &dyn Fn(&str, String, &'static str) -> MachineError,
+) -> Result<Option<StepConfig>, MachineError> {
+    let axes = [("x", &f.axis.x), ("y", &f.axis.y), ("z", &f.axis.z)];
+    let Some(sg) = &f.stepgen else {
+        if let Some((name, _)) = axes.iter().find(|(_, a)| {
+            a.as_ref()
+                .is_some_and(|a| a.step_scale.is_some() || a.dir_invert.is_some())
+        }) {
+            return Err(bad(
+                &format!("axis.{name}.step_scale"),
+                "set".into(),
+                "needs a [stepgen] section (the pulse timing and step rate)",
+            ));
+        }
+        return Ok(None);
+    };
+    let ns = |key: &str, v: Option<f64>, default: f64| -> Result<u32, MachineError> {
+        let x = v.unwrap_or(default);
+        if x.is_finite() && (0.0..=1e8).contains(&x) {
+            Ok(x.round() as u32)
+        } else {
+            Err(bad(
+                &format!("stepgen.{key}"),
+                x.to_string(),
+                "must be between 0 and 100000000 ns",
+            ))
+        }
+    };
+    let rate = sg.max_step_rate_hz.unwrap_or(100_000.0);
+    if !(rate.is_finite() && rate > 0.0) {
+        return Err(bad(
+            "stepgen.max_step_rate_hz",
+            rate.to_string(),
+            "must be a positive finite number",
+        ));
+    }
+    let mut cfg = StepConfig {
+        steps_per_mm: [0.0; 3],
+        max_step_hz: rate,
+        step_len_ns: ns("steplen_ns", sg.steplen_ns, 2_000.0)?,
+        step_space_ns: ns("stepspace_ns", sg.stepspace_ns, 2_000.0)?,
+        dir_setup_ns: ns("dirsetup_ns", sg.dirsetup_ns, 5_000.0)?,
+        invert_dir: [false; 3],
+    };
+    for (k, (name, a)) in axes.iter().enumerate() {
+        let a = a.as_ref().cloned().unwrap_or_default();
+        match a.step_scale {
+            Some(x) if x.is_finite() && x > 0.0 => cfg.steps_per_mm[k] = x / scale,
+            Some(x) => {
+                return Err(bad(
+                    &format!("axis.{name}.step_scale"),
+                    x.to_string(),
+                    "must be a positive finite number",
+                ))
+            }
+            None => {
+                return Err(bad(
+                    &format!("axis.{name}.step_scale"),
+                    "missing".into(),
+                    "every axis needs its steps per unit with [stepgen]",
+                ))
+            }
+        }
+        cfg.invert_dir[k] = a.dir_invert.unwrap_or(false);
+    }
+    let period_ns = (servo_period_s * 1e9).round() as u32;
+    StepGen::new(cfg, period_ns, [0.0; 3]).map_err(|_| {
+        bad(
+            "stepgen",
+            format!("{period_ns} ns servo period"),
+            "no step fits in a servo period with this pulse timing and rate",
+        )
+    })?;
+    Ok(Some(cfg))
 }
 
 #[cfg(test)]
@@ -310,6 +427,31 @@ mod tests {
         assert_eq!(m.travel_mm[2], [-101.6, 12.7]);
         assert_eq!(m.limits.v[0], TABLE1.v[0], "keys left out keep Table 1, in mm");
         assert!((m.servo_period_s - 1e-3).abs() < 1e-15);
+    }
+
+    #[test]
+    fn the_step_output_is_read_with_its_units_and_checked() {
+        let text = "[traj]\nlinear_units = \"inch\"\n[stepgen]\nsteplen_ns = 1000\nstepspace_ns = 3000\nmax_step_rate_hz = 50000\n\
+                    [axis.x]\nstep_scale = 2540\n[axis.y]\nstep_scale = 5080\ndir_invert = true\n[axis.z]\nstep_scale = 254\n";
+        let m = Machine::from_toml_str(text, "m.toml").unwrap();
+        let c = m.step_output.unwrap();
+        assert_eq!(c.steps_per_mm, [100.0, 200.0, 10.0]);
+        assert_eq!(c.invert_dir, [false, true, false]);
+        assert_eq!(
+            (c.step_len_ns, c.step_space_ns, c.dir_setup_ns),
+            (1000, 3000, 5000)
+        );
+        assert_eq!(c.max_step_hz, 50_000.0);
+        assert_eq!(Machine::table1().step_output, None);
+        let err = |t: &str| Machine::from_toml_str(t, "m.toml").unwrap_err().to_string();
+        assert!(err("[axis.x]\nstep_scale = 200\n").contains("axis.x.step_scale"));
+        assert!(
+            err("[stepgen]\n[axis.x]\nstep_scale = 200\n[axis.y]\nstep_scale = 200\n")
+                .contains("axis.z.step_scale")
+        );
+        let all = "[axis.x]\nstep_scale = 200\n[axis.y]\nstep_scale = 200\n[axis.z]\nstep_scale = 200\n";
+        assert!(err(&format!("[stepgen]\nsteplen_ns = 300000\n{all}")).contains("no step fits"));
+        assert!(err(&format!("[stepgen]\nmax_step_rate_hz = -1\n{all}")).contains("stepgen.max_step_rate_hz"));
     }
 
     #[test]

@@ -28,6 +28,8 @@
 //!   (the G-code's lines, arcs and NURBS blocks), within 1 µm or `G64 P`.
 //! - [`report`]: the sampling study PAR / LEN / ADA and the override
 //!   scenarios (Figs 13–15, storm, holds, faults) as Markdown with figures.
+//! - [`steps`]: the machine file's step and direction output driven by the
+//!   setpoints, against the drives' step rate.
 //! - [`check`]: the independent trajectory checker: every limit on the
 //!   setpoints with the machine at rest before and after, the contour error
 //!   against the curve by its own NURBS evaluation (`feedsim check`).
@@ -45,6 +47,7 @@ pub mod report;
 pub mod run;
 pub mod scenario;
 pub mod servo;
+pub mod steps;
 
 pub use check::{check_trajectory, CheckConfig, CheckReport, Trajectory};
 pub use geometry::CurveGeometry;

@@ -60,7 +60,8 @@ fn config(steps_per_mm: f64, max_step_hz: f64) -> StepConfig {
     StepConfig {
         steps_per_mm: [steps_per_mm; AXES],
         max_step_hz,
-        min_pulse_ns: 2_000,
+        step_len_ns: 2_000,
+        step_space_ns: 2_000,
         dir_setup_ns: 5_000,
         invert_dir: [false, true, false],
     }
@@ -87,7 +88,7 @@ fn steps_follow_every_setpoint_without_drift_within_the_step_rate() {
                 assert_eq!(origin[axis] + after[axis], want, "{name}: tick {k}, axis {axis}");
             }
         }
-        let min_spacing = (1e9 / cfg.max_step_hz).max(f64::from(2 * cfg.min_pulse_ns));
+        let min_spacing = (1e9 / cfg.max_step_hz).max(f64::from(cfg.step_len_ns + cfg.step_space_ns));
         for (axis, edges) in rec.edges.iter().enumerate() {
             total += edges.len();
             let closest = edges.windows(2).map(|w| w[1] - w[0]).min().unwrap_or(u64::MAX);

@@ -15,11 +15,11 @@
 //! steps of an axis are spread evenly over the rest of the period,
 //! `W = P − dir_setup`: step `k` rises at `dir_setup + (2k + 1)·W / (2n)`
 //! (integer ns, rounded down) and stays high for
-//! [`StepConfig::min_pulse_ns`]. Two steps of one axis are then at least
+//! [`StepConfig::step_len_ns`]. Two steps of one axis are then at least
 //! `⌊W / n⌋` apart inside a period and at least `(W/n + W/n′)/2` apart across
 //! a period boundary; `n` is at most [`StepGen::max_steps_per_period`], the
 //! largest count for which `⌊W / n⌋` still allows the drive's maximum step
-//! rate and a pulse of `min_pulse_ns` high and as long low. A period that
+//! rate and a pulse of `step_len_ns` high and `step_space_ns` low. A period that
 //! would need more is refused ([`StepError::TooManySteps`]) before anything
 //! is emitted, and the position stays where the last accepted period left
 //! it: the caller stops the machine (the plan's limits make this a
@@ -37,13 +37,18 @@ pub const AXES: usize = 3;
 /// The drive interface of a machine's axes.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct StepConfig {
     /// Steps per mm of each axis (> 0).
     pub steps_per_mm: [f64; AXES],
     /// Largest step rate the drives take, steps/s (> 0).
     pub max_step_hz: f64,
-    /// Shortest high (and low) time of a step pulse, ns (≥ 1).
-    pub min_pulse_ns: u32,
+    /// Shortest high time of a step pulse, ns (LinuxCNC's `STEPLEN`).
+    pub step_len_ns: u32,
+    /// Shortest low time between two step pulses, ns (LinuxCNC's
+    /// `STEPSPACE`); a step's period is at least `step_len + step_space`
+    /// (and at least 1 ns).
+    pub step_space_ns: u32,
     /// Time the direction must be stable before a step, ns.
     pub dir_setup_ns: u32,
     /// Direction pin level for motion towards +: `false` high, `true` low.
@@ -164,15 +169,16 @@ impl StepGen {
             return Err(StepConfigError::Rate);
         }
         let w = period_ns.saturating_sub(cfg.dir_setup_ns);
-        // steps n with ⌊W/n⌋ ≥ 1e9/max_hz and ⌊W/n⌋ ≥ 2·min_pulse
+        // steps n with ⌊W/n⌋ ≥ 1e9/max_hz and ⌊W/n⌋ ≥ step_len + step_space
+        let pulse = cfg.step_len_ns.saturating_add(cfg.step_space_ns).max(1);
         let by_rate = libm::floor(f64::from(w) * cfg.max_step_hz * 1e-9);
-        let by_pulse = w / cfg.min_pulse_ns.max(1).saturating_mul(2);
+        let by_pulse = w / pulse;
         let max = (by_rate.min(f64::from(u32::MAX)) as u32).min(by_pulse);
         // ⌊W/max⌋ may round below the rate's spacing: step down until it holds
         let spacing_ok = |n: u32| {
             n > 0 && {
                 let sp = w / n;
-                f64::from(sp) * cfg.max_step_hz >= 1e9 && sp >= 2 * cfg.min_pulse_ns.max(1)
+                f64::from(sp) * cfg.max_step_hz >= 1e9 && sp >= pulse
             }
         };
         let mut max = max;
@@ -311,7 +317,8 @@ mod tests {
         StepConfig {
             steps_per_mm: [100.0, 100.0, 400.0],
             max_step_hz: 50_000.0,
-            min_pulse_ns: 2_000,
+            step_len_ns: 2_000,
+            step_space_ns: 2_000,
             dir_setup_ns: 5_000,
             invert_dir: [false, true, false],
         }

@@ -344,6 +344,39 @@ struct RunOut<'a> {
     plot: Option<String>,
     #[serde(skip_serializing_if = "Option::is_none")]
     check: Option<&'a CheckReport>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    steps: Option<sim_harness::steps::StepReport>,
+}
+
+/// The machine's step output over `ticks` (when the machine file has a
+/// `[stepgen]`); exit 5 when a period needs more steps than the drives take.
+fn step_output(
+    ticks: &[sim_harness::Tick],
+    machine: &planner_host::Machine,
+    period_s: f64,
+    what: &Path,
+) -> Result<Option<sim_harness::steps::StepReport>, Failure> {
+    let Some(cfg) = &machine.step_output else {
+        return Ok(None);
+    };
+    let period_ns = (period_s * 1e9).round() as u32;
+    sim_harness::steps::step_report(ticks, cfg, period_ns)
+        .map(Some)
+        .map_err(|e| Failure::limit(format!("{}: step output: {e}", what.display())))
+}
+
+fn step_text(r: &sim_harness::steps::StepReport) -> String {
+    format!(
+        "step output: {} / {} / {} steps (x / y / z), at most {} / {} / {} in a {} ns period (the drives take {})",
+        r.steps[0],
+        r.steps[1],
+        r.steps[2],
+        r.peak_per_period[0],
+        r.peak_per_period[1],
+        r.peak_per_period[2],
+        r.period_ns,
+        r.max_per_period
+    )
 }
 
 /// Exit 5 naming what failed when the check did not pass.
@@ -422,6 +455,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
                     json,
                     check: check.then_some((tol, pad_rest)),
                     program: program.as_deref(),
+                    machine: &machine,
                 };
                 return run_program_cmd(&table, &bytes, &cfg, &opts);
             }
@@ -450,6 +484,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
             } else {
                 None
             };
+            let steps = step_output(&res.ticks, &machine, cfg.period_s, &table)?;
             if json {
                 let out = RunOut {
                     schema_version: check::SCHEMA_VERSION,
@@ -458,6 +493,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
                     csv: csv.as_ref().map(|p| p.display().to_string()),
                     plot: plot.as_ref().map(|p| p.display().to_string()),
                     check: report.as_ref(),
+                    steps,
                 };
                 outln!("{}", serde_json::to_string(&out)?);
             } else {
@@ -472,6 +508,9 @@ fn run(cli: Cli) -> Result<(), Failure> {
                 if let Some(r) = &report {
                     outln!("check against the table's curve and limits:");
                     out!("{}", r.text());
+                }
+                if let Some(r) = &steps {
+                    outln!("{}", step_text(r));
                 }
             }
             report.as_ref().map_or(Ok(()), check_verdict)
@@ -628,6 +667,8 @@ struct ProgramRunOptions<'a> {
     check: Option<(f64, usize)>,
     /// --program: the G-code it was planned from.
     program: Option<&'a Path>,
+    /// The machine (its step output, if any).
+    machine: &'a planner_host::Machine,
 }
 
 /// `feedsim run --json` for a program file.
@@ -648,6 +689,8 @@ struct ProgramRunOut<'a> {
     check: Option<&'a [CheckReport]>,
     #[serde(skip_serializing_if = "Option::is_none")]
     programmed_contour: Option<sim_harness::programmed::ProgrammedContour>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    steps: Option<sim_harness::steps::StepReport>,
     #[serde(skip_serializing_if = "Option::is_none")]
     csv: Option<String>,
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -706,6 +749,7 @@ fn run_program_cmd(
         None => None,
     };
     let predicted: f64 = run.paths.iter().map(|p| p.predicted_time_s).sum();
+    let steps = step_output(&run.ticks, o.machine, run.period_s, table)?;
     if o.json {
         let out = ProgramRunOut {
             schema_version: check::SCHEMA_VERSION,
@@ -721,6 +765,7 @@ fn run_program_cmd(
             warnings: &run.file.warnings,
             check: reports.as_deref(),
             programmed_contour: programmed,
+            steps,
             csv: o.csv.map(|p| p.display().to_string()),
             plot: o.plot.map(|p| p.display().to_string()),
         };
@@ -801,6 +846,9 @@ fn run_program_cmd(
                 worst(&|x| x.contour.max_mm),
                 if r.iter().all(|x| x.ok) { "pass" } else { "FAIL" }
             );
+        }
+        if let Some(r) = &steps {
+            outln!("{}", step_text(r));
         }
         if let Some(c) = &programmed {
             outln!(
