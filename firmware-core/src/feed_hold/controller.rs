@@ -126,10 +126,42 @@ pub(crate) struct FeedHold {
     /// The extreme pair of the last infeasible tick's relaxation (where
     /// the next one's Newton steps start, [`interval_plain`]).
     relax_pair: (u8, u8),
-    /// What the last controlled tick's constraints came from: the
+    /// What the last control period's constraints came from: the
     /// diagnostics `HoldStats::last_*` are computed from it when asked
     /// ([`FeedHold::stats`]), not on the tick.
     last: LastTick,
+    /// The second tick of the control period in progress.
+    pending: Option<Pending>,
+}
+
+/// Ticks per control period: ν is chosen on the first from the
+/// kinematics at the period's start and held over all of them, so the
+/// work of one control step (the kinematics on the tick before, the
+/// constraints and the approach on the first) is spread over two ticks.
+pub(crate) const PERIOD_TICKS: u32 = 2;
+
+/// The rest of a control period after its first tick: its ν and the state
+/// its end comes to (λ and μh in Q62, the landing's snap included), which
+/// the first tick computed with the same integer steps.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Pending {
+    nu: f32,
+    lam: i64,
+    m: i64,
+    /// The state at the period's start, and after it (a hold or resume
+    /// requested in between keeps its own).
+    from: HoldState,
+    to: HoldState,
+}
+
+/// What a control period needs of the kinematics at its start besides
+/// them, computed on the tick before it ([`FeedHold::prepare`]).
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub(crate) struct Prep {
+    /// The jerk-limited ν at λ = 0 ([`Kin::nu_cap`], at most 1e9).
+    pub cap: f32,
+    /// The μ cap after the period.
+    pub mu_max: f32,
 }
 
 /// The inputs of the last controlled tick's constraints and its ν.
@@ -158,6 +190,7 @@ impl Default for FeedHold {
             cap_prev: f32::INFINITY,
             relax_pair: (0, 0),
             last: LastTick::default(),
+            pending: None,
         }
     }
 }
@@ -281,13 +314,16 @@ impl FeedHold {
         };
     }
 
-    /// One tick of h seconds: chooses ν from the constraints at the current
-    /// state (`kin` at the current s), advances λ and μ, and returns the
-    /// tick's (λ, μ, ν) for the step of s.
-    // The tick runs with a look-ahead (`control_ahead`); the unit tests drive this.
-    #[cfg_attr(not(test), allow(dead_code))]
+    /// One tick of h seconds with the kinematics `kin` at the current s (the
+    /// unit tests' driver): a control period's first tick ([`Self::prepare`]
+    /// and [`Self::control_period`]), or its second ([`Self::advance`]).
+    #[cfg(test)]
     pub fn control(&mut self, kin: &Kin, lim: &HoldLimits, h: f32) -> TickScale {
-        self.control_ahead(kin, &Ahead::default(), lim, h)
+        if self.mid_period() {
+            return self.advance();
+        }
+        let prep = self.prepare(kin, &Ahead::default(), lim, h);
+        self.control_period(kin, &prep, lim, h)
     }
 
     /// The braking deceleration of λ (1/s²) the controller plans with at
@@ -296,10 +332,55 @@ impl FeedHold {
         THETA * mn(kin.nu_cap(lim), 1e9)
     }
 
-    /// [`FeedHold::control`] with a look-ahead: `ahead` the largest |A| and
-    /// |V| per axis and tangentially the plan reaches over the arc length
-    /// the stop can still cover (the μ cap, [`mu_cap_ahead`]).
-    pub fn control_ahead(&mut self, kin: &Kin, ahead: &Ahead, lim: &HoldLimits, h: f32) -> TickScale {
+    /// A control period is in progress: the next tick is its second
+    /// ([`Self::advance`]).
+    #[inline(always)]
+    pub fn mid_period(&self) -> bool {
+        self.pending.is_some()
+    }
+
+    /// The tick's scale at rest on the plan (λ = 1, μ = 0, ν = 0: the
+    /// plan itself), without a control period; `None` elsewhere.
+    pub fn on_plan(&self) -> Option<TickScale> {
+        (self.lam == LAM_ONE && self.m == 0).then_some(TickScale {
+            lam: LAM_ONE,
+            m: 0,
+            lam_f: 1.0,
+            mu: 0.0,
+            nu: 0.0,
+        })
+    }
+
+    /// What the next control period needs besides the kinematics `kin` at
+    /// its start (computed on the tick before it, from the state that tick
+    /// ends in): the jerk-limited ν and the μ cap with the look-ahead
+    /// `ahead` ([`mu_cap_ahead`]: the largest |A| and |V| per axis and
+    /// tangentially the plan reaches over the arc length the stop can
+    /// still cover); while stopping the cap rises at most [`CAP_RISE`] per
+    /// second (it falls at once): the look-ahead samples the plan at
+    /// points, and a period whose samples straddle a narrow peak of the
+    /// plan's jerk would otherwise let μ grow, which the cap never takes
+    /// back.
+    pub fn prepare(&self, kin: &Kin, ahead: &Ahead, lim: &HoldLimits, h: f32) -> Prep {
+        let cap = mn(kin.nu_cap(lim), 1e9);
+        let hold = self.state == HoldState::Stopping;
+        let lam_cap = if hold { q62_f32(self.lam) } else { 1.0 };
+        let cap_now = mu_cap_ahead(kin, ahead, lim, lam_cap, THETA * cap);
+        let mu_max = if hold {
+            mn(cap_now, self.cap_prev + CAP_RISE * (PERIOD_TICKS as f32 * h))
+        } else {
+            cap_now
+        };
+        Prep { cap, mu_max }
+    }
+
+    /// The first tick of a control period of [`PERIOD_TICKS`] ticks of h
+    /// seconds: chooses ν from the constraints at the current state (`kin`
+    /// at the current s, `prep` from [`Self::prepare`] at the same state),
+    /// held over the period, advances λ and μ over this tick, and returns
+    /// its (λ, μ, ν) for the step of s; the period's end state is kept for
+    /// [`Self::advance`]. Running or held: no period (ν = 0).
+    pub fn control_period(&mut self, kin: &Kin, prep: &Prep, lim: &HoldLimits, h: f32) -> TickScale {
         // μh was per the last tick's length: per this one's (the same
         // every tick of an interpolator).
         if self.h != h {
@@ -322,21 +403,14 @@ impl FeedHold {
             HoldState::Resuming => false,
             _ => return now,
         };
-        let cap = mn(kin.nu_cap(lim), 1e9);
+        // The period's length: the constraints bound the acceleration and
+        // |μ| at its end, the approach plans in steps of it.
+        let hp = PERIOD_TICKS as f32 * h;
+        let cap = prep.cap;
         let b0 = THETA * cap;
-        let lam_cap = if hold { lam_f } else { 1.0 };
-        // The μ cap; while stopping it rises at most CAP_RISE per second
-        // (it falls at once): the look-ahead samples the plan at points, and
-        // a tick whose samples straddle a narrow peak of the plan's jerk
-        // would otherwise let μ grow, which the cap never takes back.
-        let cap_now = mu_cap_ahead(kin, ahead, lim, lam_cap, b0);
-        let mu_max = if hold {
-            mn(cap_now, self.cap_prev + CAP_RISE * h)
-        } else {
-            cap_now
-        };
+        let mu_max = prep.mu_max;
         self.cap_prev = if hold { mu_max } else { f32::INFINITY };
-        let cons = constraints(kin, lim, (lam_f, mu_f), h, mu_max);
+        let cons = constraints(kin, lim, (lam_f, mu_f), hp, mu_max);
         // The intersection directly where every constraint is normalised
         // (c = 1; c = 0 ones ν cannot change): the common case; else, and
         // when it is empty, [`interval`].
@@ -410,7 +484,7 @@ impl FeedHold {
         } else {
             kin.tail_rate(lim)
         };
-        let (ua, lands) = approach(xa, wa, (la, ha), b, kappa, h);
+        let (ua, lands) = approach(xa, wa, (la, ha), b, kappa, hp);
         let u = if mirror { -ua } else { ua };
         // Resuming: the exponential tail lands within X_SNAP (unless μ is
         // still large: then it crosses and comes back, see above); either
@@ -445,7 +519,7 @@ impl FeedHold {
                 interval(lim)
             };
             nu = if lim_iv.relax <= 1.0 {
-                clampf(-mu_f / h, lim_iv.lo, lim_iv.hi)
+                clampf(-mu_f / hp, lim_iv.lo, lim_iv.hi)
             } else {
                 lim_iv.lo
             };
@@ -455,27 +529,55 @@ impl FeedHold {
             kin: *kin,
             lam: lam_f,
             mu: mu_f,
-            h,
+            h: hp,
             cap: mu_max,
             nu,
             set: true,
         };
-        // The step, exact in Q62: λ₁ = λ + μh + νh²/2, μ₁h = μh + νh².
-        let half = f32_to_q62(0.5 * nu * h * h);
-        let lam1 = self.lam.wrapping_add(self.m).wrapping_add(half);
-        let m1 = self.m.wrapping_add(half.wrapping_mul(2));
-        // The same in the approach's coordinates (w₁h in Q62).
-        let (x1q, w1q) = if hold {
-            (lam1, m1.wrapping_neg())
-        } else {
-            (LAM_ONE.wrapping_sub(lam1), m1)
+        // The period, exact in Q62, tick by tick: λ₁ = λ + μh + νh²/2,
+        // μ₁h = μh + νh²; its end in the approach's coordinates (w₁h in
+        // Q62).
+        let end = |lam: i64, m: i64, half: i64| {
+            let lam1 = lam.wrapping_add(m).wrapping_add(half);
+            let m1 = m.wrapping_add(half.wrapping_mul(2));
+            let lam2 = lam1.wrapping_add(m1).wrapping_add(half);
+            let m2 = m1.wrapping_add(half.wrapping_mul(2));
+            let (x1q, w1q) = if hold {
+                (lam2, m2.wrapping_neg())
+            } else {
+                (LAM_ONE.wrapping_sub(lam2), m2)
+            };
+            (x1q, w1q, q62_f32(x1q), q62_f32(w1q) / h)
         };
-        let (x1, w1) = (q62_f32(x1q), q62_f32(w1q) / h);
+        let half = f32_to_q62(0.5 * nu * h * h);
+        let (x1q, w1q, x1, w1) = end(self.lam, self.m, half);
         // A resume's landing that the constraints clamped does not land
         // (it crosses and comes back); a hold's does (λ < 0 would run
         // backwards).
         let lands = lands && (hold || w1.abs() < 1e-4);
         let crossed = x1 <= 0.0 && (hold || (w1.abs() < 1e-4 && x1 > -1e-9));
+        // A landing lands λ exactly: the f32 νh²/2 is off by up to an ulp,
+        // four times over at the period's end (~1e-11 in λ), so where ν is
+        // the landing one (not clamped), νh²/2 comes from the integer
+        // distance to go.
+        let (half, x1q, w1q, x1, w1) = if lands || crossed {
+            let two_m = self.m.wrapping_mul(2);
+            let rest = if hold {
+                self.lam.wrapping_add(two_m).wrapping_neg()
+            } else {
+                LAM_ONE.wrapping_sub(self.lam).wrapping_sub(two_m)
+            };
+            let exact = rest / 4;
+            let tol = (half.unsigned_abs() >> 16).saturating_add(64);
+            if exact.abs_diff(half) <= tol {
+                let (x1q, w1q, x1, w1) = end(self.lam, self.m, exact);
+                (exact, x1q, w1q, x1, w1)
+            } else {
+                (half, x1q, w1q, x1, w1)
+            }
+        } else {
+            (half, x1q, w1q, x1, w1)
+        };
         let (x1q, w1q) = if lands || crossed {
             if w1.abs() > 1e-4 || x1 < -1e-12 {
                 self.stats.forced = self.stats.forced.saturating_add(1);
@@ -488,19 +590,56 @@ impl FeedHold {
         } else {
             (x1q, w1q)
         };
-        if hold {
-            self.lam = x1q;
-            self.m = w1q.wrapping_neg();
+        let lam1 = self.lam.wrapping_add(self.m).wrapping_add(half);
+        let m1 = self.m.wrapping_add(half.wrapping_mul(2));
+        let (lam_end, m_end) = if hold {
+            (x1q, w1q.wrapping_neg())
         } else {
-            self.lam = LAM_ONE.wrapping_sub(x1q);
-            self.m = w1q;
-        }
-        if x1q == 0 && w1q == 0 {
-            self.state = if hold { HoldState::Held } else { HoldState::Running };
-            self.lam = if hold { 0 } else { LAM_ONE };
-            self.m = 0;
-        }
+            (LAM_ONE.wrapping_sub(x1q), w1q)
+        };
+        let (to, lam_end, m_end) = if x1q == 0 && w1q == 0 {
+            if hold {
+                (HoldState::Held, 0, 0)
+            } else {
+                (HoldState::Running, LAM_ONE, 0)
+            }
+        } else {
+            (self.state, lam_end, m_end)
+        };
+        self.pending = Some(Pending {
+            nu,
+            lam: lam_end,
+            m: m_end,
+            from: self.state,
+            to,
+        });
+        self.lam = lam1;
+        self.m = m1;
         TickScale { nu, ..now }
+    }
+
+    /// The second tick of the control period in progress: its (λ, μ, ν)
+    /// (ν held), and λ, μ and the state at the period's end (a hold or
+    /// resume requested since its first tick keeps its state). Without a
+    /// period (not called so): (λ, μ) as they are, ν = 0, nothing advanced.
+    pub fn advance(&mut self) -> TickScale {
+        let h = self.h;
+        let mut now = TickScale {
+            lam: self.lam,
+            m: self.m,
+            lam_f: q62_f32(self.lam),
+            mu: if h > 0.0 { q62_f32(self.m) / h } else { 0.0 },
+            nu: 0.0,
+        };
+        if let Some(p) = self.pending.take() {
+            now.nu = p.nu;
+            self.lam = p.lam;
+            self.m = p.m;
+            if self.state == p.from {
+                self.state = p.to;
+            }
+        }
+        now
     }
 }
 

@@ -1,8 +1,8 @@
 //! [`HoldRun`]: the interpolator's feed-hold state and its look-ahead
 //! sweep (the controller is [`crate::feed_hold`]).
 
-use crate::feed_hold::constraints::{Ahead, HoldLimits};
-use crate::feed_hold::controller::FeedHold;
+use crate::feed_hold::constraints::{Ahead, HoldLimits, Kin};
+use crate::feed_hold::controller::{FeedHold, Prep};
 use crate::feed_hold::HoldState;
 use crate::limits::Limits;
 
@@ -47,6 +47,20 @@ pub(crate) struct HoldRun {
     /// a tick with nothing else optional to do, or by a hold or resume
     /// request.
     pub(crate) next_dr: Option<(usize, [[f32; 3]; 3])>,
+    /// The next control period's kinematics, computed on the tick before
+    /// it or by a hold or resume request.
+    pub(crate) prep: Option<Prepared>,
+}
+
+/// The plan's kinematics at the start of a control period and what the
+/// controller needs of them ([`FeedHold::prepare`]), for the period's
+/// first tick: valid at `s` in `state`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Prepared {
+    pub(crate) s: i64,
+    pub(crate) state: HoldState,
+    pub(crate) kin: Kin,
+    pub(crate) prep: Prep,
 }
 
 /// One pass of the look-ahead over the plan ahead, spread over ticks.
@@ -109,6 +123,7 @@ impl HoldRun {
         self.reach = false;
         self.joined = Ahead::default();
         self.next_dr = None;
+        self.prep = None;
     }
 
     /// The distance a tangential jerk-limited stop from `v` (mm/s) needs

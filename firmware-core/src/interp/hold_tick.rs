@@ -39,11 +39,11 @@
 //!   [`Interpolator::resume`] return a [`HoldError`] and change nothing.
 
 use crate::feed_hold::constraints::{mn, mx, sqrt32, Ahead, Kin};
-use crate::feed_hold::controller::{scaled_step, FeedHold, TickScale, LAM_ONE};
+use crate::feed_hold::controller::{scaled_step, FeedHold, TickScale, PERIOD_TICKS};
 use crate::feed_hold::{HoldError, HoldState, HoldStats};
 use crate::interp::cursor::{q_eval, tau_of, PCur, QCur, Views};
 use crate::interp::hold_run::{
-    Stage, Sweep, AHEAD_FACTOR, AHEAD_MAX_MM, AHEAD_N, AHEAD_PER_TICK, COAST_ABOVE, END_FACTOR,
+    Prepared, Stage, Sweep, AHEAD_FACTOR, AHEAD_MAX_MM, AHEAD_N, AHEAD_PER_TICK, COAST_ABOVE, END_FACTOR,
 };
 use crate::interp::interpolator::{Interpolator, Phase};
 use crate::interp::setpoint::{Fault, Setpoint};
@@ -88,6 +88,7 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
                 self.fh.reach = sw.reach;
                 self.fh.sweep = None;
             }
+            self.prepare_request();
         }
         Ok(())
     }
@@ -102,6 +103,7 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         // (a resume plans without the stop's look-ahead)
         self.fh.sweep = None;
         self.fh.joined = Ahead::default();
+        self.prepare_request();
         Ok(())
     }
 
@@ -373,30 +375,32 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         if self.fh.ctl.state() == HoldState::Held {
             return self.place(t_s, (fx_to_f64(s), s), 0.0);
         }
-        if let Some(tau) = self.fh.seg_tau {
-            return self.hold_seg_tick(t_s, tau);
-        }
         let h = self.h;
+        // ν: on a control period's first tick from the kinematics prepared
+        // at its start, held over the second.
+        let first = !self.fh.ctl.mid_period();
+        let relaxed = self.fh.ctl.infeasible();
+        let ts = if first {
+            let Some(ts) = self.period_start() else {
+                return self.fault(Fault::Eval { s_mm: fx_to_f64(s) });
+            };
+            ts
+        } else {
+            self.fh.ctl.advance()
+        };
+        if self.fh.ctl.state() == HoldState::Running {
+            self.fh.prev_j = None;
+        }
+        if let Some(tau) = self.fh.seg_tau {
+            return self.hold_seg_tick(t_s, tau, &ts);
+        }
         // The plan's ṡ_p, s̈_p, s⃛_p, s⁗_p at s.
         let [_, dq, ddq, dddq] = self.qs.qd;
         let v = self.qs.v;
         let plan = [v, 0.5 * dq, 0.5 * ddq * v, 0.5 * dddq * v * v + 0.25 * ddq * dq];
-        let Some((kin, extra)) = self.hold_kin(plan, s) else {
-            return self.fault(Fault::Eval { s_mm: fx_to_f64(s) });
-        };
-        let stop_in_reach = self.ahead_acc(&kin, v);
-        // (below λ = ½ the plan's λ³J and 3λμA leave room to finish)
-        self.fh
-            .ctl
-            .set_coast(stop_in_reach && self.fh.ctl.lambda_f32() > COAST_ABOVE);
-        let relaxed = self.fh.ctl.infeasible();
-        let ts = self.fh.ctl.control_ahead(&kin, &self.fh.joined, &self.fh.lim, h);
-        // (an infeasible tick's relaxation, like the next piece's
+        // (an infeasible period's relaxation, like the next piece's
         // evaluation, leaves the look-ahead's step for a later tick)
-        let busy = extra || self.fh.ctl.infeasible() != relaxed;
-        if self.fh.ctl.state() == HoldState::Running {
-            self.fh.prev_j = None;
-        }
+        let busy = self.fh.ctl.infeasible() != relaxed;
         let vh = mul_hi(self.qs.v_fx, self.tk.0).wrapping_shl(self.tk.1);
         let Some(ds) = scaled_step(vh, plan, &ts, h) else {
             return self.fault(Fault::NonFinite { s_mm: fx_to_f64(s) });
@@ -412,7 +416,9 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
             let tau = cbrt64(6.0 * rest / j2);
             self.fh.seg_tau = Some(tau);
             let feed = (self.fh.ctl.lambda() * 0.5 * j2 * tau * tau) as f32;
-            return self.place(t_s, (fx_to_f64(s_new), s_new), feed);
+            let sp = self.place(t_s, (fx_to_f64(s_new), s_new), feed)?;
+            self.period_end();
+            return Ok(sp);
         }
         let guess = self.qs.v;
         let (pi, qi) = (self.pc.idx, self.qc.idx);
@@ -420,11 +426,13 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         let tq = fx_small_f32(s_new.wrapping_sub(self.qc.anchor), 20);
         let poly = self.qc.poly;
         self.qs = q_eval(&self.qc, &poly, s_new, tq, guess);
-        // The look-ahead's step, on a tick that did nothing else optional
-        // (no piece or q span entered either), the next tick's controller
-        // takes it; the next piece's derivatives at its start go first
-        // when they are not there yet.
-        if !busy && self.pc.idx == pi && self.qc.idx == qi {
+        let entered = self.pc.idx != pi || self.qc.idx != qi;
+        if !self.period_end() && first && !busy && !entered {
+            // The look-ahead's step, on a period's first tick that did
+            // nothing else optional (no relaxation, no piece or q span
+            // entered), the next period's preparation takes it; the next
+            // piece's derivatives at its start go first when they are not
+            // there yet.
             if self.next_dr_ready() || self.pc.idx >= self.views.p_last {
                 self.ahead_step();
             } else {
@@ -437,12 +445,95 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         })
     }
 
+    /// A control period's first tick: ν from the kinematics prepared at s
+    /// ([`HoldRun::prep`]); without them, at rest on the plan (a hold
+    /// requested in the start segment, running) a tick of the plan itself
+    /// (ν = 0, no period), else prepared now. `None`: the path could not
+    /// be evaluated.
+    fn period_start(&mut self) -> Option<TickScale> {
+        let state = self.fh.ctl.state();
+        let p = match self.fh.prep.take() {
+            Some(p) if p.s == self.s && p.state == state => p,
+            _ => {
+                if let Some(ts) = self.fh.ctl.on_plan() {
+                    return Some(ts);
+                }
+                self.prepare_period().0?
+            }
+        };
+        Some(self.fh.ctl.control_period(&p.kin, &p.prep, &self.fh.lim, self.h))
+    }
+
+    /// After a tick: when the next one starts a control period (stopping or
+    /// resuming), its kinematics at the new s ([`Self::prepare_period`]).
+    /// Whether it did (the tick's optional work is then done).
+    fn period_end(&mut self) -> bool {
+        if self.fh.ctl.mid_period()
+            || !matches!(self.fh.ctl.state(), HoldState::Stopping | HoldState::Resuming)
+        {
+            return false;
+        }
+        self.fh.prep = self.prepare_period().0;
+        true
+    }
+
+    /// The plan's kinematics at s for a control period starting there
+    /// (from the plan's q, or in the scaled stop segment from its cubic),
+    /// the look-ahead's maxima (stopping), the coasting decision and what
+    /// the controller needs of them ([`FeedHold::prepare`]); with whether
+    /// the next piece's derivatives were evaluated for it. `None`: the path
+    /// could not be evaluated.
+    fn prepare_period(&mut self) -> (Option<Prepared>, bool) {
+        let s = self.s;
+        let (plan, seg) = match self.fh.seg_tau {
+            Some(tau) => {
+                let j2 = self.ends.map_or(0.0, |e| e.jerk_stop) as f32;
+                let tf = tau as f32;
+                ([0.5 * j2 * tf * tf, -j2 * tf, j2], true)
+            }
+            None => {
+                let [_, dq, ddq, _] = self.qs.qd;
+                let v = self.qs.v;
+                ([v, 0.5 * dq, 0.5 * ddq * v], false)
+            }
+        };
+        let Some((kin, extra)) = self.hold_kin(plan, s) else {
+            return (None, false);
+        };
+        // (in the stop segment: coast through it, without the look-ahead)
+        let coast = if seg { true } else { self.ahead_acc(&kin, plan[0]) };
+        self.fh
+            .ctl
+            .set_coast(coast && self.fh.ctl.lambda_f32() > COAST_ABOVE);
+        let none = Ahead::default();
+        let ahead = if seg { &none } else { &self.fh.joined };
+        let prep = self.fh.ctl.prepare(&kin, ahead, &self.fh.lim, self.h);
+        let p = Prepared {
+            s,
+            state: self.fh.ctl.state(),
+            kin,
+            prep,
+        };
+        (Some(p), extra)
+    }
+
+    /// A hold or resume request between ticks: the next control period's
+    /// kinematics now, unless a period is in progress (its second tick
+    /// prepares the next) or they are there already for this state.
+    fn prepare_request(&mut self) {
+        let state = self.fh.ctl.state();
+        let ready = matches!(self.fh.prep, Some(p) if p.s == self.s && p.state == state);
+        if self.phase == Phase::Run && !ready {
+            self.period_end();
+        }
+    }
+
     /// The plan's kinematics at s ([`Kin`]) for the controller, from the
     /// plan's `[ṡ_p, s̈_p, s⃛_p, …]` there: with J's change since the last
-    /// tick, or the jump of the path's r‴ at a piece break within the next
-    /// two ticks when that is larger.
-    fn hold_kin(&mut self, plan: [f32; 4], s: i64) -> Option<(Kin, bool)> {
-        let [p1, p2, p3, _] = plan;
+    /// control period (two ticks), or the jump of the path's r‴ at a piece
+    /// break within the next two periods when that is larger.
+    fn hold_kin(&mut self, plan: [f32; 3], s: i64) -> Option<(Kin, bool)> {
+        let [p1, p2, p3] = plan;
         let coeffs = self.views.coeffs(&self.pc)?;
         let dr = pos_derivs(
             coeffs,
@@ -457,10 +548,10 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
             }
         }
         self.fh.prev_j = Some(kin.j);
-        // A piece break within the next two ticks: the path's r‴ (so the
+        // A piece break within the next two periods: the path's r‴ (so the
         // plan's axis jerk) jumps there; the jump counts as J's change.
         let reach = s.saturating_add(f32_to_fx(
-            2.0 * self.h * mx(0.0, p1) * mx(0.0, self.fh.ctl.lambda_f32()),
+            (2 * PERIOD_TICKS) as f32 * self.h * mx(0.0, p1) * mx(0.0, self.fh.ctl.lambda_f32()),
         ));
         let near = self.pc.next <= reach && self.pc.idx < self.views.p_last;
         // (the next piece's derivatives are usually there already:
@@ -510,37 +601,13 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
     }
 
     /// A tick in the stop segment under scaling: the segment followed in
-    /// its own time θ (τ = t₂ − θ to go, s = L − J₂τ³/6, dθ/dt = λ; f64).
+    /// its own time θ (τ = t₂ − θ to go, s = L − J₂τ³/6, dθ/dt = λ; f64),
+    /// with the tick's (λ, μ, ν) `ts`.
     #[inline(never)]
-    fn hold_seg_tick(&mut self, t_s: f64, tau: f64) -> Result<Setpoint, Fault> {
+    fn hold_seg_tick(&mut self, t_s: f64, tau: f64, ts: &TickScale) -> Result<Setpoint, Fault> {
         let s = self.s;
         let h = self.h;
         let j2 = self.ends.map_or(0.0, |e| e.jerk_stop);
-        let ts = if self.fh.ctl.state() == HoldState::Running {
-            // (resumed: λ = 1 and the segment runs at its own pace)
-            self.fh.prev_j = None;
-            TickScale {
-                lam: LAM_ONE,
-                lam_f: 1.0,
-                ..TickScale::default()
-            }
-        } else {
-            let (j2f, tf) = (j2 as f32, tau as f32);
-            let plan = [0.5 * j2f * tf * tf, -j2f * tf, j2f, 0.0];
-            let Some((kin, _)) = self.hold_kin(plan, s) else {
-                return self.fault(Fault::Eval { s_mm: fx_to_f64(s) });
-            };
-            // (in the stop segment: coast through it)
-            self.fh.ctl.set_coast(self.fh.ctl.lambda_f32() > COAST_ABOVE);
-            let ts = self
-                .fh
-                .ctl
-                .control_ahead(&kin, &Ahead::default(), &self.fh.lim, h);
-            if self.fh.ctl.state() == HoldState::Running {
-                self.fh.prev_j = None;
-            }
-            ts
-        };
         // dθ = ∫λ dt over the tick (exact: λ is a quadratic in t).
         // (the first-order term hλ in f64 from the Q62 λ; the rest,
         // h²(μ/2 + hν/6), a small fraction of h, in f32)
@@ -563,7 +630,9 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         // (the feed, reported only: f32)
         let t1 = tau1 as f32;
         let feed = self.fh.ctl.lambda_f32() * 0.5 * (j2 as f32) * t1 * t1;
-        self.place(t_s, (fx_to_f64(s_new), s_new), feed)
+        let sp = self.place(t_s, (fx_to_f64(s_new), s_new), feed)?;
+        self.period_end();
+        Ok(sp)
     }
 }
 
