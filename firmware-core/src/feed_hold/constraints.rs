@@ -311,17 +311,13 @@ impl Kin {
     /// The largest ν (1/s²) the jerk limits allow at λ = 0 (only νV left):
     /// min over axes and the tangent of j/|V| (∞ at rest).
     pub fn nu_cap(&self, lim: &HoldLimits) -> f32 {
-        self.v
-            .iter()
-            .zip(lim.j.iter())
-            .map(|(v, j)| {
-                if *v != 0.0 {
-                    RHO_J * j / v.abs()
-                } else {
-                    f32::INFINITY
-                }
-            })
-            .fold(f32::INFINITY, mn)
+        let mut cap = f32::INFINITY;
+        for (v, j) in self.v.iter().zip(lim.j.iter()) {
+            if *v != 0.0 {
+                cap = mn(cap, RHO_J * j / v.abs());
+            }
+        }
+        cap
     }
 }
 
@@ -381,13 +377,17 @@ pub(crate) fn mu_cap(k: &Kin, lim: &HoldLimits, lam: f32, nu_r: f32) -> f32 {
 /// RHO_J·j, on the axes only where J is against A.
 pub(crate) fn mu_cap_ahead(k: &Kin, ahead: &Ahead, lim: &HoldLimits, lam: f32, nu_r: f32) -> f32 {
     let mut cap = f32::INFINITY;
-    for (i, (a, j)) in k.a.iter().zip(lim.j.iter()).enumerate() {
-        let at = |x: &[f32; 4]| x.get(i).copied().unwrap_or(0.0);
-        let (aa, va, am) = (at(&ahead.a), at(&ahead.v), lim.a.get(i).copied().unwrap_or(0.0));
+    let (l2, l3, l3x) = (lam * lam, lam * lam * lam, 3.0 * lam);
+    // (per axis and the tangent, zipped: no index checks)
+    let lims = lim.a.iter().zip(lim.j.iter());
+    let now = k.a.iter().zip(ahead.a.iter()).zip(ahead.v.iter());
+    let acc = ahead.a_acc.iter().zip(ahead.j_jerk.iter()).zip(ahead.a_jerk.iter());
+    for (i, (((am, j), ((a, aa), va)), ((a_acc, j_jerk), a_jerk))) in lims.zip(now).zip(acc).enumerate() {
+        let (am, j, a, aa, va) = (*am, *j, *a, *aa, *va);
         if va > 0.0 {
             // (braking adds to the plan's acceleration only where A is
             // against V)
-            let room = RHO_AHEAD * am - lam * lam * at(&ahead.a_acc);
+            let room = RHO_AHEAD * am - l2 * a_acc;
             cap = mn(cap, mx(room / va, MU_FLOOR));
             // The jerk the plan's λ³|J| ahead leaves for 3λμA.
             // On the axes, 3λμA adds to the plan's jerk only where J is
@@ -395,22 +395,24 @@ pub(crate) fn mu_cap_ahead(k: &Kin, ahead: &Ahead, lim: &HoldLimits, lam: f32, n
             // knots switch J's sign within a tick, all of the largest |J|
             // is taken).
             let (ja, aj) = if i < 3 {
-                (at(&ahead.j_jerk), at(&ahead.a_jerk))
+                (*j_jerk, *a_jerk)
             } else {
-                (at(&ahead.j), aa)
+                (ahead.j[3], aa)
             };
-            let room = RHO_AHEAD * (RHO_J * j - lam * lam * lam * ja);
-            if aj > 0.0 && lam > 0.0 {
-                cap = mn(cap, mx(room / (3.0 * lam * aj), MU_FLOOR_J));
-            }
-            if aa > 0.0 && lam > 0.0 {
-                // (and not overshooting the limit the other way)
-                cap = mn(cap, RHO_AHEAD * RHO_J * j / (3.0 * lam * aa));
+            if lam > 0.0 {
+                let room = RHO_AHEAD * (RHO_J * j - l3 * ja);
+                if aj > 0.0 {
+                    cap = mn(cap, mx(room / (l3x * aj), MU_FLOOR_J));
+                }
+                if aa > 0.0 {
+                    // (and not overshooting the limit the other way)
+                    cap = mn(cap, RHO_AHEAD * RHO_J * j / (l3x * aa));
+                }
             }
         }
         let a = mx(a.abs(), aa);
-        let c2 = 3.0 * lam * lam * j / nu_r;
-        let c1 = 3.0 * lam * a;
+        let c2 = 3.0 * l2 * j / nu_r;
+        let c1 = l3x * a;
         let c0 = RHO_M * j;
         let m = if c2 > 0.0 && c2.is_finite() {
             2.0 * c0 / (c1 + sqrt32(c1 * c1 + 4.0 * c2 * c0))
@@ -445,6 +447,16 @@ pub(crate) struct Ahead {
 }
 
 impl Ahead {
+    /// No look-ahead (all 0).
+    pub const NONE: Ahead = Ahead {
+        a: [0.0; 4],
+        v: [0.0; 4],
+        j: [0.0; 4],
+        a_acc: [0.0; 4],
+        j_jerk: [0.0; 4],
+        a_jerk: [0.0; 4],
+    };
+
     /// Take one point of the plan into account.
     pub fn add(&mut self, k: &Kin) {
         for i in 0..4 {

@@ -146,6 +146,10 @@ pub(crate) const PERIOD_TICKS: u32 = 2;
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Pending {
     nu: f32,
+    /// νh²/2 in Q62 (the step of λ per tick grows by twice that).
+    half: i64,
+    /// Ticks of the period still to run.
+    left: u32,
     lam: i64,
     m: i64,
     /// The state at the period's start, and after it (a hold or resume
@@ -537,11 +541,12 @@ impl FeedHold {
         // The period, exact in Q62, tick by tick: λ₁ = λ + μh + νh²/2,
         // μ₁h = μh + νh²; its end in the approach's coordinates (w₁h in
         // Q62).
+        // After n ticks: λ + nμh + n²νh²/2 and μh + 2n·νh²/2, the same
+        // integers as n steps.
+        let n = i64::from(PERIOD_TICKS);
         let end = |lam: i64, m: i64, half: i64| {
-            let lam1 = lam.wrapping_add(m).wrapping_add(half);
-            let m1 = m.wrapping_add(half.wrapping_mul(2));
-            let lam2 = lam1.wrapping_add(m1).wrapping_add(half);
-            let m2 = m1.wrapping_add(half.wrapping_mul(2));
+            let lam2 = lam.wrapping_add(m.wrapping_mul(n)).wrapping_add(half.wrapping_mul(n * n));
+            let m2 = m.wrapping_add(half.wrapping_mul(2 * n));
             let (x1q, w1q) = if hold {
                 (lam2, m2.wrapping_neg())
             } else {
@@ -561,13 +566,13 @@ impl FeedHold {
         // the landing one (not clamped), νh²/2 comes from the integer
         // distance to go.
         let (half, x1q, w1q, x1, w1) = if lands || crossed {
-            let two_m = self.m.wrapping_mul(2);
+            let nm = self.m.wrapping_mul(n);
             let rest = if hold {
-                self.lam.wrapping_add(two_m).wrapping_neg()
+                self.lam.wrapping_add(nm).wrapping_neg()
             } else {
-                LAM_ONE.wrapping_sub(self.lam).wrapping_sub(two_m)
+                LAM_ONE.wrapping_sub(self.lam).wrapping_sub(nm)
             };
-            let exact = rest / 4;
+            let exact = rest / (n * n);
             let tol = (half.unsigned_abs() >> 16).saturating_add(64);
             if exact.abs_diff(half) <= tol {
                 let (x1q, w1q, x1, w1) = end(self.lam, self.m, exact);
@@ -608,6 +613,8 @@ impl FeedHold {
         };
         self.pending = Some(Pending {
             nu,
+            half,
+            left: PERIOD_TICKS - 1,
             lam: lam_end,
             m: m_end,
             from: self.state,
@@ -631,13 +638,23 @@ impl FeedHold {
             mu: if h > 0.0 { q62_f32(self.m) / h } else { 0.0 },
             nu: 0.0,
         };
-        if let Some(p) = self.pending.take() {
-            now.nu = p.nu;
-            self.lam = p.lam;
-            self.m = p.m;
-            if self.state == p.from {
-                self.state = p.to;
+        match self.pending.as_mut() {
+            Some(p) if p.left > 1 => {
+                now.nu = p.nu;
+                p.left -= 1;
+                self.lam = self.lam.wrapping_add(self.m).wrapping_add(p.half);
+                self.m = self.m.wrapping_add(p.half.wrapping_mul(2));
             }
+            Some(p) => {
+                now.nu = p.nu;
+                self.lam = p.lam;
+                self.m = p.m;
+                if self.state == p.from {
+                    self.state = p.to;
+                }
+                self.pending = None;
+            }
+            None => {}
         }
         now
     }

@@ -41,7 +41,7 @@
 use crate::feed_hold::constraints::{mn, mx, sqrt32, Ahead, Kin};
 use crate::feed_hold::controller::{scaled_step, FeedHold, TickScale, PERIOD_TICKS};
 use crate::feed_hold::{HoldError, HoldState, HoldStats};
-use crate::interp::cursor::{q_eval, tau_of, PCur, QCur, Views};
+use crate::interp::cursor::{q_eval, q_eval_f32, tau_of, PCur, QCur, Views};
 use crate::interp::hold_run::{
     Prepared, Stage, Sweep, AHEAD_FACTOR, AHEAD_MAX_MM, AHEAD_N, AHEAD_PER_TICK, COAST_ABOVE, END_FACTOR,
 };
@@ -242,24 +242,11 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
                     left = left.saturating_sub(8);
                 }
                 Stage::Derivs => {
-                    let pi = sw.pi;
-                    // (the current piece by reference: no cursor copy)
-                    let other;
-                    let pc = if pi == c.pc.idx {
-                        c.pc
-                    } else {
-                        let Some(p) = v_.piece(pi) else {
-                            sw.done = true;
-                            break;
-                        };
-                        other = p;
-                        &other
-                    };
-                    let Some(coeffs) = v_.coeffs(pc) else {
+                    let Some(dr) = v_.piece_derivs(sw.pi, sw.sk) else {
                         sw.done = true;
                         break;
                     };
-                    sw.dr = pos_derivs(coeffs, tau_of(sw.sk, pc.centre, pc.shift), pc.shift, pc.constant);
+                    sw.dr = dr;
                     sw.stage = Stage::Plan;
                     left = left.saturating_sub(8);
                 }
@@ -283,9 +270,8 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
                         }
                         _ => {
                             let tq = fx_small_f32(sk.wrapping_sub(qc.anchor), 20);
-                            let qs = q_eval(qc, &qc.poly, sk, tq, c.v);
-                            let [_, dq, ddq, _] = qs.qd;
-                            Kin::new(dr, [qs.v, 0.5 * dq, 0.5 * ddq * qs.v])
+                            let ([_, dq, ddq, _], v, _) = q_eval_f32(qc, &qc.poly, sk, tq, c.v);
+                            Kin::new(dr, [v, 0.5 * dq, 0.5 * ddq * v])
                         }
                     };
                     sw.part.add(&k);
@@ -505,8 +491,7 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         self.fh
             .ctl
             .set_coast(coast && self.fh.ctl.lambda_f32() > COAST_ABOVE);
-        let none = Ahead::default();
-        let ahead = if seg { &none } else { &self.fh.joined };
+        let ahead = if seg { &Ahead::NONE } else { &self.fh.joined };
         let prep = self.fh.ctl.prepare(&kin, ahead, &self.fh.lim, self.h);
         let p = Prepared {
             s,
@@ -591,13 +576,7 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
             return;
         }
         let idx = self.pc.idx.wrapping_add(1);
-        if let Some(next) = self.views.piece(idx) {
-            if let Some(c) = self.views.coeffs(&next) {
-                let at = self.pc.next;
-                let dr = pos_derivs(c, tau_of(at, next.centre, next.shift), next.shift, next.constant);
-                self.fh.next_dr = Some((idx, dr));
-            }
-        }
+        self.fh.next_dr = self.views.piece_derivs(idx, self.pc.next).map(|dr| (idx, dr));
     }
 
     /// A tick in the stop segment under scaling: the segment followed in
