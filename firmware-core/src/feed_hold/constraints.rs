@@ -181,10 +181,12 @@ pub(crate) fn interval_plain(cons: &[Lin], warm: (u8, u8)) -> (Interval, (u8, u8
         (Some(i), Some(j)) => (j.d - i.d) / (i.m + j.m),
         _ => 1.0,
     };
+    // (c = 1 is the only test needed: a NaN d or m never wins a compare
+    // in the relaxation, an m of ∞ never binds, and the limits are > 0)
     let (r, nu, pair) = relax(
         (0u8..)
             .zip(cons.iter())
-            .filter(|(_, k)| ok(k))
+            .filter(|(_, k)| k.c == 1.0)
             .map(|(i, k)| (i, (k.d, k.m))),
         r0,
     );
@@ -210,18 +212,21 @@ fn relax<I: Iterator<Item = (u8, (f32, f32))> + Clone>(nk: I, r0: f32) -> (f32, 
     let (mut l, mut u) = (f32::NEG_INFINITY, f32::INFINITY);
     let mut pair = (0u8, 0u8);
     for step in 0..=RELAX_STEPS {
-        // The extreme pair at r (and the bounds at r).
+        // The extreme pair at r (and the bounds at r): the bounds are
+        // −(d + rm) and −(d − rm), compared negated (one add each).
         let (mut li, mut ui) = ((0.0f32, 0.0f32), (0.0f32, 0.0f32));
-        (l, u) = (f32::NEG_INFINITY, f32::INFINITY);
+        let (mut nl, mut nu_) = (f32::INFINITY, f32::NEG_INFINITY);
         for (i, (dc, mc)) in nk.clone() {
-            let (x, y) = (-r * mc - dc, r * mc - dc);
-            if x > l {
-                (l, li, pair.0) = (x, (dc, mc), i);
+            let rm = r * mc;
+            let (x, y) = (dc + rm, dc - rm);
+            if x < nl {
+                (nl, li, pair.0) = (x, (dc, mc), i);
             }
-            if y < u {
-                (u, ui, pair.1) = (y, (dc, mc), i);
+            if y > nu_ {
+                (nu_, ui, pair.1) = (y, (dc, mc), i);
             }
         }
+        (l, u) = (-nl, -nu_);
         let r1 = (ui.0 - li.0) / (li.1 + ui.1);
         // (converged to rounding: the next pair is the same line)
         if step == RELAX_STEPS || !(r1 > r * (1.0 + 1e-6)) {
@@ -277,6 +282,17 @@ impl Kin {
             j: [jx_, jy_, jz_, j],
             dj: [0.0; 4],
         }
+    }
+
+    /// The plan's axis jerk only ([`Kin::new`]'s `j` for the axes).
+    pub fn jerk(r: [[f32; 3]; 3], sd: [f32; 3]) -> [f32; 3] {
+        let [r1, r2, r3] = r;
+        let [v, a, j] = sd;
+        let [x1, y1, z1] = r1;
+        let [x2, y2, z2] = r2;
+        let [x3, y3, z3] = r3;
+        let jx = |d1: f32, d2: f32, d3: f32| d3 * v * v * v + 3.0 * d2 * v * a + d1 * j;
+        [jx(x1, x2, x3), jx(y1, y2, y3), jx(z1, z2, z3)]
     }
 
     /// The rate κ (1/s) of the exponential tail of a resume, 1 − λ ∝ e^(−κt):
@@ -381,7 +397,11 @@ pub(crate) fn mu_cap_ahead(k: &Kin, ahead: &Ahead, lim: &HoldLimits, lam: f32, n
     // (per axis and the tangent, zipped: no index checks)
     let lims = lim.a.iter().zip(lim.j.iter());
     let now = k.a.iter().zip(ahead.a.iter()).zip(ahead.v.iter());
-    let acc = ahead.a_acc.iter().zip(ahead.j_jerk.iter()).zip(ahead.a_jerk.iter());
+    let acc = ahead
+        .a_acc
+        .iter()
+        .zip(ahead.j_jerk.iter())
+        .zip(ahead.a_jerk.iter());
     for (i, (((am, j), ((a, aa), va)), ((a_acc, j_jerk), a_jerk))) in lims.zip(now).zip(acc).enumerate() {
         let (am, j, a, aa, va) = (*am, *j, *a, *aa, *va);
         if va > 0.0 {

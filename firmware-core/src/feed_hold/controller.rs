@@ -330,12 +330,6 @@ impl FeedHold {
         self.control_period(kin, &prep, lim, h)
     }
 
-    /// The braking deceleration of λ (1/s²) the controller plans with at
-    /// `kin` ([`THETA`] × the jerk-limited ν at λ = 0).
-    pub fn braking(kin: &Kin, lim: &HoldLimits) -> f32 {
-        THETA * mn(kin.nu_cap(lim), 1e9)
-    }
-
     /// A control period is in progress: the next tick is its second
     /// ([`Self::advance`]).
     #[inline(always)]
@@ -545,7 +539,9 @@ impl FeedHold {
         // integers as n steps.
         let n = i64::from(PERIOD_TICKS);
         let end = |lam: i64, m: i64, half: i64| {
-            let lam2 = lam.wrapping_add(m.wrapping_mul(n)).wrapping_add(half.wrapping_mul(n * n));
+            let lam2 = lam
+                .wrapping_add(m.wrapping_mul(n))
+                .wrapping_add(half.wrapping_mul(n * n));
             let m2 = m.wrapping_add(half.wrapping_mul(2 * n));
             let (x1q, w1q) = if hold {
                 (lam2, m2.wrapping_neg())

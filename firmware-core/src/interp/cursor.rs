@@ -4,7 +4,9 @@
 
 use crate::math::source::{F64Array, LeF32, LeF64};
 use crate::servo_forms::fixed::{fx_small_f32, sqrt_q32, to_fx, Q_FRAC};
-use crate::servo_forms::piece::{piece_shift_mask, pos_derivs, PieceU, PIECE_F64_LEN, PIECE_HEAD_LEN, POS_BYTES};
+use crate::servo_forms::piece::{
+    piece_shift_mask, pos_derivs, PieceU, PIECE_F64_LEN, PIECE_HEAD_LEN, POS_BYTES,
+};
 use crate::servo_forms::q_span::{feed_near, q_fx_eval, QLocal, Q_FX_LEN, Q_LOCAL_LEN};
 
 /// The current q span: its index among the q spans (knot span 3 + idx),

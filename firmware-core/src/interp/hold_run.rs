@@ -49,14 +49,18 @@ pub(crate) struct HoldRun {
     pub(crate) next_dr: Option<(usize, [[f32; 3]; 3])>,
     /// The next control period's kinematics, computed on the tick before
     /// it or by a hold or resume request.
-    pub(crate) prep: Option<Prepared>,
+    pub(crate) prep: Prepared,
+    /// The braking deceleration of λ the last prepared period planned
+    /// with (1/s²), for a new look-ahead sweep's horizon.
+    pub(crate) brake: f32,
 }
 
 /// The plan's kinematics at the start of a control period and what the
 /// controller needs of them ([`FeedHold::prepare`]), for the period's
-/// first tick: valid at `s` in `state`.
+/// first tick: valid (once) at `s` in `state`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct Prepared {
+    pub(crate) valid: bool,
     pub(crate) s: i64,
     pub(crate) state: HoldState,
     pub(crate) kin: Kin,
@@ -100,6 +104,18 @@ pub(crate) enum Stage {
     Plan,
 }
 
+impl Default for Prepared {
+    fn default() -> Self {
+        Prepared {
+            valid: false,
+            s: 0,
+            state: HoldState::Running,
+            kin: Kin::default(),
+            prep: Prep::default(),
+        }
+    }
+}
+
 impl HoldRun {
     pub(super) fn new(l: &Limits) -> Self {
         HoldRun {
@@ -123,7 +139,7 @@ impl HoldRun {
         self.reach = false;
         self.joined = Ahead::default();
         self.next_dr = None;
-        self.prep = None;
+        self.prep.valid = false;
     }
 
     /// The distance a tangential jerk-limited stop from `v` (mm/s) needs

@@ -39,11 +39,11 @@
 //!   [`Interpolator::resume`] return a [`HoldError`] and change nothing.
 
 use crate::feed_hold::constraints::{mn, mx, sqrt32, Ahead, Kin};
-use crate::feed_hold::controller::{scaled_step, FeedHold, TickScale, PERIOD_TICKS};
+use crate::feed_hold::controller::{scaled_step, TickScale, PERIOD_TICKS, THETA};
 use crate::feed_hold::{HoldError, HoldState, HoldStats};
 use crate::interp::cursor::{q_eval, q_eval_f32, tau_of, PCur, QCur, Views};
 use crate::interp::hold_run::{
-    Prepared, Stage, Sweep, AHEAD_FACTOR, AHEAD_MAX_MM, AHEAD_N, AHEAD_PER_TICK, COAST_ABOVE, END_FACTOR,
+    Stage, Sweep, AHEAD_FACTOR, AHEAD_MAX_MM, AHEAD_N, AHEAD_PER_TICK, COAST_ABOVE, END_FACTOR,
 };
 use crate::interp::interpolator::{Interpolator, Phase};
 use crate::interp::setpoint::{Fault, Setpoint};
@@ -156,8 +156,7 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
     /// The horizon of a sweep starting now: the arc length the stop can
     /// still cover (its time to go at the planned braking rate times the
     /// plan's feed `v`, × [`AHEAD_FACTOR`]), at most [`AHEAD_MAX_MM`].
-    fn sweep_len(&self, kin: &Kin, v: f32) -> f32 {
-        let b = FeedHold::braking(kin, &self.fh.lim);
+    fn sweep_len(&self, b: f32, v: f32) -> f32 {
         let (x, mu) = (self.fh.ctl.lambda_f32(), self.fh.ctl.mu_f32());
         if !(b > 0.0 && v > 0.0) {
             return 0.0;
@@ -286,13 +285,13 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         }
     }
 
-    /// The look-ahead for this tick (stopping only; zeros otherwise):
-    /// `fh.joined`, the last complete sweep joined with the one in
-    /// progress (a new one starts when it is complete; [`Self::ahead_step`]
-    /// advances it, after the controller); returns whether the plan's stop
-    /// segment is within the stop's reach. A hold request runs a whole
-    /// sweep at once ([`Interpolator::hold`]), outside the tick.
-    fn ahead_acc(&mut self, kin: &Kin, v: f32) -> bool {
+    /// The look-ahead for the next control period (stopping only; zeros
+    /// otherwise): `fh.joined`, the last complete sweep joined with the one
+    /// in progress ([`Self::ahead_work`] starts a new one when it is
+    /// complete and advances it); returns whether the plan's stop segment
+    /// is within the stop's reach. A hold request runs a whole sweep at
+    /// once ([`Interpolator::hold`]), outside the tick.
+    fn ahead_acc(&mut self) -> bool {
         // Stopping only: a resume plans its cap at λ = 1 already, and a
         // look-ahead cap dropping under μ on its exponential tail forces μ
         // down against the tail law (measured: up to 1.07× j at landing).
@@ -303,16 +302,35 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
             }
             return false;
         }
-        if !matches!(&self.fh.sweep, Some(sw) if !sw.done) {
-            if let Some(d) = &self.fh.sweep {
-                self.fh.ahead = d.part;
-                self.fh.reach = d.reach;
-            }
-            // (a new sweep: nothing of it yet)
-            self.fh.joined = self.fh.ahead;
-            self.fh.sweep = Some(self.start_sweep(self.s, self.sweep_len(kin, v)));
-        }
         self.fh.reach || self.fh.sweep.as_ref().is_some_and(|sw| sw.reach)
+    }
+
+    /// The optional work of a control period's first tick, one item: the
+    /// next piece's derivatives at its start when they are not there yet
+    /// (also on a tick that entered a piece or q span: the break may come
+    /// within the next period); else, on a tick that entered none, a new
+    /// look-ahead sweep when the last one is complete (its horizon from
+    /// the braking rate prepared for this period and the plan's feed), or
+    /// the sweep's next step ([`Self::ahead_step`]).
+    fn ahead_work(&mut self, entered: bool) {
+        if !self.next_dr_ready() && self.pc.idx < self.views.p_last {
+            self.next_piece_derivs();
+            return;
+        }
+        if entered || self.fh.ctl.state() != HoldState::Stopping {
+            return;
+        }
+        if matches!(&self.fh.sweep, Some(sw) if !sw.done) {
+            self.ahead_step();
+            return;
+        }
+        if let Some(d) = &self.fh.sweep {
+            self.fh.ahead = d.part;
+            self.fh.reach = d.reach;
+        }
+        // (a new sweep: nothing of it yet)
+        self.fh.joined = self.fh.ahead;
+        self.fh.sweep = Some(self.start_sweep(self.s, self.sweep_len(self.fh.brake, self.qs.v)));
     }
 
     /// One step ([`AHEAD_PER_TICK`]) of the look-ahead sweep in progress
@@ -408,27 +426,21 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         }
         let guess = self.qs.v;
         let (pi, qi) = (self.pc.idx, self.qc.idx);
-        let sp = self.place(t_s, (fx_to_f64(s_new), s_new), 0.0)?;
-        let tq = fx_small_f32(s_new.wrapping_sub(self.qc.anchor), 20);
-        let poly = self.qc.poly;
+        let Some((tp, tq, poly)) = self.seek(s_new) else {
+            return self.fault(Fault::Eval {
+                s_mm: fx_to_f64(s_new),
+            });
+        };
+        self.s = s_new;
         self.qs = q_eval(&self.qc, &poly, s_new, tq, guess);
         let entered = self.pc.idx != pi || self.qc.idx != qi;
-        if !self.period_end() && first && !busy && !entered {
-            // The look-ahead's step, on a period's first tick that did
-            // nothing else optional (no relaxation, no piece or q span
-            // entered), the next period's preparation takes it; the next
-            // piece's derivatives at its start go first when they are not
-            // there yet.
-            if self.next_dr_ready() || self.pc.idx >= self.views.p_last {
-                self.ahead_step();
-            } else {
-                self.next_piece_derivs();
-            }
+        if !self.period_end() && first && !busy {
+            // (on a period's first tick without a relaxation: the next
+            // period's preparation takes it)
+            self.ahead_work(entered);
         }
-        Ok(Setpoint {
-            feed_mm_s: f64::from(self.fh.ctl.lambda_f32() * self.qs.v),
-            ..sp
-        })
+        let feed = self.fh.ctl.lambda_f32() * self.qs.v;
+        self.emit(t_s, (fx_to_f64(s_new), s_new), tp, feed)
     }
 
     /// A control period's first tick: ν from the kinematics prepared at s
@@ -437,17 +449,25 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
     /// (ν = 0, no period), else prepared now. `None`: the path could not
     /// be evaluated.
     fn period_start(&mut self) -> Option<TickScale> {
-        let state = self.fh.ctl.state();
-        let p = match self.fh.prep.take() {
-            Some(p) if p.s == self.s && p.state == state => p,
-            _ => {
-                if let Some(ts) = self.fh.ctl.on_plan() {
-                    return Some(ts);
-                }
-                self.prepare_period().0?
+        if !self.prepared() {
+            if let Some(ts) = self.fh.ctl.on_plan() {
+                return Some(ts);
             }
-        };
-        Some(self.fh.ctl.control_period(&p.kin, &p.prep, &self.fh.lim, self.h))
+            if !self.prepare_period() {
+                return None;
+            }
+        }
+        let h = self.h;
+        let fh = &mut self.fh;
+        // (once: the period's start moves on with the tick)
+        fh.prep.valid = false;
+        Some(fh.ctl.control_period(&fh.prep.kin, &fh.prep.prep, &fh.lim, h))
+    }
+
+    /// [`HoldRun::prep`] is for a period starting here, in this state.
+    fn prepared(&self) -> bool {
+        let p = &self.fh.prep;
+        p.valid && p.s == self.s && p.state == self.fh.ctl.state()
     }
 
     /// After a tick: when the next one starts a control period (stopping or
@@ -459,17 +479,17 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         {
             return false;
         }
-        self.fh.prep = self.prepare_period().0;
+        self.prepare_period();
         true
     }
 
     /// The plan's kinematics at s for a control period starting there
     /// (from the plan's q, or in the scaled stop segment from its cubic),
     /// the look-ahead's maxima (stopping), the coasting decision and what
-    /// the controller needs of them ([`FeedHold::prepare`]); with whether
-    /// the next piece's derivatives were evaluated for it. `None`: the path
-    /// could not be evaluated.
-    fn prepare_period(&mut self) -> (Option<Prepared>, bool) {
+    /// the controller needs of them ([`FeedHold::prepare`]), into
+    /// [`HoldRun::prep`] (in place). `false`: the path could not be
+    /// evaluated (the next tick faults).
+    fn prepare_period(&mut self) -> bool {
         let s = self.s;
         let (plan, seg) = match self.fh.seg_tau {
             Some(tau) => {
@@ -483,80 +503,77 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
                 ([v, 0.5 * dq, 0.5 * ddq * v], false)
             }
         };
-        let Some((kin, extra)) = self.hold_kin(plan, s) else {
-            return (None, false);
-        };
+        self.fh.prep.valid = false;
+        if !self.hold_kin(plan, s) {
+            return false;
+        }
         // (in the stop segment: coast through it, without the look-ahead)
-        let coast = if seg { true } else { self.ahead_acc(&kin, plan[0]) };
-        self.fh
-            .ctl
-            .set_coast(coast && self.fh.ctl.lambda_f32() > COAST_ABOVE);
-        let ahead = if seg { &Ahead::NONE } else { &self.fh.joined };
-        let prep = self.fh.ctl.prepare(&kin, ahead, &self.fh.lim, self.h);
-        let p = Prepared {
-            s,
-            state: self.fh.ctl.state(),
-            kin,
-            prep,
-        };
-        (Some(p), extra)
+        let coast = if seg { true } else { self.ahead_acc() };
+        let fh = &mut self.fh;
+        fh.ctl.set_coast(coast && fh.ctl.lambda_f32() > COAST_ABOVE);
+        let ahead = if seg { &Ahead::NONE } else { &fh.joined };
+        fh.prep.prep = fh.ctl.prepare(&fh.prep.kin, ahead, &fh.lim, self.h);
+        fh.brake = THETA * fh.prep.prep.cap;
+        fh.prep.s = s;
+        fh.prep.state = fh.ctl.state();
+        fh.prep.valid = true;
+        true
     }
 
     /// A hold or resume request between ticks: the next control period's
     /// kinematics now, unless a period is in progress (its second tick
     /// prepares the next) or they are there already for this state.
     fn prepare_request(&mut self) {
-        let state = self.fh.ctl.state();
-        let ready = matches!(self.fh.prep, Some(p) if p.s == self.s && p.state == state);
-        if self.phase == Phase::Run && !ready {
+        if self.phase == Phase::Run && !self.prepared() {
             self.period_end();
         }
     }
 
     /// The plan's kinematics at s ([`Kin`]) for the controller, from the
-    /// plan's `[ṡ_p, s̈_p, s⃛_p, …]` there: with J's change since the last
-    /// control period (two ticks), or the jump of the path's r‴ at a piece
-    /// break within the next two periods when that is larger.
-    fn hold_kin(&mut self, plan: [f32; 3], s: i64) -> Option<(Kin, bool)> {
+    /// plan's `[ṡ_p, s̈_p, s⃛_p]` there, into [`HoldRun::prep`]: with J's
+    /// change since the last control period (two ticks), or the jump of
+    /// the path's r‴ at a piece break within the next two periods when that
+    /// is larger. `false`: the piece cannot be read.
+    fn hold_kin(&mut self, plan: [f32; 3], s: i64) -> bool {
         let [p1, p2, p3] = plan;
-        let coeffs = self.views.coeffs(&self.pc)?;
-        let dr = pos_derivs(
-            coeffs,
-            tau_of(s, self.pc.centre, self.pc.shift),
-            self.pc.shift,
-            self.pc.constant,
-        );
-        let mut kin = Kin::new(dr, [p1, p2, p3]);
-        if let Some(pj) = self.fh.prev_j {
-            for ((d, j), p) in kin.dj.iter_mut().zip(kin.j.iter()).zip(pj.iter()) {
-                *d = j - p;
-            }
-        }
-        self.fh.prev_j = Some(kin.j);
         // A piece break within the next two periods: the path's r‴ (so the
         // plan's axis jerk) jumps there; the jump counts as J's change.
         let reach = s.saturating_add(f32_to_fx(
             (2 * PERIOD_TICKS) as f32 * self.h * mx(0.0, p1) * mx(0.0, self.fh.ctl.lambda_f32()),
         ));
         let near = self.pc.next <= reach && self.pc.idx < self.views.p_last;
-        // (the next piece's derivatives are usually there already:
-        // evaluating them here is an extra only when they are not)
-        let extra = near && !self.next_dr_ready();
+        // (the next piece's derivatives are usually there already)
         if near {
-            if extra {
-                self.next_piece_derivs();
-            }
-            if let Some((_, dr_n)) = self.fh.next_dr {
-                let kin_n = Kin::new(dr_n, [p1, p2, p3]);
-                for ((d, jn), j) in kin.dj.iter_mut().zip(kin_n.j.iter()).zip(kin.j.iter()) {
-                    let jump = jn - j;
-                    if jump.abs() > d.abs() {
-                        *d = jump;
-                    }
+            self.next_piece_derivs();
+        }
+        let Some(coeffs) = self.views.coeffs(&self.pc) else {
+            return false;
+        };
+        let dr = pos_derivs(
+            coeffs,
+            tau_of(s, self.pc.centre, self.pc.shift),
+            self.pc.shift,
+            self.pc.constant,
+        );
+        let fh = &mut self.fh;
+        let kin = &mut fh.prep.kin;
+        *kin = Kin::new(dr, [p1, p2, p3]);
+        kin.dj = match fh.prev_j {
+            Some(pj) => [0, 1, 2, 3].map(|i| at4(&kin.j, i) - at4(&pj, i)),
+            None => [0.0; 4],
+        };
+        fh.prev_j = Some(kin.j);
+        if let (true, Some((_, dr_n))) = (near, fh.next_dr) {
+            // (the plan's axis jerk there: r‴ṡ³ + 3r″ṡs̈ + r′s⃛)
+            let jn = Kin::jerk(dr_n, [p1, p2, p3]);
+            for ((d, jn), j) in kin.dj.iter_mut().zip(jn.iter()).zip(kin.j.iter()) {
+                let jump = jn - j;
+                if jump.abs() > d.abs() {
+                    *d = jump;
                 }
             }
         }
-        Some((kin, extra))
+        true
     }
 
     /// [`HoldRun::next_dr`] is for the piece after the current one.
@@ -626,6 +643,12 @@ struct SweepCtx<'c, 'a> {
     v: f32,
     stop_at: i64,
     ends: &'c Option<EndSegments>,
+}
+
+/// `x[i]`, 0 past the end.
+#[inline(always)]
+fn at4(x: &[f32; 4], i: usize) -> f32 {
+    x.get(i).copied().unwrap_or(0.0)
 }
 
 /// How many of the values `arr[first ..= last]` (ascending, ≥ 0) lie below
