@@ -111,7 +111,7 @@ fn norm(k: &Lin) -> Option<(f32, f32)> {
 }
 
 /// Newton steps [`interval`] takes at most for the smallest relaxation.
-pub(crate) const RELAX_STEPS: usize = 4;
+pub(crate) const RELAX_STEPS: usize = 2;
 
 /// The intersection of the constraints' ν intervals; if empty, the
 /// minimiser of the largest relative violation max |d + cν|/m: the

@@ -24,7 +24,7 @@ pub(crate) const AHEAD_FACTOR: f32 = 1.5;
 pub(crate) const AHEAD_MAX_MM: f32 = 40.0;
 
 /// The interpolator's feed-hold state.
-#[derive(Clone, Copy, Debug, PartialEq, Default)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct HoldRun {
     pub(crate) ctl: FeedHold,
     pub(crate) lim: HoldLimits,
@@ -42,11 +42,11 @@ pub(crate) struct HoldRun {
     pub(crate) reach: bool,
     /// `ahead` joined with the sweep in progress (what the tick uses).
     pub(crate) joined: Ahead,
-    /// The path's r′, r″, r‴ at the start of piece `.0` (the one after the
-    /// current piece's break, for the jump of J there), computed ahead on
-    /// a tick with nothing else optional to do, or by a hold or resume
-    /// request.
-    pub(crate) next_dr: Option<(usize, [[f32; 3]; 3])>,
+    /// The path's r′, r″, r‴ at the start of piece `.0` (`usize::MAX`:
+    /// none), for the two pieces after the current one (for the jump of J
+    /// at their breaks): computed ahead on a tick with nothing else
+    /// optional to do, or by a hold or resume request.
+    pub(crate) next_dr: [(usize, [[f32; 3]; 3]); 2],
     /// The next control period's kinematics, computed on the tick before
     /// it or by a hold or resume request.
     pub(crate) prep: Prepared,
@@ -66,6 +66,9 @@ pub(crate) struct Prepared {
     pub(crate) kin: Kin,
     pub(crate) prep: Prep,
 }
+
+/// [`HoldRun::next_dr`] empty.
+pub(crate) const NO_DR: [(usize, [[f32; 3]; 3]); 2] = [(usize::MAX, [[0.0; 3]; 3]); 2];
 
 /// One pass of the look-ahead over the plan ahead, spread over ticks.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
@@ -104,6 +107,25 @@ pub(crate) enum Stage {
     Plan,
 }
 
+impl Default for HoldRun {
+    fn default() -> Self {
+        HoldRun {
+            ctl: FeedHold::default(),
+            lim: HoldLimits::default(),
+            seg_tau: None,
+            to_end: false,
+            prev_j: None,
+            sweep: None,
+            ahead: Ahead::default(),
+            reach: false,
+            joined: Ahead::default(),
+            next_dr: NO_DR,
+            prep: Prepared::default(),
+            brake: 0.0,
+        }
+    }
+}
+
 impl Default for Prepared {
     fn default() -> Self {
         Prepared {
@@ -138,7 +160,7 @@ impl HoldRun {
         self.sweep = None;
         self.reach = false;
         self.joined = Ahead::default();
-        self.next_dr = None;
+        self.next_dr = NO_DR;
         self.prep.valid = false;
     }
 

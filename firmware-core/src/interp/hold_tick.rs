@@ -305,19 +305,22 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         self.fh.reach || self.fh.sweep.as_ref().is_some_and(|sw| sw.reach)
     }
 
-    /// The optional work of a control period's first tick, one item: the
-    /// next piece's derivatives at its start when they are not there yet
-    /// (also on a tick that entered a piece or q span: the break may come
-    /// within the next period); else, on a tick that entered none, a new
-    /// look-ahead sweep when the last one is complete (its horizon from
-    /// the braking rate prepared for this period and the plan's feed), or
-    /// the sweep's next step ([`Self::ahead_step`]).
-    fn ahead_work(&mut self, entered: bool) {
-        if !self.next_dr_ready() && self.pc.idx < self.views.p_last {
-            self.next_piece_derivs();
-            return;
+    /// The optional work of a control period's first tick that entered no
+    /// piece or q span, one item: the start derivatives of the next piece,
+    /// else of the one after it ([`HoldRun::next_dr`]), when they are not
+    /// there yet; else a new look-ahead sweep when the last one is
+    /// complete (its horizon from the braking rate prepared for this
+    /// period and the plan's feed), or the sweep's next step
+    /// ([`Self::ahead_step`]).
+    fn ahead_work(&mut self) {
+        let n1 = self.pc.idx.wrapping_add(1);
+        for idx in [n1, n1.wrapping_add(1)] {
+            if idx <= self.views.p_last && self.start_dr(idx).is_none() {
+                self.piece_start_derivs(idx);
+                return;
+            }
         }
-        if entered || self.fh.ctl.state() != HoldState::Stopping {
+        if self.fh.ctl.state() != HoldState::Stopping || self.fh.seg_tau.is_some() {
             return;
         }
         if matches!(&self.fh.sweep, Some(sw) if !sw.done) {
@@ -395,16 +398,16 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         if self.fh.ctl.state() == HoldState::Running {
             self.fh.prev_j = None;
         }
+        // (an infeasible period's relaxation, like a piece or q span
+        // entered, leaves the optional work for a later tick)
+        let quiet = first && self.fh.ctl.infeasible() == relaxed;
         if let Some(tau) = self.fh.seg_tau {
-            return self.hold_seg_tick(t_s, tau, &ts);
+            return self.hold_seg_tick(t_s, tau, &ts, quiet);
         }
         // The plan's ṡ_p, s̈_p, s⃛_p, s⁗_p at s.
         let [_, dq, ddq, dddq] = self.qs.qd;
         let v = self.qs.v;
         let plan = [v, 0.5 * dq, 0.5 * ddq * v, 0.5 * dddq * v * v + 0.25 * ddq * dq];
-        // (an infeasible period's relaxation, like the next piece's
-        // evaluation, leaves the look-ahead's step for a later tick)
-        let busy = self.fh.ctl.infeasible() != relaxed;
         let vh = mul_hi(self.qs.v_fx, self.tk.0).wrapping_shl(self.tk.1);
         let Some(ds) = scaled_step(vh, plan, &ts, h) else {
             return self.fault(Fault::NonFinite { s_mm: fx_to_f64(s) });
@@ -419,7 +422,9 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
             // Into the stop segment at its own time to go τ (L − s = J₂τ³/6).
             let tau = cbrt64(6.0 * rest / j2);
             self.fh.seg_tau = Some(tau);
-            let feed = (self.fh.ctl.lambda() * 0.5 * j2 * tau * tau) as f32;
+            // (the feed, reported only: f32)
+            let tf = tau as f32;
+            let feed = self.fh.ctl.lambda_f32() * 0.5 * (j2 as f32) * tf * tf;
             let sp = self.place(t_s, (fx_to_f64(s_new), s_new), feed)?;
             self.period_end();
             return Ok(sp);
@@ -434,10 +439,10 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         self.s = s_new;
         self.qs = q_eval(&self.qc, &poly, s_new, tq, guess);
         let entered = self.pc.idx != pi || self.qc.idx != qi;
-        if !self.period_end() && first && !busy {
-            // (on a period's first tick without a relaxation: the next
-            // period's preparation takes it)
-            self.ahead_work(entered);
+        if !self.period_end() && quiet && !entered {
+            // (on a period's first tick without a relaxation that entered
+            // no piece or q span: the next period's preparation takes it)
+            self.ahead_work();
         }
         let feed = self.fh.ctl.lambda_f32() * self.qs.v;
         self.emit(t_s, (fx_to_f64(s_new), s_new), tp, feed)
@@ -543,9 +548,15 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         ));
         let near = self.pc.next <= reach && self.pc.idx < self.views.p_last;
         // (the next piece's derivatives are usually there already)
-        if near {
-            self.next_piece_derivs();
-        }
+        let n1 = self.pc.idx.wrapping_add(1);
+        let dr_n = if near {
+            if self.start_dr(n1).is_none() {
+                self.piece_start_derivs(n1);
+            }
+            self.start_dr(n1)
+        } else {
+            None
+        };
         let Some(coeffs) = self.views.coeffs(&self.pc) else {
             return false;
         };
@@ -563,7 +574,7 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
             None => [0.0; 4],
         };
         fh.prev_j = Some(kin.j);
-        if let (true, Some((_, dr_n))) = (near, fh.next_dr) {
+        if let Some(dr_n) = dr_n {
             // (the plan's axis jerk there: r‴ṡ³ + 3r″ṡs̈ + r′s⃛)
             let jn = Kin::jerk(dr_n, [p1, p2, p3]);
             for ((d, jn), j) in kin.dj.iter_mut().zip(jn.iter()).zip(kin.j.iter()) {
@@ -576,31 +587,49 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         true
     }
 
-    /// [`HoldRun::next_dr`] is for the piece after the current one.
-    fn next_dr_ready(&self) -> bool {
-        matches!(self.fh.next_dr, Some((i, _)) if i == self.pc.idx.wrapping_add(1))
+    /// The start derivatives of piece `idx` if [`HoldRun::next_dr`] has
+    /// them.
+    fn start_dr(&self, idx: usize) -> Option<[[f32; 3]; 3]> {
+        self.fh.next_dr.iter().find(|(i, _)| *i == idx).map(|(_, d)| *d)
     }
 
-    /// The path's derivatives at the start of the piece after the current
-    /// one into [`HoldRun::next_dr`] (unless there already, or the current
-    /// piece is the last: then none).
+    /// The start derivatives of the next two pieces into
+    /// [`HoldRun::next_dr`] (those not there yet; none past the last).
     fn next_piece_derivs(&mut self) {
-        if self.next_dr_ready() {
-            return;
+        let n1 = self.pc.idx.wrapping_add(1);
+        for idx in [n1, n1.wrapping_add(1)] {
+            if idx <= self.views.p_last && self.start_dr(idx).is_none() {
+                self.piece_start_derivs(idx);
+            }
         }
-        self.fh.next_dr = None;
-        if self.pc.idx >= self.views.p_last {
-            return;
+    }
+
+    /// The path's derivatives at the start of piece `idx` (the next or the
+    /// one after it) into the slot of [`HoldRun::next_dr`] not holding the
+    /// other.
+    fn piece_start_derivs(&mut self, idx: usize) {
+        let n1 = self.pc.idx.wrapping_add(1);
+        let start = if idx == n1 {
+            Some(self.pc.next)
+        } else {
+            self.views.piece_breaks.get(idx).map(to_fx)
+        };
+        let keep = |i: usize| i == n1 || i == n1.wrapping_add(1);
+        let slot = usize::from(keep(self.fh.next_dr[0].0) && !keep(self.fh.next_dr[1].0));
+        let dr = start.and_then(|at| self.views.piece_derivs(idx, at));
+        if let Some(o) = self.fh.next_dr.get_mut(slot) {
+            *o = match dr {
+                Some(d) => (idx, d),
+                None => (usize::MAX, [[0.0; 3]; 3]),
+            };
         }
-        let idx = self.pc.idx.wrapping_add(1);
-        self.fh.next_dr = self.views.piece_derivs(idx, self.pc.next).map(|dr| (idx, dr));
     }
 
     /// A tick in the stop segment under scaling: the segment followed in
     /// its own time θ (τ = t₂ − θ to go, s = L − J₂τ³/6, dθ/dt = λ; f64),
     /// with the tick's (λ, μ, ν) `ts`.
     #[inline(never)]
-    fn hold_seg_tick(&mut self, t_s: f64, tau: f64, ts: &TickScale) -> Result<Setpoint, Fault> {
+    fn hold_seg_tick(&mut self, t_s: f64, tau: f64, ts: &TickScale, quiet: bool) -> Result<Setpoint, Fault> {
         let s = self.s;
         let h = self.h;
         let j2 = self.ends.map_or(0.0, |e| e.jerk_stop);
@@ -626,8 +655,12 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         // (the feed, reported only: f32)
         let t1 = tau1 as f32;
         let feed = self.fh.ctl.lambda_f32() * 0.5 * (j2 as f32) * t1 * t1;
+        let (pi, qi) = (self.pc.idx, self.qc.idx);
         let sp = self.place(t_s, (fx_to_f64(s_new), s_new), feed)?;
-        self.period_end();
+        // (the next pieces' start derivatives: the look-ahead is off here)
+        if !self.period_end() && quiet && self.pc.idx == pi && self.qc.idx == qi {
+            self.ahead_work();
+        }
         Ok(sp)
     }
 }
