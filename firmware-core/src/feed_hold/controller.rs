@@ -4,7 +4,7 @@
 
 use crate::feed_hold::constraints::{
     constraints, interval, interval_plain, mn, mu_cap_ahead, mx, sqrt32, Ahead, HoldLimits, Interval, Kin,
-    N_CONS, RHO_J,
+    Lin, N_CONS, RHO_J,
 };
 use crate::feed_hold::{HoldState, HoldStats};
 use crate::servo_forms::fixed::f32_to_fx;
@@ -166,6 +166,8 @@ pub(crate) struct Prep {
     pub cap: f32,
     /// The μ cap after the period.
     pub mu_max: f32,
+    /// The constraints on the period's ν ([`constraints`]).
+    pub cons: [Lin; N_CONS],
 }
 
 /// The inputs of the last controlled tick's constraints and its ν.
@@ -212,13 +214,6 @@ pub(crate) struct TickScale {
     pub mu: f32,
     /// ν = λ̈ over the tick, 1/s².
     pub nu: f32,
-}
-
-impl TickScale {
-    /// λ (f64, exact).
-    pub fn lam_f64(&self) -> f64 {
-        self.lam as f64 * (1.0 / LAM_ONE as f64)
-    }
 }
 
 impl FeedHold {
@@ -351,7 +346,8 @@ impl FeedHold {
 
     /// What the next control period needs besides the kinematics `kin` at
     /// its start (computed on the tick before it, from the state that tick
-    /// ends in): the jerk-limited ν and the μ cap with the look-ahead
+    /// ends in): the constraints on its ν ([`constraints`], for the
+    /// period's length), the jerk-limited ν and the μ cap with the look-ahead
     /// `ahead` ([`mu_cap_ahead`]: the largest |A| and |V| per axis and
     /// tangentially the plan reaches over the arc length the stop can
     /// still cover); while stopping the cap rises at most [`CAP_RISE`] per
@@ -364,12 +360,21 @@ impl FeedHold {
         let hold = self.state == HoldState::Stopping;
         let lam_cap = if hold { q62_f32(self.lam) } else { 1.0 };
         let cap_now = mu_cap_ahead(kin, ahead, lim, lam_cap, THETA * cap);
+        let hp = PERIOD_TICKS as f32 * h;
         let mu_max = if hold {
-            mn(cap_now, self.cap_prev + CAP_RISE * (PERIOD_TICKS as f32 * h))
+            mn(cap_now, self.cap_prev + CAP_RISE * hp)
         } else {
             cap_now
         };
-        Prep { cap, mu_max }
+        // (μ as the period's first tick computes it: per the tick length
+        // μh was last scaled to, h on every tick of an interpolator)
+        let mu_f = if self.h > 0.0 {
+            q62_f32(self.m) / self.h
+        } else {
+            0.0
+        };
+        let cons = constraints(kin, lim, (q62_f32(self.lam), mu_f), hp, mu_max);
+        Prep { cap, mu_max, cons }
     }
 
     /// The first tick of a control period of [`PERIOD_TICKS`] ticks of h
@@ -408,12 +413,12 @@ impl FeedHold {
         let b0 = THETA * cap;
         let mu_max = prep.mu_max;
         self.cap_prev = if hold { mu_max } else { f32::INFINITY };
-        let cons = constraints(kin, lim, (lam_f, mu_f), hp, mu_max);
+        let cons = &prep.cons[..];
         // The intersection directly where every constraint is normalised
         // (c = 1; c = 0 ones ν cannot change): the common case; else, and
         // when it is empty, [`interval`].
         let (mut lo, mut hi, mut plain) = (f32::NEG_INFINITY, f32::INFINITY, true);
-        for k in &cons {
+        for k in cons {
             if k.c == 1.0 {
                 lo = mx(lo, -k.m - k.d);
                 hi = mn(hi, k.m - k.d);
@@ -422,7 +427,7 @@ impl FeedHold {
             }
         }
         let mut iv = if !plain {
-            interval(&cons)
+            interval(cons)
         } else if lo <= hi {
             Interval {
                 lo,
@@ -431,7 +436,7 @@ impl FeedHold {
                 fixed: 0.0,
             }
         } else {
-            let (iv, pair) = interval_plain(&cons, self.relax_pair);
+            let (iv, pair) = interval_plain(cons, self.relax_pair);
             self.relax_pair = pair;
             iv
         };

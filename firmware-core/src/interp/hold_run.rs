@@ -28,8 +28,12 @@ pub(crate) const AHEAD_MAX_MM: f32 = 40.0;
 pub(crate) struct HoldRun {
     pub(crate) ctl: FeedHold,
     pub(crate) lim: HoldLimits,
-    /// In the stop segment under scaling: τ, the segment's time to go, s.
-    pub(crate) seg_tau: Option<f64>,
+    /// In the stop segment under scaling: τ, the segment's time to go,
+    /// s in Q[`TAU_FRAC`]; with J₂/6 (mm/s³, Q40) and the tick's length in
+    /// Q[`TAU_FRAC`] (set on entering it).
+    pub(crate) seg_tau: Option<i64>,
+    pub(crate) seg_j6: i64,
+    pub(crate) seg_h: i64,
     /// A hold requested near the end: the plan's own stop runs (λ = 1).
     pub(crate) to_end: bool,
     /// The plan's J (per axis, tangent) at the last hold tick.
@@ -65,6 +69,20 @@ pub(crate) struct Prepared {
     pub(crate) state: HoldState,
     pub(crate) kin: Kin,
     pub(crate) prep: Prep,
+}
+
+/// Fractional bits of the scaled stop segment's time to go
+/// ([`HoldRun::seg_tau`]): Q56 s (τ³ within i64 up to τ = 5 s; a
+/// quantum of 1.4e-17 s, ~1e-15 mm of s).
+pub(crate) const TAU_FRAC: u32 = 56;
+
+/// A Q[`TAU_FRAC`] time as f32 (the two 32-bit halves through the FPU's
+/// integer conversions).
+#[inline(always)]
+pub(crate) fn tau_f32(x: i64) -> f32 {
+    let hi = (x >> 32) as i32 as f32;
+    let lo = (x as u32) as f32;
+    hi * f32::from_bits((127 + 32 - TAU_FRAC) << 23) + lo * f32::from_bits((127 - TAU_FRAC) << 23)
 }
 
 /// [`HoldRun::next_dr`] empty.
@@ -113,6 +131,8 @@ impl Default for HoldRun {
             ctl: FeedHold::default(),
             lim: HoldLimits::default(),
             seg_tau: None,
+            seg_j6: 0,
+            seg_h: 0,
             to_end: false,
             prev_j: None,
             sweep: None,

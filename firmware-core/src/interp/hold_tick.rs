@@ -39,17 +39,18 @@
 //!   [`Interpolator::resume`] return a [`HoldError`] and change nothing.
 
 use crate::feed_hold::constraints::{mn, mx, sqrt32, Ahead, Kin};
-use crate::feed_hold::controller::{scaled_step, TickScale, PERIOD_TICKS, THETA};
+use crate::feed_hold::controller::{scaled_step, TickScale, LAM_FRAC, PERIOD_TICKS, THETA};
 use crate::feed_hold::{HoldError, HoldState, HoldStats};
 use crate::interp::cursor::{q_eval, q_eval_f32, tau_of, PCur, QCur, Views};
 use crate::interp::hold_run::{
-    Stage, Sweep, AHEAD_FACTOR, AHEAD_MAX_MM, AHEAD_N, AHEAD_PER_TICK, COAST_ABOVE, END_FACTOR,
+    tau_f32, Stage, Sweep, AHEAD_FACTOR, AHEAD_MAX_MM, AHEAD_N, AHEAD_PER_TICK, COAST_ABOVE, END_FACTOR,
+    TAU_FRAC,
 };
 use crate::interp::interpolator::{Interpolator, Phase};
 use crate::interp::setpoint::{Fault, Setpoint};
 use crate::limits::EndSegments;
 use crate::math::source::F64Array;
-use crate::servo_forms::fixed::{f32_to_fx, fx_small_f32, fx_to_f64, mul_hi, to_fx};
+use crate::servo_forms::fixed::{f32_to_fx, f64_to_fixed, fx_small_f32, fx_to_f64, mul_hi, to_fx};
 use crate::servo_forms::piece::pos_derivs;
 
 impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
@@ -421,7 +422,10 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
             }
             // Into the stop segment at its own time to go τ (L − s = J₂τ³/6).
             let tau = cbrt64(6.0 * rest / j2);
-            self.fh.seg_tau = Some(tau);
+            let q = |x: f64| f64_to_fixed(x, TAU_FRAC as i32).clamp(0, i128::from(i64::MAX)) as i64;
+            self.fh.seg_tau = Some(q(tau));
+            self.fh.seg_j6 = to_fx(j2 * (1.0 / 6.0));
+            self.fh.seg_h = q(self.period_s);
             // (the feed, reported only: f32)
             let tf = tau as f32;
             let feed = self.fh.ctl.lambda_f32() * 0.5 * (j2 as f32) * tf * tf;
@@ -499,7 +503,7 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         let (plan, seg) = match self.fh.seg_tau {
             Some(tau) => {
                 let j2 = self.ends.map_or(0.0, |e| e.jerk_stop) as f32;
-                let tf = tau as f32;
+                let tf = tau_f32(tau);
                 ([0.5 * j2 * tf * tf, -j2 * tf, j2], true)
             }
             None => {
@@ -626,34 +630,38 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
     }
 
     /// A tick in the stop segment under scaling: the segment followed in
-    /// its own time θ (τ = t₂ − θ to go, s = L − J₂τ³/6, dθ/dt = λ; f64),
-    /// with the tick's (λ, μ, ν) `ts`.
+    /// its own time θ (τ = t₂ − θ to go, s = L − J₂τ³/6, dθ/dt = λ; τ in
+    /// Q[`TAU_FRAC`] s, J₂τ³/6 by integer products), with the tick's
+    /// (λ, μ, ν) `ts`.
     #[inline(never)]
-    fn hold_seg_tick(&mut self, t_s: f64, tau: f64, ts: &TickScale, quiet: bool) -> Result<Setpoint, Fault> {
+    fn hold_seg_tick(&mut self, t_s: f64, tau: i64, ts: &TickScale, quiet: bool) -> Result<Setpoint, Fault> {
         let s = self.s;
         let h = self.h;
         let j2 = self.ends.map_or(0.0, |e| e.jerk_stop);
         // dθ = ∫λ dt over the tick (exact: λ is a quadratic in t).
-        // (the first-order term hλ in f64 from the Q62 λ; the rest,
-        // h²(μ/2 + hν/6), a small fraction of h, in f32)
-        let hd = self.period_s;
+        // (the first-order term hλ in fixed point from the Q62 λ; the
+        // rest, h²(μ/2 + hν/6), a small fraction of h, in f32)
         let rest = h * h * (0.5 * ts.mu + h * ts.nu * (1.0 / 6.0));
-        let dth = hd * ts.lam_f64() + f64::from(rest);
-        let tau1 = tau - dth.max(0.0);
-        if !tau1.is_finite() {
+        if !rest.is_finite() {
             return self.fault(Fault::NonFinite { s_mm: fx_to_f64(s) });
         }
-        if tau1 <= 0.0 {
+        // (saturating: a τ of more than 5 s would overflow τ³)
+        let mul = |a: i64, b: i64, sh: u32| {
+            ((i128::from(a) * i128::from(b)) >> sh).clamp(i128::from(i64::MIN), i128::from(i64::MAX)) as i64
+        };
+        let first = mul(self.fh.seg_h, ts.lam, LAM_FRAC);
+        // (Q40 of rest·2^(TAU_FRAC − 40))
+        let dth = first.saturating_add(f32_to_fx(rest * f32::from_bits((127 + TAU_FRAC - 40) << 23)));
+        let tau1 = tau.saturating_sub(dth.max(0));
+        if tau1 <= 0 {
             self.fh.seg_tau = None;
             return Ok(self.finish(t_s));
         }
         self.fh.seg_tau = Some(tau1);
-        let s_new = self
-            .len_fx
-            .wrapping_sub(to_fx(j2 * (1.0 / 6.0) * tau1 * tau1 * tau1))
-            .max(s);
+        let t3 = mul(mul(tau1, tau1, TAU_FRAC), tau1, TAU_FRAC);
+        let s_new = self.len_fx.wrapping_sub(mul(t3, self.fh.seg_j6, TAU_FRAC)).max(s);
         // (the feed, reported only: f32)
-        let t1 = tau1 as f32;
+        let t1 = tau_f32(tau1);
         let feed = self.fh.ctl.lambda_f32() * 0.5 * (j2 as f32) * t1 * t1;
         let (pi, qi) = (self.pc.idx, self.qc.idx);
         let sp = self.place(t_s, (fx_to_f64(s_new), s_new), feed)?;
