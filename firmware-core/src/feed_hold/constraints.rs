@@ -506,13 +506,21 @@ impl Ahead {
 /// the module docs), `cap` the bound on |μ| after the tick. Each comes
 /// normalised where its c is not 0 (c = 1: d and m divided by c, one
 /// division per axis), so [`interval`] divides no more.
-pub(crate) fn constraints(
+pub(crate) fn constraints(k: &Kin, lim: &HoldLimits, lam_mu: (f32, f32), h: f32, cap: f32) -> [Lin; N_CONS] {
+    let mut out = [Lin::default(); N_CONS];
+    constraints_into(&mut out, k, lim, lam_mu, h, cap);
+    out
+}
+
+/// [`constraints`] written into `out` (in place: no copy of the rows).
+pub(crate) fn constraints_into(
+    out: &mut [Lin; N_CONS],
     k: &Kin,
     lim: &HoldLimits,
     (lam, mu): (f32, f32),
     h: f32,
     cap: f32,
-) -> [Lin; N_CONS] {
+) {
     let (l2, l3) = (lam * lam, lam * lam * lam);
     let inv_h = 1.0 / h;
     let at = |x: &[f32; 4], i: usize| x.get(i).copied().unwrap_or(0.0);
@@ -587,14 +595,16 @@ pub(crate) fn constraints(
             ]
         }
     };
-    let [x0, x1, x2, x3] = axis(0);
-    let [y0, y1, y2, y3] = axis(1);
-    let [z0, z1, z2, z3] = axis(2);
-    let [t0, t1, t2, t3] = axis(3);
-    let m = Lin {
-        c: 1.0,
-        d: mu * inv_h,
-        m: mx(cap, mu.abs()) * inv_h,
-    };
-    [x0, x1, x2, x3, y0, y1, y2, y3, z0, z1, z2, z3, t0, t1, t2, t3, m]
+    for (i, rows) in out.chunks_exact_mut(4).enumerate() {
+        for (o, r) in rows.iter_mut().zip(axis(i)) {
+            *o = r;
+        }
+    }
+    if let Some(o) = out.last_mut() {
+        *o = Lin {
+            c: 1.0,
+            d: mu * inv_h,
+            m: mx(cap, mu.abs()) * inv_h,
+        };
+    }
 }

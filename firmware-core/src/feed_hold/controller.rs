@@ -3,8 +3,8 @@
 //! and the scaled step of s ([`scaled_step`]).
 
 use crate::feed_hold::constraints::{
-    constraints, interval, interval_plain, mn, mu_cap_ahead, mx, sqrt32, Ahead, HoldLimits, Interval, Kin,
-    Lin, N_CONS, RHO_J,
+    constraints, constraints_into, interval, interval_plain, mn, mu_cap_ahead, mx, sqrt32, Ahead, HoldLimits,
+    Interval, Kin, Lin, N_CONS, RHO_J,
 };
 use crate::feed_hold::{HoldState, HoldStats};
 use crate::servo_forms::fixed::f32_to_fx;
@@ -321,7 +321,8 @@ impl FeedHold {
         if self.mid_period() {
             return self.advance();
         }
-        let prep = self.prepare(kin, &Ahead::default(), lim, h);
+        let mut prep = Prep::default();
+        self.prepare(kin, &Ahead::default(), lim, h, &mut prep);
         self.control_period(kin, &prep, lim, h)
     }
 
@@ -355,7 +356,7 @@ impl FeedHold {
     /// points, and a period whose samples straddle a narrow peak of the
     /// plan's jerk would otherwise let μ grow, which the cap never takes
     /// back.
-    pub fn prepare(&self, kin: &Kin, ahead: &Ahead, lim: &HoldLimits, h: f32) -> Prep {
+    pub fn prepare(&self, kin: &Kin, ahead: &Ahead, lim: &HoldLimits, h: f32, out: &mut Prep) {
         let cap = mn(kin.nu_cap(lim), 1e9);
         let hold = self.state == HoldState::Stopping;
         let lam_cap = if hold { q62_f32(self.lam) } else { 1.0 };
@@ -373,8 +374,9 @@ impl FeedHold {
         } else {
             0.0
         };
-        let cons = constraints(kin, lim, (q62_f32(self.lam), mu_f), hp, mu_max);
-        Prep { cap, mu_max, cons }
+        constraints_into(&mut out.cons, kin, lim, (q62_f32(self.lam), mu_f), hp, mu_max);
+        out.cap = cap;
+        out.mu_max = mu_max;
     }
 
     /// The first tick of a control period of [`PERIOD_TICKS`] ticks of h

@@ -43,8 +43,8 @@ use crate::feed_hold::controller::{scaled_step, TickScale, LAM_FRAC, PERIOD_TICK
 use crate::feed_hold::{HoldError, HoldState, HoldStats};
 use crate::interp::cursor::{q_eval, q_eval_f32, tau_of, PCur, QCur, Views};
 use crate::interp::hold_run::{
-    tau_f32, Stage, Sweep, AHEAD_FACTOR, AHEAD_MAX_MM, AHEAD_N, AHEAD_PER_TICK, COAST_ABOVE, END_FACTOR,
-    TAU_FRAC,
+    tau_f32, Prepared, Stage, Sweep, AHEAD_FACTOR, AHEAD_MAX_MM, AHEAD_N, AHEAD_PER_TICK, COAST_ABOVE,
+    END_FACTOR, TAU_FRAC,
 };
 use crate::interp::interpolator::{Interpolator, Phase};
 use crate::interp::setpoint::{Fault, Setpoint};
@@ -521,7 +521,8 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         let fh = &mut self.fh;
         fh.ctl.set_coast(coast && fh.ctl.lambda_f32() > COAST_ABOVE);
         let ahead = if seg { &Ahead::NONE } else { &fh.joined };
-        fh.prep.prep = fh.ctl.prepare(&fh.prep.kin, ahead, &fh.lim, self.h);
+        let Prepared { kin, prep, .. } = &mut fh.prep;
+        fh.ctl.prepare(kin, ahead, &fh.lim, self.h, prep);
         fh.brake = THETA * fh.prep.prep.cap;
         fh.prep.s = s;
         fh.prep.state = fh.ctl.state();
