@@ -404,6 +404,12 @@ pub(crate) fn mu_cap_ahead(k: &Kin, ahead: &Ahead, lim: &HoldLimits, lam: f32, n
         .zip(ahead.a_jerk.iter());
     for (i, (((am, j), ((a, aa), va)), ((a_acc, j_jerk), a_jerk))) in lims.zip(now).zip(acc).enumerate() {
         let (am, j, a, aa, va) = (*am, *j, *a, *aa, *va);
+        // An axis without acceleration now or ahead (z on a planar path)
+        // bounds μ by √(RHO_M ν_r/(3λ²)) below, which any axis with
+        // acceleration undercuts and the tangent reaches: skipped.
+        if i < 3 && va == 0.0 && aa == 0.0 && a == 0.0 {
+            continue;
+        }
         if va > 0.0 {
             // (braking adds to the plan's acceleration only where A is
             // against V)
