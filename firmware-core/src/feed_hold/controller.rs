@@ -164,8 +164,6 @@ struct Pending {
 pub(crate) struct Prep {
     /// The jerk-limited ν at λ = 0 ([`Kin::nu_cap`], at most 1e9).
     pub cap: f32,
-    /// The μ cap after the period.
-    pub mu_max: f32,
     /// The constraints on the period's ν ([`constraints`]).
     pub cons: [Lin; N_CONS],
 }
@@ -322,8 +320,8 @@ impl FeedHold {
             return self.advance();
         }
         let mut prep = Prep::default();
-        self.prepare(kin, &Ahead::default(), lim, h, &mut prep);
-        self.control_period(kin, &prep, lim, h)
+        self.prepare(kin, lim, h, &mut prep);
+        self.control_period(kin, &Ahead::default(), &mut prep, lim, h)
     }
 
     /// A control period is in progress: the next tick is its second
@@ -348,25 +346,11 @@ impl FeedHold {
     /// What the next control period needs besides the kinematics `kin` at
     /// its start (computed on the tick before it, from the state that tick
     /// ends in): the constraints on its ν ([`constraints`], for the
-    /// period's length), the jerk-limited ν and the μ cap with the look-ahead
-    /// `ahead` ([`mu_cap_ahead`]: the largest |A| and |V| per axis and
-    /// tangentially the plan reaches over the arc length the stop can
-    /// still cover); while stopping the cap rises at most [`CAP_RISE`] per
-    /// second (it falls at once): the look-ahead samples the plan at
-    /// points, and a period whose samples straddle a narrow peak of the
-    /// plan's jerk would otherwise let μ grow, which the cap never takes
-    /// back.
-    pub fn prepare(&self, kin: &Kin, ahead: &Ahead, lim: &HoldLimits, h: f32, out: &mut Prep) {
-        let cap = mn(kin.nu_cap(lim), 1e9);
-        let hold = self.state == HoldState::Stopping;
-        let lam_cap = if hold { q62_f32(self.lam) } else { 1.0 };
-        let cap_now = mu_cap_ahead(kin, ahead, lim, lam_cap, THETA * cap);
+    /// period's length; the μ cap's row is the first tick's,
+    /// [`Self::control_period`]) and the jerk-limited ν.
+    pub fn prepare(&self, kin: &Kin, lim: &HoldLimits, h: f32, out: &mut Prep) {
+        out.cap = mn(kin.nu_cap(lim), 1e9);
         let hp = PERIOD_TICKS as f32 * h;
-        let mu_max = if hold {
-            mn(cap_now, self.cap_prev + CAP_RISE * hp)
-        } else {
-            cap_now
-        };
         // (μ as the period's first tick computes it: per the tick length
         // μh was last scaled to, h on every tick of an interpolator)
         let mu_f = if self.h > 0.0 {
@@ -374,18 +358,39 @@ impl FeedHold {
         } else {
             0.0
         };
-        constraints_into(&mut out.cons, kin, lim, (q62_f32(self.lam), mu_f), hp, mu_max);
-        out.cap = cap;
-        out.mu_max = mu_max;
+        constraints_into(
+            &mut out.cons,
+            kin,
+            lim,
+            (q62_f32(self.lam), mu_f),
+            hp,
+            f32::INFINITY,
+        );
     }
 
     /// The first tick of a control period of [`PERIOD_TICKS`] ticks of h
     /// seconds: chooses ν from the constraints at the current state (`kin`
-    /// at the current s, `prep` from [`Self::prepare`] at the same state),
-    /// held over the period, advances λ and μ over this tick, and returns
-    /// its (λ, μ, ν) for the step of s; the period's end state is kept for
-    /// [`Self::advance`]. Running or held: no period (ν = 0).
-    pub fn control_period(&mut self, kin: &Kin, prep: &Prep, lim: &HoldLimits, h: f32) -> TickScale {
+    /// at the current s, `prep` from [`Self::prepare`] at the same state,
+    /// its μ cap row set here), held over the period, advances λ and μ
+    /// over this tick, and returns its (λ, μ, ν) for the step of s; the
+    /// period's end state is kept for [`Self::advance`]. Running or held:
+    /// no period (ν = 0).
+    ///
+    /// The μ cap: from the look-ahead `ahead` ([`mu_cap_ahead`]: the
+    /// largest |A| and |V| per axis and tangentially the plan reaches over
+    /// the arc length the stop can still cover); while stopping it rises
+    /// at most [`CAP_RISE`] per second (it falls at once): the look-ahead
+    /// samples the plan at points, and a period whose samples straddle a
+    /// narrow peak of the plan's jerk would otherwise let μ grow, which the
+    /// cap never takes back.
+    pub fn control_period(
+        &mut self,
+        kin: &Kin,
+        ahead: &Ahead,
+        prep: &mut Prep,
+        lim: &HoldLimits,
+        h: f32,
+    ) -> TickScale {
         // μh was per the last tick's length: per this one's (the same
         // every tick of an interpolator).
         if self.h != h {
@@ -413,8 +418,18 @@ impl FeedHold {
         let hp = PERIOD_TICKS as f32 * h;
         let cap = prep.cap;
         let b0 = THETA * cap;
-        let mu_max = prep.mu_max;
+        let lam_cap = if hold { lam_f } else { 1.0 };
+        let cap_now = mu_cap_ahead(kin, ahead, lim, lam_cap, b0);
+        let mu_max = if hold {
+            mn(cap_now, self.cap_prev + CAP_RISE * hp)
+        } else {
+            cap_now
+        };
         self.cap_prev = if hold { mu_max } else { f32::INFINITY };
+        if let Some(k) = prep.cons.last_mut() {
+            // (as [`constraints`] writes it)
+            k.m = mx(mu_max, mu_f.abs()) * (1.0 / hp);
+        }
         let cons = &prep.cons[..];
         // The intersection directly where every constraint is normalised
         // (c = 1; c = 0 ones ν cannot change): the common case; else, and

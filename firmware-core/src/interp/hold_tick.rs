@@ -470,7 +470,14 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         let fh = &mut self.fh;
         // (once: the period's start moves on with the tick)
         fh.prep.valid = false;
-        Some(fh.ctl.control_period(&fh.prep.kin, &fh.prep.prep, &fh.lim, h))
+        // (in the stop segment, or resuming: without the look-ahead)
+        let ahead = if fh.seg_tau.is_some() {
+            &Ahead::NONE
+        } else {
+            &fh.joined
+        };
+        let Prepared { kin, prep, .. } = &mut fh.prep;
+        Some(fh.ctl.control_period(kin, ahead, prep, &fh.lim, h))
     }
 
     /// [`HoldRun::prep`] is for a period starting here, in this state.
@@ -520,9 +527,8 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         let coast = if seg { true } else { self.ahead_acc() };
         let fh = &mut self.fh;
         fh.ctl.set_coast(coast && fh.ctl.lambda_f32() > COAST_ABOVE);
-        let ahead = if seg { &Ahead::NONE } else { &fh.joined };
         let Prepared { kin, prep, .. } = &mut fh.prep;
-        fh.ctl.prepare(kin, ahead, &fh.lim, self.h, prep);
+        fh.ctl.prepare(kin, &fh.lim, self.h, prep);
         fh.brake = THETA * fh.prep.prep.cap;
         fh.prep.s = s;
         fh.prep.state = fh.ctl.state();
