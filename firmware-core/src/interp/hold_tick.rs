@@ -59,6 +59,10 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
     /// no-op while stopping or held.
     pub fn hold(&mut self) -> Result<(), HoldError> {
         self.hold_allowed()?;
+        // (for the scaled stop segment, should the stop reach it: J₂/6 and
+        // the tick's length in fixed point)
+        self.fh.seg_j6 = to_fx(self.ends.map_or(0.0, |e| e.jerk_stop) * (1.0 / 6.0));
+        self.fh.seg_h = f64_to_fixed(self.period_s, TAU_FRAC as i32).clamp(0, i128::from(i64::MAX)) as i64;
         if self.fh.to_end {
             return Ok(());
         }
@@ -415,19 +419,16 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         };
         let s_new = s.saturating_add(ds);
         if s_new >= self.stop_at {
-            let rest = fx_to_f64(self.len_fx.wrapping_sub(s_new));
+            let rest = self.len_fx.wrapping_sub(s_new);
             let j2 = self.ends.map_or(0.0, |e| e.jerk_stop);
-            if self.ends.is_none() || !(rest > 0.0) || !(j2 > 0.0) {
+            if self.ends.is_none() || rest <= 0 || !(j2 > 0.0) || self.fh.seg_j6 <= 0 {
                 return Ok(self.finish(t_s));
             }
             // Into the stop segment at its own time to go τ (L − s = J₂τ³/6).
-            let tau = cbrt64(6.0 * rest / j2);
-            let q = |x: f64| f64_to_fixed(x, TAU_FRAC as i32).clamp(0, i128::from(i64::MAX)) as i64;
-            self.fh.seg_tau = Some(q(tau));
-            self.fh.seg_j6 = to_fx(j2 * (1.0 / 6.0));
-            self.fh.seg_h = q(self.period_s);
+            let tau = seg_tau_at(rest, self.fh.seg_j6);
+            self.fh.seg_tau = Some(tau);
             // (the feed, reported only: f32)
-            let tf = tau as f32;
+            let tf = tau_f32(tau);
             let feed = self.fh.ctl.lambda_f32() * 0.5 * (j2 as f32) * tf * tf;
             let sp = self.place(t_s, (fx_to_f64(s_new), s_new), feed)?;
             self.period_end();
@@ -652,11 +653,7 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         if !rest.is_finite() {
             return self.fault(Fault::NonFinite { s_mm: fx_to_f64(s) });
         }
-        // (saturating: a τ of more than 5 s would overflow τ³)
-        let mul = |a: i64, b: i64, sh: u32| {
-            ((i128::from(a) * i128::from(b)) >> sh).clamp(i128::from(i64::MIN), i128::from(i64::MAX)) as i64
-        };
-        let first = mul(self.fh.seg_h, ts.lam, LAM_FRAC);
+        let first = ((i128::from(self.fh.seg_h) * i128::from(ts.lam)) >> LAM_FRAC) as i64;
         // (Q40 of rest·2^(TAU_FRAC − 40))
         let dth = first.saturating_add(f32_to_fx(rest * f32::from_bits((127 + TAU_FRAC - 40) << 23)));
         let tau1 = tau.saturating_sub(dth.max(0));
@@ -665,8 +662,7 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
             return Ok(self.finish(t_s));
         }
         self.fh.seg_tau = Some(tau1);
-        let t3 = mul(mul(tau1, tau1, TAU_FRAC), tau1, TAU_FRAC);
-        let s_new = self.len_fx.wrapping_sub(mul(t3, self.fh.seg_j6, TAU_FRAC)).max(s);
+        let s_new = self.len_fx.wrapping_sub(seg_drop(tau1, self.fh.seg_j6)).max(s);
         // (the feed, reported only: f32)
         let t1 = tau_f32(tau1);
         let feed = self.fh.ctl.lambda_f32() * 0.5 * (j2 as f32) * t1 * t1;
@@ -720,34 +716,77 @@ fn count_below<A: F64Array>(arr: &A, first: usize, last: usize, at: u64) -> usiz
     lo - first
 }
 
-/// ∛x for x > 0 (f64): an f32 root (the exponent divided by three, three
-/// Newton steps in hardware), then one Newton step in f64, which squares
-/// its relative error (~1e-7 → ~1e-14): a few soft-float operations
-/// instead of libm's `cbrt`. Not positive and finite: 0.
-fn cbrt64(x: f64) -> f64 {
-    let xf = x as f32;
-    if !(x > 0.0 && xf > 0.0 && xf < f32::INFINITY) {
+/// ∛x for x > 0 (f32): the exponent divided by three, then three Newton
+/// steps in hardware (relative error ~1e-7). Not positive and finite: 0.
+fn cbrt32(x: f32) -> f32 {
+    if !(x > 0.0 && x < f32::INFINITY) {
         return 0.0;
     }
-    let mut y = f32::from_bits(xf.to_bits() / 3 + 0x2a51_19f2);
+    let mut y = f32::from_bits(x.to_bits() / 3 + 0x2a51_19f2);
     for _ in 0..3 {
-        y = (2.0 * y + xf / (y * y)) * (1.0 / 3.0);
+        y = (2.0 * y + x / (y * y)) * (1.0 / 3.0);
     }
-    let y = f64::from(y);
-    (2.0 * y + x / (y * y)) * (1.0 / 3.0)
+    y
+}
+
+/// The scaled stop segment's time to go τ (Q[`TAU_FRAC`] s) where
+/// `rest` (Q40 mm, > 0) is left to L: J₂τ³/6 = rest, `j6` = J₂/6 (mm/s³,
+/// Q40). An f32 root, then one Newton step with the residual
+/// J₂τ₀³/6 − rest in integers (the products as the segment's ticks take
+/// them) and the correction in f32: the root's ~1e-7 squared, ~1e-14 of
+/// τ, without soft-float f64. 0 where there is no root.
+fn seg_tau_at(rest: i64, j6: i64) -> i64 {
+    let unit = f32::from_bits((127 - 40) << 23);
+    let (rest_f, j6_f) = (rest as f32 * unit, j6 as f32 * unit);
+    let t0 = cbrt32(rest_f / j6_f);
+    // (Q40 of t0·2^(TAU_FRAC − 40))
+    let tq = f32_to_fx(t0 * f32::from_bits((127 + TAU_FRAC - 40) << 23));
+    if !(t0 > 0.0) || tq <= 0 {
+        return 0;
+    }
+    let r = seg_drop(tq, j6).wrapping_sub(rest) as f32 * unit;
+    let d = r / (3.0 * j6_f * t0 * t0);
+    tq.wrapping_sub(f32_to_fx(d * f32::from_bits((127 + TAU_FRAC - 40) << 23)))
+}
+
+/// J₂τ³/6 (Q40 mm) for τ in Q[`TAU_FRAC`] s and `j6` = J₂/6 (mm/s³, Q40):
+/// integer products (saturating: a τ of more than 5 s would overflow τ³).
+#[inline(always)]
+fn seg_drop(tau: i64, j6: i64) -> i64 {
+    let mul = |a: i64, b: i64| {
+        ((i128::from(a) * i128::from(b)) >> TAU_FRAC).clamp(i128::from(i64::MIN), i128::from(i64::MAX)) as i64
+    };
+    mul(mul(mul(tau, tau), tau), j6)
 }
 
 #[cfg(test)]
 mod tests {
-    use super::cbrt64;
+    use super::{seg_drop, seg_tau_at, TAU_FRAC};
+    use crate::servo_forms::fixed::{fx_to_f64, to_fx};
 
     #[test]
-    fn cbrt64_is_close_to_libm() {
-        for i in 0..2000 {
-            let x = 1e-9 * 1.02f64.powi(i);
-            let (y, r) = (cbrt64(x), libm::cbrt(x));
-            assert!(((y - r) / r).abs() < 1e-13, "{x}: {y} vs {r}");
+    fn seg_tau_solves_the_segment_cubic() {
+        for j2 in [1.0e3f64, 16_000.0, 2.5e5] {
+            let j6 = to_fx(j2 / 6.0);
+            for i in 0..400 {
+                let rest_mm = 1e-6 * 1.05f64.powi(i);
+                if rest_mm > 200.0 {
+                    break;
+                }
+                let tau = seg_tau_at(to_fx(rest_mm), j6);
+                let want = libm::cbrt(6.0 * rest_mm / j2);
+                let got = tau as f64 / (1u64 << TAU_FRAC) as f64;
+                // (as well as s in Q40 determines it: ds/dτ = J₂τ²/2)
+                let tol = 1e-12 * want + 2.0 / (1u64 << 40) as f64 / (0.5 * j2 * want * want);
+                assert!((got - want).abs() < tol, "{rest_mm} mm: {got} vs {want}");
+                // and back: the segment's s there within a few quanta
+                let back = fx_to_f64(seg_drop(tau, j6));
+                assert!(
+                    (back - rest_mm).abs() < 1e-11 + 1e-12 * rest_mm,
+                    "{rest_mm}: {back}"
+                );
+            }
         }
-        assert_eq!((cbrt64(0.0), cbrt64(-1.0), cbrt64(f64::NAN)), (0.0, 0.0, 0.0));
+        assert_eq!(seg_tau_at(0, to_fx(1000.0)), 0);
     }
 }
