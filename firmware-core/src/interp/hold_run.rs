@@ -15,7 +15,8 @@ pub(crate) const END_FACTOR: f32 = 2.0;
 pub(crate) const COAST_ABOVE: f32 = 0.5;
 /// Points the μ cap's look-ahead evaluates the plan at.
 pub(crate) const AHEAD_N: usize = 32;
-/// Look-ahead steps ([`Stage`]) per hold tick: a point is three steps, a
+/// Look-ahead steps ([`Stage`]) per step taken (on a control period's
+/// first tick with nothing else optional to do): a point is five steps, a
 /// whole sweep [`AHEAD_N`] + 2 points.
 pub(crate) const AHEAD_PER_TICK: usize = 1;
 /// Safety factor on the look-ahead distance.
@@ -105,24 +106,29 @@ pub(crate) struct Sweep {
     pub(crate) stop_near: bool,
     pub(crate) done: bool,
     /// The point in progress: what is next for it, where it is (Q40 mm),
-    /// its piece and q span, and the path's derivatives there.
+    /// its piece and q span, and the path's derivatives and the plan there.
     pub(crate) stage: Stage,
     pub(crate) sk: i64,
     pub(crate) pi: usize,
     pub(crate) qi: usize,
     pub(crate) dr: [[f32; 3]; 3],
+    pub(crate) plan: [f32; 3],
 }
 
 /// The steps of one look-ahead point, one per tick.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub(crate) enum Stage {
-    /// Place the point and find its piece and q span.
+    /// Place the point and find its piece.
     #[default]
     Locate,
+    /// Its q span.
+    LocateQ,
     /// The path's derivatives there.
     Derivs,
-    /// The plan there, into the maxima.
+    /// The plan there (ṡ_p, s̈_p, s⃛_p).
     Plan,
+    /// The plan's kinematics there, into the maxima.
+    Kin,
 }
 
 impl Default for HoldRun {

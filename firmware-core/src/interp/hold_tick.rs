@@ -181,8 +181,9 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
     fn sweep_points(c: &SweepCtx<'_, '_>, sw: &mut Sweep, joined: &mut Ahead, count: usize) {
         let s = c.s;
         let v_ = c.views;
-        // Work units left: a point is three (locate, derivatives, plan),
-        // a point passed since the sweep began an eighth of one.
+        // Work units left: a step is eight (a point is five: its piece,
+        // its q span, the path's derivatives, the plan, the kinematics), a
+        // point passed since the sweep began one.
         let mut left = count.saturating_mul(8);
         while !sw.done && left > 0 {
             match sw.stage {
@@ -230,8 +231,15 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
                         v_.p_last,
                         at,
                     ));
-                    let qi = if sk >= c.qc.next {
+                    (sw.sk, sw.pi) = (sk, pi);
+                    sw.stage = Stage::LocateQ;
+                    left = left.saturating_sub(8);
+                }
+                Stage::LocateQ => {
+                    let sk = sw.sk;
+                    sw.qi = if sk >= c.qc.next {
                         let i = c.qc.idx;
+                        let at = fx_to_f64(sk.saturating_add(1)).to_bits();
                         i.wrapping_add(count_below(
                             &v_.q_knots,
                             i.wrapping_add(4),
@@ -241,7 +249,6 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
                     } else {
                         c.qc.idx
                     };
-                    (sw.sk, sw.pi, sw.qi) = (sk, pi, qi);
                     sw.stage = Stage::Derivs;
                     left = left.saturating_sub(8);
                 }
@@ -266,18 +273,23 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
                         other = q;
                         &other
                     };
-                    let (sk, dr) = (sw.sk, sw.dr);
-                    let k = match (sw.into_stop, c.ends) {
+                    let sk = sw.sk;
+                    sw.plan = match (sw.into_stop, c.ends) {
                         (true, Some(e)) => {
                             let (j2, t2) = (e.jerk_stop as f32, e.t_stop as f32);
-                            Kin::new(dr, [0.5 * j2 * t2 * t2, -j2 * t2, j2])
+                            [0.5 * j2 * t2 * t2, -j2 * t2, j2]
                         }
                         _ => {
                             let tq = fx_small_f32(sk.wrapping_sub(qc.anchor), 20);
                             let ([_, dq, ddq, _], v, _) = q_eval_f32(qc, &qc.poly, sk, tq, c.v);
-                            Kin::new(dr, [v, 0.5 * dq, 0.5 * ddq * v])
+                            [v, 0.5 * dq, 0.5 * ddq * v]
                         }
                     };
+                    sw.stage = Stage::Kin;
+                    left = left.saturating_sub(8);
+                }
+                Stage::Kin => {
+                    let k = Kin::new(sw.dr, sw.plan);
                     sw.part.add(&k);
                     joined.add(&k);
                     if sw.into_stop {
