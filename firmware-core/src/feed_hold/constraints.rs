@@ -518,7 +518,10 @@ pub(crate) fn constraints(k: &Kin, lim: &HoldLimits, lam_mu: (f32, f32), h: f32,
     out
 }
 
-/// [`constraints`] written into `out` (in place: no copy of the rows).
+/// [`constraints`] written into `out` (in place: no copy of the rows);
+/// returns the intersection of the normalised rows but the μ cap's (c = 1;
+/// empty where lo > hi) and whether all are normalised or ν cannot change
+/// them (c = 0).
 pub(crate) fn constraints_into(
     out: &mut [Lin; N_CONS],
     k: &Kin,
@@ -526,7 +529,7 @@ pub(crate) fn constraints_into(
     (lam, mu): (f32, f32),
     h: f32,
     cap: f32,
-) {
+) -> (f32, f32, bool) {
     let (l2, l3) = (lam * lam, lam * lam * lam);
     let inv_h = 1.0 / h;
     let at = |x: &[f32; 4], i: usize| x.get(i).copied().unwrap_or(0.0);
@@ -601,8 +604,16 @@ pub(crate) fn constraints_into(
             ]
         }
     };
+    // (with the intersection of the rows but the μ cap's, as they come)
+    let (mut lo, mut hi, mut plain) = (f32::NEG_INFINITY, f32::INFINITY, true);
     for (i, rows) in out.chunks_exact_mut(4).enumerate() {
         for (o, r) in rows.iter_mut().zip(axis(i)) {
+            if r.c == 1.0 {
+                lo = mx(lo, -r.m - r.d);
+                hi = mn(hi, r.m - r.d);
+            } else if r.c != 0.0 {
+                plain = false;
+            }
             *o = r;
         }
     }
@@ -613,4 +624,5 @@ pub(crate) fn constraints_into(
             m: mx(cap, mu.abs()) * inv_h,
         };
     }
+    (lo, hi, plain)
 }

@@ -166,6 +166,12 @@ pub(crate) struct Prep {
     pub cap: f32,
     /// The constraints on the period's ν ([`constraints`]).
     pub cons: [Lin; N_CONS],
+    /// The intersection of the normalised ones but the μ cap's (c = 1;
+    /// empty where lo > hi), and whether all are normalised or ν cannot
+    /// change them (c = 0).
+    pub lo: f32,
+    pub hi: f32,
+    pub plain: bool,
 }
 
 /// The inputs of the last controlled tick's constraints and its ν.
@@ -349,7 +355,6 @@ impl FeedHold {
     /// period's length; the μ cap's row is the first tick's,
     /// [`Self::control_period`]) and the jerk-limited ν.
     pub fn prepare(&self, kin: &Kin, lim: &HoldLimits, h: f32, out: &mut Prep) {
-        out.cap = mn(kin.nu_cap(lim), 1e9);
         let hp = PERIOD_TICKS as f32 * h;
         // (μ as the period's first tick computes it: per the tick length
         // μh was last scaled to, h on every tick of an interpolator)
@@ -358,7 +363,7 @@ impl FeedHold {
         } else {
             0.0
         };
-        constraints_into(
+        (out.lo, out.hi, out.plain) = constraints_into(
             &mut out.cons,
             kin,
             lim,
@@ -416,7 +421,8 @@ impl FeedHold {
         // The period's length: the constraints bound the acceleration and
         // |μ| at its end, the approach plans in steps of it.
         let hp = PERIOD_TICKS as f32 * h;
-        let cap = prep.cap;
+        let cap = mn(kin.nu_cap(lim), 1e9);
+        prep.cap = cap;
         let b0 = THETA * cap;
         let lam_cap = if hold { lam_f } else { 1.0 };
         let cap_now = mu_cap_ahead(kin, ahead, lim, lam_cap, b0);
@@ -432,16 +438,14 @@ impl FeedHold {
         }
         let cons = &prep.cons[..];
         // The intersection directly where every constraint is normalised
-        // (c = 1; c = 0 ones ν cannot change): the common case; else, and
-        // when it is empty, [`interval`].
-        let (mut lo, mut hi, mut plain) = (f32::NEG_INFINITY, f32::INFINITY, true);
-        for k in cons {
-            if k.c == 1.0 {
-                lo = mx(lo, -k.m - k.d);
-                hi = mn(hi, k.m - k.d);
-            } else if k.c != 0.0 {
-                plain = false;
-            }
+        // (c = 1; c = 0 ones ν cannot change): the common case, from the
+        // others' (prepared) and the μ cap's; else, and when it is empty,
+        // [`interval`].
+        let plain = prep.plain;
+        let (mut lo, mut hi) = (prep.lo, prep.hi);
+        if let Some(k) = cons.last() {
+            lo = mx(lo, -k.m - k.d);
+            hi = mn(hi, k.m - k.d);
         }
         let mut iv = if !plain {
             interval(cons)
@@ -518,11 +522,7 @@ impl FeedHold {
             // the normalising pass, as above)
             let lim = cons.get(..N_CONS - 1).unwrap_or(&[]);
             let lim_iv = if plain {
-                let (mut lo, mut hi) = (f32::NEG_INFINITY, f32::INFINITY);
-                for k in lim.iter().filter(|k| k.c == 1.0) {
-                    lo = mx(lo, -k.m - k.d);
-                    hi = mn(hi, k.m - k.d);
-                }
+                let (lo, hi) = (prep.lo, prep.hi);
                 if lo <= hi {
                     Interval {
                         lo,

@@ -322,20 +322,24 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         self.fh.reach || self.fh.sweep.as_ref().is_some_and(|sw| sw.reach)
     }
 
-    /// The optional work of a control period's first tick that entered no
-    /// piece or q span, one item: the start derivatives of the next piece,
-    /// else of the one after it ([`HoldRun::next_dr`]), when they are not
-    /// there yet; else a new look-ahead sweep when the last one is
-    /// complete (its horizon from the braking rate prepared for this
-    /// period and the plan's feed), or the sweep's next step
-    /// ([`Self::ahead_step`]).
-    fn ahead_work(&mut self) {
+    /// The optional work of a control period's first tick, one item: the
+    /// start derivatives of the next piece, else of the one after it, when
+    /// they are not there yet (also on a tick that `entered` a piece or q
+    /// span: a break may come within the next period, whose preparation
+    /// would take them); else, on a tick that entered none, a new
+    /// look-ahead sweep when the last one is complete (its horizon from
+    /// the braking rate this period planned with and the plan's feed), or
+    /// the sweep's next step ([`Self::ahead_step`]).
+    fn ahead_work(&mut self, entered: bool) {
         let n1 = self.pc.idx.wrapping_add(1);
         for idx in [n1, n1.wrapping_add(1)] {
             if idx <= self.views.p_last && self.start_dr(idx).is_none() {
                 self.piece_start_derivs(idx);
                 return;
             }
+        }
+        if entered {
+            return;
         }
         if self.fh.ctl.state() != HoldState::Stopping || self.fh.seg_tau.is_some() {
             return;
@@ -456,10 +460,10 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         self.s = s_new;
         self.qs = q_eval(&self.qc, &poly, s_new, tq, guess);
         let entered = self.pc.idx != pi || self.qc.idx != qi;
-        if !self.period_end() && quiet && !entered {
-            // (on a period's first tick without a relaxation that entered
-            // no piece or q span: the next period's preparation takes it)
-            self.ahead_work();
+        if !self.period_end() && quiet {
+            // (on a period's first tick without a relaxation: the next
+            // period's preparation takes it)
+            self.ahead_work(entered);
         }
         let feed = self.fh.ctl.lambda_f32() * self.qs.v;
         self.emit(t_s, (fx_to_f64(s_new), s_new), tp, feed)
@@ -490,7 +494,9 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
             &fh.joined
         };
         let Prepared { kin, prep, .. } = &mut fh.prep;
-        Some(fh.ctl.control_period(kin, ahead, prep, &fh.lim, h))
+        let ts = fh.ctl.control_period(kin, ahead, prep, &fh.lim, h);
+        fh.brake = THETA * prep.cap;
+        Some(ts)
     }
 
     /// [`HoldRun::prep`] is for a period starting here, in this state.
@@ -542,7 +548,6 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         fh.ctl.set_coast(coast && fh.ctl.lambda_f32() > COAST_ABOVE);
         let Prepared { kin, prep, .. } = &mut fh.prep;
         fh.ctl.prepare(kin, &fh.lim, self.h, prep);
-        fh.brake = THETA * fh.prep.prep.cap;
         fh.prep.s = s;
         fh.prep.state = fh.ctl.state();
         fh.prep.valid = true;
@@ -681,8 +686,8 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         let (pi, qi) = (self.pc.idx, self.qc.idx);
         let sp = self.place(t_s, (fx_to_f64(s_new), s_new), feed)?;
         // (the next pieces' start derivatives: the look-ahead is off here)
-        if !self.period_end() && quiet && self.pc.idx == pi && self.qc.idx == qi {
-            self.ahead_work();
+        if !self.period_end() && quiet {
+            self.ahead_work(self.pc.idx != pi || self.qc.idx != qi);
         }
         Ok(sp)
     }
