@@ -126,6 +126,9 @@ pub(crate) struct FeedHold {
     /// The extreme pair of the last infeasible tick's relaxation (where
     /// the next one's Newton steps start, [`interval_plain`]).
     relax_pair: (u8, u8),
+    /// The last period's relaxations (if any) each ended on the pair they
+    /// started from (one pass over the constraints: a light one).
+    relax_warm: bool,
     /// What the last control period's constraints came from: the
     /// diagnostics `HoldStats::last_*` are computed from it when asked
     /// ([`FeedHold::stats`]), not on the tick.
@@ -199,6 +202,7 @@ impl Default for FeedHold {
             coast: false,
             cap_prev: f32::INFINITY,
             relax_pair: (0, 0),
+            relax_warm: true,
             last: LastTick::default(),
             pending: None,
         }
@@ -330,6 +334,12 @@ impl FeedHold {
         self.control_period(kin, &Ahead::default(), &mut prep, lim, h)
     }
 
+    /// The last period's relaxations, if any, were light (each confirmed
+    /// the pair it started from in one pass).
+    pub fn relax_light(&self) -> bool {
+        self.relax_warm
+    }
+
     /// A control period is in progress: the next tick is its second
     /// ([`Self::advance`]).
     #[inline(always)]
@@ -418,6 +428,7 @@ impl FeedHold {
             HoldState::Resuming => false,
             _ => return now,
         };
+        self.relax_warm = true;
         // The period's length: the constraints bound the acceleration and
         // |μ| at its end, the approach plans in steps of it.
         let hp = PERIOD_TICKS as f32 * h;
@@ -458,6 +469,7 @@ impl FeedHold {
             }
         } else {
             let (iv, pair) = interval_plain(cons, self.relax_pair);
+            self.relax_warm = pair == self.relax_pair;
             self.relax_pair = pair;
             iv
         };
@@ -533,7 +545,9 @@ impl FeedHold {
                 } else {
                     // (from the tick's own extreme pair, where it relaxed:
                     // in a run of infeasible ticks usually the same pair)
-                    interval_plain(lim, self.relax_pair).0
+                    let (iv, pair) = interval_plain(lim, self.relax_pair);
+                    self.relax_warm &= pair == self.relax_pair;
+                    iv
                 }
             } else {
                 interval(lim)

@@ -330,7 +330,10 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
     /// look-ahead sweep when the last one is complete (its horizon from
     /// the braking rate this period planned with and the plan's feed), or
     /// the sweep's next step ([`Self::ahead_step`]).
-    fn ahead_work(&mut self, entered: bool) {
+    fn ahead_work(&mut self, entered: bool, none: bool) {
+        if none {
+            return;
+        }
         let n1 = self.pc.idx.wrapping_add(1);
         for idx in [n1, n1.wrapping_add(1)] {
             if idx <= self.views.p_last && self.start_dr(idx).is_none() {
@@ -420,10 +423,13 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
             self.fh.prev_j = None;
         }
         // (an infeasible period's relaxation, like a piece or q span
-        // entered, leaves the optional work for a later tick)
-        let quiet = first && self.fh.ctl.infeasible() == relaxed;
+        // entered, leaves the optional work for a later tick; a light one
+        // leaves the next pieces' derivatives)
+        let relax = self.fh.ctl.infeasible() != relaxed;
+        let quiet = first && (!relax || self.fh.ctl.relax_light());
+        let entered_ok = !relax;
         if let Some(tau) = self.fh.seg_tau {
-            return self.hold_seg_tick(t_s, tau, &ts, quiet);
+            return self.hold_seg_tick(t_s, tau, &ts, quiet && !relax);
         }
         // The plan's ṡ_p, s̈_p, s⃛_p, s⁗_p at s.
         let [_, dq, ddq, dddq] = self.qs.qd;
@@ -461,9 +467,9 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         self.qs = q_eval(&self.qc, &poly, s_new, tq, guess);
         let entered = self.pc.idx != pi || self.qc.idx != qi;
         if !self.period_end() && quiet {
-            // (on a period's first tick without a relaxation: the next
-            // period's preparation takes it)
-            self.ahead_work(entered);
+            // (on a period's first tick: the next period's preparation
+            // takes it)
+            self.ahead_work(entered || !entered_ok, entered && !entered_ok);
         }
         let feed = self.fh.ctl.lambda_f32() * self.qs.v;
         self.emit(t_s, (fx_to_f64(s_new), s_new), tp, feed)
@@ -687,7 +693,7 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         let sp = self.place(t_s, (fx_to_f64(s_new), s_new), feed)?;
         // (the next pieces' start derivatives: the look-ahead is off here)
         if !self.period_end() && quiet {
-            self.ahead_work(self.pc.idx != pi || self.qc.idx != qi);
+            self.ahead_work(self.pc.idx != pi || self.qc.idx != qi, false);
         }
         Ok(sp)
     }
