@@ -458,6 +458,9 @@ impl FeedHold {
             lo = mx(lo, -k.m - k.d);
             hi = mn(hi, k.m - k.d);
         }
+        // Coasting, ν comes from the constraints without the μ cap (below):
+        // an empty intersection with it is counted, not relaxed.
+        let coast = hold && self.coast;
         let mut iv = if !plain {
             interval(cons)
         } else if lo <= hi {
@@ -467,13 +470,48 @@ impl FeedHold {
                 relax: 1.0,
                 fixed: 0.0,
             }
+        } else if coast {
+            Interval {
+                lo,
+                hi,
+                relax: f32::INFINITY,
+                fixed: 0.0,
+            }
         } else {
             let (iv, pair) = interval_plain(cons, self.relax_pair);
             self.relax_warm = pair == self.relax_pair;
             self.relax_pair = pair;
             iv
         };
-        if iv.relax > 1.0 {
+        let rows = cons.get(..N_CONS - 1).unwrap_or(&[]);
+        let lim_iv = if !coast {
+            iv
+        } else if !plain {
+            interval(rows)
+        } else if prep.lo <= prep.hi {
+            // (where every constraint is normalised, the intersection
+            // directly, and an empty one relaxed without the normalising
+            // pass, as above)
+            Interval {
+                lo: prep.lo,
+                hi: prep.hi,
+                relax: 1.0,
+                fixed: 0.0,
+            }
+        } else {
+            // (from the tick's own extreme pair, where it relaxed: in a
+            // run of infeasible ticks usually the same pair)
+            let (iv, pair) = interval_plain(rows, self.relax_pair);
+            self.relax_warm = pair == self.relax_pair;
+            self.relax_pair = pair;
+            iv
+        };
+        if coast && iv.relax > 1.0 {
+            // (the relaxation without the μ cap: a lower bound of the
+            // whole set's)
+            iv.relax = mx(lim_iv.relax, 1.0 + f32::EPSILON);
+        }
+        if iv.relax > 1.0 && !coast {
             // Infeasible: |μ| still does not grow past the cap (the
             // relaxation would otherwise let it grow with the violation,
             // and 3λμA with it: braking, or resuming, where the plan's
@@ -520,38 +558,20 @@ impl FeedHold {
         } else {
             kin.tail_rate(lim)
         };
-        let (ua, lands) = approach(xa, wa, (la, ha), b, kappa, hp);
+        // (coasting: ν is the coast's, below)
+        let (ua, lands) = if coast {
+            (0.0, false)
+        } else {
+            approach(xa, wa, (la, ha), b, kappa, hp)
+        };
         let u = if mirror { -ua } else { ua };
         // Resuming: the exponential tail lands within X_SNAP (unless μ is
         // still large: then it crosses and comes back, see above); either
         // way a state at the target up to rounding lands.
         let lands = lands || (!hold && xa < X_SNAP && wa.abs() < 1e-4) || (xa < 1e-12 && wa.abs() < 1e-6);
         let mut nu = if hold { -u } else { u };
-        let coast = hold && self.coast;
         if coast {
-            // (without the μ cap; where every constraint is normalised,
-            // the intersection directly, and an empty one relaxed without
-            // the normalising pass, as above)
-            let lim = cons.get(..N_CONS - 1).unwrap_or(&[]);
-            let lim_iv = if plain {
-                let (lo, hi) = (prep.lo, prep.hi);
-                if lo <= hi {
-                    Interval {
-                        lo,
-                        hi,
-                        relax: 1.0,
-                        fixed: 0.0,
-                    }
-                } else {
-                    // (from the tick's own extreme pair, where it relaxed:
-                    // in a run of infeasible ticks usually the same pair)
-                    let (iv, pair) = interval_plain(lim, self.relax_pair);
-                    self.relax_warm &= pair == self.relax_pair;
-                    iv
-                }
-            } else {
-                interval(lim)
-            };
+            // (without the μ cap)
             nu = if lim_iv.relax <= 1.0 {
                 clampf(-mu_f / hp, lim_iv.lo, lim_iv.hi)
             } else {
