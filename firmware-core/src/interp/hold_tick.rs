@@ -2,27 +2,34 @@
 //! the interpolator.
 //!
 //! While a hold or resume is in progress, [`Interpolator::tick`] hands the
-//! tick to [`Interpolator::hold_tick`]: the plan's ṡ_p, s̈_p, s⃛_p, s⁗_p at
-//! s (from q, or from the stop segment's cubic), the path's r′, r″, r‴
-//! from the piece polynomial ([`crate::servo_forms::piece::pos_derivs`]), one controller
-//! step (ν), then s advances by the scaled order-4 Taylor step in Q40
+//! tick to [`Interpolator::hold_tick`]. The controller chooses ν once per
+//! control period of two ticks ([`PERIOD_TICKS`]) and holds it over both,
+//! so one control step's work is spread over two ticks (within the tick
+//! budget, `docs/wcet.md`): the period's second tick, after its step,
+//! prepares the next period at the new s (the plan's ṡ_p, s̈_p, s⃛_p from q
+//! or the stop segment's cubic, the path's r′, r″, r‴ from the piece
+//! polynomial ([`crate::servo_forms::piece::pos_derivs`]), the kinematics
+//! and the constraints but the μ cap's, [`HoldRun::prep`]); the first tick
+//! completes the control step (the μ cap with the look-ahead, the
+//! intersection, the approach law). On every tick s then advances by the
+//! scaled order-4 Taylor step in Q40
 //! ([`crate::feed_hold::controller::scaled_step`]: the first-order term in
 //! fixed point, the rest in f32; never backwards) and the position comes
 //! from the same fixed-point piece polynomial as on the normal tick.
-//! While stopping, the μ cap's look-ahead advances one step a tick (a
-//! point is three: locate it, the path's derivatives, the plan there),
-//! after the controller and for the next tick's, and only on a tick that
-//! did nothing else optional: no infeasible tick's relaxation, no
-//! evaluation of the next piece, no piece or q span entered. The path's
-//! derivatives at the next piece's start (for the jump of the plan's jerk
-//! at the break) are computed ahead the same way, before the look-ahead's
-//! step, or by the hold and resume requests. The
+//! A period's first tick then does one optional item (not after a
+//! relaxation): the start derivatives of the next two pieces (for the jump
+//! of the plan's jerk at their breaks) when they are not there yet, else,
+//! stopping and with no piece or q span entered, a new look-ahead sweep of
+//! the μ cap or one step of it (a point is five: its piece, its q span,
+//! the path's derivatives, the plan, the kinematics); the hold and resume
+//! requests compute the derivatives and the first period themselves. The
 //! stall checks do not run on these ticks; held, the tick returns the same
 //! position with feed 0 and the clock advancing.
 //!
 //! - Start segment: a hold requested before the join at s₁ (or before the
-//!   first tick) takes effect at the first tick after it (a delay of at
-//!   most t₁ + T; the state reads `Stopping` meanwhile).
+//!   first tick) takes effect at the second tick after it (a tick of the
+//!   plan itself, then the first period: a delay of at most t₁ + 2T; the
+//!   state reads `Stopping` meanwhile).
 //! - Near the end: a hold requested in the stop segment, or (running at
 //!   λ = 1) within [`END_FACTOR`] × the tangential jerk-limited stopping
 //!   distance of L, does not scale: the plan's own stop (already jerk-
