@@ -110,8 +110,14 @@ fn norm(k: &Lin) -> Option<(f32, f32)> {
     Some((dc, k.m / ac))
 }
 
-/// Newton steps [`interval`] takes at most for the smallest relaxation.
-pub(crate) const RELAX_STEPS: usize = 4;
+/// Newton steps [`interval`] takes at most for the smallest relaxation:
+/// one (two passes over the constraints, the tick's budget). Started from
+/// the last infeasible period's pair, one step usually reaches the root;
+/// where it does not, r is still a lower bound of it and ν the midpoint of
+/// the two bounds there, and the next infeasible period starts from the
+/// pair this one ended on (the hold checks read the same with one step as
+/// with four).
+pub(crate) const RELAX_STEPS: usize = 1;
 
 /// The intersection of the constraints' ν intervals; if empty, the
 /// minimiser of the largest relative violation max |d + cν|/m: the
@@ -123,8 +129,7 @@ pub(crate) const RELAX_STEPS: usize = 4;
 /// Newton's method from r = 1 (the root of the line through the pair that
 /// is extreme at r, that pair's value) climbs to the root monotonically,
 /// one linear piece per step, in O(n) per step instead of the O(n²) pairs
-/// (at most [`RELAX_STEPS`] steps; measured over 1,000 holds on the
-/// Butterfly: never more than two; a step that gains less than 1e-6 of r
+/// (at most [`RELAX_STEPS`] steps; a step that gains less than 1e-6 of r
 /// ends it).
 pub(crate) fn interval(cons: &[Lin]) -> Interval {
     let (mut lo, mut hi, mut fixed) = (f32::NEG_INFINITY, f32::INFINITY, 0.0f32);
@@ -181,10 +186,12 @@ pub(crate) fn interval_plain(cons: &[Lin], warm: (u8, u8)) -> (Interval, (u8, u8
         (Some(i), Some(j)) => (j.d - i.d) / (i.m + j.m),
         _ => 1.0,
     };
+    // (c = 1 is the only test needed: a NaN d or m never wins a compare
+    // in the relaxation, an m of ∞ never binds, and the limits are > 0)
     let (r, nu, pair) = relax(
         (0u8..)
             .zip(cons.iter())
-            .filter(|(_, k)| ok(k))
+            .filter(|(_, k)| k.c == 1.0)
             .map(|(i, k)| (i, (k.d, k.m))),
         r0,
     );
@@ -210,18 +217,21 @@ fn relax<I: Iterator<Item = (u8, (f32, f32))> + Clone>(nk: I, r0: f32) -> (f32, 
     let (mut l, mut u) = (f32::NEG_INFINITY, f32::INFINITY);
     let mut pair = (0u8, 0u8);
     for step in 0..=RELAX_STEPS {
-        // The extreme pair at r (and the bounds at r).
+        // The extreme pair at r (and the bounds at r): the bounds are
+        // −(d + rm) and −(d − rm), compared negated (one add each).
         let (mut li, mut ui) = ((0.0f32, 0.0f32), (0.0f32, 0.0f32));
-        (l, u) = (f32::NEG_INFINITY, f32::INFINITY);
+        let (mut nl, mut nu_) = (f32::INFINITY, f32::NEG_INFINITY);
         for (i, (dc, mc)) in nk.clone() {
-            let (x, y) = (-r * mc - dc, r * mc - dc);
-            if x > l {
-                (l, li, pair.0) = (x, (dc, mc), i);
+            let rm = r * mc;
+            let (x, y) = (dc + rm, dc - rm);
+            if x < nl {
+                (nl, li, pair.0) = (x, (dc, mc), i);
             }
-            if y < u {
-                (u, ui, pair.1) = (y, (dc, mc), i);
+            if y > nu_ {
+                (nu_, ui, pair.1) = (y, (dc, mc), i);
             }
         }
+        (l, u) = (-nl, -nu_);
         let r1 = (ui.0 - li.0) / (li.1 + ui.1);
         // (converged to rounding: the next pair is the same line)
         if step == RELAX_STEPS || !(r1 > r * (1.0 + 1e-6)) {
@@ -279,6 +289,17 @@ impl Kin {
         }
     }
 
+    /// The plan's axis jerk only ([`Kin::new`]'s `j` for the axes).
+    pub fn jerk(r: [[f32; 3]; 3], sd: [f32; 3]) -> [f32; 3] {
+        let [r1, r2, r3] = r;
+        let [v, a, j] = sd;
+        let [x1, y1, z1] = r1;
+        let [x2, y2, z2] = r2;
+        let [x3, y3, z3] = r3;
+        let jx = |d1: f32, d2: f32, d3: f32| d3 * v * v * v + 3.0 * d2 * v * a + d1 * j;
+        [jx(x1, x2, x3), jx(y1, y2, y3), jx(z1, z2, z3)]
+    }
+
     /// The rate κ (1/s) of the exponential tail of a resume, 1 − λ ∝ e^(−κt):
     /// with μ = κ(1 − λ) and ν = −κμ the jerk the scaling adds, 3λμA + νV,
     /// stays within the (1 − λ³)j the plan leaves even at its own jerk and
@@ -311,17 +332,13 @@ impl Kin {
     /// The largest ν (1/s²) the jerk limits allow at λ = 0 (only νV left):
     /// min over axes and the tangent of j/|V| (∞ at rest).
     pub fn nu_cap(&self, lim: &HoldLimits) -> f32 {
-        self.v
-            .iter()
-            .zip(lim.j.iter())
-            .map(|(v, j)| {
-                if *v != 0.0 {
-                    RHO_J * j / v.abs()
-                } else {
-                    f32::INFINITY
-                }
-            })
-            .fold(f32::INFINITY, mn)
+        let mut cap = f32::INFINITY;
+        for (v, j) in self.v.iter().zip(lim.j.iter()) {
+            if *v != 0.0 {
+                cap = mn(cap, RHO_J * j / v.abs());
+            }
+        }
+        cap
     }
 }
 
@@ -381,13 +398,27 @@ pub(crate) fn mu_cap(k: &Kin, lim: &HoldLimits, lam: f32, nu_r: f32) -> f32 {
 /// RHO_J·j, on the axes only where J is against A.
 pub(crate) fn mu_cap_ahead(k: &Kin, ahead: &Ahead, lim: &HoldLimits, lam: f32, nu_r: f32) -> f32 {
     let mut cap = f32::INFINITY;
-    for (i, (a, j)) in k.a.iter().zip(lim.j.iter()).enumerate() {
-        let at = |x: &[f32; 4]| x.get(i).copied().unwrap_or(0.0);
-        let (aa, va, am) = (at(&ahead.a), at(&ahead.v), lim.a.get(i).copied().unwrap_or(0.0));
+    let (l2, l3, l3x) = (lam * lam, lam * lam * lam, 3.0 * lam);
+    // (per axis and the tangent, zipped: no index checks)
+    let lims = lim.a.iter().zip(lim.j.iter());
+    let now = k.a.iter().zip(ahead.a.iter()).zip(ahead.v.iter());
+    let acc = ahead
+        .a_acc
+        .iter()
+        .zip(ahead.j_jerk.iter())
+        .zip(ahead.a_jerk.iter());
+    for (i, (((am, j), ((a, aa), va)), ((a_acc, j_jerk), a_jerk))) in lims.zip(now).zip(acc).enumerate() {
+        let (am, j, a, aa, va) = (*am, *j, *a, *aa, *va);
+        // An axis without acceleration now or ahead (z on a planar path)
+        // bounds μ by √(RHO_M ν_r/(3λ²)) below, which any axis with
+        // acceleration undercuts and the tangent reaches: skipped.
+        if i < 3 && va == 0.0 && aa == 0.0 && a == 0.0 {
+            continue;
+        }
         if va > 0.0 {
             // (braking adds to the plan's acceleration only where A is
             // against V)
-            let room = RHO_AHEAD * am - lam * lam * at(&ahead.a_acc);
+            let room = RHO_AHEAD * am - l2 * a_acc;
             cap = mn(cap, mx(room / va, MU_FLOOR));
             // The jerk the plan's λ³|J| ahead leaves for 3λμA.
             // On the axes, 3λμA adds to the plan's jerk only where J is
@@ -395,22 +426,24 @@ pub(crate) fn mu_cap_ahead(k: &Kin, ahead: &Ahead, lim: &HoldLimits, lam: f32, n
             // knots switch J's sign within a tick, all of the largest |J|
             // is taken).
             let (ja, aj) = if i < 3 {
-                (at(&ahead.j_jerk), at(&ahead.a_jerk))
+                (*j_jerk, *a_jerk)
             } else {
-                (at(&ahead.j), aa)
+                (ahead.j[3], aa)
             };
-            let room = RHO_AHEAD * (RHO_J * j - lam * lam * lam * ja);
-            if aj > 0.0 && lam > 0.0 {
-                cap = mn(cap, mx(room / (3.0 * lam * aj), MU_FLOOR_J));
-            }
-            if aa > 0.0 && lam > 0.0 {
-                // (and not overshooting the limit the other way)
-                cap = mn(cap, RHO_AHEAD * RHO_J * j / (3.0 * lam * aa));
+            if lam > 0.0 {
+                let room = RHO_AHEAD * (RHO_J * j - l3 * ja);
+                if aj > 0.0 {
+                    cap = mn(cap, mx(room / (l3x * aj), MU_FLOOR_J));
+                }
+                if aa > 0.0 {
+                    // (and not overshooting the limit the other way)
+                    cap = mn(cap, RHO_AHEAD * RHO_J * j / (l3x * aa));
+                }
             }
         }
         let a = mx(a.abs(), aa);
-        let c2 = 3.0 * lam * lam * j / nu_r;
-        let c1 = 3.0 * lam * a;
+        let c2 = 3.0 * l2 * j / nu_r;
+        let c1 = l3x * a;
         let c0 = RHO_M * j;
         let m = if c2 > 0.0 && c2.is_finite() {
             2.0 * c0 / (c1 + sqrt32(c1 * c1 + 4.0 * c2 * c0))
@@ -445,6 +478,16 @@ pub(crate) struct Ahead {
 }
 
 impl Ahead {
+    /// No look-ahead (all 0).
+    pub const NONE: Ahead = Ahead {
+        a: [0.0; 4],
+        v: [0.0; 4],
+        j: [0.0; 4],
+        a_acc: [0.0; 4],
+        j_jerk: [0.0; 4],
+        a_jerk: [0.0; 4],
+    };
+
     /// Take one point of the plan into account.
     pub fn add(&mut self, k: &Kin) {
         for i in 0..4 {
@@ -474,13 +517,24 @@ impl Ahead {
 /// the module docs), `cap` the bound on |μ| after the tick. Each comes
 /// normalised where its c is not 0 (c = 1: d and m divided by c, one
 /// division per axis), so [`interval`] divides no more.
-pub(crate) fn constraints(
+pub(crate) fn constraints(k: &Kin, lim: &HoldLimits, lam_mu: (f32, f32), h: f32, cap: f32) -> [Lin; N_CONS] {
+    let mut out = [Lin::default(); N_CONS];
+    constraints_into(&mut out, k, lim, lam_mu, h, cap);
+    out
+}
+
+/// [`constraints`] written into `out` (in place: no copy of the rows);
+/// returns the intersection of the normalised rows but the μ cap's (c = 1;
+/// empty where lo > hi) and whether all are normalised or ν cannot change
+/// them (c = 0).
+pub(crate) fn constraints_into(
+    out: &mut [Lin; N_CONS],
     k: &Kin,
     lim: &HoldLimits,
     (lam, mu): (f32, f32),
     h: f32,
     cap: f32,
-) -> [Lin; N_CONS] {
+) -> (f32, f32, bool) {
     let (l2, l3) = (lam * lam, lam * lam * lam);
     let inv_h = 1.0 / h;
     let at = |x: &[f32; 4], i: usize| x.get(i).copied().unwrap_or(0.0);
@@ -555,14 +609,25 @@ pub(crate) fn constraints(
             ]
         }
     };
-    let [x0, x1, x2, x3] = axis(0);
-    let [y0, y1, y2, y3] = axis(1);
-    let [z0, z1, z2, z3] = axis(2);
-    let [t0, t1, t2, t3] = axis(3);
-    let m = Lin {
-        c: 1.0,
-        d: mu * inv_h,
-        m: mx(cap, mu.abs()) * inv_h,
-    };
-    [x0, x1, x2, x3, y0, y1, y2, y3, z0, z1, z2, z3, t0, t1, t2, t3, m]
+    // (with the intersection of the rows but the μ cap's, as they come)
+    let (mut lo, mut hi, mut plain) = (f32::NEG_INFINITY, f32::INFINITY, true);
+    for (i, rows) in out.chunks_exact_mut(4).enumerate() {
+        for (o, r) in rows.iter_mut().zip(axis(i)) {
+            if r.c == 1.0 {
+                lo = mx(lo, -r.m - r.d);
+                hi = mn(hi, r.m - r.d);
+            } else if r.c != 0.0 {
+                plain = false;
+            }
+            *o = r;
+        }
+    }
+    if let Some(o) = out.last_mut() {
+        *o = Lin {
+            c: 1.0,
+            d: mu * inv_h,
+            m: mx(cap, mu.abs()) * inv_h,
+        };
+    }
+    (lo, hi, plain)
 }

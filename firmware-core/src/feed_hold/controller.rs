@@ -3,8 +3,8 @@
 //! and the scaled step of s ([`scaled_step`]).
 
 use crate::feed_hold::constraints::{
-    constraints, interval, interval_plain, mn, mu_cap_ahead, mx, sqrt32, Ahead, HoldLimits, Interval, Kin,
-    N_CONS, RHO_J,
+    constraints, constraints_into, interval, interval_plain, mn, mu_cap_ahead, mx, sqrt32, Ahead, HoldLimits,
+    Interval, Kin, Lin, N_CONS, RHO_J,
 };
 use crate::feed_hold::{HoldState, HoldStats};
 use crate::servo_forms::fixed::f32_to_fx;
@@ -126,10 +126,55 @@ pub(crate) struct FeedHold {
     /// The extreme pair of the last infeasible tick's relaxation (where
     /// the next one's Newton steps start, [`interval_plain`]).
     relax_pair: (u8, u8),
-    /// What the last controlled tick's constraints came from: the
+    /// The last period's relaxations (if any) each ended on the pair they
+    /// started from (one pass over the constraints: a light one).
+    relax_warm: bool,
+    /// What the last control period's constraints came from: the
     /// diagnostics `HoldStats::last_*` are computed from it when asked
     /// ([`FeedHold::stats`]), not on the tick.
     last: LastTick,
+    /// The second tick of the control period in progress.
+    pending: Option<Pending>,
+}
+
+/// Ticks per control period: ν is chosen on the first from the
+/// kinematics at the period's start and held over all of them, so the
+/// work of one control step (the kinematics on the tick before, the
+/// constraints and the approach on the first) is spread over two ticks.
+pub(crate) const PERIOD_TICKS: u32 = 2;
+
+/// The rest of a control period after its first tick: its ν and the state
+/// its end comes to (λ and μh in Q62, the landing's snap included), which
+/// the first tick computed with the same integer steps.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Pending {
+    nu: f32,
+    /// νh²/2 in Q62 (the step of λ per tick grows by twice that).
+    half: i64,
+    /// Ticks of the period still to run.
+    left: u32,
+    lam: i64,
+    m: i64,
+    /// The state at the period's start, and after it (a hold or resume
+    /// requested in between keeps its own).
+    from: HoldState,
+    to: HoldState,
+}
+
+/// What a control period needs of the kinematics at its start besides
+/// them, computed on the tick before it ([`FeedHold::prepare`]).
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub(crate) struct Prep {
+    /// The jerk-limited ν at λ = 0 ([`Kin::nu_cap`], at most 1e9).
+    pub cap: f32,
+    /// The constraints on the period's ν ([`constraints`]).
+    pub cons: [Lin; N_CONS],
+    /// The intersection of the normalised ones but the μ cap's (c = 1;
+    /// empty where lo > hi), and whether all are normalised or ν cannot
+    /// change them (c = 0).
+    pub lo: f32,
+    pub hi: f32,
+    pub plain: bool,
 }
 
 /// The inputs of the last controlled tick's constraints and its ν.
@@ -157,7 +202,9 @@ impl Default for FeedHold {
             coast: false,
             cap_prev: f32::INFINITY,
             relax_pair: (0, 0),
+            relax_warm: true,
             last: LastTick::default(),
+            pending: None,
         }
     }
 }
@@ -175,13 +222,6 @@ pub(crate) struct TickScale {
     pub mu: f32,
     /// ν = λ̈ over the tick, 1/s².
     pub nu: f32,
-}
-
-impl TickScale {
-    /// λ (f64, exact).
-    pub fn lam_f64(&self) -> f64 {
-        self.lam as f64 * (1.0 / LAM_ONE as f64)
-    }
 }
 
 impl FeedHold {
@@ -281,25 +321,91 @@ impl FeedHold {
         };
     }
 
-    /// One tick of h seconds: chooses ν from the constraints at the current
-    /// state (`kin` at the current s), advances λ and μ, and returns the
-    /// tick's (λ, μ, ν) for the step of s.
-    // The tick runs with a look-ahead (`control_ahead`); the unit tests drive this.
-    #[cfg_attr(not(test), allow(dead_code))]
+    /// One tick of h seconds with the kinematics `kin` at the current s (the
+    /// unit tests' driver): a control period's first tick ([`Self::prepare`]
+    /// and [`Self::control_period`]), or its second ([`Self::advance`]).
+    #[cfg(test)]
     pub fn control(&mut self, kin: &Kin, lim: &HoldLimits, h: f32) -> TickScale {
-        self.control_ahead(kin, &Ahead::default(), lim, h)
+        if self.mid_period() {
+            return self.advance();
+        }
+        let mut prep = Prep::default();
+        self.prepare(kin, lim, h, &mut prep);
+        self.control_period(kin, &Ahead::default(), &mut prep, lim, h)
     }
 
-    /// The braking deceleration of λ (1/s²) the controller plans with at
-    /// `kin` ([`THETA`] × the jerk-limited ν at λ = 0).
-    pub fn braking(kin: &Kin, lim: &HoldLimits) -> f32 {
-        THETA * mn(kin.nu_cap(lim), 1e9)
+    /// The last period's relaxations, if any, were light (each confirmed
+    /// the pair it started from in one pass).
+    pub fn relax_light(&self) -> bool {
+        self.relax_warm
     }
 
-    /// [`FeedHold::control`] with a look-ahead: `ahead` the largest |A| and
-    /// |V| per axis and tangentially the plan reaches over the arc length
-    /// the stop can still cover (the μ cap, [`mu_cap_ahead`]).
-    pub fn control_ahead(&mut self, kin: &Kin, ahead: &Ahead, lim: &HoldLimits, h: f32) -> TickScale {
+    /// A control period is in progress: the next tick is its second
+    /// ([`Self::advance`]).
+    #[inline(always)]
+    pub fn mid_period(&self) -> bool {
+        self.pending.is_some()
+    }
+
+    /// The tick's scale at rest on the plan (λ = 1, μ = 0, ν = 0: the
+    /// plan itself), without a control period; `None` elsewhere.
+    pub fn on_plan(&self) -> Option<TickScale> {
+        (self.lam == LAM_ONE && self.m == 0).then_some(TickScale {
+            lam: LAM_ONE,
+            m: 0,
+            lam_f: 1.0,
+            mu: 0.0,
+            nu: 0.0,
+        })
+    }
+
+    /// What the next control period needs besides the kinematics `kin` at
+    /// its start (computed on the tick before it, from the state that tick
+    /// ends in): the constraints on its ν ([`constraints`], for the
+    /// period's length; the μ cap's row is the first tick's,
+    /// [`Self::control_period`]) and the jerk-limited ν.
+    pub fn prepare(&self, kin: &Kin, lim: &HoldLimits, h: f32, out: &mut Prep) {
+        let hp = PERIOD_TICKS as f32 * h;
+        // (μ as the period's first tick computes it: per the tick length
+        // μh was last scaled to, h on every tick of an interpolator)
+        let mu_f = if self.h > 0.0 {
+            q62_f32(self.m) / self.h
+        } else {
+            0.0
+        };
+        (out.lo, out.hi, out.plain) = constraints_into(
+            &mut out.cons,
+            kin,
+            lim,
+            (q62_f32(self.lam), mu_f),
+            hp,
+            f32::INFINITY,
+        );
+    }
+
+    /// The first tick of a control period of [`PERIOD_TICKS`] ticks of h
+    /// seconds: chooses ν from the constraints at the current state (`kin`
+    /// at the current s, `prep` from [`Self::prepare`] at the same state,
+    /// its μ cap row set here), held over the period, advances λ and μ
+    /// over this tick, and returns its (λ, μ, ν) for the step of s; the
+    /// period's end state is kept for [`Self::advance`]. Running or held:
+    /// no period (ν = 0).
+    ///
+    /// The μ cap: from the look-ahead `ahead` ([`mu_cap_ahead`]: the
+    /// largest |A| and |V| per axis and tangentially the plan reaches over
+    /// the arc length the stop can still cover); while stopping it rises
+    /// at most [`CAP_RISE`] per second (it falls at once): the look-ahead
+    /// samples the plan at points, and a period whose samples straddle a
+    /// narrow peak of the plan's jerk would otherwise let μ grow, which the
+    /// cap never takes back.
+    pub fn control_period(
+        &mut self,
+        kin: &Kin,
+        ahead: &Ahead,
+        prep: &mut Prep,
+        lim: &HoldLimits,
+        h: f32,
+    ) -> TickScale {
         // μh was per the last tick's length: per this one's (the same
         // every tick of an interpolator).
         if self.h != h {
@@ -322,35 +428,41 @@ impl FeedHold {
             HoldState::Resuming => false,
             _ => return now,
         };
+        self.relax_warm = true;
+        // The period's length: the constraints bound the acceleration and
+        // |μ| at its end, the approach plans in steps of it.
+        let hp = PERIOD_TICKS as f32 * h;
         let cap = mn(kin.nu_cap(lim), 1e9);
+        prep.cap = cap;
         let b0 = THETA * cap;
         let lam_cap = if hold { lam_f } else { 1.0 };
-        // The μ cap; while stopping it rises at most CAP_RISE per second
-        // (it falls at once): the look-ahead samples the plan at points, and
-        // a tick whose samples straddle a narrow peak of the plan's jerk
-        // would otherwise let μ grow, which the cap never takes back.
         let cap_now = mu_cap_ahead(kin, ahead, lim, lam_cap, b0);
         let mu_max = if hold {
-            mn(cap_now, self.cap_prev + CAP_RISE * h)
+            mn(cap_now, self.cap_prev + CAP_RISE * hp)
         } else {
             cap_now
         };
         self.cap_prev = if hold { mu_max } else { f32::INFINITY };
-        let cons = constraints(kin, lim, (lam_f, mu_f), h, mu_max);
-        // The intersection directly where every constraint is normalised
-        // (c = 1; c = 0 ones ν cannot change): the common case; else, and
-        // when it is empty, [`interval`].
-        let (mut lo, mut hi, mut plain) = (f32::NEG_INFINITY, f32::INFINITY, true);
-        for k in &cons {
-            if k.c == 1.0 {
-                lo = mx(lo, -k.m - k.d);
-                hi = mn(hi, k.m - k.d);
-            } else if k.c != 0.0 {
-                plain = false;
-            }
+        if let Some(k) = prep.cons.last_mut() {
+            // (as [`constraints`] writes it)
+            k.m = mx(mu_max, mu_f.abs()) * (1.0 / hp);
         }
+        let cons = &prep.cons[..];
+        // The intersection directly where every constraint is normalised
+        // (c = 1; c = 0 ones ν cannot change): the common case, from the
+        // others' (prepared) and the μ cap's; else, and when it is empty,
+        // [`interval`].
+        let plain = prep.plain;
+        let (mut lo, mut hi) = (prep.lo, prep.hi);
+        if let Some(k) = cons.last() {
+            lo = mx(lo, -k.m - k.d);
+            hi = mn(hi, k.m - k.d);
+        }
+        // Coasting, ν comes from the constraints without the μ cap (below):
+        // an empty intersection with it is counted, not relaxed.
+        let coast = hold && self.coast;
         let mut iv = if !plain {
-            interval(&cons)
+            interval(cons)
         } else if lo <= hi {
             Interval {
                 lo,
@@ -358,12 +470,48 @@ impl FeedHold {
                 relax: 1.0,
                 fixed: 0.0,
             }
+        } else if coast {
+            Interval {
+                lo,
+                hi,
+                relax: f32::INFINITY,
+                fixed: 0.0,
+            }
         } else {
-            let (iv, pair) = interval_plain(&cons, self.relax_pair);
+            let (iv, pair) = interval_plain(cons, self.relax_pair);
+            self.relax_warm = pair == self.relax_pair;
             self.relax_pair = pair;
             iv
         };
-        if iv.relax > 1.0 {
+        let rows = cons.get(..N_CONS - 1).unwrap_or(&[]);
+        let lim_iv = if !coast {
+            iv
+        } else if !plain {
+            interval(rows)
+        } else if prep.lo <= prep.hi {
+            // (where every constraint is normalised, the intersection
+            // directly, and an empty one relaxed without the normalising
+            // pass, as above)
+            Interval {
+                lo: prep.lo,
+                hi: prep.hi,
+                relax: 1.0,
+                fixed: 0.0,
+            }
+        } else {
+            // (from the tick's own extreme pair, where it relaxed: in a
+            // run of infeasible ticks usually the same pair)
+            let (iv, pair) = interval_plain(rows, self.relax_pair);
+            self.relax_warm = pair == self.relax_pair;
+            self.relax_pair = pair;
+            iv
+        };
+        if coast && iv.relax > 1.0 {
+            // (the relaxation without the μ cap: a lower bound of the
+            // whole set's)
+            iv.relax = mx(lim_iv.relax, 1.0 + f32::EPSILON);
+        }
+        if iv.relax > 1.0 && !coast {
             // Infeasible: |μ| still does not grow past the cap (the
             // relaxation would otherwise let it grow with the violation,
             // and 3λμA with it: braking, or resuming, where the plan's
@@ -410,42 +558,22 @@ impl FeedHold {
         } else {
             kin.tail_rate(lim)
         };
-        let (ua, lands) = approach(xa, wa, (la, ha), b, kappa, h);
+        // (coasting: ν is the coast's, below)
+        let (ua, lands) = if coast {
+            (0.0, false)
+        } else {
+            approach(xa, wa, (la, ha), b, kappa, hp)
+        };
         let u = if mirror { -ua } else { ua };
         // Resuming: the exponential tail lands within X_SNAP (unless μ is
         // still large: then it crosses and comes back, see above); either
         // way a state at the target up to rounding lands.
         let lands = lands || (!hold && xa < X_SNAP && wa.abs() < 1e-4) || (xa < 1e-12 && wa.abs() < 1e-6);
         let mut nu = if hold { -u } else { u };
-        let coast = hold && self.coast;
         if coast {
-            // (without the μ cap; where every constraint is normalised,
-            // the intersection directly, and an empty one relaxed without
-            // the normalising pass, as above)
-            let lim = cons.get(..N_CONS - 1).unwrap_or(&[]);
-            let lim_iv = if plain {
-                let (mut lo, mut hi) = (f32::NEG_INFINITY, f32::INFINITY);
-                for k in lim.iter().filter(|k| k.c == 1.0) {
-                    lo = mx(lo, -k.m - k.d);
-                    hi = mn(hi, k.m - k.d);
-                }
-                if lo <= hi {
-                    Interval {
-                        lo,
-                        hi,
-                        relax: 1.0,
-                        fixed: 0.0,
-                    }
-                } else {
-                    // (from the tick's own extreme pair, where it relaxed:
-                    // in a run of infeasible ticks usually the same pair)
-                    interval_plain(lim, self.relax_pair).0
-                }
-            } else {
-                interval(lim)
-            };
+            // (without the μ cap)
             nu = if lim_iv.relax <= 1.0 {
-                clampf(-mu_f / h, lim_iv.lo, lim_iv.hi)
+                clampf(-mu_f / hp, lim_iv.lo, lim_iv.hi)
             } else {
                 lim_iv.lo
             };
@@ -455,27 +583,58 @@ impl FeedHold {
             kin: *kin,
             lam: lam_f,
             mu: mu_f,
-            h,
+            h: hp,
             cap: mu_max,
             nu,
             set: true,
         };
-        // The step, exact in Q62: λ₁ = λ + μh + νh²/2, μ₁h = μh + νh².
-        let half = f32_to_q62(0.5 * nu * h * h);
-        let lam1 = self.lam.wrapping_add(self.m).wrapping_add(half);
-        let m1 = self.m.wrapping_add(half.wrapping_mul(2));
-        // The same in the approach's coordinates (w₁h in Q62).
-        let (x1q, w1q) = if hold {
-            (lam1, m1.wrapping_neg())
-        } else {
-            (LAM_ONE.wrapping_sub(lam1), m1)
+        // The period, exact in Q62, tick by tick: λ₁ = λ + μh + νh²/2,
+        // μ₁h = μh + νh²; its end in the approach's coordinates (w₁h in
+        // Q62).
+        // After n ticks: λ + nμh + n²νh²/2 and μh + 2n·νh²/2, the same
+        // integers as n steps.
+        let n = i64::from(PERIOD_TICKS);
+        let end = |lam: i64, m: i64, half: i64| {
+            let lam2 = lam
+                .wrapping_add(m.wrapping_mul(n))
+                .wrapping_add(half.wrapping_mul(n * n));
+            let m2 = m.wrapping_add(half.wrapping_mul(2 * n));
+            let (x1q, w1q) = if hold {
+                (lam2, m2.wrapping_neg())
+            } else {
+                (LAM_ONE.wrapping_sub(lam2), m2)
+            };
+            (x1q, w1q, q62_f32(x1q), q62_f32(w1q) / h)
         };
-        let (x1, w1) = (q62_f32(x1q), q62_f32(w1q) / h);
+        let half = f32_to_q62(0.5 * nu * h * h);
+        let (x1q, w1q, x1, w1) = end(self.lam, self.m, half);
         // A resume's landing that the constraints clamped does not land
         // (it crosses and comes back); a hold's does (λ < 0 would run
         // backwards).
         let lands = lands && (hold || w1.abs() < 1e-4);
         let crossed = x1 <= 0.0 && (hold || (w1.abs() < 1e-4 && x1 > -1e-9));
+        // A landing lands λ exactly: the f32 νh²/2 is off by up to an ulp,
+        // four times over at the period's end (~1e-11 in λ), so where ν is
+        // the landing one (not clamped), νh²/2 comes from the integer
+        // distance to go.
+        let (half, x1q, w1q, x1, w1) = if lands || crossed {
+            let nm = self.m.wrapping_mul(n);
+            let rest = if hold {
+                self.lam.wrapping_add(nm).wrapping_neg()
+            } else {
+                LAM_ONE.wrapping_sub(self.lam).wrapping_sub(nm)
+            };
+            let exact = rest / (n * n);
+            let tol = (half.unsigned_abs() >> 16).saturating_add(64);
+            if exact.abs_diff(half) <= tol {
+                let (x1q, w1q, x1, w1) = end(self.lam, self.m, exact);
+                (exact, x1q, w1q, x1, w1)
+            } else {
+                (half, x1q, w1q, x1, w1)
+            }
+        } else {
+            (half, x1q, w1q, x1, w1)
+        };
         let (x1q, w1q) = if lands || crossed {
             if w1.abs() > 1e-4 || x1 < -1e-12 {
                 self.stats.forced = self.stats.forced.saturating_add(1);
@@ -488,19 +647,68 @@ impl FeedHold {
         } else {
             (x1q, w1q)
         };
-        if hold {
-            self.lam = x1q;
-            self.m = w1q.wrapping_neg();
+        let lam1 = self.lam.wrapping_add(self.m).wrapping_add(half);
+        let m1 = self.m.wrapping_add(half.wrapping_mul(2));
+        let (lam_end, m_end) = if hold {
+            (x1q, w1q.wrapping_neg())
         } else {
-            self.lam = LAM_ONE.wrapping_sub(x1q);
-            self.m = w1q;
-        }
-        if x1q == 0 && w1q == 0 {
-            self.state = if hold { HoldState::Held } else { HoldState::Running };
-            self.lam = if hold { 0 } else { LAM_ONE };
-            self.m = 0;
-        }
+            (LAM_ONE.wrapping_sub(x1q), w1q)
+        };
+        let (to, lam_end, m_end) = if x1q == 0 && w1q == 0 {
+            if hold {
+                (HoldState::Held, 0, 0)
+            } else {
+                (HoldState::Running, LAM_ONE, 0)
+            }
+        } else {
+            (self.state, lam_end, m_end)
+        };
+        self.pending = Some(Pending {
+            nu,
+            half,
+            left: PERIOD_TICKS - 1,
+            lam: lam_end,
+            m: m_end,
+            from: self.state,
+            to,
+        });
+        self.lam = lam1;
+        self.m = m1;
         TickScale { nu, ..now }
+    }
+
+    /// The second tick of the control period in progress: its (λ, μ, ν)
+    /// (ν held), and λ, μ and the state at the period's end (a hold or
+    /// resume requested since its first tick keeps its state). Without a
+    /// period (not called so): (λ, μ) as they are, ν = 0, nothing advanced.
+    pub fn advance(&mut self) -> TickScale {
+        let h = self.h;
+        let mut now = TickScale {
+            lam: self.lam,
+            m: self.m,
+            lam_f: q62_f32(self.lam),
+            mu: if h > 0.0 { q62_f32(self.m) / h } else { 0.0 },
+            nu: 0.0,
+        };
+        match self.pending.as_mut() {
+            Some(p) if p.left > 1 => {
+                now.nu = p.nu;
+                p.left -= 1;
+                self.lam = self.lam.wrapping_add(self.m).wrapping_add(p.half);
+                self.m = self.m.wrapping_add(p.half.wrapping_mul(2));
+            }
+            Some(p) => {
+                now.nu = p.nu;
+                self.lam = p.lam;
+                self.m = p.m;
+                if self.state == p.from {
+                    self.state = p.to;
+                }
+                self.pending = None;
+            }
+            None => {}
+        }
+        now
     }
 }
 

@@ -39,8 +39,10 @@
 //!
 //! # The controller
 //!
-//! Each tick (`FeedHold::control`) builds the linear constraints
-//! |d + cν| ≤ m (`constraints`), per axis and tangentially:
+//! Each control period (two ticks of h, ν held over both: `PERIOD_TICKS`;
+//! below, h is the period's length where a tick's is not meant) builds the
+//! linear constraints |d + cν| ≤ m (`constraints`), per axis and
+//! tangentially:
 //!
 //! - jerk during the tick: d = λ³J + 3λμA, c = V, m = `RHO_J`·j;
 //! - acceleration at the end of the tick: d = λ²A + μV + h(λ³J + 3λμA),
@@ -104,8 +106,8 @@
 //! tick) are f32. The constraints, the interval, the μ cap and the
 //! approach law are f32 (the approach in the distance-to-go coordinates
 //! from the exact Q62 λ and 1 − λ; its braking curve written without the
-//! cancelling w²h² terms). Only the time of the scaled stop segment, τ and
-//! s = L − J₂τ³/6, stays f64.
+//! cancelling w²h² terms). The scaled stop segment's time to go τ is Q56
+//! s, and s = L − J₂τ³/6 comes from integer products.
 
 pub(crate) mod constraints;
 pub(crate) mod controller;
@@ -141,9 +143,9 @@ pub enum HoldError {
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct HoldStats {
-    /// Ticks the controller chose ν on.
+    /// Control periods (two ticks each) the controller chose ν for.
     pub ticks: u64,
-    /// Ticks whose constraint interval (with the margins) was empty.
+    /// Periods whose constraint interval (with the margins) was empty.
     pub infeasible: u64,
     /// Of those, ticks where even the limits themselves could not be met.
     pub violating: u64,

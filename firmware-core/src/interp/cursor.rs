@@ -4,7 +4,9 @@
 
 use crate::math::source::{F64Array, LeF32, LeF64};
 use crate::servo_forms::fixed::{fx_small_f32, sqrt_q32, to_fx, Q_FRAC};
-use crate::servo_forms::piece::{piece_shift_mask, PieceU, PIECE_F64_LEN, PIECE_HEAD_LEN, POS_BYTES};
+use crate::servo_forms::piece::{
+    piece_shift_mask, pos_derivs, PieceU, PIECE_F64_LEN, PIECE_HEAD_LEN, POS_BYTES,
+};
 use crate::servo_forms::q_span::{feed_near, q_fx_eval, QLocal, Q_FX_LEN, Q_LOCAL_LEN};
 
 /// The current q span: its index among the q spans (knot span 3 + idx),
@@ -103,6 +105,24 @@ impl Views<'_> {
         let mut pc = PCur::default();
         self.fill_piece(&mut pc, idx, to_fx(self.piece_breaks.get(idx)?))?;
         Some(pc)
+    }
+
+    /// The path's r′, r″, r‴ at s (Q40) on piece `idx`
+    /// ([`pos_derivs`]), reading only what they need of the piece (its
+    /// centre, shift, constant axes and coefficients) rather than a whole
+    /// cursor: for the feed hold's look-ahead and the next piece's start.
+    pub(crate) fn piece_derivs(&self, idx: usize, s: i64) -> Option<[[f32; 3]; 3]> {
+        let b = idx.checked_mul(PIECE_F64_LEN)?;
+        let pos_at = b.checked_add(3)?.checked_mul(8)?;
+        let c: &[u8; POS_BYTES] = self
+            .piece_f64
+            .as_bytes()
+            .get(pos_at..pos_at.checked_add(POS_BYTES)?)?
+            .try_into()
+            .ok()?;
+        let (shift, constant) = piece_shift_mask(self.piece_f64.get_i64(b.checked_add(2)?)? as u64)?;
+        let centre = self.piece_f64.get_i64(b.checked_add(1)?)?;
+        Some(pos_derivs(c, tau_of(s, centre, shift), shift, constant))
     }
 
     /// Moves `pc` to piece `idx` starting at `start` (Q40) in place (no
@@ -240,14 +260,21 @@ pub(crate) struct QState {
 /// [`sqrt_q32`]), the f32 form `poly` at `tq` for q′, q″, q‴.
 #[inline(always)]
 pub(crate) fn q_eval(qc: &QCur, poly: &QLocal, s: i64, tq: f32, guess: f32) -> QState {
-    let q_fx = q_fx_eval(qc.c, tau_of(s, qc.start, qc.shift));
-    let qf = q_fx as f32 * (1.0 / (1u64 << Q_FRAC) as f32);
-    let mut qd = poly.eval(tq);
-    qd[0] = qf;
-    let v = feed_near(qf, guess);
+    let (qd, v, q_fx) = q_eval_f32(qc, poly, s, tq, guess);
     QState {
         qd,
         v,
         v_fx: sqrt_q32(q_fx, v),
     }
+}
+
+/// [`q_eval`] without √q in Q32 (for the feed hold's look-ahead): `[q, q′,
+/// q″, q‴]`, √q in f32 and q in Q32.
+#[inline(always)]
+pub(crate) fn q_eval_f32(qc: &QCur, poly: &QLocal, s: i64, tq: f32, guess: f32) -> ([f32; 4], f32, i64) {
+    let q_fx = q_fx_eval(qc.c, tau_of(s, qc.start, qc.shift));
+    let qf = q_fx as f32 * (1.0 / (1u64 << Q_FRAC) as f32);
+    let mut qd = poly.eval(tq);
+    qd[0] = qf;
+    (qd, feed_near(qf, guess), q_fx)
 }

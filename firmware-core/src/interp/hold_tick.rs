@@ -2,27 +2,34 @@
 //! the interpolator.
 //!
 //! While a hold or resume is in progress, [`Interpolator::tick`] hands the
-//! tick to [`Interpolator::hold_tick`]: the plan's ṡ_p, s̈_p, s⃛_p, s⁗_p at
-//! s (from q, or from the stop segment's cubic), the path's r′, r″, r‴
-//! from the piece polynomial ([`crate::servo_forms::piece::pos_derivs`]), one controller
-//! step (ν), then s advances by the scaled order-4 Taylor step in Q40
+//! tick to [`Interpolator::hold_tick`]. The controller chooses ν once per
+//! control period of two ticks ([`PERIOD_TICKS`]) and holds it over both,
+//! so one control step's work is spread over two ticks (within the tick
+//! budget, `docs/wcet.md`): the period's second tick, after its step,
+//! prepares the next period at the new s (the plan's ṡ_p, s̈_p, s⃛_p from q
+//! or the stop segment's cubic, the path's r′, r″, r‴ from the piece
+//! polynomial ([`crate::servo_forms::piece::pos_derivs`]), the kinematics
+//! and the constraints but the μ cap's, [`HoldRun::prep`]); the first tick
+//! completes the control step (the μ cap with the look-ahead, the
+//! intersection, the approach law). On every tick s then advances by the
+//! scaled order-4 Taylor step in Q40
 //! ([`crate::feed_hold::controller::scaled_step`]: the first-order term in
 //! fixed point, the rest in f32; never backwards) and the position comes
 //! from the same fixed-point piece polynomial as on the normal tick.
-//! While stopping, the μ cap's look-ahead advances one step a tick (a
-//! point is three: locate it, the path's derivatives, the plan there),
-//! after the controller and for the next tick's, and only on a tick that
-//! did nothing else optional: no infeasible tick's relaxation, no
-//! evaluation of the next piece, no piece or q span entered. The path's
-//! derivatives at the next piece's start (for the jump of the plan's jerk
-//! at the break) are computed ahead the same way, before the look-ahead's
-//! step, or by the hold and resume requests. The
+//! A period's first tick then does one optional item (not after a
+//! relaxation): the start derivatives of the next two pieces (for the jump
+//! of the plan's jerk at their breaks) when they are not there yet, else,
+//! stopping and with no piece or q span entered, a new look-ahead sweep of
+//! the μ cap or one step of it (a point is five: its piece, its q span,
+//! the path's derivatives, the plan, the kinematics); the hold and resume
+//! requests compute the derivatives and the first period themselves. The
 //! stall checks do not run on these ticks; held, the tick returns the same
 //! position with feed 0 and the clock advancing.
 //!
 //! - Start segment: a hold requested before the join at s₁ (or before the
-//!   first tick) takes effect at the first tick after it (a delay of at
-//!   most t₁ + T; the state reads `Stopping` meanwhile).
+//!   first tick) takes effect at the second tick after it (a tick of the
+//!   plan itself, then the first period: a delay of at most t₁ + 2T; the
+//!   state reads `Stopping` meanwhile).
 //! - Near the end: a hold requested in the stop segment, or (running at
 //!   λ = 1) within [`END_FACTOR`] × the tangential jerk-limited stopping
 //!   distance of L, does not scale: the plan's own stop (already jerk-
@@ -39,17 +46,18 @@
 //!   [`Interpolator::resume`] return a [`HoldError`] and change nothing.
 
 use crate::feed_hold::constraints::{mn, mx, sqrt32, Ahead, Kin};
-use crate::feed_hold::controller::{scaled_step, FeedHold, TickScale, LAM_ONE};
+use crate::feed_hold::controller::{scaled_step, TickScale, LAM_FRAC, PERIOD_TICKS, THETA};
 use crate::feed_hold::{HoldError, HoldState, HoldStats};
-use crate::interp::cursor::{q_eval, tau_of, PCur, QCur, Views};
+use crate::interp::cursor::{q_eval, q_eval_f32, tau_of, PCur, QCur, Views};
 use crate::interp::hold_run::{
-    Stage, Sweep, AHEAD_FACTOR, AHEAD_MAX_MM, AHEAD_N, AHEAD_PER_TICK, COAST_ABOVE, END_FACTOR,
+    tau_f32, Prepared, Stage, Sweep, AHEAD_FACTOR, AHEAD_MAX_MM, AHEAD_N, AHEAD_PER_TICK, COAST_ABOVE,
+    END_FACTOR, TAU_FRAC,
 };
 use crate::interp::interpolator::{Interpolator, Phase};
 use crate::interp::setpoint::{Fault, Setpoint};
 use crate::limits::EndSegments;
 use crate::math::source::F64Array;
-use crate::servo_forms::fixed::{f32_to_fx, fx_small_f32, fx_to_f64, mul_hi, to_fx};
+use crate::servo_forms::fixed::{f32_to_fx, f64_to_fixed, fx_small_f32, fx_to_f64, mul_hi, to_fx};
 use crate::servo_forms::piece::pos_derivs;
 
 impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
@@ -58,6 +66,10 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
     /// no-op while stopping or held.
     pub fn hold(&mut self) -> Result<(), HoldError> {
         self.hold_allowed()?;
+        // (for the scaled stop segment, should the stop reach it: J₂/6 and
+        // the tick's length in fixed point)
+        self.fh.seg_j6 = to_fx(self.ends.map_or(0.0, |e| e.jerk_stop) * (1.0 / 6.0));
+        self.fh.seg_h = f64_to_fixed(self.period_s, TAU_FRAC as i32).clamp(0, i128::from(i64::MAX)) as i64;
         if self.fh.to_end {
             return Ok(());
         }
@@ -88,6 +100,7 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
                 self.fh.reach = sw.reach;
                 self.fh.sweep = None;
             }
+            self.prepare_request();
         }
         Ok(())
     }
@@ -102,6 +115,7 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         // (a resume plans without the stop's look-ahead)
         self.fh.sweep = None;
         self.fh.joined = Ahead::default();
+        self.prepare_request();
         Ok(())
     }
 
@@ -154,8 +168,7 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
     /// The horizon of a sweep starting now: the arc length the stop can
     /// still cover (its time to go at the planned braking rate times the
     /// plan's feed `v`, × [`AHEAD_FACTOR`]), at most [`AHEAD_MAX_MM`].
-    fn sweep_len(&self, kin: &Kin, v: f32) -> f32 {
-        let b = FeedHold::braking(kin, &self.fh.lim);
+    fn sweep_len(&self, b: f32, v: f32) -> f32 {
         let (x, mu) = (self.fh.ctl.lambda_f32(), self.fh.ctl.mu_f32());
         if !(b > 0.0 && v > 0.0) {
             return 0.0;
@@ -175,8 +188,9 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
     fn sweep_points(c: &SweepCtx<'_, '_>, sw: &mut Sweep, joined: &mut Ahead, count: usize) {
         let s = c.s;
         let v_ = c.views;
-        // Work units left: a point is three (locate, derivatives, plan),
-        // a point passed since the sweep began an eighth of one.
+        // Work units left: a step is eight (a point is five: its piece,
+        // its q span, the path's derivatives, the plan, the kinematics), a
+        // point passed since the sweep began one.
         let mut left = count.saturating_mul(8);
         while !sw.done && left > 0 {
             match sw.stage {
@@ -224,8 +238,15 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
                         v_.p_last,
                         at,
                     ));
-                    let qi = if sk >= c.qc.next {
+                    (sw.sk, sw.pi) = (sk, pi);
+                    sw.stage = Stage::LocateQ;
+                    left = left.saturating_sub(8);
+                }
+                Stage::LocateQ => {
+                    let sk = sw.sk;
+                    sw.qi = if sk >= c.qc.next {
                         let i = c.qc.idx;
+                        let at = fx_to_f64(sk.saturating_add(1)).to_bits();
                         i.wrapping_add(count_below(
                             &v_.q_knots,
                             i.wrapping_add(4),
@@ -235,29 +256,15 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
                     } else {
                         c.qc.idx
                     };
-                    (sw.sk, sw.pi, sw.qi) = (sk, pi, qi);
                     sw.stage = Stage::Derivs;
                     left = left.saturating_sub(8);
                 }
                 Stage::Derivs => {
-                    let pi = sw.pi;
-                    // (the current piece by reference: no cursor copy)
-                    let other;
-                    let pc = if pi == c.pc.idx {
-                        c.pc
-                    } else {
-                        let Some(p) = v_.piece(pi) else {
-                            sw.done = true;
-                            break;
-                        };
-                        other = p;
-                        &other
-                    };
-                    let Some(coeffs) = v_.coeffs(pc) else {
+                    let Some(dr) = v_.piece_derivs(sw.pi, sw.sk) else {
                         sw.done = true;
                         break;
                     };
-                    sw.dr = pos_derivs(coeffs, tau_of(sw.sk, pc.centre, pc.shift), pc.shift, pc.constant);
+                    sw.dr = dr;
                     sw.stage = Stage::Plan;
                     left = left.saturating_sub(8);
                 }
@@ -273,19 +280,23 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
                         other = q;
                         &other
                     };
-                    let (sk, dr) = (sw.sk, sw.dr);
-                    let k = match (sw.into_stop, c.ends) {
+                    let sk = sw.sk;
+                    sw.plan = match (sw.into_stop, c.ends) {
                         (true, Some(e)) => {
                             let (j2, t2) = (e.jerk_stop as f32, e.t_stop as f32);
-                            Kin::new(dr, [0.5 * j2 * t2 * t2, -j2 * t2, j2])
+                            [0.5 * j2 * t2 * t2, -j2 * t2, j2]
                         }
                         _ => {
                             let tq = fx_small_f32(sk.wrapping_sub(qc.anchor), 20);
-                            let qs = q_eval(qc, &qc.poly, sk, tq, c.v);
-                            let [_, dq, ddq, _] = qs.qd;
-                            Kin::new(dr, [qs.v, 0.5 * dq, 0.5 * ddq * qs.v])
+                            let ([_, dq, ddq, _], v, _) = q_eval_f32(qc, &qc.poly, sk, tq, c.v);
+                            [v, 0.5 * dq, 0.5 * ddq * v]
                         }
                     };
+                    sw.stage = Stage::Kin;
+                    left = left.saturating_sub(8);
+                }
+                Stage::Kin => {
+                    let k = Kin::new(sw.dr, sw.plan);
                     sw.part.add(&k);
                     joined.add(&k);
                     if sw.into_stop {
@@ -298,13 +309,13 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         }
     }
 
-    /// The look-ahead for this tick (stopping only; zeros otherwise):
-    /// `fh.joined`, the last complete sweep joined with the one in
-    /// progress (a new one starts when it is complete; [`Self::ahead_step`]
-    /// advances it, after the controller); returns whether the plan's stop
-    /// segment is within the stop's reach. A hold request runs a whole
-    /// sweep at once ([`Interpolator::hold`]), outside the tick.
-    fn ahead_acc(&mut self, kin: &Kin, v: f32) -> bool {
+    /// The look-ahead for the next control period (stopping only; zeros
+    /// otherwise): `fh.joined`, the last complete sweep joined with the one
+    /// in progress ([`Self::ahead_work`] starts a new one when it is
+    /// complete and advances it); returns whether the plan's stop segment
+    /// is within the stop's reach. A hold request runs a whole sweep at
+    /// once ([`Interpolator::hold`]), outside the tick.
+    fn ahead_acc(&mut self) -> bool {
         // Stopping only: a resume plans its cap at λ = 1 already, and a
         // look-ahead cap dropping under μ on its exponential tail forces μ
         // down against the tail law (measured: up to 1.07× j at landing).
@@ -315,16 +326,45 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
             }
             return false;
         }
-        if !matches!(&self.fh.sweep, Some(sw) if !sw.done) {
-            if let Some(d) = &self.fh.sweep {
-                self.fh.ahead = d.part;
-                self.fh.reach = d.reach;
-            }
-            // (a new sweep: nothing of it yet)
-            self.fh.joined = self.fh.ahead;
-            self.fh.sweep = Some(self.start_sweep(self.s, self.sweep_len(kin, v)));
-        }
         self.fh.reach || self.fh.sweep.as_ref().is_some_and(|sw| sw.reach)
+    }
+
+    /// The optional work of a control period's first tick, one item: the
+    /// start derivatives of the next piece, else of the one after it, when
+    /// they are not there yet (also on a tick that `entered` a piece or q
+    /// span: a break may come within the next period, whose preparation
+    /// would take them); else, on a tick that entered none, a new
+    /// look-ahead sweep when the last one is complete (its horizon from
+    /// the braking rate this period planned with and the plan's feed), or
+    /// the sweep's next step ([`Self::ahead_step`]).
+    fn ahead_work(&mut self, entered: bool, none: bool) {
+        if none {
+            return;
+        }
+        let n1 = self.pc.idx.wrapping_add(1);
+        for idx in [n1, n1.wrapping_add(1)] {
+            if idx <= self.views.p_last && self.start_dr(idx).is_none() {
+                self.piece_start_derivs(idx);
+                return;
+            }
+        }
+        if entered {
+            return;
+        }
+        if self.fh.ctl.state() != HoldState::Stopping || self.fh.seg_tau.is_some() {
+            return;
+        }
+        if matches!(&self.fh.sweep, Some(sw) if !sw.done) {
+            self.ahead_step();
+            return;
+        }
+        if let Some(d) = &self.fh.sweep {
+            self.fh.ahead = d.part;
+            self.fh.reach = d.reach;
+        }
+        // (a new sweep: nothing of it yet)
+        self.fh.joined = self.fh.ahead;
+        self.fh.sweep = Some(self.start_sweep(self.s, self.sweep_len(self.fh.brake, self.qs.v)));
     }
 
     /// One step ([`AHEAD_PER_TICK`]) of the look-ahead sweep in progress
@@ -373,197 +413,296 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         if self.fh.ctl.state() == HoldState::Held {
             return self.place(t_s, (fx_to_f64(s), s), 0.0);
         }
-        if let Some(tau) = self.fh.seg_tau {
-            return self.hold_seg_tick(t_s, tau);
-        }
         let h = self.h;
+        // ν: on a control period's first tick from the kinematics prepared
+        // at its start, held over the second.
+        let first = !self.fh.ctl.mid_period();
+        let relaxed = self.fh.ctl.infeasible();
+        let ts = if first {
+            let Some(ts) = self.period_start() else {
+                return self.fault(Fault::Eval { s_mm: fx_to_f64(s) });
+            };
+            ts
+        } else {
+            self.fh.ctl.advance()
+        };
+        if self.fh.ctl.state() == HoldState::Running {
+            self.fh.prev_j = None;
+        }
+        // (an infeasible period's relaxation, like a piece or q span
+        // entered, leaves the optional work for a later tick; a light one
+        // leaves the next pieces' derivatives)
+        let relax = self.fh.ctl.infeasible() != relaxed;
+        let quiet = first && (!relax || self.fh.ctl.relax_light());
+        let entered_ok = !relax;
+        if let Some(tau) = self.fh.seg_tau {
+            return self.hold_seg_tick(t_s, tau, &ts, quiet && !relax);
+        }
         // The plan's ṡ_p, s̈_p, s⃛_p, s⁗_p at s.
         let [_, dq, ddq, dddq] = self.qs.qd;
         let v = self.qs.v;
         let plan = [v, 0.5 * dq, 0.5 * ddq * v, 0.5 * dddq * v * v + 0.25 * ddq * dq];
-        let Some((kin, extra)) = self.hold_kin(plan, s) else {
-            return self.fault(Fault::Eval { s_mm: fx_to_f64(s) });
-        };
-        let stop_in_reach = self.ahead_acc(&kin, v);
-        // (below λ = ½ the plan's λ³J and 3λμA leave room to finish)
-        self.fh
-            .ctl
-            .set_coast(stop_in_reach && self.fh.ctl.lambda_f32() > COAST_ABOVE);
-        let relaxed = self.fh.ctl.infeasible();
-        let ts = self.fh.ctl.control_ahead(&kin, &self.fh.joined, &self.fh.lim, h);
-        // (an infeasible tick's relaxation, like the next piece's
-        // evaluation, leaves the look-ahead's step for a later tick)
-        let busy = extra || self.fh.ctl.infeasible() != relaxed;
-        if self.fh.ctl.state() == HoldState::Running {
-            self.fh.prev_j = None;
-        }
         let vh = mul_hi(self.qs.v_fx, self.tk.0).wrapping_shl(self.tk.1);
         let Some(ds) = scaled_step(vh, plan, &ts, h) else {
             return self.fault(Fault::NonFinite { s_mm: fx_to_f64(s) });
         };
         let s_new = s.saturating_add(ds);
         if s_new >= self.stop_at {
-            let rest = fx_to_f64(self.len_fx.wrapping_sub(s_new));
+            let rest = self.len_fx.wrapping_sub(s_new);
             let j2 = self.ends.map_or(0.0, |e| e.jerk_stop);
-            if self.ends.is_none() || !(rest > 0.0) || !(j2 > 0.0) {
+            if self.ends.is_none() || rest <= 0 || !(j2 > 0.0) || self.fh.seg_j6 <= 0 {
                 return Ok(self.finish(t_s));
             }
             // Into the stop segment at its own time to go τ (L − s = J₂τ³/6).
-            let tau = cbrt64(6.0 * rest / j2);
+            let tau = seg_tau_at(rest, self.fh.seg_j6);
             self.fh.seg_tau = Some(tau);
-            let feed = (self.fh.ctl.lambda() * 0.5 * j2 * tau * tau) as f32;
-            return self.place(t_s, (fx_to_f64(s_new), s_new), feed);
+            // (the feed, reported only: f32)
+            let tf = tau_f32(tau);
+            let feed = self.fh.ctl.lambda_f32() * 0.5 * (j2 as f32) * tf * tf;
+            let sp = self.place(t_s, (fx_to_f64(s_new), s_new), feed)?;
+            self.period_end();
+            return Ok(sp);
         }
         let guess = self.qs.v;
         let (pi, qi) = (self.pc.idx, self.qc.idx);
-        let sp = self.place(t_s, (fx_to_f64(s_new), s_new), 0.0)?;
-        let tq = fx_small_f32(s_new.wrapping_sub(self.qc.anchor), 20);
-        let poly = self.qc.poly;
+        let Some((tp, tq, poly)) = self.seek(s_new) else {
+            return self.fault(Fault::Eval {
+                s_mm: fx_to_f64(s_new),
+            });
+        };
+        self.s = s_new;
         self.qs = q_eval(&self.qc, &poly, s_new, tq, guess);
-        // The look-ahead's step, on a tick that did nothing else optional
-        // (no piece or q span entered either), the next tick's controller
-        // takes it; the next piece's derivatives at its start go first
-        // when they are not there yet.
-        if !busy && self.pc.idx == pi && self.qc.idx == qi {
-            if self.next_dr_ready() || self.pc.idx >= self.views.p_last {
-                self.ahead_step();
-            } else {
-                self.next_piece_derivs();
+        let entered = self.pc.idx != pi || self.qc.idx != qi;
+        if !self.period_end() && quiet {
+            // (on a period's first tick: the next period's preparation
+            // takes it)
+            self.ahead_work(entered || !entered_ok, entered && !entered_ok);
+        }
+        let feed = self.fh.ctl.lambda_f32() * self.qs.v;
+        self.emit(t_s, (fx_to_f64(s_new), s_new), tp, feed)
+    }
+
+    /// A control period's first tick: ν from the kinematics prepared at s
+    /// ([`HoldRun::prep`]); without them, at rest on the plan (a hold
+    /// requested in the start segment, running) a tick of the plan itself
+    /// (ν = 0, no period), else prepared now. `None`: the path could not
+    /// be evaluated.
+    fn period_start(&mut self) -> Option<TickScale> {
+        if !self.prepared() {
+            if let Some(ts) = self.fh.ctl.on_plan() {
+                return Some(ts);
+            }
+            if !self.prepare_period() {
+                return None;
             }
         }
-        Ok(Setpoint {
-            feed_mm_s: f64::from(self.fh.ctl.lambda_f32() * self.qs.v),
-            ..sp
-        })
+        let h = self.h;
+        let fh = &mut self.fh;
+        // (once: the period's start moves on with the tick)
+        fh.prep.valid = false;
+        // (in the stop segment, or resuming: without the look-ahead)
+        let ahead = if fh.seg_tau.is_some() {
+            &Ahead::NONE
+        } else {
+            &fh.joined
+        };
+        let Prepared { kin, prep, .. } = &mut fh.prep;
+        let ts = fh.ctl.control_period(kin, ahead, prep, &fh.lim, h);
+        fh.brake = THETA * prep.cap;
+        Some(ts)
+    }
+
+    /// [`HoldRun::prep`] is for a period starting here, in this state.
+    fn prepared(&self) -> bool {
+        let p = &self.fh.prep;
+        p.valid && p.s == self.s && p.state == self.fh.ctl.state()
+    }
+
+    /// After a tick: when the next one starts a control period (stopping or
+    /// resuming), its kinematics at the new s ([`Self::prepare_period`]).
+    /// Whether it did (the tick's optional work is then done).
+    fn period_end(&mut self) -> bool {
+        if self.fh.ctl.mid_period()
+            || !matches!(self.fh.ctl.state(), HoldState::Stopping | HoldState::Resuming)
+        {
+            return false;
+        }
+        self.prepare_period();
+        true
+    }
+
+    /// The plan's kinematics at s for a control period starting there
+    /// (from the plan's q, or in the scaled stop segment from its cubic),
+    /// the look-ahead's maxima (stopping), the coasting decision and what
+    /// the controller needs of them ([`FeedHold::prepare`]), into
+    /// [`HoldRun::prep`] (in place). `false`: the path could not be
+    /// evaluated (the next tick faults).
+    fn prepare_period(&mut self) -> bool {
+        let s = self.s;
+        let (plan, seg) = match self.fh.seg_tau {
+            Some(tau) => {
+                let j2 = self.ends.map_or(0.0, |e| e.jerk_stop) as f32;
+                let tf = tau_f32(tau);
+                ([0.5 * j2 * tf * tf, -j2 * tf, j2], true)
+            }
+            None => {
+                let [_, dq, ddq, _] = self.qs.qd;
+                let v = self.qs.v;
+                ([v, 0.5 * dq, 0.5 * ddq * v], false)
+            }
+        };
+        self.fh.prep.valid = false;
+        if !self.hold_kin(plan, s) {
+            return false;
+        }
+        // (in the stop segment: coast through it, without the look-ahead)
+        let coast = if seg { true } else { self.ahead_acc() };
+        let fh = &mut self.fh;
+        fh.ctl.set_coast(coast && fh.ctl.lambda_f32() > COAST_ABOVE);
+        let Prepared { kin, prep, .. } = &mut fh.prep;
+        fh.ctl.prepare(kin, &fh.lim, self.h, prep);
+        fh.prep.s = s;
+        fh.prep.state = fh.ctl.state();
+        fh.prep.valid = true;
+        true
+    }
+
+    /// A hold or resume request between ticks: the next control period's
+    /// kinematics now, unless a period is in progress (its second tick
+    /// prepares the next) or they are there already for this state.
+    fn prepare_request(&mut self) {
+        if self.phase == Phase::Run && !self.prepared() {
+            self.period_end();
+        }
     }
 
     /// The plan's kinematics at s ([`Kin`]) for the controller, from the
-    /// plan's `[ṡ_p, s̈_p, s⃛_p, …]` there: with J's change since the last
-    /// tick, or the jump of the path's r‴ at a piece break within the next
-    /// two ticks when that is larger.
-    fn hold_kin(&mut self, plan: [f32; 4], s: i64) -> Option<(Kin, bool)> {
-        let [p1, p2, p3, _] = plan;
-        let coeffs = self.views.coeffs(&self.pc)?;
+    /// plan's `[ṡ_p, s̈_p, s⃛_p]` there, into [`HoldRun::prep`]: with J's
+    /// change since the last control period (two ticks), or the jump of
+    /// the path's r‴ at a piece break within the next two periods when that
+    /// is larger. `false`: the piece cannot be read.
+    fn hold_kin(&mut self, plan: [f32; 3], s: i64) -> bool {
+        let [p1, p2, p3] = plan;
+        // A piece break within the next two periods: the path's r‴ (so the
+        // plan's axis jerk) jumps there; the jump counts as J's change.
+        let reach = s.saturating_add(f32_to_fx(
+            (2 * PERIOD_TICKS) as f32 * self.h * mx(0.0, p1) * mx(0.0, self.fh.ctl.lambda_f32()),
+        ));
+        let near = self.pc.next <= reach && self.pc.idx < self.views.p_last;
+        // (the next piece's derivatives are usually there already)
+        let n1 = self.pc.idx.wrapping_add(1);
+        let dr_n = if near {
+            if self.start_dr(n1).is_none() {
+                self.piece_start_derivs(n1);
+            }
+            self.start_dr(n1)
+        } else {
+            None
+        };
+        let Some(coeffs) = self.views.coeffs(&self.pc) else {
+            return false;
+        };
         let dr = pos_derivs(
             coeffs,
             tau_of(s, self.pc.centre, self.pc.shift),
             self.pc.shift,
             self.pc.constant,
         );
-        let mut kin = Kin::new(dr, [p1, p2, p3]);
-        if let Some(pj) = self.fh.prev_j {
-            for ((d, j), p) in kin.dj.iter_mut().zip(kin.j.iter()).zip(pj.iter()) {
-                *d = j - p;
-            }
-        }
-        self.fh.prev_j = Some(kin.j);
-        // A piece break within the next two ticks: the path's r‴ (so the
-        // plan's axis jerk) jumps there; the jump counts as J's change.
-        let reach = s.saturating_add(f32_to_fx(
-            2.0 * self.h * mx(0.0, p1) * mx(0.0, self.fh.ctl.lambda_f32()),
-        ));
-        let near = self.pc.next <= reach && self.pc.idx < self.views.p_last;
-        // (the next piece's derivatives are usually there already:
-        // evaluating them here is an extra only when they are not)
-        let extra = near && !self.next_dr_ready();
-        if near {
-            if extra {
-                self.next_piece_derivs();
-            }
-            if let Some((_, dr_n)) = self.fh.next_dr {
-                let kin_n = Kin::new(dr_n, [p1, p2, p3]);
-                for ((d, jn), j) in kin.dj.iter_mut().zip(kin_n.j.iter()).zip(kin.j.iter()) {
-                    let jump = jn - j;
-                    if jump.abs() > d.abs() {
-                        *d = jump;
-                    }
+        let fh = &mut self.fh;
+        let kin = &mut fh.prep.kin;
+        *kin = Kin::new(dr, [p1, p2, p3]);
+        kin.dj = match fh.prev_j {
+            Some(pj) => [0, 1, 2, 3].map(|i| at4(&kin.j, i) - at4(&pj, i)),
+            None => [0.0; 4],
+        };
+        fh.prev_j = Some(kin.j);
+        if let Some(dr_n) = dr_n {
+            // (the plan's axis jerk there: r‴ṡ³ + 3r″ṡs̈ + r′s⃛)
+            let jn = Kin::jerk(dr_n, [p1, p2, p3]);
+            for ((d, jn), j) in kin.dj.iter_mut().zip(jn.iter()).zip(kin.j.iter()) {
+                let jump = jn - j;
+                if jump.abs() > d.abs() {
+                    *d = jump;
                 }
             }
         }
-        Some((kin, extra))
+        true
     }
 
-    /// [`HoldRun::next_dr`] is for the piece after the current one.
-    fn next_dr_ready(&self) -> bool {
-        matches!(self.fh.next_dr, Some((i, _)) if i == self.pc.idx.wrapping_add(1))
+    /// The start derivatives of piece `idx` if [`HoldRun::next_dr`] has
+    /// them.
+    fn start_dr(&self, idx: usize) -> Option<[[f32; 3]; 3]> {
+        self.fh.next_dr.iter().find(|(i, _)| *i == idx).map(|(_, d)| *d)
     }
 
-    /// The path's derivatives at the start of the piece after the current
-    /// one into [`HoldRun::next_dr`] (unless there already, or the current
-    /// piece is the last: then none).
+    /// The start derivatives of the next two pieces into
+    /// [`HoldRun::next_dr`] (those not there yet; none past the last).
     fn next_piece_derivs(&mut self) {
-        if self.next_dr_ready() {
-            return;
-        }
-        self.fh.next_dr = None;
-        if self.pc.idx >= self.views.p_last {
-            return;
-        }
-        let idx = self.pc.idx.wrapping_add(1);
-        if let Some(next) = self.views.piece(idx) {
-            if let Some(c) = self.views.coeffs(&next) {
-                let at = self.pc.next;
-                let dr = pos_derivs(c, tau_of(at, next.centre, next.shift), next.shift, next.constant);
-                self.fh.next_dr = Some((idx, dr));
+        let n1 = self.pc.idx.wrapping_add(1);
+        for idx in [n1, n1.wrapping_add(1)] {
+            if idx <= self.views.p_last && self.start_dr(idx).is_none() {
+                self.piece_start_derivs(idx);
             }
+        }
+    }
+
+    /// The path's derivatives at the start of piece `idx` (the next or the
+    /// one after it) into the slot of [`HoldRun::next_dr`] not holding the
+    /// other.
+    fn piece_start_derivs(&mut self, idx: usize) {
+        let n1 = self.pc.idx.wrapping_add(1);
+        let start = if idx == n1 {
+            Some(self.pc.next)
+        } else {
+            self.views.piece_breaks.get(idx).map(to_fx)
+        };
+        let keep = |i: usize| i == n1 || i == n1.wrapping_add(1);
+        let slot = usize::from(keep(self.fh.next_dr[0].0) && !keep(self.fh.next_dr[1].0));
+        let dr = start.and_then(|at| self.views.piece_derivs(idx, at));
+        if let Some(o) = self.fh.next_dr.get_mut(slot) {
+            *o = match dr {
+                Some(d) => (idx, d),
+                None => (usize::MAX, [[0.0; 3]; 3]),
+            };
         }
     }
 
     /// A tick in the stop segment under scaling: the segment followed in
-    /// its own time θ (τ = t₂ − θ to go, s = L − J₂τ³/6, dθ/dt = λ; f64).
+    /// its own time θ (τ = t₂ − θ to go, s = L − J₂τ³/6, dθ/dt = λ; τ in
+    /// Q[`TAU_FRAC`] s, J₂τ³/6 by integer products), with the tick's
+    /// (λ, μ, ν) `ts`.
     #[inline(never)]
-    fn hold_seg_tick(&mut self, t_s: f64, tau: f64) -> Result<Setpoint, Fault> {
+    fn hold_seg_tick(&mut self, t_s: f64, tau: i64, ts: &TickScale, quiet: bool) -> Result<Setpoint, Fault> {
         let s = self.s;
         let h = self.h;
         let j2 = self.ends.map_or(0.0, |e| e.jerk_stop);
-        let ts = if self.fh.ctl.state() == HoldState::Running {
-            // (resumed: λ = 1 and the segment runs at its own pace)
-            self.fh.prev_j = None;
-            TickScale {
-                lam: LAM_ONE,
-                lam_f: 1.0,
-                ..TickScale::default()
-            }
-        } else {
-            let (j2f, tf) = (j2 as f32, tau as f32);
-            let plan = [0.5 * j2f * tf * tf, -j2f * tf, j2f, 0.0];
-            let Some((kin, _)) = self.hold_kin(plan, s) else {
-                return self.fault(Fault::Eval { s_mm: fx_to_f64(s) });
-            };
-            // (in the stop segment: coast through it)
-            self.fh.ctl.set_coast(self.fh.ctl.lambda_f32() > COAST_ABOVE);
-            let ts = self
-                .fh
-                .ctl
-                .control_ahead(&kin, &Ahead::default(), &self.fh.lim, h);
-            if self.fh.ctl.state() == HoldState::Running {
-                self.fh.prev_j = None;
-            }
-            ts
-        };
         // dθ = ∫λ dt over the tick (exact: λ is a quadratic in t).
-        // (the first-order term hλ in f64 from the Q62 λ; the rest,
-        // h²(μ/2 + hν/6), a small fraction of h, in f32)
-        let hd = self.period_s;
+        // (the first-order term hλ in fixed point from the Q62 λ; the
+        // rest, h²(μ/2 + hν/6), a small fraction of h, in f32)
         let rest = h * h * (0.5 * ts.mu + h * ts.nu * (1.0 / 6.0));
-        let dth = hd * ts.lam_f64() + f64::from(rest);
-        let tau1 = tau - dth.max(0.0);
-        if !tau1.is_finite() {
+        if !rest.is_finite() {
             return self.fault(Fault::NonFinite { s_mm: fx_to_f64(s) });
         }
-        if tau1 <= 0.0 {
+        let first = ((i128::from(self.fh.seg_h) * i128::from(ts.lam)) >> LAM_FRAC) as i64;
+        // (Q40 of rest·2^(TAU_FRAC − 40))
+        let dth = first.saturating_add(f32_to_fx(rest * f32::from_bits((127 + TAU_FRAC - 40) << 23)));
+        let tau1 = tau.saturating_sub(dth.max(0));
+        if tau1 <= 0 {
             self.fh.seg_tau = None;
             return Ok(self.finish(t_s));
         }
         self.fh.seg_tau = Some(tau1);
-        let s_new = self
-            .len_fx
-            .wrapping_sub(to_fx(j2 * (1.0 / 6.0) * tau1 * tau1 * tau1))
-            .max(s);
+        let s_new = self.len_fx.wrapping_sub(seg_drop(tau1, self.fh.seg_j6)).max(s);
         // (the feed, reported only: f32)
-        let t1 = tau1 as f32;
+        let t1 = tau_f32(tau1);
         let feed = self.fh.ctl.lambda_f32() * 0.5 * (j2 as f32) * t1 * t1;
-        self.place(t_s, (fx_to_f64(s_new), s_new), feed)
+        let (pi, qi) = (self.pc.idx, self.qc.idx);
+        let sp = self.place(t_s, (fx_to_f64(s_new), s_new), feed)?;
+        // (the next pieces' start derivatives: the look-ahead is off here)
+        if !self.period_end() && quiet {
+            self.ahead_work(self.pc.idx != pi || self.qc.idx != qi, false);
+        }
+        Ok(sp)
     }
 }
 
@@ -578,6 +717,12 @@ struct SweepCtx<'c, 'a> {
     v: f32,
     stop_at: i64,
     ends: &'c Option<EndSegments>,
+}
+
+/// `x[i]`, 0 past the end.
+#[inline(always)]
+fn at4(x: &[f32; 4], i: usize) -> f32 {
+    x.get(i).copied().unwrap_or(0.0)
 }
 
 /// How many of the values `arr[first ..= last]` (ascending, ≥ 0) lie below
@@ -601,34 +746,77 @@ fn count_below<A: F64Array>(arr: &A, first: usize, last: usize, at: u64) -> usiz
     lo - first
 }
 
-/// ∛x for x > 0 (f64): an f32 root (the exponent divided by three, three
-/// Newton steps in hardware), then one Newton step in f64, which squares
-/// its relative error (~1e-7 → ~1e-14): a few soft-float operations
-/// instead of libm's `cbrt`. Not positive and finite: 0.
-fn cbrt64(x: f64) -> f64 {
-    let xf = x as f32;
-    if !(x > 0.0 && xf > 0.0 && xf < f32::INFINITY) {
+/// ∛x for x > 0 (f32): the exponent divided by three, then three Newton
+/// steps in hardware (relative error ~1e-7). Not positive and finite: 0.
+fn cbrt32(x: f32) -> f32 {
+    if !(x > 0.0 && x < f32::INFINITY) {
         return 0.0;
     }
-    let mut y = f32::from_bits(xf.to_bits() / 3 + 0x2a51_19f2);
+    let mut y = f32::from_bits(x.to_bits() / 3 + 0x2a51_19f2);
     for _ in 0..3 {
-        y = (2.0 * y + xf / (y * y)) * (1.0 / 3.0);
+        y = (2.0 * y + x / (y * y)) * (1.0 / 3.0);
     }
-    let y = f64::from(y);
-    (2.0 * y + x / (y * y)) * (1.0 / 3.0)
+    y
+}
+
+/// The scaled stop segment's time to go τ (Q[`TAU_FRAC`] s) where
+/// `rest` (Q40 mm, > 0) is left to L: J₂τ³/6 = rest, `j6` = J₂/6 (mm/s³,
+/// Q40). An f32 root, then one Newton step with the residual
+/// J₂τ₀³/6 − rest in integers (the products as the segment's ticks take
+/// them) and the correction in f32: the root's ~1e-7 squared, ~1e-14 of
+/// τ, without soft-float f64. 0 where there is no root.
+fn seg_tau_at(rest: i64, j6: i64) -> i64 {
+    let unit = f32::from_bits((127 - 40) << 23);
+    let (rest_f, j6_f) = (rest as f32 * unit, j6 as f32 * unit);
+    let t0 = cbrt32(rest_f / j6_f);
+    // (Q40 of t0·2^(TAU_FRAC − 40))
+    let tq = f32_to_fx(t0 * f32::from_bits((127 + TAU_FRAC - 40) << 23));
+    if !(t0 > 0.0) || tq <= 0 {
+        return 0;
+    }
+    let r = seg_drop(tq, j6).wrapping_sub(rest) as f32 * unit;
+    let d = r / (3.0 * j6_f * t0 * t0);
+    tq.wrapping_sub(f32_to_fx(d * f32::from_bits((127 + TAU_FRAC - 40) << 23)))
+}
+
+/// J₂τ³/6 (Q40 mm) for τ in Q[`TAU_FRAC`] s and `j6` = J₂/6 (mm/s³, Q40):
+/// integer products (saturating: a τ of more than 5 s would overflow τ³).
+#[inline(always)]
+fn seg_drop(tau: i64, j6: i64) -> i64 {
+    let mul = |a: i64, b: i64| {
+        ((i128::from(a) * i128::from(b)) >> TAU_FRAC).clamp(i128::from(i64::MIN), i128::from(i64::MAX)) as i64
+    };
+    mul(mul(mul(tau, tau), tau), j6)
 }
 
 #[cfg(test)]
 mod tests {
-    use super::cbrt64;
+    use super::{seg_drop, seg_tau_at, TAU_FRAC};
+    use crate::servo_forms::fixed::{fx_to_f64, to_fx};
 
     #[test]
-    fn cbrt64_is_close_to_libm() {
-        for i in 0..2000 {
-            let x = 1e-9 * 1.02f64.powi(i);
-            let (y, r) = (cbrt64(x), libm::cbrt(x));
-            assert!(((y - r) / r).abs() < 1e-13, "{x}: {y} vs {r}");
+    fn seg_tau_solves_the_segment_cubic() {
+        for j2 in [1.0e3f64, 16_000.0, 2.5e5] {
+            let j6 = to_fx(j2 / 6.0);
+            for i in 0..400 {
+                let rest_mm = 1e-6 * 1.05f64.powi(i);
+                if rest_mm > 200.0 {
+                    break;
+                }
+                let tau = seg_tau_at(to_fx(rest_mm), j6);
+                let want = libm::cbrt(6.0 * rest_mm / j2);
+                let got = tau as f64 / (1u64 << TAU_FRAC) as f64;
+                // (as well as s in Q40 determines it: ds/dτ = J₂τ²/2)
+                let tol = 1e-12 * want + 2.0 / (1u64 << 40) as f64 / (0.5 * j2 * want * want);
+                assert!((got - want).abs() < tol, "{rest_mm} mm: {got} vs {want}");
+                // and back: the segment's s there within a few quanta
+                let back = fx_to_f64(seg_drop(tau, j6));
+                assert!(
+                    (back - rest_mm).abs() < 1e-11 + 1e-12 * rest_mm,
+                    "{rest_mm}: {back}"
+                );
+            }
         }
-        assert_eq!((cbrt64(0.0), cbrt64(-1.0), cbrt64(f64::NAN)), (0.0, 0.0, 0.0));
+        assert_eq!(seg_tau_at(0, to_fx(1000.0)), 0);
     }
 }

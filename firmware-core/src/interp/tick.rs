@@ -414,13 +414,30 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         let Some((tp, _, _)) = self.seek(s) else {
             return self.fault(Fault::Eval { s_mm: fx_to_f64(s) });
         };
+        let sp = self.emit(t_s, (s_mm, s), tp, feed);
+        if sp.is_ok() {
+            self.s = s;
+        }
+        sp
+    }
+
+    /// The setpoint at arc length `s` with the cursors there already
+    /// ([`Self::seek`], which gave the piece-local `tp`); `self.s` is not
+    /// moved.
+    #[inline(always)]
+    pub(crate) fn emit(
+        &mut self,
+        t_s: f64,
+        (s_mm, s): (f64, i64),
+        tp: f32,
+        feed: f32,
+    ) -> Result<Setpoint, Fault> {
         let Some(coeffs) = self.views.coeffs(&self.pc) else {
             return self.fault(Fault::Eval { s_mm: fx_to_f64(s) });
         };
         let head = self.pc.head;
         let dv = head.delta(tp);
         let [x, y, z] = pos_eval(coeffs, tau_of(s, self.pc.centre, self.pc.shift), self.pc.constant);
-        self.s = s;
         Ok(Setpoint {
             t_s,
             s_mm,
@@ -435,7 +452,7 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
     /// for u and q′, q″, q‴) and the q span's f32 form. Entering a piece or a
     /// span converts its breaks to Q40 and reads its words.
     #[inline]
-    fn seek(&mut self, s: i64) -> Option<(f32, f32, QLocal)> {
+    pub(crate) fn seek(&mut self, s: i64) -> Option<(f32, f32, QLocal)> {
         let v = &self.views;
         while self.pc.idx < v.p_last && s >= self.pc.next {
             let (idx, start) = (self.pc.idx.checked_add(1)?, self.pc.next);

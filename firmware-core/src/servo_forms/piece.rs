@@ -124,7 +124,8 @@ fn i64_f32(x: i64) -> f32 {
 /// not on the normal tick path. A constant axis (bit of `constant`) has zero
 /// derivatives.
 pub fn pos_derivs(b: &[u8; POS_BYTES], tau: i64, shift: u32, constant: u32) -> [[f32; 3]; 3] {
-    let t = tau as f32 * f32::from_bits((127 - TAU_FRAC) << 23);
+    // (τ through the two 32-bit halves: no soft-float i64 conversion)
+    let t = i64_f32(tau) * f32::from_bits((127 - TAU_FRAC) << 23);
     // 2^(shift − 21): shift ≤ 61 for a parsed table, a normal f32.
     let g = f32::from_bits((127 + shift.min(100)).saturating_sub(21) << 23);
     let unit = f32::from_bits((127 - FX_FRAC) << 23);
