@@ -26,7 +26,7 @@
 //! [`EXACT_MM`].
 
 use planner_host::gcode::{Move, MoveKind, PathControl, Program};
-use planner_host::program::pieces::{self, ArcPath};
+use planner_host::program::pieces::ArcPath;
 use planner_host::Nurbs;
 
 use crate::program::ProgramRun;
@@ -110,14 +110,18 @@ impl Geometry {
             MoveKind::Line | MoveKind::Rapid => Geometry::Segment(m.start, m.end),
             MoveKind::Arc => Geometry::Arc(ArcPath::of(m)?),
             MoveKind::Nurbs => {
-                let p = pieces::nurbs(m).ok()?;
-                let w: Vec<f64> = p.hpoints.iter().map(|h| h[3]).collect();
-                let pts = p
-                    .hpoints
-                    .iter()
-                    .map(|h| [h[0] / h[3], h[1] / h[3], h[2] / h[3]])
-                    .collect();
-                Geometry::Curve(Nurbs::new(p.degree, p.knots, w, pts).ok()?)
+                // the block as read, not the planner's piece (which trims an
+                // end where the curve stands still)
+                let g = m.nurbs.as_ref()?;
+                Geometry::Curve(
+                    Nurbs::new(
+                        g.degree,
+                        g.knots.clone(),
+                        g.weights.clone(),
+                        g.control_points.clone(),
+                    )
+                    .ok()?,
+                )
             }
         })
     }
