@@ -116,6 +116,31 @@ impl Default for CertifiedConfig {
 /// Feed below which the time weights stop growing, relative to v̄.
 pub const FLOOR_FEED_REL: f64 = 0.02;
 
+/// The lower trust region of the sequence. The time weights stop growing
+/// below q = (`FLOOR_FEED_REL`·v̄)², so below that an LP cannot see what a
+/// lower q costs: between two close curvature jumps whose caps bind (every
+/// knot of a degree-2 curve), one LP would drop q to ~0 at a knot where no
+/// limit binds and the next would lift it there and drop it at another
+/// knot, and every iterate that held the limits stalled the feed somewhere.
+/// Once an iterate dips at a knot of q (`dips`: below
+/// FLOOR_KEEP·(`FLOOR_FEED_REL`·v̄)² and under a quarter of both neighbouring
+/// knots; ends excluded), every later LP keeps q ≥ FLOOR_KEEP·min(q_k,
+/// (`FLOOR_FEED_REL`·v̄)²) at every knot; if that LP is infeasible it is
+/// solved again without those rows. A plan that never dips is unchanged.
+pub const FLOOR_KEEP: f64 = 0.5;
+
+/// Whether the iterate `q` (at the check points) dips at a knot of q: a knot
+/// among `keeps` with q below `below` and under a quarter of q at both
+/// neighbouring knots (a collapse between higher feeds; a monotone ramp
+/// towards an end is none).
+fn dips(keeps: &[bool], is_knot: &[bool], q: &[f64], below: f64) -> bool {
+    let knots: Vec<usize> = (0..q.len()).filter(|&i| is_knot[i]).collect();
+    knots.windows(3).any(|w| {
+        let (l, m, r) = (q[w[0]], q[w[1]], q[w[2]]);
+        keeps[w[1]] && m < below && 4.0 * m < l && 4.0 * m < r
+    })
+}
+
 /// Relative gap and feasibility tolerance of each LP of the sequence (rows
 /// normalised to right-hand side 1): the exact check decides what is
 /// accepted, and the plans agree with those solved to 1e-8 in T to 1e-4 s
@@ -187,15 +212,23 @@ const KINDS: [RowKind; 8] = [
 
 /// Static caps q̄₀ at a point: velocity (8)(11), then the curvature terms of
 /// (9) and (10) alone: |r″_k| q ≤ A_k, |r‴_k| q^{3/2} ≤ J_k.
-fn static_cap(lp: &FeedLp, p: &EvalPoint) -> f64 {
-    let mut c = lp.q_max(&p.geo);
+fn static_cap_at(lp: &FeedLp, p: &EvalPoint) -> f64 {
+    static_cap(&lp.limits, &p.geo)
+}
+
+/// The static cap q̄₀ of the geometry `geo` under `limits` (see `static_cap_at`).
+pub(crate) fn static_cap(limits: &firmware_core::Limits, geo: &crate::geometry::PathDerivs) -> f64 {
+    let mut c = limits.vbar * limits.vbar;
     for k in 0..3 {
-        let (r2, r3) = (p.geo.d2[k].abs(), p.geo.d3[k].abs());
+        let (r1, r2, r3) = (geo.d1[k].abs(), geo.d2[k].abs(), geo.d3[k].abs());
+        if r1 > 0.0 {
+            c = c.min((limits.v[k] / r1).powi(2));
+        }
         if r2 > 0.0 {
-            c = c.min(lp.limits.a[k] / r2);
+            c = c.min(limits.a[k] / r2);
         }
         if r3 > 0.0 {
-            c = c.min((lp.limits.j[k] / r3).powf(2.0 / 3.0));
+            c = c.min((limits.j[k] / r3).powf(2.0 / 3.0));
         }
     }
     c
@@ -209,6 +242,21 @@ fn jerk_share(s: f64, caps: &[(f64, f64)]) -> f64 {
     } else {
         1.0
     }
+}
+
+/// The largest ratio of the plan `ctrl` to any limit at the check point `p`
+/// (exact kinematics; feed as √(q/q_max), the jerk against (1 − β)·J within
+/// 1e-6 mm of a curvature jump in `caps`), as [`violations`] measures it;
+/// 0 where q is not executed (inside an end segment).
+pub fn excess(lp: &FeedLp, ctrl: &[f64], p: &EvalPoint, caps: &[(f64, f64)]) -> f64 {
+    if !lp.executes(p.s) {
+        return 0.0;
+    }
+    let v = values(lp, p, lp.q_max(&p.geo), ctrl);
+    let sh = jerk_share(p.s, caps);
+    let acc = v[1..5].iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let jerk = v[5..].iter().fold(0.0f64, |m, x| m.max(x.abs() / sh));
+    v[0].max(0.0).sqrt().max(acc).max(jerk)
 }
 
 /// Indices of the candidate points `cand` (executed ones) where the plan
@@ -395,7 +443,7 @@ fn solve_with(
     let lim = lp.limits;
     let qmax: Vec<f64> = pts.iter().map(|p| lp.q_max(&p.geo)).collect();
     let mut qbar: Vec<f64> = match &win {
-        None => pts.iter().map(|p| static_cap(lp, p)).collect(),
+        None => pts.iter().map(|p| static_cap_at(lp, p)).collect(),
         Some(w) => w.qbar0.iter().zip(&qmax).map(|(&q, &m)| q.min(m)).collect(),
     };
     // Row masks: bit 2k = +row of KINDS[k], bit 2k+1 = −row, bit 16 = the q ≤ q̄ row.
@@ -423,6 +471,23 @@ fn solve_with(
         }
         w
     };
+    // the knots that may carry a row of the lower trust region: executed,
+    // away from the joins of the end segments (whose rows shape q there)
+    let keeps: Vec<bool> = pts
+        .iter()
+        .enumerate()
+        .map(|(i, p)| {
+            win.is_none()
+                && is_knot[i]
+                && executed[i]
+                && !lp.ends.is_some_and(|e| {
+                    [&e.start, &e.stop]
+                        .iter()
+                        .any(|j| p.basis.first.abs_diff(j.basis.first) < ORDER)
+                })
+        })
+        .collect();
+    let mut keep_floor = false;
     let mut lps = Vec::new();
     let mut best: Option<(f64, Vec<f64>, Ratios, usize)> = None;
     let mut rho = cfg.rho0;
@@ -556,6 +621,19 @@ fn solve_with(
                 }
             }
         }
+        // The lower trust region (see FLOOR_KEEP), once an iterate has dipped.
+        let n_upper_rows = rows.len();
+        if let (true, Some(q)) = (keep_floor, &qk) {
+            for (i, p) in pts.iter().enumerate() {
+                if keeps[i] && q[i] > 0.0 {
+                    let r = Row::q_at(&p.basis, -FLOOR_KEEP * q[i].min(floor));
+                    rows.push(Row {
+                        val: r.val.map(|c| -c),
+                        ..r
+                    });
+                }
+            }
+        }
         let sol = lp.solve_rows(
             Stage::Linearised,
             &rows,
@@ -565,6 +643,22 @@ fn solve_with(
             warm.as_deref(),
             win.as_ref().map(|w| w.fixed),
         );
+        let sol = match sol {
+            Err(_) if rows.len() > n_upper_rows => {
+                // the lower trust region made the LP infeasible: without it
+                rows.truncate(n_upper_rows);
+                lp.solve_rows(
+                    Stage::Linearised,
+                    &rows,
+                    Some(&upper),
+                    &weights,
+                    t0,
+                    warm.as_deref(),
+                    win.as_ref().map(|w| w.fixed),
+                )
+            }
+            other => other,
+        };
         let sol = match sol {
             Ok(s) => s,
             // a window LP linearised around an accepted iterate may be
@@ -608,19 +702,23 @@ fn solve_with(
             };
             ratios = ratios.max(r);
         }
+        keep_floor |= dips(&keeps, is_knot, &q_now, FLOOR_KEEP * floor);
         let feasible = ratios.worst() <= 1.0 + cfg.tol;
         if std::env::var_os("FEEDLP_SLP_DEBUG").is_some() {
             eprintln!(
-                "LP {it}: rho {rho:.3} rows {} its {} {:.1} ms T {:.4} check {:?} min q {:.3e}",
+                "LP {it}: rho {rho:.3} rows {} its {} {:.1} ms T {:.4} check {:?} min q {:?}",
                 rows.len(),
                 lps[lps.len() - 1].iterations,
                 lps[lps.len() - 1].solve_time_s * 1e3,
                 crate::lp::machining_time::plan_time(lp.knots, &sol.ctrl, lp.ends),
                 ratios,
-                q_now[1..q_now.len() - 1]
+                q_now
                     .iter()
-                    .cloned()
-                    .fold(f64::INFINITY, f64::min)
+                    .zip(pts.iter())
+                    .zip(&executed)
+                    .filter(|(_, &e)| e)
+                    .map(|((q, p), _)| (*q, p.s))
+                    .fold((f64::INFINITY, 0.0), |m, x| if x.0 < m.0 { x } else { m })
             );
         }
         let mut done = false;

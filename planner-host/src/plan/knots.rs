@@ -48,6 +48,67 @@ pub fn refine_turning(samples: &[f64], max_turn: f64, turn: impl Fn(f64, f64) ->
     out
 }
 
+/// Knot spans of q between two neighbouring curvature jumps whose caps bind
+/// ([`crate::geometry::junction`]): the interval between them is split into
+/// at least `spans` knot spans of q (each span longer than a `spans`-th of
+/// it is bisected, recursively), where both caps lie below `CAP_ROOM` of
+/// the static cap q̄₀ in the middle (`static_cap`, the curvature terms of
+/// (9)(10) and the feed (8)(11)): there the plan must rise between the caps
+/// and fall back to them. Each cap row q(s_j) ≤ q_cap binds the control
+/// points whose support holds s_j; with one or two spans of q between two
+/// caps every control point there is held by a cap, the LP's vertex solution
+/// sets some of them to 0 and the feed stalls between the caps (degree-2
+/// curves, a curvature jump at every knot). With four spans the middle
+/// control point is free of both caps.
+pub fn split_between_caps(
+    samples: &[f64],
+    jumps: &[(f64, f64)],
+    spans: usize,
+    static_cap: impl Fn(f64) -> f64,
+) -> Vec<f64> {
+    let mut out: Vec<f64> = Vec::with_capacity(samples.len());
+    let mut j = 0;
+    for (i, w) in samples.windows(2).enumerate() {
+        if i == 0 {
+            out.push(w[0]);
+        }
+        let (a, b) = (w[0], w[1]);
+        // the pair of neighbouring jumps around this interval, if any
+        while j + 1 < jumps.len() && jumps[j + 1].0 <= a {
+            j += 1;
+        }
+        let limit = match (jumps.get(j), jumps.get(j + 1)) {
+            (Some(&(sa, ca)), Some(&(sb, cb))) if sa <= a && b <= sb && sb > sa => {
+                let mid = static_cap(0.5 * (sa + sb));
+                if ca.max(cb) < CAP_ROOM * mid {
+                    (sb - sa) / spans.max(1) as f64
+                } else {
+                    f64::INFINITY
+                }
+            }
+            _ => f64::INFINITY,
+        };
+        let pieces = if b - a > limit * (1.0 + 1e-9) {
+            ((b - a) / limit).ceil() as usize
+        } else {
+            1
+        };
+        for k in 1..pieces {
+            out.push(a + (b - a) * k as f64 / pieces as f64);
+        }
+        out.push(b);
+    }
+    out
+}
+
+/// Two neighbouring caps at curvature jumps get more knots of q between them
+/// ([`split_between_caps`]) where both are below this fraction of the static
+/// cap in the middle.
+pub const CAP_ROOM: f64 = 0.5;
+
+/// Knot spans of q between two neighbouring binding caps ([`split_between_caps`]).
+pub const SPANS_BETWEEN_CAPS: usize = 4;
+
 /// The turning angle ∫ₐᵇ |κ| ds of [`refine_turning`], integrated in the
 /// toolpath's parameter: ∫ |κ(u)|·|r_u| du over [u(a), u(b)] by 16-point
 /// Gauss–Legendre on one polynomial piece (the span holding the middle; the

@@ -12,9 +12,12 @@ use crate::limits;
 use crate::lp::basis_rows::{self, BasisRow};
 use crate::lp::end_rows::EndMode;
 use crate::lp::problem::EvalPoint;
+use crate::lp::trust_region::static_cap;
 use crate::plan::config::{Formulation, PlanConfig};
 use crate::plan::error::PlanError;
-use crate::plan::knots::{end_room, refine_turning, with_breaks, TurnInU};
+use crate::plan::knots::{
+    end_room, refine_turning, split_between_caps, with_breaks, TurnInU, SPANS_BETWEEN_CAPS,
+};
 use crate::plan::levels::validate_levels;
 use crate::plan::lp_stage::{check_points, LpStage, Refine, Solved};
 use crate::plan::output::PlanOutput;
@@ -66,15 +69,23 @@ pub fn plan_curve_with_progress(
     let budget = SetpointBudget::new(&cfg.limits, &cfg.override_levels, cfg.servo_period_s);
     let su = SuMap::fit_within(curve, &arc, cfg.su_tol_mm, Some(&budget))?;
     dbg_t("s-u map");
+    let jumps = match cfg.formulation {
+        Formulation::Paper => Vec::new(),
+        Formulation::Certified => junction::curvature_jumps(curve, &arc, &cfg.limits, cfg.servo_period_s),
+    };
     let samples = match cfg.formulation {
         Formulation::Paper => samples,
         Formulation::Certified => {
             let turn = TurnInU::new(curve, &arc);
-            refine_turning(
+            let turned = refine_turning(
                 &with_breaks(&samples, &arc),
                 cfg.certified.max_turn_rad,
                 |a, b| turn.turning(a, b),
-            )
+            );
+            let caps: Vec<(f64, f64)> = jumps.iter().map(|j| (j.s_mm, j.q_cap)).collect();
+            split_between_caps(&turned, &caps, SPANS_BETWEEN_CAPS, |s| {
+                static_cap(&cfg.limits, &path_derivs_at(curve, &arc, s))
+            })
         }
     };
     dbg_t("refine");
@@ -89,10 +100,6 @@ pub fn plan_curve_with_progress(
             geo: path_derivs_at(curve, &arc, s),
             basis: BasisRow::at(&knots, s)?,
         })
-    };
-    let jumps = match cfg.formulation {
-        Formulation::Paper => Vec::new(),
-        Formulation::Certified => junction::curvature_jumps(curve, &arc, &cfg.limits, cfg.servo_period_s),
     };
     let (points, is_knot): (Vec<EvalPoint>, Vec<bool>) = match cfg.formulation {
         Formulation::Paper => basis_rows::greville(&knots)
