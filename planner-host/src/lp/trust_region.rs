@@ -123,10 +123,11 @@ pub const FLOOR_FEED_REL: f64 = 0.02;
 /// limit binds and the next would lift it there and drop it at another
 /// knot, and every iterate that held the limits stalled the feed somewhere.
 /// Once an iterate dips at a knot of q (`dips`: below
-/// FLOOR_KEEP·(`FLOOR_FEED_REL`·v̄)² and under a quarter of both neighbouring
-/// knots; ends excluded), every later LP keeps q ≥ FLOOR_KEEP·min(q_k,
-/// (`FLOOR_FEED_REL`·v̄)²) at every knot; if that LP is infeasible it is
-/// solved again without those rows. A plan that never dips is unchanged.
+/// FLOOR_KEEP·(`FLOOR_FEED_REL`·v̄)² and under a quarter of q at both
+/// neighbouring knots), every later LP keeps q ≥ FLOOR_KEEP·q_k at every
+/// executed knot (q may halve per LP, not collapse); if such an LP is
+/// infeasible it is solved again without those rows. A sequence that never
+/// dips is unchanged.
 pub const FLOOR_KEEP: f64 = 0.5;
 
 /// Whether the iterate `q` (at the check points) dips at a knot of q: a knot
@@ -471,21 +472,9 @@ fn solve_with(
         }
         w
     };
-    // the knots that may carry a row of the lower trust region: executed,
-    // away from the joins of the end segments (whose rows shape q there)
-    let keeps: Vec<bool> = pts
-        .iter()
-        .enumerate()
-        .map(|(i, p)| {
-            win.is_none()
-                && is_knot[i]
-                && executed[i]
-                && !lp.ends.is_some_and(|e| {
-                    [&e.start, &e.stop]
-                        .iter()
-                        .any(|j| p.basis.first.abs_diff(j.basis.first) < ORDER)
-                })
-        })
+    // the knots that may carry a row of the lower trust region: executed ones
+    let keeps: Vec<bool> = (0..pts.len())
+        .map(|i| win.is_none() && is_knot[i] && executed[i])
         .collect();
     let mut keep_floor = false;
     let mut lps = Vec::new();
@@ -626,7 +615,7 @@ fn solve_with(
         if let (true, Some(q)) = (keep_floor, &qk) {
             for (i, p) in pts.iter().enumerate() {
                 if keeps[i] && q[i] > 0.0 {
-                    let r = Row::q_at(&p.basis, -FLOOR_KEEP * q[i].min(floor));
+                    let r = Row::q_at(&p.basis, -FLOOR_KEEP * q[i]);
                     rows.push(Row {
                         val: r.val.map(|c| -c),
                         ..r
