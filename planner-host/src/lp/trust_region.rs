@@ -47,6 +47,11 @@
 //! point; the best iterate with every exact ratio ≤ 1 + `tol` is the plan.
 //! This keeps the LPs at a few thousand banded rows (≤ 4 non-zeros each).
 //!
+//! **A lower trust region.** The trust region above bounds q from above
+//! only. Once an iterate collapses at a knot between higher ones (between
+//! curvature caps, where the time weights below are floored and blind to it),
+//! every later LP keeps q ≥ [`FLOOR_KEEP`]·q_k at the knots.
+//!
 //! **Objective.** Either ∫q ds (eq. 7, `c_i = ∫N_i`) or the linearised
 //! machining time: T = ∫ q^{-1/2} ds has gradient −½∫N_i q_k^{-3/2} ds, so
 //! the LP maximises Σ_i a_i ∫ N_i q_k^{-3/2} ds (q_k floored at
@@ -761,5 +766,28 @@ fn solve_with(
             status: "NoIterateHeldTheLimits".into(),
             iterations: lps.iter().map(|s| s.iterations).sum(),
         }),
+    }
+}
+
+#[cfg(test)]
+mod dips_tests {
+    use super::dips;
+
+    /// A knot far below both neighbouring knots and below the floor dips; a
+    /// monotone ramp towards an end, or a low stretch, does not.
+    #[test]
+    fn a_collapse_between_higher_knots_dips_a_ramp_does_not() {
+        let knot = [true, false, true, false, true, false, true];
+        let keep = knot;
+        let collapse = [28.0, 10.0, 4.7e-4, 2.0, 19.0, 30.0, 40.0];
+        assert!(dips(&keep, &knot, &collapse, 5.5));
+        let ramp = [0.1, 0.5, 1.0, 3.0, 8.0, 20.0, 40.0];
+        assert!(!dips(&keep, &knot, &ramp, 5.5));
+        let low = [2.0, 2.0, 1.5, 1.5, 2.0, 2.0, 2.0];
+        assert!(!dips(&keep, &knot, &low, 5.5));
+        // not a knot that may carry the row
+        let mut keep = keep;
+        keep[2] = false;
+        assert!(!dips(&keep, &knot, &collapse, 5.5));
     }
 }

@@ -2,6 +2,13 @@
 //! check points ([`check_points`]), one formulation's LPs, the refinement
 //! rounds that force the points where a dense re-evaluation exceeds a limit,
 //! the stall check and the predicted machining time ([`LpStage::solve`]).
+//!
+//! The refinement rounds re-evaluate the exact kinematics of §2.1 (eqs. 1–6,
+//! as [`crate::plan::verify`]) on a grid even in s per knot span of q, even
+//! in u per knot span of the toolpath, and bisected where the static caps of
+//! (8)–(10) change fast; each point that exceeds a limit by more than
+//! [`REFINE_TRIGGER`] joins the check points (rows (9)–(15) at it) together
+//! with the peak of the excess beside it.
 
 use firmware_core::{EndSegments, Limits};
 
