@@ -48,68 +48,6 @@ pub fn refine_turning(samples: &[f64], max_turn: f64, turn: impl Fn(f64, f64) ->
     out
 }
 
-/// Knot spans of q between two neighbouring curvature jumps whose caps bind
-/// ([`crate::geometry::junction`]): the interval between them is split into
-/// at least `spans` knot spans of q (a span longer than a `spans`-th of it
-/// is cut into the fewest equal pieces no longer than that), where both
-/// caps lie below `CAP_ROOM` of the static cap q̄₀ in the middle
-/// (`static_cap`: the feed (8)(11) and the curvature terms of (9)(10)).
-/// There the plan must rise between the caps and fall back to them. Each
-/// cap row q(s_j) ≤ q_cap holds the control points whose support holds s_j;
-/// with one or two spans of q between two caps every control point there is
-/// held by a cap, and q between them can rise to a few times the caps only
-/// (three degree-2 curves of the random family, a curvature jump at every
-/// knot, took 11–26 % more machining time without this split). With four
-/// spans the middle control point is free of both caps.
-pub fn split_between_caps(
-    samples: &[f64],
-    jumps: &[(f64, f64)],
-    spans: usize,
-    static_cap: impl Fn(f64) -> f64,
-) -> Vec<f64> {
-    let mut out: Vec<f64> = Vec::with_capacity(samples.len());
-    let mut j = 0;
-    for (i, w) in samples.windows(2).enumerate() {
-        if i == 0 {
-            out.push(w[0]);
-        }
-        let (a, b) = (w[0], w[1]);
-        // the pair of neighbouring jumps around this interval, if any
-        while j + 1 < jumps.len() && jumps[j + 1].0 <= a {
-            j += 1;
-        }
-        let limit = match (jumps.get(j), jumps.get(j + 1)) {
-            (Some(&(sa, ca)), Some(&(sb, cb))) if sa <= a && b <= sb && sb > sa => {
-                let mid = static_cap(0.5 * (sa + sb));
-                if ca.max(cb) < CAP_ROOM * mid {
-                    (sb - sa) / spans.max(1) as f64
-                } else {
-                    f64::INFINITY
-                }
-            }
-            _ => f64::INFINITY,
-        };
-        let pieces = if b - a > limit * (1.0 + 1e-9) {
-            ((b - a) / limit).ceil() as usize
-        } else {
-            1
-        };
-        for k in 1..pieces {
-            out.push(a + (b - a) * k as f64 / pieces as f64);
-        }
-        out.push(b);
-    }
-    out
-}
-
-/// Two neighbouring caps at curvature jumps get more knots of q between them
-/// ([`split_between_caps`]) where both are below this fraction of the static
-/// cap in the middle.
-pub const CAP_ROOM: f64 = 0.5;
-
-/// Knot spans of q between two neighbouring binding caps ([`split_between_caps`]).
-pub const SPANS_BETWEEN_CAPS: usize = 4;
-
 /// The turning angle ∫ₐᵇ |κ| ds of [`refine_turning`], integrated in the
 /// toolpath's parameter: ∫ |κ(u)|·|r_u| du over [u(a), u(b)] by 16-point
 /// Gauss–Legendre on one polynomial piece (the span holding the middle; the
@@ -236,39 +174,6 @@ pub(crate) fn end_room(
         length_mm: length,
         added,
     })
-}
-
-#[cfg(test)]
-mod split_between_caps_tests {
-    use super::{split_between_caps, CAP_ROOM};
-
-    /// Two caps 1.2 mm apart with one sample between them (a degree-2
-    /// curve at LEN 1): the interval gets at least four spans of q, none longer
-    /// than a quarter of it, where the caps bind
-    /// (far below the static cap in the middle), none where they do not.
-    #[test]
-    fn binding_caps_get_four_spans_between_them() {
-        let samples = [0.0, 223.7582, 224.4147, 224.9570, 226.0];
-        let jumps = [(223.7582, 13.9), (224.9570, 12.6)];
-        let v = split_between_caps(&samples, &jumps, 4, |_| 1500.0);
-        let inside: Vec<f64> = v
-            .iter()
-            .copied()
-            .filter(|&s| s > 223.7582 && s < 224.9570)
-            .collect();
-        assert!(inside.len() >= 3, "{v:?}");
-        let h = (224.9570 - 223.7582) / 4.0;
-        assert!(
-            v.windows(2)
-                .filter(|w| w[0] >= 223.7582 && w[1] <= 224.9570)
-                .all(|w| w[1] - w[0] <= h * (1.0 + 1e-9)),
-            "{v:?}"
-        );
-        assert!(v.windows(2).all(|w| w[0] < w[1]), "{v:?}");
-        // caps that do not bind (above CAP_ROOM of the static cap): unchanged
-        let v = split_between_caps(&samples, &jumps, 4, |_| 13.9 / CAP_ROOM);
-        assert_eq!(v, samples);
-    }
 }
 
 #[cfg(test)]

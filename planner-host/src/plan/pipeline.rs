@@ -12,12 +12,9 @@ use crate::limits;
 use crate::lp::basis_rows::{self, BasisRow};
 use crate::lp::end_rows::EndMode;
 use crate::lp::problem::EvalPoint;
-use crate::lp::trust_region::static_cap;
 use crate::plan::config::{Formulation, PlanConfig};
 use crate::plan::error::PlanError;
-use crate::plan::knots::{
-    end_room, refine_turning, split_between_caps, with_breaks, TurnInU, SPANS_BETWEEN_CAPS,
-};
+use crate::plan::knots::{end_room, refine_turning, with_breaks, TurnInU};
 use crate::plan::levels::validate_levels;
 use crate::plan::lp_stage::{check_points, LpStage, Refine, Solved};
 use crate::plan::output::PlanOutput;
@@ -77,15 +74,11 @@ pub fn plan_curve_with_progress(
         Formulation::Paper => samples,
         Formulation::Certified => {
             let turn = TurnInU::new(curve, &arc);
-            let turned = refine_turning(
+            refine_turning(
                 &with_breaks(&samples, &arc),
                 cfg.certified.max_turn_rad,
                 |a, b| turn.turning(a, b),
-            );
-            let caps: Vec<(f64, f64)> = jumps.iter().map(|j| (j.s_mm, j.q_cap)).collect();
-            split_between_caps(&turned, &caps, SPANS_BETWEEN_CAPS, |s| {
-                static_cap(&cfg.limits, &path_derivs_at(curve, &arc, s))
-            })
+            )
         }
     };
     dbg_t("refine");
