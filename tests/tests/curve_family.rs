@@ -325,3 +325,63 @@ fn runs_that_exceeded_or_stalled_now_hold_every_limit() {
     }
     assert!(bad.is_empty(), "{}", bad.join("\n"));
 }
+
+/// Runs of seed 1 on C1 joins (degree 3, a curvature jump at each C1 knot
+/// with a cap q(s) ≤ q_cap on the feed) whose plans went through the
+/// jumps too fast: at the jumps of fam1_191 (q_cap 9.08 and 1.85 mm²/s²)
+/// q read 22.8 and 15.7, the setpoints' axis jerk 3.92 × the limit; fam1_163
+/// LEN 2 read 3.26. An LP with rows q ≥ c (the lower trust region), whose
+/// right-hand side was not normalised, let the interior-point solver stop
+/// with every other row, the caps included, violated, and the exact check
+/// of the iterate did not look at the caps.
+const CAP_REGRESSIONS: [(usize, usize, f64); 2] = [(191, 2, 0.5), (163, 1, 2.0)];
+
+#[test]
+fn plans_hold_the_caps_at_curvature_jumps() {
+    use planner_host::lp::BasisRow;
+    use planner_host::plan::{plan_curve, PlanConfig};
+    let mut bad = Vec::new();
+    for (index, sampling, density) in CAP_REGRESSIONS {
+        let case = generate(SEED, index);
+        let (label, sampling) = sweep::samplings()[sampling];
+        let name = format!("{} {label} {density}", case.curve.name);
+        let cfg = PlanConfig {
+            sampling,
+            density_per_mm: density,
+            ..PlanConfig::default()
+        };
+        let plan = match plan_curve(&case.curve, &cfg) {
+            Ok(p) => p,
+            Err(e) => {
+                bad.push(format!("{name}: {e}"));
+                continue;
+            }
+        };
+        assert!(!plan.curvature_jumps.is_empty(), "{name}: no curvature jumps");
+        for j in &plan.curvature_jumps {
+            let Some(b) = BasisRow::at(&plan.q_knots, j.s_mm) else {
+                bad.push(format!("{name}: jump at {:.3} mm off the knots of q", j.s_mm));
+                continue;
+            };
+            let q = b.apply(0, &plan.q_ctrl);
+            if q > j.q_cap * (1.0 + 1e-6) {
+                bad.push(format!(
+                    "{name}: q {q:.4} above the cap {:.4} at the jump at {:.3} mm",
+                    j.q_cap, j.s_mm
+                ));
+            }
+        }
+        let run = sweep::run(&case, (label, sampling), density);
+        match &run.result {
+            Ok(m) => {
+                for (k, p) in KINDS.iter().zip(m.setpoints()) {
+                    if above(p.ratio, 1.0 + TOL) {
+                        bad.push(format!("{name}: setpoint {k} ratio {:.5}", p.ratio));
+                    }
+                }
+            }
+            Err(e) => bad.push(format!("{name}: {e}")),
+        }
+    }
+    assert!(bad.is_empty(), "{}", bad.join("\n"));
+}

@@ -265,6 +265,52 @@ pub fn excess(lp: &FeedLp, ctrl: &[f64], p: &EvalPoint, caps: &[(f64, f64)]) -> 
     v[0].max(0.0).sqrt().max(acc).max(jerk)
 }
 
+/// How far the caps q(s) ≤ q_cap at the curvature jumps are tightened in
+/// the LPs (relative): an LP solved to [`LP_TOL`] (or a stalled one, to
+/// 1e4·LP_TOL) then holds q_cap itself, as the exact check requires.
+const CAP_MARGIN: f64 = 1e-3;
+
+/// The exact check's tolerance on q(s)/q_cap at the curvature jumps: the
+/// jump of the jerk there is bounded by that cap alone.
+const CAP_TOL: f64 = 1e-6;
+
+/// The largest violation of an LP's rows (relative to |rhs|, as the LP
+/// normalises them) beyond which a solution counts as infeasible.
+const ROW_VIOLATION: f64 = 1e-2;
+
+/// The largest violation (Σ val·ctrl − rhs)/|rhs| of `rows` (|rhs| = 0: by 1)
+/// at the control points `ctrl`.
+fn row_violation(rows: &[Row], ctrl: &[f64]) -> f64 {
+    rows.iter()
+        .map(|r| {
+            let v: f64 = r
+                .idx
+                .iter()
+                .zip(&r.val)
+                .map(|(&i, &v)| v * ctrl.get(i).copied().unwrap_or(0.0))
+                .sum();
+            let norm = if r.rhs != 0.0 { r.rhs.abs() } else { 1.0 };
+            (v - r.rhs) / norm
+        })
+        .fold(0.0, f64::max)
+}
+
+/// The largest q(s)/q_cap of the plan `ctrl` over the rows q(s) ≤ q_cap of
+/// the curvature jumps (`rows`); 0 without jumps.
+fn cap_ratio(rows: &[Row], ctrl: &[f64]) -> f64 {
+    rows.iter()
+        .map(|r| {
+            let q: f64 = r
+                .idx
+                .iter()
+                .zip(&r.val)
+                .map(|(&i, &v)| v * ctrl.get(i).copied().unwrap_or(0.0))
+                .sum();
+            q / r.rhs
+        })
+        .fold(0.0, f64::max)
+}
+
 /// Indices of the candidate points `cand` (executed ones) where the plan
 /// `ctrl` exceeds any limit by more than the factor `limit` (exact
 /// kinematics, the jerk held to (1 − β)·J within 1e-6 mm of a curvature jump
@@ -445,6 +491,14 @@ fn solve_with(
         .iter()
         .filter_map(|&(s, cap)| Some(Row::q_at(&crate::lp::basis_rows::BasisRow::at(lp.knots, s)?, cap)))
         .collect();
+    // in the LPs the caps with a margin for their tolerance; the exact check holds q_cap itself
+    let cap_rows_lp: Vec<Row> = cap_rows
+        .iter()
+        .map(|r| Row {
+            rhs: r.rhs * (1.0 - CAP_MARGIN),
+            ..*r
+        })
+        .collect();
     let n = lp.n_ctrl();
     let lim = lp.limits;
     let qmax: Vec<f64> = pts.iter().map(|p| lp.q_max(&p.geo)).collect();
@@ -497,7 +551,7 @@ fn solve_with(
         }
         let t0 = Instant::now();
         rows.clear();
-        rows.extend_from_slice(&cap_rows);
+        rows.extend_from_slice(&cap_rows_lp);
         for (i, p) in pts.iter().enumerate() {
             if !executed[i] {
                 // q inside an end segment is not executed, but it is in the
@@ -637,6 +691,19 @@ fn solve_with(
             warm.as_deref(),
             win.as_ref().map(|w| w.fixed),
         );
+        // an LP the lower trust region made infeasible may also come back
+        // with a point that violates its rows (the interior-point solver
+        // returns its last near-optimal point when it stalls): as infeasible
+        let sol = match sol {
+            Ok(s) if rows.len() > n_upper_rows && row_violation(&rows, &s.ctrl) > ROW_VIOLATION => {
+                Err(LpError {
+                    stage: Stage::Linearised,
+                    status: "RowsViolated".into(),
+                    iterations: s.stats.iterations,
+                })
+            }
+            other => other,
+        };
         let sol = match sol {
             Err(_) if rows.len() > n_upper_rows => {
                 // the lower trust region made the LP infeasible: without it
@@ -697,7 +764,10 @@ fn solve_with(
             ratios = ratios.max(r);
         }
         keep_floor |= dips(&keeps, is_knot, &q_now, FLOOR_KEEP * floor);
-        let feasible = ratios.worst() <= 1.0 + cfg.tol;
+        // the caps at the curvature jumps, checked exactly too: the jump of the
+        // jerk there is bounded by q(s) ≤ q_cap alone (no check point sees it)
+        let cap_ratio = cap_ratio(&cap_rows, &sol.ctrl);
+        let feasible = ratios.worst() <= 1.0 + cfg.tol && cap_ratio <= 1.0 + CAP_TOL;
         if std::env::var_os("FEEDLP_SLP_DEBUG").is_some() {
             eprintln!(
                 "LP {it}: rho {rho:.3} rows {} its {} {:.1} ms T {:.4} check {:?} min q {:?}",
