@@ -240,10 +240,37 @@ pub(crate) fn static_cap(limits: &firmware_core::Limits, geo: &crate::geometry::
     c
 }
 
+/// A curvature jump as the sequence sees it: (s, q_cap, reach), mm,
+/// (mm/s)², mm. The row q(s) ≤ q_cap, and the continuous jerk held to
+/// (1 − β)·J within `reach` of s ([`jump_cap`]).
+pub type JumpCap = (f64, f64, f64);
+
+/// Ticks either side of a curvature jump over which the checker's central
+/// third difference (x₂ − 2x₁ + 2x₋₁ − x₋₂)/(2T³) sees the acceleration step
+/// (2), with a quarter for the feed's rise beside the jump.
+pub const JUMP_REACH_TICKS: f64 = 2.5;
+
+/// The jump `j` for a table planned at the servo period `period_s`: its
+/// reach is JUMP_REACH_TICKS·T·√q_cap, the farthest the feed at the cap
+/// travels in the ticks whose third difference holds the step. Every tick
+/// there adds the step's share β·J to the continuous jerk, so that jerk must
+/// hold (1 − β)·J over the whole reach, not at the jump alone: with
+/// (1 − β)·J held only at the jump's two sides, a fast plan of
+/// fam1_13_straight_tight (degree 2, ADA 1) carried −0.75·J of continuous
+/// axis jerk 0.008 mm before a jump, and its setpoints read 1.116 × J.
+pub fn jump_cap(j: &crate::geometry::junction::Jump, period_s: f64) -> JumpCap {
+    (
+        j.s_mm,
+        j.q_cap,
+        JUMP_REACH_TICKS * period_s * j.q_cap.max(0.0).sqrt(),
+    )
+}
+
 /// The share of the jerk limit the continuous jerk may use at `s`: 1 − β
-/// within 1e-6 mm of a curvature jump in `caps` ([`crate::geometry::junction`]), else 1.
-fn jerk_share(s: f64, caps: &[(f64, f64)]) -> f64 {
-    if caps.iter().any(|&(c, _)| (s - c).abs() <= 1e-6) {
+/// within the reach (and 1e-6 mm) of a curvature jump in `caps`
+/// ([`crate::geometry::junction`]), else 1.
+fn jerk_share(s: f64, caps: &[JumpCap]) -> f64 {
+    if caps.iter().any(|&(c, _, r)| (s - c).abs() <= r + 1e-6) {
         1.0 - crate::geometry::junction::JUMP_JERK_SHARE
     } else {
         1.0
@@ -254,7 +281,7 @@ fn jerk_share(s: f64, caps: &[(f64, f64)]) -> f64 {
 /// (exact kinematics; feed as √(q/q_max), the jerk against (1 − β)·J within
 /// 1e-6 mm of a curvature jump in `caps`), as [`violations`] measures it;
 /// 0 where q is not executed (inside an end segment).
-pub fn excess(lp: &FeedLp, ctrl: &[f64], p: &EvalPoint, caps: &[(f64, f64)]) -> f64 {
+pub fn excess(lp: &FeedLp, ctrl: &[f64], p: &EvalPoint, caps: &[JumpCap]) -> f64 {
     if !lp.executes(p.s) {
         return 0.0;
     }
@@ -284,7 +311,7 @@ const CAP_RETRIES: usize = 3;
 /// acceleration step there, |Δr″|·q, is bounded by that cap alone (no check
 /// point sees it). A converged LP holds its rows to [`LP_TOL`], so the caps
 /// go into the LPs exact; 10⁻⁴ of q is 10⁻⁴ of that step.
-const CAP_TOL: f64 = 1e-4;
+pub const CAP_TOL: f64 = 1e-4;
 
 /// The largest violation of an LP's rows (relative to |rhs|, as the LP
 /// normalises them) beyond which a solution counts as infeasible.
@@ -351,13 +378,7 @@ fn tighten_caps(cap_rows: &[Row], margin: &mut [f64], ctrl: &[f64]) -> bool {
 /// `ctrl` exceeds any limit by more than the factor `limit` (exact
 /// kinematics, the jerk held to (1 − β)·J within 1e-6 mm of a curvature jump
 /// in `caps`): the cutting planes of [`crate::plan`]'s refinement rounds.
-pub fn violations(
-    lp: &FeedLp,
-    ctrl: &[f64],
-    cand: &[EvalPoint],
-    caps: &[(f64, f64)],
-    limit: f64,
-) -> Vec<usize> {
+pub fn violations(lp: &FeedLp, ctrl: &[f64], cand: &[EvalPoint], caps: &[JumpCap], limit: f64) -> Vec<usize> {
     cand.iter()
         .enumerate()
         .filter(|(_, p)| lp.executes(p.s))
@@ -381,7 +402,7 @@ pub fn violations(
 pub fn solve(
     lp: &FeedLp,
     is_knot: &[bool],
-    caps: &[(f64, f64)],
+    caps: &[JumpCap],
     cfg: &CertifiedConfig,
 ) -> Result<CertifiedPlan, LpError> {
     solve_with(lp, is_knot, caps, cfg, None)
@@ -426,7 +447,7 @@ struct Window<'w> {
 /// feasible) or no iterate held every limit at every check point to 1 + `tol`.
 pub fn solve_window(
     lp: &FeedLp,
-    caps: &[(f64, f64)],
+    caps: &[JumpCap],
     cfg: &CertifiedConfig,
     fixed: &[Option<f64>],
     reference: Option<&[f64]>,
@@ -449,8 +470,9 @@ pub fn solve_window(
         }
     }
     rows.extend(
-        caps.iter()
-            .filter_map(|&(s, cap)| Some(Row::q_at(&crate::lp::basis_rows::BasisRow::at(lp.knots, s)?, cap))),
+        caps.iter().filter_map(|&(s, cap, _)| {
+            Some(Row::q_at(&crate::lp::basis_rows::BasisRow::at(lp.knots, s)?, cap))
+        }),
     );
     let upper = vec![lp.limits.vbar * lp.limits.vbar; n];
     let pseudo = lp.solve_rows(
@@ -514,7 +536,7 @@ fn window_time(lp: &FeedLp, ctrl: &[f64]) -> f64 {
 fn solve_with(
     lp: &FeedLp,
     is_knot: &[bool],
-    caps: &[(f64, f64)],
+    caps: &[JumpCap],
     cfg: &CertifiedConfig,
     win: Option<Window>,
 ) -> Result<CertifiedPlan, LpError> {
@@ -525,7 +547,7 @@ fn solve_with(
     let jerk_share: Vec<f64> = pts.iter().map(|p| jerk_share(p.s, caps)).collect();
     let cap_rows: Vec<Row> = caps
         .iter()
-        .filter_map(|&(s, cap)| Some(Row::q_at(&crate::lp::basis_rows::BasisRow::at(lp.knots, s)?, cap)))
+        .filter_map(|&(s, cap, _)| Some(Row::q_at(&crate::lp::basis_rows::BasisRow::at(lp.knots, s)?, cap)))
         .collect();
     // in the LPs the caps exact, tightened only where an iterate broke them
     // (`tighten_caps`); the exact check holds q_cap itself
@@ -932,5 +954,43 @@ mod dips_tests {
         let mut keep = keep;
         keep[2] = false;
         assert!(!dips(&keep, &knot, &collapse, 5.5));
+    }
+}
+
+#[cfg(test)]
+mod cap_tests {
+    use super::{cap_ratio, tighten_caps, CAP_TOL};
+    use crate::lp::problem::Row;
+
+    /// q(s) = a_j at a knot of a single control point (one basis function 1).
+    fn cap_row(j: usize, cap: f64) -> Row {
+        Row {
+            idx: [j, j + 1, j + 2, j + 3],
+            val: [1.0, 0.0, 0.0, 0.0],
+            rhs: cap,
+        }
+    }
+
+    /// Only the caps the plan breaks beyond the check's tolerance are
+    /// tightened, each by twice its own excess; a plan that holds them all
+    /// leaves every margin at 0 (the caps stay exact in the LPs).
+    #[test]
+    fn only_broken_caps_are_tightened_by_twice_their_excess() {
+        let rows = [cap_row(0, 10.0), cap_row(4, 2.0), cap_row(8, 5.0)];
+        let mut margin = [0.0; 3];
+        let mut ctrl = vec![0.0; 12];
+        ctrl[0] = 10.0 * (1.0 + 0.5 * CAP_TOL);
+        ctrl[4] = 2.0 * 1.003;
+        ctrl[8] = 4.0;
+        assert!(tighten_caps(&rows, &mut margin, &ctrl));
+        assert_eq!(margin[0], 0.0);
+        assert!((margin[1] - 0.006).abs() < 1e-12, "{margin:?}");
+        assert_eq!(margin[2], 0.0);
+        assert!((cap_ratio(&rows, &ctrl) - 1.003).abs() < 1e-12);
+        // a plan within the caps changes nothing
+        ctrl[4] = 2.0;
+        let before = margin;
+        assert!(!tighten_caps(&rows, &mut margin, &ctrl));
+        assert_eq!(margin, before);
     }
 }

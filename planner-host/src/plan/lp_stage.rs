@@ -28,6 +28,13 @@ use crate::plan::stall::{find_stall, find_stall_between, StallAt};
 /// Points per knot span of q at which a certified plan is re-evaluated for
 /// the refinement rounds (evenly spaced in s).
 pub const REFINE_PER_SPAN: usize = 24;
+/// Points per knot span of q of the plan's own dense re-evaluation as
+/// `feedplan` reports it by default and the curve-family sweep reads it
+/// ([`crate::plan::verify::dense_check`]): the refinement re-evaluates
+/// these too, so that an excess that report shows between the
+/// REFINE_PER_SPAN points (fam1_184_weights PAR 0.5: 1.0104 at a bend
+/// 0.1 mm wide) is one the refinement has seen.
+pub const REPORT_PER_SPAN: usize = 20;
 /// Points per knot span of the toolpath at which a certified plan is
 /// re-evaluated too, evenly spaced in its parameter u: a weighted toolpath
 /// turns a short, sharp bend over a wide interval of u (the parametric speed
@@ -137,8 +144,8 @@ impl LpStage<'_> {
                 .windows(2)
                 .filter(|w| w[1] > w[0])
                 .flat_map(|w| {
-                    (1..REFINE_PER_SPAN)
-                        .map(move |k| w[0] + (w[1] - w[0]) * k as f64 / REFINE_PER_SPAN as f64)
+                    let even = |n: usize| (1..n).map(move |k| w[0] + (w[1] - w[0]) * k as f64 / n as f64);
+                    even(REFINE_PER_SPAN).chain(even(REPORT_PER_SPAN))
                 })
                 .filter_map(|s| self.eval(s))
                 .collect();
@@ -215,7 +222,7 @@ impl LpStage<'_> {
         &self,
         lp: &FeedLp,
         ctrl: &[f64],
-        caps: &[(f64, f64)],
+        caps: &[crate::lp::JumpCap],
         dense: &[EvalPoint],
         i: usize,
     ) -> Option<EvalPoint> {
@@ -319,13 +326,30 @@ impl LpStage<'_> {
                 )
             }
             Formulation::Certified => {
-                let caps: Vec<(f64, f64)> = jumps.iter().map(|j| (j.s_mm, j.q_cap)).collect();
+                let caps: Vec<crate::lp::JumpCap> = jumps
+                    .iter()
+                    .map(|j| crate::lp::jump_cap(j, cfg.servo_period_s))
+                    .collect();
                 // Refinement rounds (cutting planes): the plan is re-evaluated at
                 // REFINE_PER_SPAN points per knot span; where it exceeds a limit by
                 // more than REFINE_TRIGGER (narrow curvature spikes, fast changes
                 // of q between check points) those points join the check points
                 // with every row, and the sequence runs again.
-                let dense = self.dense();
+                // the re-evaluation points, and four in each jump's reach
+                // (its ends and midpoints), where the continuous jerk is held
+                // to (1 − β)·J (`trust_region::jump_cap`): a check point joins
+                // only where a plan breaks that there
+                let mut dense: Vec<EvalPoint> = self.dense().to_vec();
+                if !caps.is_empty() {
+                    dense.extend(
+                        caps.iter()
+                            .flat_map(|&(s, _, r)| [s - r, s - 0.5 * r, s + 0.5 * r, s + r])
+                            .filter_map(|s| self.eval(s)),
+                    );
+                    dense.sort_by(|a, b| a.s.total_cmp(&b.s));
+                    dense.dedup_by(|a, b| a.s == b.s);
+                }
+                let dense = &dense[..];
                 let (mut pts, mut forced) = (points.clone(), is_knot.clone());
                 let mut lps = Vec::new();
                 // the round counter sets the LP budget; a level starts at the
