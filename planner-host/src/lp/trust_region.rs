@@ -402,16 +402,25 @@ pub fn violations(lp: &FeedLp, ctrl: &[f64], cand: &[EvalPoint], caps: &[JumpCap
 /// Run the certified sequence on `lp`, whose `points` are the check points
 /// (sorted by s; `is_knot[i]` marks those on a knot of q, which always carry rows).
 ///
-/// `caps` are the curvature jumps ([`crate::geometry::junction`]) as `(s, q_cap)`:
-/// the row q(s) ≤ q_cap, and at the check points within 1e-6 mm of s the
-/// jerk rows and the exact check held to (1 − β)·J.
+/// `caps` are the curvature jumps ([`crate::geometry::junction`]) as
+/// `(s, q_cap, reach)` ([`jump_cap`]): the row q(s) ≤ q_cap, and the jerk
+/// rows and the exact check held to (1 − β)·J beside them.
+///
+/// `q_floor` is the plan's stall floor on q (`crate::plan::stall`): an
+/// iterate whose q at an executed check point falls below it is not
+/// accepted, whatever its limits, since a plan that stalls is refused. The
+/// sequence then keeps its best iterate that moves: fam1_62_straight_tight
+/// PAR 1 (degree 2) went on past its first iterate, halved q at one knot
+/// LP after LP under the lower trust region, accepted the eighth (feed
+/// 0.14 mm/s there) and had no plan.
 pub fn solve(
     lp: &FeedLp,
     is_knot: &[bool],
     caps: &[JumpCap],
     cfg: &CertifiedConfig,
+    q_floor: f64,
 ) -> Result<CertifiedPlan, LpError> {
-    solve_with(lp, is_knot, caps, cfg, None)
+    solve_with(lp, is_knot, caps, cfg, None, q_floor)
 }
 
 /// The window of [`solve_window`]: fixed control points and the first
@@ -523,6 +532,7 @@ pub fn solve_window(
             qbar0,
             free_weight,
         }),
+        0.0,
     )?;
     plan.lps.insert(0, pseudo.stats);
     plan.chosen += 1;
@@ -545,6 +555,7 @@ fn solve_with(
     caps: &[JumpCap],
     cfg: &CertifiedConfig,
     win: Option<Window>,
+    q_floor: f64,
 ) -> Result<CertifiedPlan, LpError> {
     let relaxed = relaxed(lp);
     let lp = &relaxed;
@@ -883,7 +894,9 @@ fn solve_with(
         // the caps at the curvature jumps, checked exactly too: the jump of the
         // jerk there is bounded by q(s) ≤ q_cap alone (no check point sees it)
         let cap_ratio = cap_ratio(&cap_rows, &sol.ctrl);
-        let feasible = ratios.worst() <= 1.0 + cfg.tol && cap_ratio <= 1.0 + CAP_TOL;
+        // an iterate that stalls the feed at a check point is no plan
+        let moves = q_now.iter().zip(&executed).all(|(&q, &e)| !e || q >= q_floor);
+        let feasible = ratios.worst() <= 1.0 + cfg.tol && cap_ratio <= 1.0 + CAP_TOL && moves;
         if std::env::var_os("FEEDLP_SLP_DEBUG").is_some() {
             eprintln!(
                 "LP {it}: rho {rho:.3} rows {} its {} {:.1} ms T {:.4} check {:?} min q {:?}",

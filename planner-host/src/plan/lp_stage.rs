@@ -340,6 +340,14 @@ impl LpStage<'_> {
                 // to (1 − β)·J (`trust_region::jump_cap`): a check point joins
                 // only where a plan breaks that there
                 let mut dense: Vec<EvalPoint> = self.dense().to_vec();
+                // the stall floor of `find_stall_between`: with end segments q
+                // must not fall below it between the joins, and no iterate
+                // that does is accepted (with a step at the ends q vanishes
+                // there, and the stall check after the plan alone judges it)
+                let q_floor = match end_rows {
+                    Some(_) => crate::plan::stall::stall_floors(limits, self.length).1,
+                    None => 0.0,
+                };
                 if !caps.is_empty() {
                     dense.extend(
                         caps.iter()
@@ -370,7 +378,7 @@ impl LpStage<'_> {
                         max_lps: cfg.certified.max_lps * (1 + round),
                         ..cfg.certified
                     };
-                    let c = trust_region::solve(&lp, &forced, &caps, &ccfg)?;
+                    let c = trust_region::solve(&lp, &forced, &caps, &ccfg, q_floor)?;
                     lps.extend(c.lps);
                     let bad = trust_region::violations(&lp, &c.ctrl, dense, &caps, REFINE_TRIGGER);
                     if bad.is_empty() || round == last_round {
