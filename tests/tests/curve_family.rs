@@ -262,3 +262,145 @@ fn generated_curves_are_deterministic_valid_and_true_to_their_family() {
     }
     assert!(bad.is_empty(), "{}", bad.join("\n"));
 }
+
+/// Runs of seed 1 the planner used to get wrong, each with what it read
+/// before the refinement re-evaluated q at points even in the toolpath's u,
+/// bisected where the geometry changes fast and forced the peak of each
+/// excess, and before the lower trust region of the certified sequence:
+///
+/// - fam1_36_weights (degree 4, weights 0.05–20) ADA 0.5: the plan's dense
+///   axis jerk 1.1447, setpoints 1.1393 (a bend narrower than the grid);
+/// - fam1_73_straight_tight (degree 4) PAR 0.5: dense 1.0336, setpoints 1.0345;
+/// - fam1_95_straight_tight (degree 2: a curvature jump at every knot) ADA 2:
+///   `PlanError::Stall` (an LP of the sequence dropped q to ~0 between two caps).
+///
+/// - fam1_184_weights (degree 3, weights 0.05–20) LEN 1: the start
+///   segment's axis jerk 1.0258 on the dense re-evaluation (the segment's
+///   bound on q at its join sampled the geometry at even values of time only);
+/// - fam1_184_weights PAR 0.5: 1.0104 at a bend between the refinement's
+///   24 points per knot span, which the reported 20 per span saw.
+///
+/// Each now plans, its own dense re-evaluation (20 and 200 points per knot
+/// span of q) is within 1.002 and every setpoint ratio within `1 + TOL`.
+const REGRESSIONS: [(usize, usize, f64); 5] = [
+    (36, 2, 0.5),
+    (73, 0, 0.5),
+    (95, 2, 2.0),
+    (184, 1, 1.0),
+    (184, 0, 0.5),
+];
+
+/// The plan's own limit the refinement aims at (the setpoints add up to
+/// 0.2 % through the s → u map).
+const PLAN_DENSE: f64 = 1.002;
+
+#[test]
+fn runs_that_exceeded_or_stalled_now_hold_every_limit() {
+    use planner_host::plan::{plan_curve, PlanConfig};
+    let mut bad = Vec::new();
+    for (index, sampling, density) in REGRESSIONS {
+        let case = generate(SEED, index);
+        let (label, sampling) = sweep::samplings()[sampling];
+        let name = format!("{} {label} {density}", case.curve.name);
+        let cfg = PlanConfig {
+            sampling,
+            density_per_mm: density,
+            ..PlanConfig::default()
+        };
+        let plan = match plan_curve(&case.curve, &cfg) {
+            Ok(p) => p,
+            Err(e) => {
+                bad.push(format!("{name}: {e}"));
+                continue;
+            }
+        };
+        let arc = planner_host::ArcLength::new(&case.curve);
+        for per_span in [20, 200] {
+            let d = plan.dense_check(&case.curve, &arc, per_span).ratios.worst();
+            if above(d, PLAN_DENSE) {
+                bad.push(format!(
+                    "{name}: plan's dense ratio {d:.5} at {per_span} per span"
+                ));
+            }
+        }
+        let run = sweep::run(&case, (label, sampling), density);
+        match &run.result {
+            Ok(m) => {
+                for (k, p) in KINDS.iter().zip(m.setpoints()) {
+                    if above(p.ratio, 1.0 + TOL) {
+                        bad.push(format!("{name}: setpoint {k} ratio {:.5}", p.ratio));
+                    }
+                }
+            }
+            Err(e) => bad.push(format!("{name}: {e}")),
+        }
+    }
+    assert!(bad.is_empty(), "{}", bad.join("\n"));
+}
+
+/// Runs of seed 1 on C1 joins (degree 3, a curvature jump at each C1 knot
+/// with a cap q(s) ≤ q_cap on the feed) whose plans went through the
+/// jumps too fast: at the jumps of fam1_191 (q_cap 9.08 and 1.85 mm²/s²)
+/// q read 22.8 and 15.7, the setpoints' axis jerk 3.92 × the limit; fam1_163
+/// LEN 2 read 3.26. An LP with rows q ≥ c (the lower trust region), whose
+/// right-hand side was not normalised, let the interior-point solver stop
+/// with every other row, the caps included, violated, and the exact check
+/// of the iterate did not look at the caps. fam1_13_straight_tight (degree
+/// 2) ADA 1, planned fast once the sequence went on past its last slow
+/// iterate, carried −0.75·J of continuous axis jerk 0.008 mm before a jump,
+/// where the setpoints' third difference adds the step's β·J: setpoint axis
+/// jerk 1.116 (the continuous jerk was held to (1 − β)·J at the jump only,
+/// not over its reach, `planner_host::lp::jump_cap`). Each plan now holds
+/// every cap to the sequence's exact check (`planner_host::lp::CAP_TOL`)
+/// and every setpoint limit.
+const CAP_REGRESSIONS: [(usize, usize, f64); 3] = [(191, 2, 0.5), (163, 1, 2.0), (13, 2, 1.0)];
+
+#[test]
+fn plans_hold_the_caps_at_curvature_jumps() {
+    use planner_host::lp::BasisRow;
+    use planner_host::plan::{plan_curve, PlanConfig};
+    let mut bad = Vec::new();
+    for (index, sampling, density) in CAP_REGRESSIONS {
+        let case = generate(SEED, index);
+        let (label, sampling) = sweep::samplings()[sampling];
+        let name = format!("{} {label} {density}", case.curve.name);
+        let cfg = PlanConfig {
+            sampling,
+            density_per_mm: density,
+            ..PlanConfig::default()
+        };
+        let plan = match plan_curve(&case.curve, &cfg) {
+            Ok(p) => p,
+            Err(e) => {
+                bad.push(format!("{name}: {e}"));
+                continue;
+            }
+        };
+        assert!(!plan.curvature_jumps.is_empty(), "{name}: no curvature jumps");
+        for j in &plan.curvature_jumps {
+            let Some(b) = BasisRow::at(&plan.q_knots, j.s_mm) else {
+                bad.push(format!("{name}: jump at {:.3} mm off the knots of q", j.s_mm));
+                continue;
+            };
+            let q = b.apply(0, &plan.q_ctrl);
+            if q > j.q_cap * (1.0 + planner_host::lp::CAP_TOL) {
+                bad.push(format!(
+                    "{name}: q {q:.4} above the cap {:.4} at the jump at {:.3} mm",
+                    j.q_cap, j.s_mm
+                ));
+            }
+        }
+        let run = sweep::run(&case, (label, sampling), density);
+        match &run.result {
+            Ok(m) => {
+                for (k, p) in KINDS.iter().zip(m.setpoints()) {
+                    if above(p.ratio, 1.0 + TOL) {
+                        bad.push(format!("{name}: setpoint {k} ratio {:.5}", p.ratio));
+                    }
+                }
+            }
+            Err(e) => bad.push(format!("{name}: {e}")),
+        }
+    }
+    assert!(bad.is_empty(), "{}", bad.join("\n"));
+}

@@ -29,8 +29,8 @@ pub(crate) struct Profile {
     /// q and tangential acceleration q′/2 at the Greville points.
     pub(crate) q_g: Vec<f64>,
     pub(crate) a_g: Vec<f64>,
-    /// Curvature-jump caps (s, q_cap) with this level's limits.
-    pub(crate) caps: Vec<(f64, f64)>,
+    /// Curvature-jump caps (s, q_cap, reach) with this level's limits.
+    pub(crate) caps: Vec<crate::lp::JumpCap>,
 }
 
 /// The plan settings a context needs.
@@ -201,7 +201,7 @@ impl OverrideContext {
             let caps = if set.caps {
                 junction::curvature_jumps(curve, arc, &lim, set.servo_period_s)
                     .iter()
-                    .map(|j| (j.s_mm, j.q_cap))
+                    .map(|j| crate::lp::jump_cap(j, set.servo_period_s))
                     .collect()
             } else {
                 Vec::new()

@@ -24,7 +24,7 @@ impl OverrideContext {
         i_l: usize,
         i_m: usize,
         limits: &Limits,
-        caps: &[(f64, f64)],
+        caps: &[crate::lp::JumpCap],
     ) -> Result<(Vec<f64>, u32), (LpError, u32)> {
         let n = active.len();
         let fixed: Vec<Option<f64>> = (0..n)
@@ -42,10 +42,10 @@ impl OverrideContext {
         let (lo_s, hi_s) = (self.knots[i_l + 1], self.knots[i_m + ORDER - 1]);
         let lo = self.points.partition_point(|p| p.s < lo_s);
         let hi = self.points.partition_point(|p| p.s < hi_s);
-        let caps: Vec<(f64, f64)> = caps
+        let caps: Vec<crate::lp::JumpCap> = caps
             .iter()
             .copied()
-            .filter(|&(s, _)| s > lo_s && s < hi_s)
+            .filter(|&(s, _, _)| s > lo_s && s < hi_s)
             .collect();
         let reference: Vec<f64> = active.iter().zip(&tgt.ctrl).map(|(a, t)| a.max(*t)).collect();
         // feasible window LPs take ≤ ~30 banded iterations; an infeasible one

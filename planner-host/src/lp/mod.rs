@@ -26,4 +26,4 @@ pub use end_rows::EndMode;
 pub use problem::{
     EvalPoint, FeedLp, LpError, LpSolution, LpStats, Objective, QhatBound, SolverSettings, Stage,
 };
-pub use trust_region::CertifiedConfig;
+pub use trust_region::{jump_cap, CertifiedConfig, JumpCap, CAP_TOL, JUMP_REACH_TICKS};

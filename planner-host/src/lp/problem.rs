@@ -392,11 +392,15 @@ impl<'a> FeedLp<'a> {
                 })
                 .collect()
         });
-        // Triplets (row, col, value), rows normalised so that rhs = 1 where rhs > 0.
+        // Triplets (row, col, value), rows normalised so that |rhs| = 1 where
+        // rhs ≠ 0. A row with rhs < 0 (q ≥ c as −q ≤ −c) left at |rhs| ≫ 1
+        // would set the scale of the interior-point solver's primal residual
+        // test (relative to max |b|) and let it stop with every other row
+        // violated by that much.
         let mut trip: Vec<(usize, usize, f64)> = Vec::with_capacity(rows.len() * ORDER + 2 * nv);
         let mut b = Vec::with_capacity(rows.len() + 2 * nv);
         for row in rows.iter().chain(&end_rows) {
-            let norm = if row.rhs > 0.0 { row.rhs } else { 1.0 };
+            let norm = if row.rhs != 0.0 { row.rhs.abs() } else { 1.0 };
             let r = b.len();
             let mut any = false;
             let mut rhs = row.rhs;

@@ -2,6 +2,13 @@
 //! check points ([`check_points`]), one formulation's LPs, the refinement
 //! rounds that force the points where a dense re-evaluation exceeds a limit,
 //! the stall check and the predicted machining time ([`LpStage::solve`]).
+//!
+//! The refinement rounds re-evaluate the exact kinematics of §2.1 (eqs. 1–6,
+//! as [`crate::plan::verify`]) on a grid even in s per knot span of q, even
+//! in u per knot span of the toolpath, and bisected where the static caps of
+//! (8)–(10) change fast; each point that exceeds a limit by more than
+//! [`REFINE_TRIGGER`] joins the check points (rows (9)–(15) at it) together
+//! with the peak of the excess beside it.
 
 use firmware_core::{EndSegments, Limits};
 
@@ -19,13 +26,34 @@ use crate::plan::error::PlanError;
 use crate::plan::stall::{find_stall, find_stall_between, StallAt};
 
 /// Points per knot span of q at which a certified plan is re-evaluated for
-/// the refinement rounds.
+/// the refinement rounds (evenly spaced in s).
 pub const REFINE_PER_SPAN: usize = 24;
+/// Points per knot span of q of the plan's own dense re-evaluation as
+/// `feedplan` reports it by default and the curve-family sweep reads it
+/// ([`crate::plan::verify::dense_check`]): the refinement re-evaluates
+/// these too, so that an excess that report shows between the
+/// REFINE_PER_SPAN points (fam1_184_weights PAR 0.5: 1.0104 at a bend
+/// 0.1 mm wide) is one the refinement has seen.
+pub const REPORT_PER_SPAN: usize = 20;
+/// Points per knot span of the toolpath at which a certified plan is
+/// re-evaluated too, evenly spaced in its parameter u: a weighted toolpath
+/// turns a short, sharp bend over a wide interval of u (the parametric speed
+/// |r_u| is small next to a heavy control point), so points even in u crowd
+/// where points even in s are sparse.
+pub const REFINE_PER_CURVE_SPAN: usize = 24;
 /// A refinement round runs where the re-evaluation exceeds a limit by more
 /// than this factor.
-pub const REFINE_TRIGGER: f64 = 1.004;
+pub const REFINE_TRIGGER: f64 = 1.0015;
 /// Most refinement rounds.
-pub const REFINE_ROUNDS: usize = 2;
+pub const REFINE_ROUNDS: usize = 4;
+/// Neighbouring re-evaluation points whose static caps differ by more than
+/// this factor are bisected (`LpStage::bisect_fast`).
+pub const GEO_STEP: f64 = 1.25;
+/// Most bisection levels between two neighbouring re-evaluation points.
+pub const GEO_DEPTH: usize = 8;
+/// Evaluations of the peak search ([`peak`]) around each re-evaluation
+/// point that exceeds a limit.
+pub const PEAK_EVALS: usize = 24;
 
 /// Check points of the certified formulation: `per_span` evenly spaced
 /// points in every non-empty knot span of q, the span's left knot first, and
@@ -104,19 +132,144 @@ impl LpStage<'_> {
     }
 
     /// The refinement rounds' re-evaluation points: REFINE_PER_SPAN − 1
-    /// inner points per knot span, evaluated once for the base and every level.
+    /// inner points per knot span of q, even in s, and REFINE_PER_CURVE_SPAN − 1
+    /// inner points per knot span of the toolpath, even in u; sorted by s and
+    /// evaluated once for the base and every level.
     pub(crate) fn dense(&self) -> &[EvalPoint] {
         self.dense.get_or_init(|| {
-            self.knots
+            let (curve, arc) = (self.curve, self.arc);
+            let (lo, hi) = (self.knots[0], self.knots[self.knots.len() - 1]);
+            let mut v: Vec<EvalPoint> = self
+                .knots
                 .windows(2)
                 .filter(|w| w[1] > w[0])
                 .flat_map(|w| {
-                    (1..REFINE_PER_SPAN)
-                        .map(move |k| w[0] + (w[1] - w[0]) * k as f64 / REFINE_PER_SPAN as f64)
+                    let even = |n: usize| (1..n).map(move |k| w[0] + (w[1] - w[0]) * k as f64 / n as f64);
+                    even(REFINE_PER_SPAN).chain(even(REPORT_PER_SPAN))
                 })
                 .filter_map(|s| self.eval(s))
-                .collect()
+                .collect();
+            for sp in arc.spans() {
+                for k in 1..REFINE_PER_CURVE_SPAN {
+                    let u = sp.u0 + (sp.u1 - sp.u0) * k as f64 / REFINE_PER_CURVE_SPAN as f64;
+                    let s = arc.s_of_u(u);
+                    if s <= lo || s >= hi {
+                        continue;
+                    }
+                    if let Some(basis) = BasisRow::at(self.knots, s) {
+                        v.push(EvalPoint {
+                            s,
+                            geo: arc.derivs_s(curve, u),
+                            basis,
+                        });
+                    }
+                }
+            }
+            v.sort_by(|a, b| a.s.total_cmp(&b.s));
+            v.dedup_by(|a, b| a.s == b.s);
+            // where the geometry changes fast between two neighbours, bisect
+            let lim = &self.cfg.limits;
+            let cap = |p: &EvalPoint| crate::lp::trust_region::static_cap(lim, &p.geo);
+            let mut out = Vec::with_capacity(v.len());
+            for w in v.windows(2) {
+                out.push(w[0]);
+                self.bisect_fast(&w[0], cap(&w[0]), &w[1], cap(&w[1]), 0, &cap, &mut out);
+            }
+            out.extend(v.last().copied());
+            out
         })
+    }
+
+    /// Points between the re-evaluation points `a` and `b` (exclusive,
+    /// sorted) where their static caps q̄₀ (the curvature terms of (9)(10)
+    /// and the feed) differ by more than the factor GEO_STEP: bisected in s,
+    /// recursively, at most GEO_DEPTH levels. A sharp feature of the
+    /// toolpath narrower than the grid (r‴ of a weighted curve can rise
+    /// tenfold within 0.01 mm next to a knot) is then seen by the grid.
+    #[allow(clippy::too_many_arguments)]
+    fn bisect_fast(
+        &self,
+        a: &EvalPoint,
+        ca: f64,
+        b: &EvalPoint,
+        cb: f64,
+        depth: usize,
+        cap: &dyn Fn(&EvalPoint) -> f64,
+        out: &mut Vec<EvalPoint>,
+    ) {
+        if depth >= GEO_DEPTH || ca.max(cb) <= GEO_STEP * ca.min(cb) || ca.is_nan() || cb.is_nan() {
+            return;
+        }
+        let Some(m) = self.eval(0.5 * (a.s + b.s)) else {
+            return;
+        };
+        if m.s <= a.s || m.s >= b.s {
+            return;
+        }
+        let cm = cap(&m);
+        self.bisect_fast(a, ca, &m, cm, depth + 1, cap, out);
+        out.push(m);
+        self.bisect_fast(&m, cm, b, cb, depth + 1, cap, out);
+    }
+
+    /// The point of largest excess (`trust_region::excess`) of the plan
+    /// `ctrl` between the re-evaluation points `dense[i − 1]` and
+    /// `dense[i + 1]`: a grid of 9 points, then a golden-section search on the
+    /// bracket around the best of them, PEAK_EVALS evaluations in all. A
+    /// narrow spike of the ratio lies between two re-evaluation points; the
+    /// check point goes onto its peak, not onto a grid point beside it.
+    fn peak(
+        &self,
+        lp: &FeedLp,
+        ctrl: &[f64],
+        caps: &[crate::lp::JumpCap],
+        dense: &[EvalPoint],
+        i: usize,
+    ) -> Option<EvalPoint> {
+        let a = dense[i.saturating_sub(1)].s;
+        let b = dense[(i + 1).min(dense.len() - 1)].s;
+        if b <= a {
+            return None;
+        }
+        let f = |s: f64| -> (f64, Option<EvalPoint>) {
+            match self.eval(s) {
+                Some(p) => (trust_region::excess(lp, ctrl, &p, caps), Some(p)),
+                None => (0.0, None),
+            }
+        };
+        const GRID: usize = 9;
+        let mut best = (f64::NEG_INFINITY, None, a);
+        for k in 0..GRID {
+            let s = a + (b - a) * (k as f64 + 0.5) / GRID as f64;
+            let (e, p) = f(s);
+            if e > best.0 {
+                best = (e, p, s);
+            }
+        }
+        let h = 0.5 * (b - a) / GRID as f64;
+        let (mut x0, mut x1) = ((best.2 - h).max(a), (best.2 + h).min(b));
+        let g = 0.5 * (5f64.sqrt() - 1.0);
+        let (mut c, mut d) = (x1 - g * (x1 - x0), x0 + g * (x1 - x0));
+        let (mut fc, mut fd) = (f(c), f(d));
+        for _ in 0..PEAK_EVALS.saturating_sub(GRID + 2) {
+            if fc.0 >= fd.0 {
+                x1 = d;
+                (d, fd) = (c, fc);
+                c = x1 - g * (x1 - x0);
+                fc = f(c);
+            } else {
+                x0 = c;
+                (c, fc) = (d, fd);
+                d = x0 + g * (x1 - x0);
+                fd = f(d);
+            }
+        }
+        for (e, p) in [fc, fd] {
+            if e > best.0 {
+                best = (e, p, 0.0);
+            }
+        }
+        best.1
     }
 
     pub(crate) fn eval(&self, s: f64) -> Option<EvalPoint> {
@@ -173,13 +326,38 @@ impl LpStage<'_> {
                 )
             }
             Formulation::Certified => {
-                let caps: Vec<(f64, f64)> = jumps.iter().map(|j| (j.s_mm, j.q_cap)).collect();
+                let caps: Vec<crate::lp::JumpCap> = jumps
+                    .iter()
+                    .map(|j| crate::lp::jump_cap(j, cfg.servo_period_s))
+                    .collect();
                 // Refinement rounds (cutting planes): the plan is re-evaluated at
                 // REFINE_PER_SPAN points per knot span; where it exceeds a limit by
                 // more than REFINE_TRIGGER (narrow curvature spikes, fast changes
                 // of q between check points) those points join the check points
                 // with every row, and the sequence runs again.
-                let dense = self.dense();
+                // the re-evaluation points, and four in each jump's reach
+                // (its ends and midpoints), where the continuous jerk is held
+                // to (1 − β)·J (`trust_region::jump_cap`): a check point joins
+                // only where a plan breaks that there
+                let mut dense: Vec<EvalPoint> = self.dense().to_vec();
+                // the stall floor of `find_stall_between`: with end segments q
+                // must not fall below it between the joins, and no iterate
+                // that does is accepted (with a step at the ends q vanishes
+                // there, and the stall check after the plan alone judges it)
+                let q_floor = match end_rows {
+                    Some(_) => crate::plan::stall::stall_floors(limits, self.length).1,
+                    None => 0.0,
+                };
+                if !caps.is_empty() {
+                    dense.extend(
+                        caps.iter()
+                            .flat_map(|&(s, _, r)| [s - r, s - 0.5 * r, s + 0.5 * r, s + r])
+                            .filter_map(|s| self.eval(s)),
+                    );
+                    dense.sort_by(|a, b| a.s.total_cmp(&b.s));
+                    dense.dedup_by(|a, b| a.s == b.s);
+                }
+                let dense = &dense[..];
                 let (mut pts, mut forced) = (points.clone(), is_knot.clone());
                 let mut lps = Vec::new();
                 // the round counter sets the LP budget; a level starts at the
@@ -200,17 +378,24 @@ impl LpStage<'_> {
                         max_lps: cfg.certified.max_lps * (1 + round),
                         ..cfg.certified
                     };
-                    let c = trust_region::solve(&lp, &forced, &caps, &ccfg)?;
+                    let c = trust_region::solve(&lp, &forced, &caps, &ccfg, q_floor)?;
                     lps.extend(c.lps);
                     let bad = trust_region::violations(&lp, &c.ctrl, dense, &caps, REFINE_TRIGGER);
                     if bad.is_empty() || round == last_round {
                         let rounds = round - first_round;
                         break (c.ctrl, Vec::new(), lps, Some(c.check), pts, forced, rounds);
                     }
+                    // the peak of the excess next to each, found by a finer search
+                    let peaks: Vec<EvalPoint> = bad
+                        .iter()
+                        .filter_map(|&i| self.peak(&lp, &c.ctrl, &caps, dense, i))
+                        .collect();
                     round += 1;
                     let mut merged: Vec<(EvalPoint, bool)> = pts.drain(..).zip(forced.drain(..)).collect();
                     merged.extend(bad.iter().map(|&i| (dense[i], true)));
+                    merged.extend(peaks.into_iter().map(|p| (p, true)));
                     merged.sort_by(|a, b| a.0.s.total_cmp(&b.0.s));
+                    merged.dedup_by(|a, b| a.0.s == b.0.s);
                     (pts, forced) = merged.into_iter().unzip();
                 }
             }

@@ -66,6 +66,10 @@ pub fn plan_curve_with_progress(
     let budget = SetpointBudget::new(&cfg.limits, &cfg.override_levels, cfg.servo_period_s);
     let su = SuMap::fit_within(curve, &arc, cfg.su_tol_mm, Some(&budget))?;
     dbg_t("s-u map");
+    let jumps = match cfg.formulation {
+        Formulation::Paper => Vec::new(),
+        Formulation::Certified => junction::curvature_jumps(curve, &arc, &cfg.limits, cfg.servo_period_s),
+    };
     let samples = match cfg.formulation {
         Formulation::Paper => samples,
         Formulation::Certified => {
@@ -89,10 +93,6 @@ pub fn plan_curve_with_progress(
             geo: path_derivs_at(curve, &arc, s),
             basis: BasisRow::at(&knots, s)?,
         })
-    };
-    let jumps = match cfg.formulation {
-        Formulation::Paper => Vec::new(),
-        Formulation::Certified => junction::curvature_jumps(curve, &arc, &cfg.limits, cfg.servo_period_s),
     };
     let (points, is_knot): (Vec<EvalPoint>, Vec<bool>) = match cfg.formulation {
         Formulation::Paper => basis_rows::greville(&knots)
