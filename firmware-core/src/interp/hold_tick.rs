@@ -59,6 +59,7 @@ use crate::limits::EndSegments;
 use crate::math::source::F64Array;
 use crate::servo_forms::fixed::{f32_to_fx, f64_to_fixed, fx_small_f32, fx_to_f64, mul_hi, to_fx};
 use crate::servo_forms::piece::pos_derivs;
+use crate::servo_forms::q_span::QLocal;
 
 impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
     /// Request a feed hold: decelerate to rest on the path within the
@@ -348,7 +349,7 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
                 return;
             }
         }
-        if entered {
+        if entered || self.fill_next_cursors() {
             return;
         }
         if self.fh.ctl.state() != HoldState::Stopping || self.fh.seg_tau.is_some() {
@@ -365,6 +366,61 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         // (a new sweep: nothing of it yet)
         self.fh.joined = self.fh.ahead;
         self.fh.sweep = Some(self.start_sweep(self.s, self.sweep_len(self.fh.brake, self.qs.v)));
+    }
+
+    /// The cursors of the next piece and the next q span into
+    /// [`HoldRun::next_pc`] and [`HoldRun::next_qc`] when they are not
+    /// there yet (not for a q span where an override may splice: its
+    /// entry reads the override's forms); whether there was anything to do.
+    fn fill_next_cursors(&mut self) -> bool {
+        let v = &self.views;
+        let fh = &mut self.fh;
+        let mut did = false;
+        let n = self.pc.idx.wrapping_add(1);
+        let start = self.pc.next;
+        if self.pc.idx < v.p_last && !matches!(&fh.next_pc, Some(p) if p.idx == n && p.start == start) {
+            let pc = fh.next_pc.get_or_insert_with(PCur::default);
+            if v.fill_piece(pc, n, start).is_none() {
+                fh.next_pc = None;
+            }
+            did = true;
+        }
+        let n = self.qc.idx.wrapping_add(1);
+        let start = self.qc.next;
+        if self.qc.idx < v.q_last
+            && n.wrapping_sub(self.ov.lo) >= self.ov.n
+            && !matches!(&fh.next_qc, Some(q) if q.idx == n && q.start == start)
+        {
+            let qc = fh.next_qc.get_or_insert_with(QCur::default);
+            if v.fill_q(qc, n, start).is_none() {
+                fh.next_qc = None;
+            }
+            did = true;
+        }
+        did
+    }
+
+    /// [`Self::seek`] for the hold ticks: a piece or q span entered from
+    /// the cursors filled ahead ([`Self::fill_next_cursors`]) where they
+    /// are there (the same cursors reading the table would give), the rest
+    /// as [`Self::seek`] does.
+    fn hold_seek(&mut self, s: i64) -> Option<(f32, f32, QLocal)> {
+        if s >= self.pc.next && self.pc.idx < self.views.p_last {
+            if let Some(p) = self.fh.next_pc.take() {
+                if p.idx == self.pc.idx.wrapping_add(1) && p.start == self.pc.next {
+                    self.pc = p;
+                }
+            }
+        }
+        if s >= self.qc.next && self.qc.idx < self.views.q_last {
+            if let Some(q) = self.fh.next_qc.take() {
+                let n = self.qc.idx.wrapping_add(1);
+                if q.idx == n && q.start == self.qc.next && n.wrapping_sub(self.ov.lo) >= self.ov.n {
+                    self.qc = q;
+                }
+            }
+        }
+        self.seek(s)
     }
 
     /// One step ([`AHEAD_PER_TICK`]) of the look-ahead sweep in progress
@@ -465,7 +521,7 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         }
         let guess = self.qs.v;
         let (pi, qi) = (self.pc.idx, self.qc.idx);
-        let Some((tp, tq, poly)) = self.seek(s_new) else {
+        let Some((tp, tq, poly)) = self.hold_seek(s_new) else {
             return self.fault(Fault::Eval {
                 s_mm: fx_to_f64(s_new),
             });
@@ -697,6 +753,11 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         let t1 = tau_f32(tau1);
         let feed = self.fh.ctl.lambda_f32() * 0.5 * (j2 as f32) * t1 * t1;
         let (pi, qi) = (self.pc.idx, self.qc.idx);
+        if self.hold_seek(s_new).is_none() {
+            return self.fault(Fault::Eval {
+                s_mm: fx_to_f64(s_new),
+            });
+        }
         let sp = self.place(t_s, (fx_to_f64(s_new), s_new), feed)?;
         // (the next pieces' start derivatives: the look-ahead is off here)
         if !self.period_end() && quiet {
