@@ -84,6 +84,7 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
             _ => false,
         };
         self.next_piece_derivs();
+        self.fill_next_cursors();
         if running && near_end {
             self.fh.to_end = true;
         } else {
@@ -112,6 +113,7 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         self.hold_allowed()?;
         self.fh.to_end = false;
         self.next_piece_derivs();
+        self.fill_next_cursors();
         self.fh.ctl.resume();
         // (a resume plans without the stop's look-ahead)
         self.fh.sweep = None;
@@ -342,8 +344,11 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         if none {
             return;
         }
+        // (on a tick that entered a piece or q span, or relaxed, only the
+        // next piece's: the one after it waits for a quiet tick)
         let n1 = self.pc.idx.wrapping_add(1);
-        for idx in [n1, n1.wrapping_add(1)] {
+        let ahead = if entered { 1 } else { 2 };
+        for idx in [n1, n1.wrapping_add(1)].into_iter().take(ahead) {
             if idx <= self.views.p_last && self.start_dr(idx).is_none() {
                 self.piece_start_derivs(idx);
                 return;
