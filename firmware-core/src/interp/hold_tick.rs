@@ -18,11 +18,15 @@
 //! from the same fixed-point piece polynomial as on the normal tick.
 //! A period's first tick then does one optional item (not after a
 //! relaxation): the start derivatives of the next two pieces (for the jump
-//! of the plan's jerk at their breaks) when they are not there yet, else,
-//! stopping and with no piece or q span entered, a new look-ahead sweep of
+//! of the plan's jerk at their breaks; only the next one's on a tick that
+//! entered a piece or q span) when they are not there yet, else, with no
+//! piece or q span entered, the cursors of the next piece and q span
+//! (entering them is then a copy, [`Interpolator::hold_seek`]), else,
+//! stopping, a new look-ahead sweep of
 //! the μ cap or one step of it (a point is five: its piece, its q span,
 //! the path's derivatives, the plan, the kinematics); the hold and resume
-//! requests compute the derivatives and the first period themselves. The
+//! requests compute the derivatives, the cursors and the first period
+//! themselves. The
 //! stall checks do not run on these ticks; held, the tick returns the same
 //! position with feed 0 and the clock advancing.
 //!
@@ -333,21 +337,24 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
     }
 
     /// The optional work of a control period's first tick, one item: the
-    /// start derivatives of the next piece, else of the one after it, when
-    /// they are not there yet (also on a tick that `entered` a piece or q
-    /// span: a break may come within the next period, whose preparation
-    /// would take them); else, on a tick that entered none, a new
-    /// look-ahead sweep when the last one is complete (its horizon from
-    /// the braking rate this period planned with and the plan's feed), or
-    /// the sweep's next step ([`Self::ahead_step`]).
-    fn ahead_work(&mut self, entered: bool, none: bool) {
+    /// start derivatives of the next piece, else (`only_next` false: the
+    /// tick entered no piece or q span) of the one after it, when they are
+    /// not there yet (also on a tick that `entered` a piece or q span or
+    /// relaxed: a break may come within the next period, whose preparation
+    /// would take them); else, on a tick that did neither, the next piece's
+    /// and q span's cursors ([`Self::fill_next_cursors`]) when they are
+    /// not there yet, else a new look-ahead sweep when the last one is
+    /// complete (its horizon from the braking rate this period planned
+    /// with and the plan's feed), or the sweep's next step
+    /// ([`Self::ahead_step`]).
+    fn ahead_work(&mut self, entered: bool, none: bool, only_next: bool) {
         if none {
             return;
         }
-        // (on a tick that entered a piece or q span, or relaxed, only the
-        // next piece's: the one after it waits for a quiet tick)
+        // (on a tick that entered a piece or q span, only the next piece's:
+        // the one after it waits for a tick that did not)
         let n1 = self.pc.idx.wrapping_add(1);
-        let ahead = if entered { 1 } else { 2 };
+        let ahead = if only_next { 1 } else { 2 };
         for idx in [n1, n1.wrapping_add(1)].into_iter().take(ahead) {
             if idx <= self.views.p_last && self.start_dr(idx).is_none() {
                 self.piece_start_derivs(idx);
@@ -537,7 +544,7 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         if !self.period_end() && quiet {
             // (on a period's first tick: the next period's preparation
             // takes it)
-            self.ahead_work(entered || !entered_ok, entered && !entered_ok);
+            self.ahead_work(entered || !entered_ok, entered && !entered_ok, entered);
         }
         let feed = self.fh.ctl.lambda_f32() * self.qs.v;
         self.emit(t_s, (fx_to_f64(s_new), s_new), tp, feed)
@@ -766,7 +773,8 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         let sp = self.place(t_s, (fx_to_f64(s_new), s_new), feed)?;
         // (the next pieces' start derivatives: the look-ahead is off here)
         if !self.period_end() && quiet {
-            self.ahead_work(self.pc.idx != pi || self.qc.idx != qi, false);
+            let entered = self.pc.idx != pi || self.qc.idx != qi;
+            self.ahead_work(entered, false, entered);
         }
         Ok(sp)
     }
