@@ -4,6 +4,7 @@
 use crate::feed_hold::constraints::{Ahead, HoldLimits, Kin};
 use crate::feed_hold::controller::{FeedHold, Prep};
 use crate::feed_hold::HoldState;
+use crate::interp::cursor::{PCur, QCur};
 use crate::limits::Limits;
 
 /// A hold requested within this many times the tangential stopping
@@ -52,6 +53,11 @@ pub(crate) struct HoldRun {
     /// at their breaks): computed ahead on a tick with nothing else
     /// optional to do, or by a hold or resume request.
     pub(crate) next_dr: [(usize, [[f32; 3]; 3]); 2],
+    /// The cursors of the piece and the q span after the current ones,
+    /// filled ahead on a tick with nothing else optional to do (for the
+    /// tick that enters them: a copy instead of reading the table then).
+    pub(crate) next_pc: Option<PCur>,
+    pub(crate) next_qc: Option<QCur>,
     /// The next control period's kinematics, computed on the tick before
     /// it or by a hold or resume request.
     pub(crate) prep: Prepared,
@@ -146,6 +152,8 @@ impl Default for HoldRun {
             reach: false,
             joined: Ahead::default(),
             next_dr: NO_DR,
+            next_pc: None,
+            next_qc: None,
             prep: Prepared::default(),
             brake: 0.0,
         }
@@ -187,6 +195,8 @@ impl HoldRun {
         self.reach = false;
         self.joined = Ahead::default();
         self.next_dr = NO_DR;
+        self.next_pc = None;
+        self.next_qc = None;
         self.prep.valid = false;
     }
 

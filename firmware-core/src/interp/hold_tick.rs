@@ -18,11 +18,15 @@
 //! from the same fixed-point piece polynomial as on the normal tick.
 //! A period's first tick then does one optional item (not after a
 //! relaxation): the start derivatives of the next two pieces (for the jump
-//! of the plan's jerk at their breaks) when they are not there yet, else,
-//! stopping and with no piece or q span entered, a new look-ahead sweep of
+//! of the plan's jerk at their breaks; only the next one's on a tick that
+//! entered a piece or q span) when they are not there yet, else, with no
+//! piece or q span entered, the cursors of the next piece and q span
+//! (entering them is then a copy, [`Interpolator::hold_seek`]), else,
+//! stopping, a new look-ahead sweep of
 //! the μ cap or one step of it (a point is five: its piece, its q span,
 //! the path's derivatives, the plan, the kinematics); the hold and resume
-//! requests compute the derivatives and the first period themselves. The
+//! requests compute the derivatives, the cursors and the first period
+//! themselves. The
 //! stall checks do not run on these ticks; held, the tick returns the same
 //! position with feed 0 and the clock advancing.
 //!
@@ -59,6 +63,7 @@ use crate::limits::EndSegments;
 use crate::math::source::F64Array;
 use crate::servo_forms::fixed::{f32_to_fx, f64_to_fixed, fx_small_f32, fx_to_f64, mul_hi, to_fx};
 use crate::servo_forms::piece::pos_derivs;
+use crate::servo_forms::q_span::QLocal;
 
 impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
     /// Request a feed hold: decelerate to rest on the path within the
@@ -83,6 +88,7 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
             _ => false,
         };
         self.next_piece_derivs();
+        self.fill_next_cursors();
         if running && near_end {
             self.fh.to_end = true;
         } else {
@@ -111,6 +117,7 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         self.hold_allowed()?;
         self.fh.to_end = false;
         self.next_piece_derivs();
+        self.fill_next_cursors();
         self.fh.ctl.resume();
         // (a resume plans without the stop's look-ahead)
         self.fh.sweep = None;
@@ -330,25 +337,31 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
     }
 
     /// The optional work of a control period's first tick, one item: the
-    /// start derivatives of the next piece, else of the one after it, when
-    /// they are not there yet (also on a tick that `entered` a piece or q
-    /// span: a break may come within the next period, whose preparation
-    /// would take them); else, on a tick that entered none, a new
-    /// look-ahead sweep when the last one is complete (its horizon from
-    /// the braking rate this period planned with and the plan's feed), or
-    /// the sweep's next step ([`Self::ahead_step`]).
-    fn ahead_work(&mut self, entered: bool, none: bool) {
+    /// start derivatives of the next piece, else (`only_next` false: the
+    /// tick entered no piece or q span) of the one after it, when they are
+    /// not there yet (also on a tick that `entered` a piece or q span or
+    /// relaxed: a break may come within the next period, whose preparation
+    /// would take them); else, on a tick that did neither, the next piece's
+    /// and q span's cursors ([`Self::fill_next_cursors`]) when they are
+    /// not there yet, else a new look-ahead sweep when the last one is
+    /// complete (its horizon from the braking rate this period planned
+    /// with and the plan's feed), or the sweep's next step
+    /// ([`Self::ahead_step`]).
+    fn ahead_work(&mut self, entered: bool, none: bool, only_next: bool) {
         if none {
             return;
         }
+        // (on a tick that entered a piece or q span, only the next piece's:
+        // the one after it waits for a tick that did not)
         let n1 = self.pc.idx.wrapping_add(1);
-        for idx in [n1, n1.wrapping_add(1)] {
+        let ahead = if only_next { 1 } else { 2 };
+        for idx in [n1, n1.wrapping_add(1)].into_iter().take(ahead) {
             if idx <= self.views.p_last && self.start_dr(idx).is_none() {
                 self.piece_start_derivs(idx);
                 return;
             }
         }
-        if entered {
+        if entered || self.fill_next_cursors() {
             return;
         }
         if self.fh.ctl.state() != HoldState::Stopping || self.fh.seg_tau.is_some() {
@@ -365,6 +378,61 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         // (a new sweep: nothing of it yet)
         self.fh.joined = self.fh.ahead;
         self.fh.sweep = Some(self.start_sweep(self.s, self.sweep_len(self.fh.brake, self.qs.v)));
+    }
+
+    /// The cursors of the next piece and the next q span into
+    /// [`HoldRun::next_pc`] and [`HoldRun::next_qc`] when they are not
+    /// there yet (not for a q span where an override may splice: its
+    /// entry reads the override's forms); whether there was anything to do.
+    fn fill_next_cursors(&mut self) -> bool {
+        let v = &self.views;
+        let fh = &mut self.fh;
+        let mut did = false;
+        let n = self.pc.idx.wrapping_add(1);
+        let start = self.pc.next;
+        if self.pc.idx < v.p_last && !matches!(&fh.next_pc, Some(p) if p.idx == n && p.start == start) {
+            let pc = fh.next_pc.get_or_insert_with(PCur::default);
+            if v.fill_piece(pc, n, start).is_none() {
+                fh.next_pc = None;
+            }
+            did = true;
+        }
+        let n = self.qc.idx.wrapping_add(1);
+        let start = self.qc.next;
+        if self.qc.idx < v.q_last
+            && n.wrapping_sub(self.ov.lo) >= self.ov.n
+            && !matches!(&fh.next_qc, Some(q) if q.idx == n && q.start == start)
+        {
+            let qc = fh.next_qc.get_or_insert_with(QCur::default);
+            if v.fill_q(qc, n, start).is_none() {
+                fh.next_qc = None;
+            }
+            did = true;
+        }
+        did
+    }
+
+    /// [`Self::seek`] for the hold ticks: a piece or q span entered from
+    /// the cursors filled ahead ([`Self::fill_next_cursors`]) where they
+    /// are there (the same cursors reading the table would give), the rest
+    /// as [`Self::seek`] does.
+    fn hold_seek(&mut self, s: i64) -> Option<(f32, f32, QLocal)> {
+        if s >= self.pc.next && self.pc.idx < self.views.p_last {
+            if let Some(p) = self.fh.next_pc.take() {
+                if p.idx == self.pc.idx.wrapping_add(1) && p.start == self.pc.next {
+                    self.pc = p;
+                }
+            }
+        }
+        if s >= self.qc.next && self.qc.idx < self.views.q_last {
+            if let Some(q) = self.fh.next_qc.take() {
+                let n = self.qc.idx.wrapping_add(1);
+                if q.idx == n && q.start == self.qc.next && n.wrapping_sub(self.ov.lo) >= self.ov.n {
+                    self.qc = q;
+                }
+            }
+        }
+        self.seek(s)
     }
 
     /// One step ([`AHEAD_PER_TICK`]) of the look-ahead sweep in progress
@@ -465,7 +533,7 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         }
         let guess = self.qs.v;
         let (pi, qi) = (self.pc.idx, self.qc.idx);
-        let Some((tp, tq, poly)) = self.seek(s_new) else {
+        let Some((tp, tq, poly)) = self.hold_seek(s_new) else {
             return self.fault(Fault::Eval {
                 s_mm: fx_to_f64(s_new),
             });
@@ -476,7 +544,7 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         if !self.period_end() && quiet {
             // (on a period's first tick: the next period's preparation
             // takes it)
-            self.ahead_work(entered || !entered_ok, entered && !entered_ok);
+            self.ahead_work(entered || !entered_ok, entered && !entered_ok, entered);
         }
         let feed = self.fh.ctl.lambda_f32() * self.qs.v;
         self.emit(t_s, (fx_to_f64(s_new), s_new), tp, feed)
@@ -697,10 +765,16 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         let t1 = tau_f32(tau1);
         let feed = self.fh.ctl.lambda_f32() * 0.5 * (j2 as f32) * t1 * t1;
         let (pi, qi) = (self.pc.idx, self.qc.idx);
+        if self.hold_seek(s_new).is_none() {
+            return self.fault(Fault::Eval {
+                s_mm: fx_to_f64(s_new),
+            });
+        }
         let sp = self.place(t_s, (fx_to_f64(s_new), s_new), feed)?;
         // (the next pieces' start derivatives: the look-ahead is off here)
         if !self.period_end() && quiet {
-            self.ahead_work(self.pc.idx != pi || self.qc.idx != qi, false);
+            let entered = self.pc.idx != pi || self.qc.idx != qi;
+            self.ahead_work(entered, false, entered);
         }
         Ok(sp)
     }
