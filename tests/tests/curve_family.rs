@@ -294,20 +294,44 @@ const REGRESSIONS: [(usize, usize, f64); 5] = [
 /// 0.2 % through the s → u map).
 const PLAN_DENSE: f64 = 1.002;
 
+/// Curve `index` of the seed, the sampling `sampling` of the sweep's list,
+/// and the run's name.
+fn regression_case(
+    index: usize,
+    sampling: usize,
+    density: f64,
+) -> (
+    e2e_tests::curve_family::Case,
+    &'static str,
+    planner_host::sampling::Sampling,
+    String,
+) {
+    let case = generate(SEED, index);
+    let (label, sampling) = sweep::samplings()[sampling];
+    let name = format!("{} {label} {density}", case.curve.name);
+    (case, label, sampling, name)
+}
+
+/// The default plan of `case` at a sampling and density.
+fn plan_at(
+    case: &e2e_tests::curve_family::Case,
+    sampling: planner_host::sampling::Sampling,
+    density: f64,
+) -> Result<planner_host::plan::PlanOutput, planner_host::plan::PlanError> {
+    let cfg = planner_host::plan::PlanConfig {
+        sampling,
+        density_per_mm: density,
+        ..planner_host::plan::PlanConfig::default()
+    };
+    planner_host::plan::plan_curve(&case.curve, &cfg)
+}
+
 #[test]
 fn runs_that_exceeded_or_stalled_now_hold_every_limit() {
-    use planner_host::plan::{plan_curve, PlanConfig};
     let mut bad = Vec::new();
     for (index, sampling, density) in REGRESSIONS {
-        let case = generate(SEED, index);
-        let (label, sampling) = sweep::samplings()[sampling];
-        let name = format!("{} {label} {density}", case.curve.name);
-        let cfg = PlanConfig {
-            sampling,
-            density_per_mm: density,
-            ..PlanConfig::default()
-        };
-        let plan = match plan_curve(&case.curve, &cfg) {
+        let (case, label, sampling, name) = regression_case(index, sampling, density);
+        let plan = match plan_at(&case, sampling, density) {
             Ok(p) => p,
             Err(e) => {
                 bad.push(format!("{name}: {e}"));
@@ -358,18 +382,11 @@ const CAP_REGRESSIONS: [(usize, usize, f64); 3] = [(191, 2, 0.5), (163, 1, 2.0),
 #[test]
 fn plans_hold_the_caps_at_curvature_jumps() {
     use planner_host::lp::BasisRow;
-    use planner_host::plan::{plan_curve, PlanConfig};
+
     let mut bad = Vec::new();
     for (index, sampling, density) in CAP_REGRESSIONS {
-        let case = generate(SEED, index);
-        let (label, sampling) = sweep::samplings()[sampling];
-        let name = format!("{} {label} {density}", case.curve.name);
-        let cfg = PlanConfig {
-            sampling,
-            density_per_mm: density,
-            ..PlanConfig::default()
-        };
-        let plan = match plan_curve(&case.curve, &cfg) {
+        let (case, label, sampling, name) = regression_case(index, sampling, density);
+        let plan = match plan_at(&case, sampling, density) {
             Ok(p) => p,
             Err(e) => {
                 bad.push(format!("{name}: {e}"));

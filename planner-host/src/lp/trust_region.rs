@@ -782,16 +782,19 @@ fn solve_with(
         let mut retries = 0;
         let mut retry_its = 0;
         let mut broken: Option<crate::lp::problem::LpSolution> = None;
-        let sol = loop {
-            let sol = lp.solve_rows(
+        let solve = |rows: &[Row], warm: Option<&[f64]>| {
+            lp.solve_rows(
                 Stage::Linearised,
-                &rows,
+                rows,
                 Some(&upper),
                 &weights,
                 t0,
-                warm.as_deref(),
+                warm,
                 win.as_ref().map(|w| w.fixed),
-            );
+            )
+        };
+        let sol = loop {
+            let sol = solve(&rows, warm.as_deref());
             // an LP the lower trust region made infeasible may also come back
             // with a point that violates its rows (the interior-point solver
             // returns its last near-optimal point when it stalls): as infeasible
@@ -809,15 +812,7 @@ fn solve_with(
                 Err(_) if rows.len() > n_upper_rows => {
                     // the lower trust region made the LP infeasible: without it
                     rows.truncate(n_upper_rows);
-                    lp.solve_rows(
-                        Stage::Linearised,
-                        &rows,
-                        Some(&upper),
-                        &weights,
-                        t0,
-                        warm.as_deref(),
-                        win.as_ref().map(|w| w.fixed),
-                    )
+                    solve(&rows, warm.as_deref())
                 }
                 other => other,
             };
