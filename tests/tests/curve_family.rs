@@ -326,6 +326,27 @@ fn plan_at(
     planner_host::plan::plan_curve(&case.curve, &cfg)
 }
 
+/// Run `case` through the firmware and note every setpoint ratio above
+/// 1 + [`TOL`] (with the sweep's rest padding), or the run's error.
+fn check_setpoints(
+    case: &e2e_tests::curve_family::Case,
+    sampling: (&'static str, planner_host::sampling::Sampling),
+    density: f64,
+    name: &str,
+    bad: &mut Vec<String>,
+) {
+    match &sweep::run(case, sampling, density).result {
+        Ok(m) => {
+            for (k, p) in KINDS.iter().zip(m.setpoints()) {
+                if above(p.ratio, 1.0 + TOL) {
+                    bad.push(format!("{name}: setpoint {k} ratio {:.5}", p.ratio));
+                }
+            }
+        }
+        Err(e) => bad.push(format!("{name}: {e}")),
+    }
+}
+
 #[test]
 fn runs_that_exceeded_or_stalled_now_hold_every_limit() {
     let mut bad = Vec::new();
@@ -347,17 +368,7 @@ fn runs_that_exceeded_or_stalled_now_hold_every_limit() {
                 ));
             }
         }
-        let run = sweep::run(&case, (label, sampling), density);
-        match &run.result {
-            Ok(m) => {
-                for (k, p) in KINDS.iter().zip(m.setpoints()) {
-                    if above(p.ratio, 1.0 + TOL) {
-                        bad.push(format!("{name}: setpoint {k} ratio {:.5}", p.ratio));
-                    }
-                }
-            }
-            Err(e) => bad.push(format!("{name}: {e}")),
-        }
+        check_setpoints(&case, (label, sampling), density, &name, &mut bad);
     }
     assert!(bad.is_empty(), "{}", bad.join("\n"));
 }
@@ -407,17 +418,7 @@ fn plans_hold_the_caps_at_curvature_jumps() {
                 ));
             }
         }
-        let run = sweep::run(&case, (label, sampling), density);
-        match &run.result {
-            Ok(m) => {
-                for (k, p) in KINDS.iter().zip(m.setpoints()) {
-                    if above(p.ratio, 1.0 + TOL) {
-                        bad.push(format!("{name}: setpoint {k} ratio {:.5}", p.ratio));
-                    }
-                }
-            }
-            Err(e) => bad.push(format!("{name}: {e}")),
-        }
+        check_setpoints(&case, (label, sampling), density, &name, &mut bad);
     }
     assert!(bad.is_empty(), "{}", bad.join("\n"));
 }
