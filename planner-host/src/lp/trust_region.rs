@@ -52,6 +52,12 @@
 //! curvature caps, where the time weights below are floored and blind to it),
 //! every later LP keeps q ≥ [`FLOOR_KEEP`]·q_k at the knots.
 //!
+//! **Refinement rounds** ([`crate::plan`]) add forced check points where
+//! a dense re-evaluation of the accepted plan q* exceeds a limit; the
+//! sequence then goes on from q* (`solve_from`): its first LP linearised at
+//! q̄ = q*, with every row it had taken in, and done at its first accepted
+//! iterate within `stop_rel` of q*'s time.
+//!
 //! **Objective.** Either ∫q ds (eq. 7, `c_i = ∫N_i`) or the linearised
 //! machining time: T = ∫ q^{-1/2} ds has gradient −½∫N_i q_k^{-3/2} ds, so
 //! the LP maximises Σ_i a_i ∫ N_i q_k^{-3/2} ds (q_k floored at
@@ -164,6 +170,33 @@ pub struct CertifiedPlan {
     pub check: Ratios,
     /// Which LP (0-based) gave `ctrl`.
     pub chosen: usize,
+    /// The state of the sequence after its last LP, from which a
+    /// refinement round goes on ([`Restart`]).
+    pub(crate) state: SequenceState,
+}
+
+/// What a sequence had built up by its last LP: the row masks of its check
+/// points (bit 2k: +row of the k-th limit, 2k + 1: −row, 16: q ≤ q̄), whether
+/// the lower trust region was on, the margins of the caps at the curvature
+/// jumps, and the machining time of the plan it chose.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct SequenceState {
+    pub(crate) mask: Vec<u32>,
+    pub(crate) keep_floor: bool,
+    pub(crate) cap_margin: Vec<f64>,
+    pub(crate) time_s: f64,
+}
+
+/// Where a refinement round's sequence starts ([`solve_from`]): the plan
+/// the round before accepted, on the same knots, and the state of the
+/// sequence that gave it, its masks carried over to the round's check
+/// points (the old ones and the forced points added, which start at 0).
+#[derive(Debug, Clone)]
+pub(crate) struct Restart {
+    /// Control points of the accepted plan.
+    pub(crate) ctrl: Vec<f64>,
+    /// The sequence's state, `mask` one entry per check point of the round.
+    pub(crate) state: SequenceState,
 }
 
 /// `lp` with its tolerances relaxed to [`LP_TOL`]: every iterate is checked
@@ -200,6 +233,24 @@ fn values(lp: &FeedLp, p: &EvalPoint, qmax: f64, ctrl: &[f64]) -> [f64; 9] {
 }
 
 const Q_ROW: u32 = 1 << 16;
+
+/// The rows of a check point whose exact values `v` ([`values`], the jerks
+/// divided by their share) exceed `activity` of their limit: bits of the
+/// row mask (see `solve_with`).
+fn active_rows(v: &[f64; 9], activity: f64) -> u32 {
+    let mut m = 0;
+    for (k, x) in v[1..].iter().enumerate() {
+        if *x > activity {
+            m |= 1 << (2 * k);
+        } else if -*x > activity {
+            m |= 2 << (2 * k);
+        }
+    }
+    if v[0] > activity * activity {
+        m |= Q_ROW;
+    }
+    m
+}
 /// Rows every knot carries from the start: q ≤ q̄ and ±(14), ±(15) (bits 8–15).
 /// The acceleration rows enter by activity like everywhere else (on the
 /// Butterfly they never bind at a knot: the same plans with 29 % fewer rows).
@@ -420,7 +471,34 @@ pub fn solve(
     cfg: &CertifiedConfig,
     q_floor: f64,
 ) -> Result<CertifiedPlan, LpError> {
-    solve_with(lp, is_knot, caps, cfg, None, q_floor)
+    solve_with(lp, is_knot, caps, cfg, None, None, q_floor)
+}
+
+/// [`solve`] for a refinement round, from the plan the round before
+/// accepted (`start`) instead of from the static caps.
+///
+/// The round has added forced check points where that plan broke a limit
+/// between the old ones; everywhere else it held them. So the first LP is
+/// linearised at the accepted plan itself (q̄ = q*, every row the sequence
+/// had taken in kept, the rows active at q* added, the forced points with
+/// their knot rows): its solution holds (10)/(13) wherever it has rows, as
+/// any iterate of the sequence does, and lowers q* only where the new rows
+/// ask. The next LPs grow the trust region by ρ_min, as the sequence did at
+/// its end. The round stops at its first accepted iterate whose time is
+/// within `stop_rel` of the accepted plan's (or better): the cutting planes
+/// cost that little, and a sequence started afresh from the static caps
+/// (what a round used to run: 16 LPs on the 10,000-chord surfacing path,
+/// 11 before) ends within the same margin of it. Otherwise the usual rules
+/// of the sequence apply.
+pub(crate) fn solve_from(
+    lp: &FeedLp,
+    is_knot: &[bool],
+    caps: &[JumpCap],
+    cfg: &CertifiedConfig,
+    start: &Restart,
+    q_floor: f64,
+) -> Result<CertifiedPlan, LpError> {
+    solve_with(lp, is_knot, caps, cfg, None, Some(start), q_floor)
 }
 
 /// The window of [`solve_window`]: fixed control points and the first
@@ -532,6 +610,7 @@ pub fn solve_window(
             qbar0,
             free_weight,
         }),
+        None,
         0.0,
     )?;
     plan.lps.insert(0, pseudo.stats);
@@ -555,6 +634,7 @@ fn solve_with(
     caps: &[JumpCap],
     cfg: &CertifiedConfig,
     win: Option<Window>,
+    start: Option<&Restart>,
     q_floor: f64,
 ) -> Result<CertifiedPlan, LpError> {
     let relaxed = relaxed(lp);
@@ -613,6 +693,36 @@ fn solve_with(
     let mut rows: Vec<Row> = Vec::new();
     let mut last_ctrl: Vec<f64> = Vec::new();
     let mut warm: Option<Vec<f64>> = None;
+    // A refinement round (`solve_from`): linearised at the accepted plan q*
+    // itself, its rows kept, the rows active at q* added; then ρ_min.
+    let mut reference_time = None;
+    if let Some(st) = start {
+        let q_star: Vec<f64> = pts.iter().map(|p| p.basis.apply(0, &st.ctrl).max(0.0)).collect();
+        for (i, p) in pts.iter().enumerate() {
+            mask[i] |= st.state.mask.get(i).copied().unwrap_or(0);
+            if !executed[i] {
+                continue;
+            }
+            let mut v = values(lp, p, qmax[i], &st.ctrl);
+            for x in v[5..8].iter_mut() {
+                *x /= jerk_share[i].0;
+            }
+            v[8] /= jerk_share[i].1;
+            mask[i] |= active_rows(&v, cfg.activity);
+            // where q* vanishes (a step at an end) the next trust region's δ
+            let delta = cfg.rho_min * 0.05 * qmax[i];
+            qbar[i] = qmax[i].min(if q_star[i] > 0.0 { q_star[i] } else { delta });
+        }
+        if st.state.cap_margin.len() == cap_margin.len() {
+            cap_margin.clone_from(&st.state.cap_margin);
+        }
+        keep_floor = st.state.keep_floor;
+        rho = cfg.rho_min;
+        qk = Some(q_star);
+        last_ctrl.clone_from(&st.ctrl);
+        warm = Some(st.ctrl.clone());
+        reference_time = Some(st.state.time_s);
+    }
     // Up to max_lps LPs; if none of them held every limit yet, or the last
     // one missed the check but was faster than the best by more than
     // UNSETTLED (see there), up to three times as many; if none held every
@@ -864,16 +974,7 @@ fn solve_with(
             }
             v[8] /= jerk_share[i].1;
             q_now[i] = v[0] * qmax[i];
-            for (k, x) in v[1..].iter().enumerate() {
-                if *x > cfg.activity {
-                    mask[i] |= 1 << (2 * k);
-                } else if -*x > cfg.activity {
-                    mask[i] |= 2 << (2 * k);
-                }
-            }
-            if v[0] > cfg.activity * cfg.activity {
-                mask[i] |= Q_ROW;
-            }
+            mask[i] |= active_rows(&v, cfg.activity);
             let sq = q_now[i].sqrt();
             let r = Ratios {
                 vel: (0..3).fold(0.0, |m: f64, k| m.max((p.geo.d1[k] * sq).abs() / lim.v[k])),
@@ -931,6 +1032,9 @@ fn solve_with(
             // its trust region need not shrink to ρ_min first (half the LPs,
             // window times within ~0.1 % on the Butterfly)
             done = gain < cfg.stop_rel && (win.is_some() || rho <= cfg.rho_min * 1.0001);
+            // a refinement round: done at the first accepted iterate within
+            // stop_rel of the plan it started from (see `solve_from`)
+            done |= reference_time.is_some_and(|r| t <= r * (1.0 + cfg.stop_rel));
         }
         if done {
             break;
@@ -954,11 +1058,17 @@ fn solve_with(
         rho = (rho * cfg.rho_shrink).max(cfg.rho_min);
     }
     match best {
-        Some((_, ctrl, check, chosen)) => Ok(CertifiedPlan {
+        Some((time_s, ctrl, check, chosen)) => Ok(CertifiedPlan {
             ctrl,
             lps,
             check,
             chosen,
+            state: SequenceState {
+                mask,
+                keep_floor,
+                cap_margin,
+                time_s,
+            },
         }),
         None => Err(LpError {
             stage: Stage::Linearised,

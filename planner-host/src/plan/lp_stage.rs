@@ -8,7 +8,12 @@
 //! in u per knot span of the toolpath, and bisected where the static caps of
 //! (8)–(10) change fast; each point that exceeds a limit by more than
 //! [`REFINE_TRIGGER`] joins the check points (rows (9)–(15) at it) together
-//! with the peak of the excess beside it.
+//! with the peak of the excess beside it, and the certified sequence goes on
+//! from the plan it accepted ([`crate::lp::trust_region`]'s `solve_from`):
+//! its first LP linearised at that plan, its rows kept, so that a round
+//! costs an LP or two where a sequence started afresh cost eight or more
+//! (16 of the 27 LPs of the 10,000-chord surfacing program). Each later
+//! round re-evaluates the plan beside the points the rounds added, too.
 
 use firmware_core::{EndSegments, Limits};
 
@@ -51,6 +56,9 @@ pub const REFINE_ROUNDS: usize = 4;
 pub const GEO_STEP: f64 = 1.25;
 /// Most bisection levels between two neighbouring re-evaluation points.
 pub const GEO_DEPTH: usize = 8;
+/// Intervals into which the gaps either side of a point a refinement round
+/// added are split for its re-evaluation (`LpStage::beside_cuts`).
+pub const CUT_SPLITS: usize = 4;
 /// Evaluations of the peak search ([`peak`]) around each re-evaluation
 /// point that exceeds a limit.
 pub const PEAK_EVALS: usize = 24;
@@ -213,8 +221,8 @@ impl LpStage<'_> {
     }
 
     /// The point of largest excess (`trust_region::excess`) of the plan
-    /// `ctrl` between the re-evaluation points `dense[i − 1]` and
-    /// `dense[i + 1]`: a grid of 9 points, then a golden-section search on the
+    /// `ctrl` between `a` and `b` (the re-evaluation points either side of
+    /// one that exceeds a limit): a grid of 9 points, then a golden-section search on the
     /// bracket around the best of them, PEAK_EVALS evaluations in all. A
     /// narrow spike of the ratio lies between two re-evaluation points; the
     /// check point goes onto its peak, not onto a grid point beside it.
@@ -223,11 +231,9 @@ impl LpStage<'_> {
         lp: &FeedLp,
         ctrl: &[f64],
         caps: &[crate::lp::JumpCap],
-        dense: &[EvalPoint],
-        i: usize,
+        a: f64,
+        b: f64,
     ) -> Option<EvalPoint> {
-        let a = dense[i.saturating_sub(1)].s;
-        let b = dense[(i + 1).min(dense.len() - 1)].s;
         if b <= a {
             return None;
         }
@@ -270,6 +276,38 @@ impl LpStage<'_> {
             }
         }
         best.1
+    }
+
+    /// Re-evaluation points beside the check points a refinement round
+    /// added (`added`): CUT_SPLITS − 1 evenly spaced between each and its
+    /// neighbours among the check points `pts`, each with the bracket (its
+    /// two neighbours' s) in which [`LpStage::peak`] searches. A round
+    /// starts from the plan before it (`trust_region::solve_from`), whose
+    /// rows at a cut pull q down there and may bend it up beside the cut,
+    /// closer than the dense grid's spacing (fam1_184_weights PAR 0.5: the
+    /// jerk 1.0038 × J 6 µm from a cut, between the grid's points).
+    fn beside_cuts(&self, pts: &[EvalPoint], added: &[bool]) -> (Vec<EvalPoint>, Vec<(f64, f64)>) {
+        let mut gaps: Vec<(f64, f64)> = Vec::new();
+        for i in (0..pts.len()).filter(|&i| added[i]) {
+            if i > 0 {
+                gaps.push((pts[i - 1].s, pts[i].s));
+            }
+            if i + 1 < pts.len() {
+                gaps.push((pts[i].s, pts[i + 1].s));
+            }
+        }
+        gaps.dedup();
+        let mut near = Vec::new();
+        let mut brackets = Vec::new();
+        for (a, b) in gaps.into_iter().filter(|(a, b)| b > a) {
+            for k in 1..CUT_SPLITS {
+                if let Some(p) = self.eval(a + (b - a) * k as f64 / CUT_SPLITS as f64) {
+                    near.push(p);
+                    brackets.push((a, b));
+                }
+            }
+        }
+        (near, brackets)
     }
 
     pub(crate) fn eval(&self, s: f64) -> Option<EvalPoint> {
@@ -334,7 +372,9 @@ impl LpStage<'_> {
                 // REFINE_PER_SPAN points per knot span; where it exceeds a limit by
                 // more than REFINE_TRIGGER (narrow curvature spikes, fast changes
                 // of q between check points) those points join the check points
-                // with every row, and the sequence runs again.
+                // with every row, and the sequence goes on from the plan it
+                // accepted (`trust_region::solve_from`); the next round also
+                // re-evaluates beside each such cut (`LpStage::beside_cuts`).
                 // the re-evaluation points, and four in each jump's reach
                 // (its ends and midpoints), where the continuous jerk is held
                 // to (1 − β)·J (`trust_region::jump_cap`): a check point joins
@@ -367,6 +407,10 @@ impl LpStage<'_> {
                     Refine::Level { rounds } => (rounds, rounds + REFINE_ROUNDS),
                 };
                 let first_round = round;
+                // a refinement round starts from the plan the round before accepted
+                let mut restart: Option<trust_region::Restart> = None;
+                // which check points a round added
+                let mut added = vec![false; pts.len()];
                 loop {
                     let lp = FeedLp {
                         points: &pts,
@@ -378,25 +422,57 @@ impl LpStage<'_> {
                         max_lps: cfg.certified.max_lps * (1 + round),
                         ..cfg.certified
                     };
-                    let c = trust_region::solve(&lp, &forced, &caps, &ccfg, q_floor)?;
+                    let c = match &restart {
+                        None => trust_region::solve(&lp, &forced, &caps, &ccfg, q_floor)?,
+                        Some(r) => trust_region::solve_from(&lp, &forced, &caps, &ccfg, r, q_floor)?,
+                    };
                     lps.extend(c.lps);
                     let bad = trust_region::violations(&lp, &c.ctrl, dense, &caps, REFINE_TRIGGER);
-                    if bad.is_empty() || round == last_round {
+                    // and beside the points the rounds forced: with rows at a
+                    // cut, q may bend between it and its neighbours
+                    let (near, brackets) = self.beside_cuts(&pts, &added);
+                    let bad_near = trust_region::violations(&lp, &c.ctrl, &near, &caps, REFINE_TRIGGER);
+                    if (bad.is_empty() && bad_near.is_empty()) || round == last_round {
                         let rounds = round - first_round;
                         break (c.ctrl, Vec::new(), lps, Some(c.check), pts, forced, rounds);
                     }
                     // the peak of the excess next to each, found by a finer search
+                    let at = |i: usize| dense[i.min(dense.len() - 1)].s;
                     let peaks: Vec<EvalPoint> = bad
                         .iter()
-                        .filter_map(|&i| self.peak(&lp, &c.ctrl, &caps, dense, i))
+                        .map(|&i| (at(i.saturating_sub(1)), at(i + 1)))
+                        .chain(bad_near.iter().map(|&i| brackets[i]))
+                        .filter_map(|(a, b)| self.peak(&lp, &c.ctrl, &caps, a, b))
                         .collect();
                     round += 1;
-                    let mut merged: Vec<(EvalPoint, bool)> = pts.drain(..).zip(forced.drain(..)).collect();
-                    merged.extend(bad.iter().map(|&i| (dense[i], true)));
-                    merged.extend(peaks.into_iter().map(|p| (p, true)));
+                    // the old points keep their row masks, the new ones are forced
+                    let mut state = c.state;
+                    let mut merged: Vec<(EvalPoint, bool, u32, bool)> = pts
+                        .drain(..)
+                        .zip(forced.drain(..))
+                        .zip(state.mask.drain(..))
+                        .zip(added.drain(..))
+                        .map(|(((p, f), m), a)| (p, f, m, a))
+                        .collect();
+                    merged.extend(bad.iter().map(|&i| (dense[i], true, 0, true)));
+                    merged.extend(bad_near.iter().map(|&i| (near[i], true, 0, true)));
+                    merged.extend(peaks.into_iter().map(|p| (p, true, 0, true)));
                     merged.sort_by(|a, b| a.0.s.total_cmp(&b.0.s));
-                    merged.dedup_by(|a, b| a.0.s == b.0.s);
-                    (pts, forced) = merged.into_iter().unzip();
+                    // a new point on an old one forces it
+                    merged.dedup_by(|a, b| {
+                        let same = a.0.s == b.0.s;
+                        if same {
+                            b.1 |= a.1;
+                            b.2 |= a.2;
+                            b.3 |= a.3;
+                        }
+                        same
+                    });
+                    pts = merged.iter().map(|m| m.0).collect();
+                    forced = merged.iter().map(|m| m.1).collect();
+                    state.mask = merged.iter().map(|m| m.2).collect();
+                    added = merged.iter().map(|m| m.3).collect();
+                    restart = Some(trust_region::Restart { ctrl: c.ctrl, state });
                 }
             }
         };
