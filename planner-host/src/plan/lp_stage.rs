@@ -15,7 +15,10 @@
 //! (16 of the 27 LPs of the 10,000-chord surfacing program). Each later
 //! round re-evaluates the plan beside the points the rounds added, too.
 
+use std::borrow::Cow;
+
 use firmware_core::{EndSegments, Limits};
+use rayon::prelude::*;
 
 use crate::geometry::arc_length::{path_derivs_at, ArcLength};
 use crate::geometry::curve::Nurbs;
@@ -147,42 +150,56 @@ impl LpStage<'_> {
         self.dense.get_or_init(|| {
             let (curve, arc) = (self.curve, self.arc);
             let (lo, hi) = (self.knots[0], self.knots[self.knots.len() - 1]);
-            let mut v: Vec<EvalPoint> = self
+            // evaluated in parallel (rayon keeps the order: the same points
+            // whatever the threads)
+            let spans: Vec<(f64, f64)> = self
                 .knots
                 .windows(2)
                 .filter(|w| w[1] > w[0])
-                .flat_map(|w| {
-                    let even = |n: usize| (1..n).map(move |k| w[0] + (w[1] - w[0]) * k as f64 / n as f64);
-                    even(REFINE_PER_SPAN).chain(even(REPORT_PER_SPAN))
-                })
-                .filter_map(|s| self.eval(s))
+                .map(|w| (w[0], w[1]))
                 .collect();
-            for sp in arc.spans() {
-                for k in 1..REFINE_PER_CURVE_SPAN {
-                    let u = sp.u0 + (sp.u1 - sp.u0) * k as f64 / REFINE_PER_CURVE_SPAN as f64;
-                    let s = arc.s_of_u(u);
-                    if s <= lo || s >= hi {
-                        continue;
-                    }
-                    if let Some(basis) = BasisRow::at(self.knots, s) {
-                        v.push(EvalPoint {
+            let mut v: Vec<EvalPoint> = spans
+                .par_iter()
+                .flat_map_iter(|&(a, b)| {
+                    let even = move |n: usize| (1..n).map(move |k| a + (b - a) * k as f64 / n as f64);
+                    even(REFINE_PER_SPAN)
+                        .chain(even(REPORT_PER_SPAN))
+                        .filter_map(|s| self.eval(s))
+                })
+                .collect();
+            let in_u: Vec<EvalPoint> = arc
+                .spans()
+                .par_iter()
+                .flat_map_iter(|sp| {
+                    (1..REFINE_PER_CURVE_SPAN).filter_map(move |k| {
+                        let u = sp.u0 + (sp.u1 - sp.u0) * k as f64 / REFINE_PER_CURVE_SPAN as f64;
+                        let s = arc.s_of_u(u);
+                        if s <= lo || s >= hi {
+                            return None;
+                        }
+                        Some(EvalPoint {
                             s,
                             geo: arc.derivs_s(curve, u),
-                            basis,
-                        });
-                    }
-                }
-            }
+                            basis: BasisRow::at(self.knots, s)?,
+                        })
+                    })
+                })
+                .collect();
+            v.extend(in_u);
             v.sort_by(|a, b| a.s.total_cmp(&b.s));
             v.dedup_by(|a, b| a.s == b.s);
             // where the geometry changes fast between two neighbours, bisect
             let lim = &self.cfg.limits;
             let cap = |p: &EvalPoint| crate::lp::trust_region::static_cap(lim, &p.geo);
-            let mut out = Vec::with_capacity(v.len());
-            for w in v.windows(2) {
-                out.push(w[0]);
-                self.bisect_fast(&w[0], cap(&w[0]), &w[1], cap(&w[1]), 0, &cap, &mut out);
-            }
+            let caps: Vec<f64> = v.par_iter().map(cap).collect();
+            let mut out: Vec<EvalPoint> = (0..v.len().saturating_sub(1))
+                .into_par_iter()
+                .flat_map_iter(|i| {
+                    let mut o = vec![v[i]];
+                    self.bisect_fast(&v[i], caps[i], &v[i + 1], caps[i + 1], 0, &cap, &mut o);
+                    o
+                })
+                .collect();
             out.extend(v.last().copied());
             out
         })
@@ -379,7 +396,20 @@ impl LpStage<'_> {
                 // (its ends and midpoints), where the continuous jerk is held
                 // to (1 − β)·J (`trust_region::jump_cap`): a check point joins
                 // only where a plan breaks that there
-                let mut dense: Vec<EvalPoint> = self.dense().to_vec();
+                let dense_with_caps = || -> Cow<'_, [EvalPoint]> {
+                    if caps.is_empty() {
+                        return Cow::Borrowed(self.dense());
+                    }
+                    let mut dense = self.dense().to_vec();
+                    dense.extend(
+                        caps.iter()
+                            .flat_map(|&(s, _, r)| [s - r, s - 0.5 * r, s + 0.5 * r, s + r])
+                            .filter_map(|s| self.eval(s)),
+                    );
+                    dense.sort_by(|a, b| a.s.total_cmp(&b.s));
+                    dense.dedup_by(|a, b| a.s == b.s);
+                    Cow::Owned(dense)
+                };
                 // the stall floor of `find_stall_between`: with end segments q
                 // must not fall below it between the joins, and no iterate
                 // that does is accepted (with a step at the ends q vanishes
@@ -388,18 +418,6 @@ impl LpStage<'_> {
                     Some(_) => crate::plan::stall::stall_floors(limits, self.length).1,
                     None => 0.0,
                 };
-                if !caps.is_empty() {
-                    dense.extend(
-                        caps.iter()
-                            .flat_map(|&(s, _, r)| [s - r, s - 0.5 * r, s + 0.5 * r, s + r])
-                            .filter_map(|s| self.eval(s)),
-                    );
-                    dense.sort_by(|a, b| a.s.total_cmp(&b.s));
-                    dense.dedup_by(|a, b| a.s == b.s);
-                }
-                let dense = &dense[..];
-                let (mut pts, mut forced) = (points.clone(), is_knot.clone());
-                let mut lps = Vec::new();
                 // the round counter sets the LP budget; a level starts at the
                 // base's last round and may run REFINE_ROUNDS more
                 let (mut round, last_round) = match refine {
@@ -407,6 +425,21 @@ impl LpStage<'_> {
                     Refine::Level { rounds } => (rounds, rounds + REFINE_ROUNDS),
                 };
                 let first_round = round;
+                // a refinement round may need more LPs to reach an iterate
+                // that holds every limit at the added points
+                let ccfg = |round: usize| CertifiedConfig {
+                    max_lps: cfg.certified.max_lps * (1 + round),
+                    ..cfg.certified
+                };
+                // the first sequence needs no re-evaluation points: they are
+                // built on the other thread meanwhile
+                let (dense, first) = rayon::join(dense_with_caps, || {
+                    trust_region::solve(&feed_lp, &is_knot, &caps, &ccfg(round), q_floor)
+                });
+                let dense = &dense[..];
+                let mut first = Some(first?);
+                let (mut pts, mut forced) = (points.clone(), is_knot.clone());
+                let mut lps = Vec::new();
                 // a refinement round starts from the plan the round before accepted
                 let mut restart: Option<trust_region::Restart> = None;
                 // which check points a round added
@@ -416,15 +449,12 @@ impl LpStage<'_> {
                         points: &pts,
                         ..feed_lp.clone()
                     };
-                    // a refinement round may need more LPs to reach an iterate
-                    // that holds every limit at the added points
-                    let ccfg = CertifiedConfig {
-                        max_lps: cfg.certified.max_lps * (1 + round),
-                        ..cfg.certified
-                    };
-                    let c = match &restart {
-                        None => trust_region::solve(&lp, &forced, &caps, &ccfg, q_floor)?,
-                        Some(r) => trust_region::solve_from(&lp, &forced, &caps, &ccfg, r, q_floor)?,
+                    let c = match (first.take(), &restart) {
+                        (Some(c), _) => c,
+                        (None, None) => trust_region::solve(&lp, &forced, &caps, &ccfg(round), q_floor)?,
+                        (None, Some(r)) => {
+                            trust_region::solve_from(&lp, &forced, &caps, &ccfg(round), r, q_floor)?
+                        }
                     };
                     lps.extend(c.lps);
                     let bad = trust_region::violations(&lp, &c.ctrl, dense, &caps, REFINE_TRIGGER);

@@ -4,6 +4,7 @@
 use std::time::Instant;
 
 use firmware_core::table::{self, TableParts};
+use rayon::prelude::*;
 
 use crate::geometry::arc_length::{path_derivs_at, ArcLength};
 use crate::geometry::curve::Nurbs;
@@ -99,8 +100,9 @@ pub fn plan_curve_with_progress(
             .into_iter()
             .filter_map(|g| Some((eval(g)?, false)))
             .unzip(),
+        // evaluated in parallel, in order
         Formulation::Certified => check_points(&knots, cfg.certified.checks_per_span)
-            .into_iter()
+            .into_par_iter()
             .filter_map(|(s, k)| Some((eval(s)?, k)))
             .unzip(),
     };
