@@ -434,8 +434,11 @@ fn tighten_caps(cap_rows: &[Row], margin: &mut [f64], ctrl: &[f64]) -> bool {
 /// `ctrl` exceeds any limit by more than the factor `limit` (exact
 /// kinematics, the jerk held to (1 − β)·J within 1e-6 mm of a curvature jump
 /// in `caps`): the cutting planes of [`crate::plan`]'s refinement rounds.
+///
+/// Evaluated in parallel (rayon keeps the order).
 pub fn violations(lp: &FeedLp, ctrl: &[f64], cand: &[EvalPoint], caps: &[JumpCap], limit: f64) -> Vec<usize> {
-    cand.iter()
+    use rayon::prelude::*;
+    cand.par_iter()
         .enumerate()
         .filter(|(_, p)| lp.executes(p.s))
         .filter(|(_, p)| {

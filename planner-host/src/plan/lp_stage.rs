@@ -150,57 +150,67 @@ impl LpStage<'_> {
         self.dense.get_or_init(|| {
             let (curve, arc) = (self.curve, self.arc);
             let (lo, hi) = (self.knots[0], self.knots[self.knots.len() - 1]);
-            // evaluated in parallel (rayon keeps the order: the same points
-            // whatever the threads)
-            let spans: Vec<(f64, f64)> = self
-                .knots
-                .windows(2)
-                .filter(|w| w[1] > w[0])
-                .map(|w| (w[0], w[1]))
-                .collect();
-            let mut v: Vec<EvalPoint> = spans
-                .par_iter()
-                .flat_map_iter(|&(a, b)| {
-                    let even = move |n: usize| (1..n).map(move |k| a + (b - a) * k as f64 / n as f64);
-                    even(REFINE_PER_SPAN)
-                        .chain(even(REPORT_PER_SPAN))
-                        .filter_map(|s| self.eval(s))
-                })
-                .collect();
-            let in_u: Vec<EvalPoint> = arc
+            // The points' arc lengths first (with u where the point is even
+            // in u), sorted, then evaluated in parallel straight into their
+            // places: the same points, in the same order, whatever the threads,
+            // and no copy of the ~10⁵–10⁶ evaluations.
+            let even_s = self.knots.windows(2).filter(|w| w[1] > w[0]).flat_map(|w| {
+                let (a, b) = (w[0], w[1]);
+                let even = move |n: usize| (1..n).map(move |k| a + (b - a) * k as f64 / n as f64);
+                even(REFINE_PER_SPAN)
+                    .chain(even(REPORT_PER_SPAN))
+                    .map(|s| (s, None))
+            });
+            let even_u: Vec<(f64, Option<f64>)> = arc
                 .spans()
                 .par_iter()
                 .flat_map_iter(|sp| {
                     (1..REFINE_PER_CURVE_SPAN).filter_map(move |k| {
                         let u = sp.u0 + (sp.u1 - sp.u0) * k as f64 / REFINE_PER_CURVE_SPAN as f64;
                         let s = arc.s_of_u(u);
-                        if s <= lo || s >= hi {
-                            return None;
-                        }
-                        Some(EvalPoint {
-                            s,
-                            geo: arc.derivs_s(curve, u),
-                            basis: BasisRow::at(self.knots, s)?,
-                        })
+                        (s > lo && s < hi).then_some((s, Some(u)))
                     })
                 })
                 .collect();
-            v.extend(in_u);
-            v.sort_by(|a, b| a.s.total_cmp(&b.s));
-            v.dedup_by(|a, b| a.s == b.s);
+            let mut at: Vec<(f64, Option<f64>)> = even_s.chain(even_u).collect();
+            // (stable: a point even in s wins over one even in u at the same s)
+            at.sort_by(|a, b| a.0.total_cmp(&b.0));
+            at.dedup_by(|a, b| a.0 == b.0);
+            let v: Vec<Option<EvalPoint>> = at
+                .par_iter()
+                .map(|&(s, u)| match u {
+                    None => self.eval(s),
+                    Some(u) => Some(EvalPoint {
+                        s,
+                        geo: arc.derivs_s(curve, u),
+                        basis: BasisRow::at(self.knots, s)?,
+                    }),
+                })
+                .collect();
+            let v: Vec<EvalPoint> = v.into_iter().flatten().collect();
             // where the geometry changes fast between two neighbours, bisect
             let lim = &self.cfg.limits;
             let cap = |p: &EvalPoint| crate::lp::trust_region::static_cap(lim, &p.geo);
             let caps: Vec<f64> = v.par_iter().map(cap).collect();
-            let mut out: Vec<EvalPoint> = (0..v.len().saturating_sub(1))
+            let inserts: Vec<(usize, Vec<EvalPoint>)> = (0..v.len().saturating_sub(1))
                 .into_par_iter()
-                .flat_map_iter(|i| {
-                    let mut o = vec![v[i]];
+                .filter_map(|i| {
+                    let mut o = Vec::new();
                     self.bisect_fast(&v[i], caps[i], &v[i + 1], caps[i + 1], 0, &cap, &mut o);
-                    o
+                    (!o.is_empty()).then_some((i, o))
                 })
                 .collect();
-            out.extend(v.last().copied());
+            if inserts.is_empty() {
+                return v;
+            }
+            let mut out = Vec::with_capacity(v.len() + inserts.iter().map(|(_, o)| o.len()).sum::<usize>());
+            let mut next = inserts.into_iter().peekable();
+            for (i, p) in v.into_iter().enumerate() {
+                out.push(p);
+                if let Some((_, o)) = next.next_if(|(j, _)| *j == i) {
+                    out.extend(o);
+                }
+            }
             out
         })
     }
