@@ -45,9 +45,11 @@ pub(crate) enum IpmFail {
 /// LPs with at least this many rows run their passes over the rows on
 /// rayon's pool, by chunks of [`CHUNK_ROWS`] rows: each chunk sums its
 /// rows' terms of Aᵀy, AᵀDA and Aᵀt onto its own span of variables, and
-/// the chunks' sums are added in order, so the result does not depend on
-/// the threads (the 10,000-chord surfacing path: 157,000 rows, two cores).
-/// Smaller LPs keep one chunk: the sums in row order, as they always were.
+/// the chunks' sums are added in order (the step lengths are the least of
+/// the chunks', μ_aff the sum of theirs in order), so the result does not
+/// depend on the threads (the 10,000-chord surfacing path: 157,000 rows,
+/// two cores). Smaller LPs keep one chunk: the sums in row order, as they
+/// always were.
 const PAR_ROWS: usize = 1 << 15;
 
 /// Rows of a chunk (see [`PAR_ROWS`]).
@@ -225,6 +227,18 @@ fn solve_in_chunks(
             Chunk { start: a, lo, hi }
         })
         .collect();
+    // the largest step (`max_step`) by chunks: the least of theirs
+    let step = |v: &[f64], dv: &[f64]| -> f64 {
+        if chunks.len() <= 1 {
+            return max_step(v, dv);
+        }
+        let parts: Vec<f64> = v
+            .par_chunks(chunk)
+            .zip(dv.par_chunks(chunk))
+            .map(|(v, dv)| max_step(v, dv))
+            .collect();
+        parts.into_iter().fold(1.0, f64::min)
+    };
     for it in 0..max_iter {
         // residuals rp = A x + s − b, rd = Aᵀ y + g
         rd.iter_mut().for_each(|v| *v = 0.0);
@@ -357,11 +371,17 @@ fn solve_in_chunks(
         };
         // predictor
         direction(&|_| 0.0, &mut dx, &mut ds_a, &mut dy_a, &mut tmp_n);
-        let (ap, ad) = (max_step(&s, &ds_a), max_step(&y, &dy_a));
-        let mu_aff = (0..m)
-            .map(|i| (s[i] + ap * ds_a[i]) * (y[i] + ad * dy_a[i]))
-            .sum::<f64>()
-            / m as f64;
+        let (ap, ad) = (step(&s, &ds_a), step(&y, &dy_a));
+        let aff = |i: usize| (s[i] + ap * ds_a[i]) * (y[i] + ad * dy_a[i]);
+        let mu_aff = if chunks.len() <= 1 {
+            (0..m).map(aff).sum::<f64>()
+        } else {
+            let parts: Vec<f64> = chunks
+                .par_iter()
+                .map(|c| (c.start..(c.start + chunk).min(m)).map(aff).sum::<f64>())
+                .collect();
+            parts.iter().sum::<f64>()
+        } / m as f64;
         let sigma = (mu_aff / mu).clamp(0.0, 1.0).powi(3);
         // corrector
         let smu = sigma * mu;
@@ -372,8 +392,8 @@ fn solve_in_chunks(
             &mut dy,
             &mut tmp_n,
         );
-        let ap = (0.99 * max_step(&s, &ds)).min(1.0);
-        let ad = (0.99 * max_step(&y, &dy)).min(1.0);
+        let ap = (0.99 * step(&s, &ds)).min(1.0);
+        let ad = (0.99 * step(&y, &dy)).min(1.0);
         stalled = ap.max(ad) < 1e-6;
         if debug {
             eprintln!("    sigma {sigma:.2e} ap {ap:.2e} ad {ad:.2e}");
@@ -381,10 +401,15 @@ fn solve_in_chunks(
         for j in 0..n {
             x[j] += ap * dx[j];
         }
-        for i in 0..m {
-            s[i] += ap * ds[i];
-            y[i] += ad * dy[i];
-        }
+        s.par_chunks_mut(chunk)
+            .zip(y.par_chunks_mut(chunk))
+            .zip(ds.par_chunks(chunk).zip(dy.par_chunks(chunk)))
+            .for_each(|((s, y), (ds, dy))| {
+                for i in 0..s.len() {
+                    s[i] += ap * ds[i];
+                    y[i] += ad * dy[i];
+                }
+            });
     }
     almost.ok_or(IpmFail::MaxIter(max_iter))
 }
