@@ -312,7 +312,7 @@ impl LpStage<'_> {
     /// starts from the plan before it (`trust_region::solve_from`), whose
     /// rows at a cut pull q down there and may bend it up beside the cut,
     /// closer than the dense grid's spacing (fam1_184_weights PAR 0.5: the
-    /// jerk 1.0038 × J 6 µm from a cut, between the grid's points).
+    /// jerk 1.0038 × J 5 µm from a cut, between the grid's points).
     fn beside_cuts(&self, pts: &[EvalPoint], added: &[bool]) -> (Vec<EvalPoint>, Vec<(f64, f64)>) {
         let mut gaps: Vec<(f64, f64)> = Vec::new();
         for i in (0..pts.len()).filter(|&i| added[i]) {
