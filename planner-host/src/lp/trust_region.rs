@@ -216,6 +216,11 @@ const KINDS: [RowKind; 8] = [
     RowKind::TJerk,
 ];
 
+/// The stall floor relative to the toolpath's static cap q̄₀ (see
+/// `crate::plan::stall`): an iterate stalls at a check point where q falls
+/// below min(q_floor, STALL_CAP_REL·q̄₀) there.
+pub const STALL_CAP_REL: f64 = 1e-6;
+
 /// Static caps q̄₀ at a point: velocity (8)(11), then the curvature terms of
 /// (9) and (10) alone: |r″_k| q ≤ A_k, |r‴_k| q^{3/2} ≤ J_k.
 fn static_cap_at(lp: &FeedLp, p: &EvalPoint) -> f64 {
@@ -572,6 +577,12 @@ fn solve_with(
     let n = lp.n_ctrl();
     let lim = lp.limits;
     let qmax: Vec<f64> = pts.iter().map(|p| lp.q_max(&p.geo)).collect();
+    // the stall floor at each check point (`q_floor`, lowered where the
+    // toolpath itself holds the feed low)
+    let floors: Vec<f64> = pts
+        .iter()
+        .map(|p| q_floor.min(STALL_CAP_REL * static_cap_at(lp, p)))
+        .collect();
     let mut qbar: Vec<f64> = match &win {
         None => pts.iter().map(|p| static_cap_at(lp, p)).collect(),
         Some(w) => w.qbar0.iter().zip(&qmax).map(|(&q, &m)| q.min(m)).collect(),
@@ -890,7 +901,11 @@ fn solve_with(
         // jerk there is bounded by q(s) ≤ q_cap alone (no check point sees it)
         let cap_ratio = cap_ratio(&cap_rows, &sol.ctrl);
         // an iterate that stalls the feed at a check point is no plan
-        let moves = q_now.iter().zip(&executed).all(|(&q, &e)| !e || q >= q_floor);
+        let moves = q_now
+            .iter()
+            .zip(&executed)
+            .zip(&floors)
+            .all(|((&q, &e), &f)| !e || q >= f);
         let feasible = ratios.worst() <= 1.0 + cfg.tol && cap_ratio <= 1.0 + CAP_TOL && moves;
         if std::env::var_os("FEEDLP_SLP_DEBUG").is_some() {
             eprintln!(

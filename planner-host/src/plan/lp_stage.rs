@@ -54,6 +54,13 @@ pub const GEO_DEPTH: usize = 8;
 /// Evaluations of the peak search ([`peak`]) around each re-evaluation
 /// point that exceeds a limit.
 pub const PEAK_EVALS: usize = 24;
+/// A re-evaluation point whose excess is a local maximum of the grid and at
+/// least this is searched too ([`LpStage::hidden_peaks`]): the grid may
+/// straddle a peak above the limit while reading under it on both sides
+/// (fam1_129_weights ADA 0.5: 0.9992 and 1.0005 at points 0.042 mm apart,
+/// 1.0156 at the axis-jerk peak between them, which the setpoints read as
+/// 1.0131).
+pub const PEAK_LOOK: f64 = 0.97;
 
 /// Check points of the certified formulation: `per_span` evenly spaced
 /// points in every non-empty knot span of q, the span's left knot first, and
@@ -272,6 +279,39 @@ impl LpStage<'_> {
         best.1
     }
 
+    /// Peaks of the excess above REFINE_TRIGGER that the re-evaluation grid
+    /// `dense` does not show: each grid point (outside `bad`, the points
+    /// already over the trigger) whose excess is a local maximum of the grid
+    /// and at least PEAK_LOOK is searched with [`LpStage::peak`] between its
+    /// neighbours; the peaks found over the trigger are returned.
+    fn hidden_peaks(
+        &self,
+        lp: &FeedLp,
+        ctrl: &[f64],
+        caps: &[crate::lp::JumpCap],
+        dense: &[EvalPoint],
+        bad: &[usize],
+    ) -> Vec<EvalPoint> {
+        let e: Vec<f64> = dense
+            .iter()
+            .map(|p| trust_region::excess(lp, ctrl, p, caps))
+            .collect();
+        let mut out = Vec::new();
+        for i in 0..e.len() {
+            let left = if i > 0 { e[i - 1] } else { f64::NEG_INFINITY };
+            let right = e.get(i + 1).copied().unwrap_or(f64::NEG_INFINITY);
+            if e[i] < PEAK_LOOK || e[i] < left || e[i] < right || bad.binary_search(&i).is_ok() {
+                continue;
+            }
+            if let Some(p) = self.peak(lp, ctrl, caps, dense, i) {
+                if trust_region::excess(lp, ctrl, &p, caps) > REFINE_TRIGGER {
+                    out.push(p);
+                }
+            }
+        }
+        out
+    }
+
     pub(crate) fn eval(&self, s: f64) -> Option<EvalPoint> {
         Some(EvalPoint {
             s,
@@ -381,7 +421,9 @@ impl LpStage<'_> {
                     let c = trust_region::solve(&lp, &forced, &caps, &ccfg, q_floor)?;
                     lps.extend(c.lps);
                     let bad = trust_region::violations(&lp, &c.ctrl, dense, &caps, REFINE_TRIGGER);
-                    if bad.is_empty() || round == last_round {
+                    // peaks over the trigger between grid points that read under it
+                    let hidden = self.hidden_peaks(&lp, &c.ctrl, &caps, dense, &bad);
+                    if (bad.is_empty() && hidden.is_empty()) || round == last_round {
                         let rounds = round - first_round;
                         break (c.ctrl, Vec::new(), lps, Some(c.check), pts, forced, rounds);
                     }
@@ -389,6 +431,7 @@ impl LpStage<'_> {
                     let peaks: Vec<EvalPoint> = bad
                         .iter()
                         .filter_map(|&i| self.peak(&lp, &c.ctrl, &caps, dense, i))
+                        .chain(hidden)
                         .collect();
                     round += 1;
                     let mut merged: Vec<(EvalPoint, bool)> = pts.drain(..).zip(forced.drain(..)).collect();
@@ -401,9 +444,15 @@ impl LpStage<'_> {
             }
         };
         let ends = end_rows.as_ref().and_then(|e| e.segments(&ctrl));
+        // the toolpath's static cap at s, for the stall floor where the
+        // geometry itself holds the feed low
+        let cap = |s: f64| {
+            self.eval(s)
+                .map_or(f64::INFINITY, |p| trust_region::static_cap(limits, &p.geo))
+        };
         let stall = match (&end_rows, ends) {
-            (None, _) => find_stall(knots, &ctrl, limits),
-            (Some(_), Some(e)) => find_stall_between(knots, &ctrl, limits, e.s_start, e.s_stop),
+            (None, _) => find_stall(knots, &ctrl, limits, &cap),
+            (Some(_), Some(e)) => find_stall_between(knots, &ctrl, limits, e.s_start, e.s_stop, &cap),
             (Some(e), None) => Some(StallAt::Interior {
                 s_mm: e.start.s,
                 feed_mm_s: 0.0,
