@@ -330,8 +330,24 @@ impl LpStage<'_> {
         refine: Refine,
     ) -> Result<Solved, PlanError> {
         let (cfg, knots, curve, arc) = (self.cfg, self.knots, self.curve, self.arc);
+        // the feed profile at this plan's v̄ (an override level scales it)
+        let profile = cfg
+            .feed_profile
+            .as_ref()
+            .map(|f| f.scaled(limits.vbar / cfg.limits.vbar).capped(limits.vbar));
+        // the end segments at the lowest feed where they may reach: their
+        // joins lie at most L/3 from each end (`EndRows::new`)
+        let end_limits = match &profile {
+            Some(f) => Limits {
+                vbar: f
+                    .min_on(0.0, self.length / 3.0)
+                    .min(f.min_on(2.0 * self.length / 3.0, self.length)),
+                ..*limits
+            },
+            None => *limits,
+        };
         let end_rows = match cfg.ends {
-            EndMode::Jerk => EndRows::new(knots, limits, &|s| path_derivs_at(curve, arc, s)),
+            EndMode::Jerk => EndRows::new(knots, &end_limits, &|s| path_derivs_at(curve, arc, s)),
             EndMode::Step => None,
         };
         let feed_lp = FeedLp {
@@ -349,6 +365,7 @@ impl LpStage<'_> {
                 Formulation::Certified => cfg.solver,
             },
             ends: end_rows.as_ref(),
+            feed: profile.as_ref(),
         };
         let (ctrl, qhat_ctrl, lp_stats, check, pts, forced, rounds) = match cfg.formulation {
             Formulation::Paper => {
@@ -447,8 +464,10 @@ impl LpStage<'_> {
         // the toolpath's static cap at s, for the stall floor where the
         // geometry itself holds the feed low
         let cap = |s: f64| {
+            let feed = profile.as_ref().map_or(f64::INFINITY, |f| f.at(s).powi(2));
             self.eval(s)
                 .map_or(f64::INFINITY, |p| trust_region::static_cap(limits, &p.geo))
+                .min(feed)
         };
         let stall = match (&end_rows, ends) {
             (None, _) => find_stall(knots, &ctrl, limits, &cap),

@@ -124,6 +124,11 @@ impl LevelPlan {
                 vbar: self.vbar_mm_s,
                 ..plan.config.limits
             },
+            plan.config
+                .feed_profile
+                .as_ref()
+                .map(|f| f.scaled(self.vbar_mm_s / plan.config.limits.vbar))
+                .as_ref(),
             per_span,
         )
     }
@@ -140,6 +145,7 @@ impl PlanOutput {
             &self.q_ctrl,
             self.ends.as_ref(),
             &self.config.limits,
+            self.config.feed_profile.as_ref(),
             per_span,
         )
     }

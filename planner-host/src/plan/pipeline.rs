@@ -14,7 +14,7 @@ use crate::lp::end_rows::EndMode;
 use crate::lp::problem::EvalPoint;
 use crate::plan::config::{Formulation, PlanConfig};
 use crate::plan::error::PlanError;
-use crate::plan::knots::{end_room, refine_turning, with_breaks, TurnInU};
+use crate::plan::knots::{end_room, refine_turning, with_breaks, with_feed_breaks, TurnInU};
 use crate::plan::levels::validate_levels;
 use crate::plan::lp_stage::{check_points, LpStage, Refine, Solved};
 use crate::plan::output::PlanOutput;
@@ -74,11 +74,11 @@ pub fn plan_curve_with_progress(
         Formulation::Paper => samples,
         Formulation::Certified => {
             let turn = TurnInU::new(curve, &arc);
-            refine_turning(
-                &with_breaks(&samples, &arc),
-                cfg.certified.max_turn_rad,
-                |a, b| turn.turning(a, b),
-            )
+            let mut samples = with_breaks(&samples, &arc);
+            if let Some(f) = &cfg.feed_profile {
+                samples = with_feed_breaks(&samples, f.breaks());
+            }
+            refine_turning(&samples, cfg.certified.max_turn_rad, |a, b| turn.turning(a, b))
         }
     };
     dbg_t("refine");

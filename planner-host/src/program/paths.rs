@@ -8,19 +8,20 @@
 //!   tangent of the next differ by at most [`JOIN_ANGLE_RAD`] (half the
 //!   planner's corner threshold [`CORNER_ANGLE_RAD`], so that a join this
 //!   code accepts is never refused by the planner as a corner);
-//! - the feed is the same (a new `F` inside a tangent run ends the path
-//!   there, with a stop, and a warning: the LP plans one feed limit per
-//!   path); feeds above the machine's feed limit count as the limit
-//!   ([`paths_for`]);
+//! - (the feed may change: each `F` applies from its block on, and the path
+//!   is planned with the feed limit v̄(s) of its blocks,
+//!   `crate::lp::feed_profile`; feeds above the machine's feed limit count
+//!   as the limit, [`paths_for`]);
 //! - the move ending the run is not under G61 (exact stop: the machine
 //!   stops at the end of every move).
 //!
-//! Anything else — a corner, a rapid, a feed change, G61 — ends the path:
-//! the machine stops there, except inside a run of chords.
+//! Anything else — a corner, a rapid, G61 — ends the path: the machine
+//! stops there, except inside a run of chords.
 //!
 //! **Runs of chords under `G64 P tol`.** Consecutive G1 lines under a path
-//! tolerance (`G64 P` > 0 on both moves at the corner), at the same feed,
-//! whose direction turns by at most [`FIT_MAX_TURN_RAD`] at each corner, form
+//! tolerance (`G64 P` > 0 on both moves at the corner), at the same feed
+//! (a feed change ends the run, with a stop and a warning: the fitted
+//! spline does not keep the chords' ends as knots), whose direction turns by at most [`FIT_MAX_TURN_RAD`] at each corner, form
 //! one run; the run becomes one path, a smooth cubic B-spline within the
 //! smallest tolerance of its moves from the programmed lines
 //! ([`super::fit`]): the machine neither stops nor crawls at the chords'
@@ -87,6 +88,9 @@ pub struct PathPiece {
     pub line: usize,
     /// Parameter u of the path's curve where the move ends.
     pub u_end: f64,
+    /// The move's programmed feed, mm/s, capped like the path's (None for
+    /// a rapid).
+    pub feed_mm_s: Option<f64>,
 }
 
 /// A run of moves followed without stopping, as one curve.
@@ -97,7 +101,8 @@ pub struct Path {
     /// The toolpath, u ∈ [0, 1].
     pub curve: Nurbs,
     /// Programmed feed, mm/s, capped at the machine's feed limit when one
-    /// was given ([`paths_for`]) (None for a rapid).
+    /// was given ([`paths_for`]) (None for a rapid); the highest of its
+    /// moves' feeds where they differ ([`Path::feed_stretches`]).
     pub feed_mm_s: Option<f64>,
     /// The moves, in order.
     pub pieces: Vec<PathPiece>,
@@ -107,6 +112,24 @@ pub struct Path {
     pub last_line: usize,
     /// A fitted run of chords: how close it stays to the programmed lines.
     pub fit: Option<Fitted>,
+}
+
+impl Path {
+    /// Where the feed changes along the path: `(u where the move starts,
+    /// its feed)` for each move whose feed differs from the one before, the
+    /// first at u = 0; `None` when one feed holds throughout (or a rapid).
+    pub fn feed_stretches(&self) -> Option<Vec<(f64, f64)>> {
+        let mut out: Vec<(f64, f64)> = Vec::new();
+        let mut u0 = 0.0;
+        for p in &self.pieces {
+            let f = p.feed_mm_s?;
+            if out.last().is_none_or(|&(_, g)| g != f) {
+                out.push((u0, f));
+            }
+            u0 = p.u_end;
+        }
+        (out.len() > 1).then_some(out)
+    }
 }
 
 /// How a run of chords was fitted ([`super::fit`]).
@@ -187,6 +210,8 @@ struct Open {
     kind: PathKind,
     feed: Option<f64>,
     pieces: Vec<(usize, Piece, f64)>,
+    /// Each piece's feed.
+    feeds: Vec<Option<f64>>,
     /// A run of chords to fit: the tolerance so far (mm).
     chords: Option<f64>,
 }
@@ -275,9 +300,10 @@ pub fn paths_for(program: &Program, opts: &PathOptions) -> Result<Paths, PathErr
                     (None, _) if tangent => Some(None),
                     _ => None,
                 };
-                if run.is_some() && !same_feed {
+                let chord_run = matches!(run, Some(Some(_)));
+                if chord_run && !same_feed {
                     out.warnings.push(format!(
-                        "LINE {}: the feed changes inside a continuous run ({:.3} to {:.3} mm/min): the machine stops there in this version",
+                        "LINE {}: the feed changes inside a run of G64 P chords ({:.3} to {:.3} mm/min): the run is fitted in two parts, with a stop between",
                         m.line,
                         o.feed.unwrap_or(0.0) * 60.0,
                         m.feed_mm_s.unwrap_or(0.0) * 60.0
@@ -291,7 +317,7 @@ pub fn paths_for(program: &Program, opts: &PathOptions) -> Result<Paths, PathErr
                     ));
                     warned_curve_corner = true;
                 }
-                run.filter(|_| same_feed)
+                run.filter(|r| same_feed || r.is_none())
             }
             _ => None,
         };
@@ -299,6 +325,11 @@ pub fn paths_for(program: &Program, opts: &PathOptions) -> Result<Paths, PathErr
             (Some(run), Some(o)) => {
                 o.chords = run;
                 o.pieces.push((m.line, piece, len));
+                o.feeds.push(cap(m.feed_mm_s));
+                o.feed = match (o.feed, cap(m.feed_mm_s)) {
+                    (Some(a), Some(b)) => Some(a.max(b)),
+                    (a, b) => a.or(b),
+                };
             }
             _ => {
                 if let Some(o) = open.take() {
@@ -308,6 +339,7 @@ pub fn paths_for(program: &Program, opts: &PathOptions) -> Result<Paths, PathErr
                     kind,
                     feed: cap(m.feed_mm_s),
                     pieces: vec![(m.line, piece, len)],
+                    feeds: vec![cap(m.feed_mm_s)],
                     chords: tol,
                 });
             }
@@ -348,7 +380,11 @@ fn close_into(o: Open, out: &mut Paths) -> Result<(), PathError> {
                 .pieces
                 .iter()
                 .zip(&fit.vertex_u[1..])
-                .map(|(p, &u)| PathPiece { line: p.0, u_end: u })
+                .map(|(p, &u)| PathPiece {
+                    line: p.0,
+                    u_end: u,
+                    feed_mm_s: o.feed,
+                })
                 .collect();
             out.paths.push(Path {
                 kind: o.kind,
@@ -377,6 +413,7 @@ fn close_into(o: Open, out: &mut Paths) -> Result<(), PathError> {
                     kind: o.kind,
                     feed: o.feed,
                     pieces: vec![p],
+                    feeds: vec![o.feed],
                     chords: None,
                 })?);
             }
@@ -445,7 +482,7 @@ fn close(o: Open) -> Result<Path, PathError> {
     let mut out_pieces = Vec::with_capacity(o.pieces.len());
     let mut u0 = 0.0;
     let n = o.pieces.len();
-    for (k, (line, piece, len)) in o.pieces.iter().enumerate() {
+    for (k, ((line, piece, len), &feed)) in o.pieces.iter().zip(&o.feeds).enumerate() {
         let mut e = piece.elevated(p);
         let u1 = if k + 1 == n { 1.0 } else { u0 + len / total };
         let (a, b) = (e.knots[0], e.knots[e.knots.len() - 1]);
@@ -468,6 +505,7 @@ fn close(o: Open) -> Result<Path, PathError> {
         out_pieces.push(PathPiece {
             line: *line,
             u_end: u1,
+            feed_mm_s: feed,
         });
         u0 = u1;
     }

@@ -157,14 +157,23 @@ fn nurbs_blocks_are_kept_and_lines_elevated_beside_them() {
 }
 
 #[test]
-fn corners_feed_changes_and_rapids_end_paths() {
+fn corners_and_rapids_end_paths_and_a_feed_change_does_not() {
     let (_, p) = read("G21 G17 G64 F600\nG0 X1 Y0\nG1 X10\nG1 X20\nG1 Y10\nG1 Y20 F300\nG0 Z5\nM2\n");
     let shape: Vec<(usize, usize)> = p.paths.iter().map(|x| (x.first_line, x.last_line)).collect();
-    assert_eq!(shape, vec![(2, 2), (3, 4), (5, 5), (6, 6), (7, 7)]);
+    assert_eq!(shape, vec![(2, 2), (3, 4), (5, 6), (7, 7)]);
+    assert!(p.warnings.is_empty(), "{:?}", p.warnings);
+    // the feed from each block on: 10 mm/s on Y0..Y10, 5 mm/s from Y10
+    let joined = &p.paths[2];
+    assert_eq!(joined.feed_mm_s, Some(10.0));
+    assert_eq!(joined.feed_stretches(), Some(vec![(0.0, 10.0), (0.5, 5.0)]));
+    assert_eq!(p.paths[1].feed_stretches(), None);
+    // inside a run of G64 P chords a feed change still splits the run
+    let (_, p) = read("G21 G17 G64 P0.1 F600\nG1 X10\nG1 X20 Y1 F300\nM2\n");
+    assert_eq!(p.paths.len(), 2);
     assert!(p
         .warnings
         .iter()
-        .any(|w| w.contains("LINE 6") && w.contains("feed changes")));
+        .any(|w| w.contains("LINE 3") && w.contains("run of G64 P chords")));
     // two feeds above the machine's feed limit are the same feed
     let prog = read_str(
         "G21 G17 F60000\nG1 X10\nG1 X20 F90000\nM2\n",
@@ -182,7 +191,14 @@ fn corners_feed_changes_and_rapids_end_paths() {
     assert_eq!(capped.paths.len(), 1);
     assert_eq!(capped.paths[0].feed_mm_s, Some(100.0));
     assert!(capped.warnings.is_empty());
-    assert_eq!(paths_of(&prog).unwrap().paths.len(), 2);
+    assert_eq!(capped.paths[0].feed_stretches(), None);
+    // without the cap: one path whose feed rises from 1,000 to 1,500 mm/s
+    let uncapped = paths_of(&prog).unwrap();
+    assert_eq!(uncapped.paths.len(), 1);
+    assert_eq!(
+        uncapped.paths[0].feed_stretches(),
+        Some(vec![(0.0, 1000.0), (0.5, 1500.0)])
+    );
     // G61 stops after every move, even a tangent one
     let (_, p) = read("G21 G17 G61 F600\nG1 X10\nG1 X20\nM2\n");
     assert_eq!(p.paths.len(), 2);
