@@ -56,6 +56,7 @@
 use crate::gcode::{Move, MoveKind, PathControl, Program};
 use crate::geometry::curve::Nurbs;
 use crate::geometry::junction::CORNER_ANGLE_RAD;
+use crate::program::blend::{blend_corner, Blend};
 use crate::program::fit::{fit_chords, FitError};
 use crate::program::pieces::{self, angle_between, move_length, norm, sub, Piece, PieceError};
 
@@ -184,6 +185,8 @@ pub struct Paths {
     pub paths: Vec<Path>,
     /// What was dropped, split or not done.
     pub warnings: Vec<String>,
+    /// Corners rounded by a blend ([`super::blend`]).
+    pub blended_corners: usize,
 }
 
 /// How moves become paths.
@@ -208,12 +211,29 @@ impl Default for PathOptions {
 
 struct Open {
     kind: PathKind,
+    /// The path tolerance (`G64 P`) of the last move, if any.
+    last_tol: Option<f64>,
     feed: Option<f64>,
     pieces: Vec<(usize, Piece, f64)>,
     /// Each piece's feed.
     feeds: Vec<Option<f64>>,
     /// A run of chords to fit: the tolerance so far (mm).
     chords: Option<f64>,
+}
+
+/// The path tolerance of a feed move under `G64 P` > 0.
+fn path_tolerance(m: &Move) -> Option<f64> {
+    match (m.kind, m.path_control) {
+        (MoveKind::Rapid, _) => None,
+        (
+            _,
+            PathControl::Continuous {
+                tolerance_mm: Some(t),
+                ..
+            },
+        ) if t > 0.0 => Some(t),
+        _ => None,
+    }
 }
 
 /// The path tolerance of a G1 move under `G64 P` > 0.
@@ -280,6 +300,8 @@ pub fn paths_for(program: &Program, opts: &PathOptions) -> Result<Paths, PathErr
             PathKind::Feed
         };
         let tol = chord_tolerance(m).filter(|_| opts.fit_chords);
+        let blend_tol = path_tolerance(m).filter(|_| opts.fit_chords);
+        let mut blended: Option<Blend> = None;
         // what the open path becomes: None (a stop before m), or its run
         // tolerance after m joins (Some(None): not a run of chords)
         let joined: Option<Option<f64>> = match &open {
@@ -310,20 +332,46 @@ pub fn paths_for(program: &Program, opts: &PathOptions) -> Result<Paths, PathErr
                     ));
                 }
                 let curve_corner = run.is_none() && !tangent && turn <= FIT_MAX_TURN_RAD;
-                if curve_corner && tol.is_some() && !warned_curve_corner {
-                    out.warnings.push(format!(
-                        "LINE {}: a corner next to an arc or NURBS block is an exact stop even under G64 P (only runs of G1 lines are blended)",
-                        m.line
-                    ));
-                    warned_curve_corner = true;
+                // a corner next to an arc or NURBS block (or after a single
+                // line) under G64 P on both moves: a G2 blend within P
+                let blendable = o.chords.is_none() || o.pieces.len() == 1;
+                if let (true, true, Some(ta), Some(tb), Some(last)) =
+                    (curve_corner, blendable, o.last_tol, blend_tol, o.pieces.last())
+                {
+                    blended = blend_corner(&last.1, &piece, ta.min(tb));
+                    if blended.is_none() && !warned_curve_corner {
+                        out.warnings.push(format!(
+                            "LINE {}: the corner cannot be blended within G64 P{}: an exact stop",
+                            m.line,
+                            ta.min(tb)
+                        ));
+                        warned_curve_corner = true;
+                    }
                 }
-                run.filter(|r| same_feed || r.is_none())
+                match blended {
+                    Some(_) => Some(None),
+                    None => run.filter(|r| same_feed || r.is_none()),
+                }
             }
             _ => None,
         };
         match (joined, open.as_mut()) {
             (Some(run), Some(o)) => {
+                let (piece, len) = match blended.take() {
+                    Some(bl) => {
+                        if let Some(last) = o.pieces.last_mut() {
+                            last.1 = bl.before;
+                            last.2 = (last.2 - bl.cut_mm).max(MIN_MOVE_MM);
+                        }
+                        o.pieces.push((m.line, bl.blend, bl.blend_mm.max(MIN_MOVE_MM)));
+                        o.feeds.push(cap(m.feed_mm_s));
+                        out.blended_corners += 1;
+                        (bl.after, (len - bl.cut_mm).max(MIN_MOVE_MM))
+                    }
+                    None => (piece, len),
+                };
                 o.chords = run;
+                o.last_tol = path_tolerance(m);
                 o.pieces.push((m.line, piece, len));
                 o.feeds.push(cap(m.feed_mm_s));
                 o.feed = match (o.feed, cap(m.feed_mm_s)) {
@@ -337,6 +385,7 @@ pub fn paths_for(program: &Program, opts: &PathOptions) -> Result<Paths, PathErr
                 }
                 open = Some(Open {
                     kind,
+                    last_tol: path_tolerance(m),
                     feed: cap(m.feed_mm_s),
                     pieces: vec![(m.line, piece, len)],
                     feeds: vec![cap(m.feed_mm_s)],
@@ -411,6 +460,7 @@ fn close_into(o: Open, out: &mut Paths) -> Result<(), PathError> {
             for p in o.pieces {
                 out.paths.push(close(Open {
                     kind: o.kind,
+                    last_tol: None,
                     feed: o.feed,
                     pieces: vec![p],
                     feeds: vec![o.feed],

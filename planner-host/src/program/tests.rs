@@ -230,10 +230,38 @@ fn corners_and_rapids_end_paths_and_a_feed_change_does_not() {
     // a reversal is sharper than a blend may turn: a stop
     let (_, p) = read("G21 G17 G64 P0.1 F600\nG1 X10\nG1 X0.5 Y0.1\nM2\n");
     assert_eq!(p.paths.len(), 2);
-    // a corner between an arc and a line stays a stop, with a warning
-    let (_, p) = read("G21 G17 G64 P0.1 F600\nG1 X10\nG3 X10 Y10 I-5 J5\nG1 X0\nM2\n");
-    assert!(p.paths.len() >= 2);
-    assert!(p.warnings.iter().any(|w| w.contains("next to an arc")));
+    // corners between an arc and lines are blended within P: one path
+    let text = "G21 G17 G64 P0.1 F600\nG1 X10\nG3 X10 Y10 I-5 J5\nG1 X0\nM2\n";
+    let (moves, p) = read(text);
+    assert_eq!(p.paths.len(), 1, "{:?}", p.warnings);
+    assert_eq!(p.blended_corners, 2);
+    // the moves and the two blends, the blends on the lines after their corners
+    let lines: Vec<usize> = p.paths[0].pieces.iter().map(|x| x.line).collect();
+    assert_eq!(lines, vec![2, 3, 3, 4, 4]);
+    // every point of the path within P of a programmed move
+    let far = (0..=4000)
+        .map(|k| p.paths[0].curve.point(f64::from(k) / 4000.0))
+        .map(|x| {
+            moves
+                .iter()
+                .flat_map(|m| [0.0, 0.25, 0.5, 0.75, 1.0].map(|t| distance(m, x, t)))
+                .fold(f64::INFINITY, f64::min)
+        })
+        .fold(0.0f64, f64::max);
+    assert!(far <= 0.1 && far > 1e-3, "{far}");
+    // ... and stay stops under G64 without P, or with exact corners asked for
+    let (_, p) = read("G21 G17 G64 F600\nG1 X10\nG3 X10 Y10 I-5 J5\nG1 X0\nM2\n");
+    assert_eq!((p.paths.len(), p.blended_corners), (3, 0));
+    let prog = read_str(text, ReadOptions::default()).unwrap();
+    let exact = crate::program::paths::paths_for(
+        &prog,
+        &crate::program::paths::PathOptions {
+            fit_chords: false,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    assert_eq!((exact.paths.len(), exact.blended_corners), (3, 0));
 }
 
 #[test]
