@@ -219,6 +219,8 @@ mod app {
 
     #[idle(shared = [job, received])]
     fn idle(mut cx: idle::Context) -> ! {
+        #[cfg(feature = "qemu")]
+        crate::qemu::calibrate();
         #[cfg(feature = "baked-table")]
         start(&crate::BAKED.0, &mut cx.shared.job);
         #[cfg(not(feature = "baked-table"))]
@@ -275,7 +277,11 @@ mod app {
     }
 
     fn report(state: RunState, setpoints: u32, digest: u64) {
-        defmt::info!("run {}: {} setpoints, digest {=u64:x}", state, setpoints, digest);
+        if cfg!(feature = "digest") {
+            defmt::info!("run {}: {} setpoints, digest {=u64:x}", state, setpoints, digest);
+        } else {
+            defmt::info!("run {}: {} setpoints", state, setpoints);
+        }
         #[cfg(feature = "qemu")]
         crate::qemu::finished(state, setpoints, digest);
     }
@@ -301,7 +307,19 @@ mod app {
                 change = Some(active);
             }
         }
-        let plan = cx.shared.job.lock(|j| j.as_mut().and_then(|j| j.tick(change)));
+        let plan = cx.shared.job.lock(|j| {
+            let j = j.as_mut()?;
+            // Under QEMU each tick of a running job is an instruction-count
+            // window (`qemu::mark_begin` .. `qemu::mark_end`).
+            #[cfg(feature = "qemu")]
+            if j.state() == RunState::Running {
+                crate::qemu::mark_begin();
+                let plan = j.tick(change);
+                crate::qemu::mark_end();
+                return plan;
+            }
+            j.tick(change)
+        });
         if let Some(plan) = plan {
             let late = cx.shared.next.lock(|n| n.replace(plan).is_some());
             if late {
@@ -384,6 +402,34 @@ mod qemu {
     use cortex_m_semihosting::{debug, hprintln};
 
     static START: [AtomicU32; 3] = [AtomicU32::new(0), AtomicU32::new(0), AtomicU32::new(0)];
+    /// Instruction-count windows opened by [`mark_begin`].
+    static WINDOWS: AtomicU32 = AtomicU32::new(0);
+
+    /// Start of an instruction-count window: `firmware-core/mcu/bench_insn.py`
+    /// counts the guest instructions from an entry of this function to the
+    /// next entry of [`mark_end`] (a TCG plugin, `--marks`).
+    #[inline(never)]
+    pub fn mark_begin() {
+        WINDOWS.fetch_add(1, Relaxed);
+        core::hint::black_box(0x6265_6769u32);
+    }
+
+    /// End of an instruction-count window.
+    #[inline(never)]
+    pub fn mark_end() {
+        core::hint::black_box(0x656e_6421u32);
+    }
+
+    /// Back-to-back empty windows, before any tick: the marker overhead
+    /// the bench script subtracts.
+    pub fn calibrate() {
+        const N: u32 = 64;
+        for _ in 0..N {
+            mark_begin();
+            mark_end();
+        }
+        hprintln!("BENCH-GROUP empty {}", N);
+    }
 
     /// The run started: note the time and the servo count.
     pub fn started() {
@@ -413,6 +459,8 @@ mod qemu {
             hz
         );
         hprintln!("ticks: {}", setpoints);
+        let windows = WINDOWS.load(Relaxed).saturating_sub(64);
+        hprintln!("BENCH-GROUP servo-tick {}", windows);
         hprintln!("digest: fnv1a64-pos-le={:016x}", digest);
         let ok = state == RunState::Done;
         hprintln!("run: {}", if ok { "done" } else { "FAULTED" });

@@ -1,0 +1,43 @@
+#!/usr/bin/env bash
+# Runs the STM32F407 board firmware (boards/stm32f4: RTIC app, HAL start-up, the
+# servo tick in the TIM2 interrupt, StepDirSink into the step slot plans) on QEMU's
+# netduinoplus2 (STM32F405) with one table built into flash, and compares its number of
+# servo ticks and its setpoint digest with the host's (feedsim: firmware-core compiled for
+# x86-64). Then counts the Thumb instructions of each servo tick (the whole tick path:
+# interpolator, step generator, slot plan, digest) with firmware-core/mcu's plugin.
+#
+# What QEMU 7.2 cannot show (docs/board.md): the servo rate. Its TIM2-5 model does not
+# keep the programmed period, so the rate printed ("servo: ... Hz", against SysTick in
+# QEMU's virtual time) is QEMU's, not the board's; the run uses -icount (deterministic).
+# Usage: qemu-board.sh CURVE.json   (needs target/release/feedplan and feedsim, or
+# FEEDPLAN=... FEEDSIM=... pointing at them)
+set -euo pipefail
+curve=$1
+root=$(cd "$(dirname "$0")/.." && pwd)
+table=$(mktemp --suffix=.bin)
+trap 'rm -f "$table"' EXIT
+"${FEEDPLAN:-$root/target/release/feedplan}" plan "$curve" -o "$table" >/dev/null
+host=$("${FEEDSIM:-$root/target/release/feedsim}" run "$table" --json)
+host_ticks=$(python3 -c 'import json,sys; print(json.loads(sys.argv[1])["setpoints"])' "$host")
+host_digest=$(python3 -c 'import json,sys; print(json.loads(sys.argv[1])["setpoint_digest"])' "$host")
+board=$root/boards/stm32f4
+(
+  cd "$board"
+  export BOARD_TABLE="$table"
+  cargo clippy --release --features qemu,baked-table --target-dir target/qemu -- -D warnings
+  cargo build --release --features qemu,baked-table --target-dir target/qemu
+)
+elf=$board/target/qemu/thumbv7em-none-eabihf/release/board-stm32f4
+qemu_args=(-M netduinoplus2 -nographic -icount shift=3,sleep=off -semihosting-config enable=on,target=native)
+out=$(timeout -k 5 120 qemu-system-arm "${qemu_args[@]}" -kernel "$elf" </dev/null 2>&1) || {
+  echo "$out"; echo "board firmware under QEMU failed" >&2; exit 1; }
+qemu_ticks=$(sed -n 's/^ticks: \([0-9]*\).*/\1/p' <<<"$out")
+qemu_digest=$(sed -n 's/^digest: fnv1a64-pos-le=\([0-9a-f]*\).*/\1/p' <<<"$out")
+echo "$(basename "$curve"): host ${host_ticks} ticks digest ${host_digest}; board firmware on QEMU netduinoplus2 ${qemu_ticks} ticks digest ${qemu_digest}"
+grep -E '^(servo|run):' <<<"$out" | sed 's/^/  qemu /'
+if [ "$host_ticks" != "$qemu_ticks" ] || [ "$host_digest" != "$qemu_digest" ]; then
+  echo "host and board setpoints differ" >&2; exit 1
+fi
+python3 "$root/firmware-core/mcu/bench_insn.py" "$elf" --machine netduinoplus2 \
+  --marks board_stm32f4::qemu::mark_begin,board_stm32f4::qemu::mark_end \
+  --qemu-arg=-icount --qemu-arg=shift=3,sleep=off --timeout 120 | grep -E '^(==|group|\(marker|servo-tick)'
