@@ -23,10 +23,8 @@
 //! one receive interrupt: exactly RTIC's model (hardware tasks, priority
 //! ceiling resource locks, no executor, no allocator, the resource
 //! analysis at compile time). embassy's strengths (async drivers, its time
-//! driver) are not needed on the tick path, and its time driver uses
-//! timer compare interrupts that QEMU's STM32 timer model lacks. The
-//! dependencies build from scratch in about 35 s on the project's 2-core
-//! machine.
+//! driver) are not needed on the tick path. The dependencies build from
+//! scratch in 32 s on the project's 2-core machine (`docs/board.md`).
 //!
 //! # Memory
 //!
@@ -193,8 +191,9 @@ mod app {
         {
             panic!("timer period out of range");
         }
-        // QEMU's timer model cannot keep two periodic timers (docs/board.md):
-        // the pulse interrupt stays off there; the plans are still made.
+        // QEMU's timer model does not keep the programmed period, and with
+        // this 10 µs interrupt on as well a run may not finish (docs/board.md):
+        // it stays off there; the plans are still made and checked.
         if !cfg!(feature = "qemu") {
             pulse_timer.listen(TimEvent::Update);
         }
