@@ -34,7 +34,7 @@ out=$(timeout -k 5 120 qemu-system-arm "${qemu_args[@]}" -kernel "$elf" </dev/nu
 qemu_ticks=$(sed -n 's/^ticks: \([0-9]*\).*/\1/p' <<<"$out")
 qemu_digest=$(sed -n 's/^digest: fnv1a64-pos-le=\([0-9a-f]*\).*/\1/p' <<<"$out")
 echo "$(basename "$curve"): host ${host_ticks} ticks digest ${host_digest}; board firmware on QEMU netduinoplus2 ${qemu_ticks} ticks digest ${qemu_digest}"
-grep -E '^(servo|run):' <<<"$out" | sed 's/^/  qemu /'
+grep -E '^(self-check|servo|run):' <<<"$out" | sed 's/^/  qemu /'
 if [ "$host_ticks" != "$qemu_ticks" ] || [ "$host_digest" != "$qemu_digest" ]; then
   echo "host and board setpoints differ" >&2; exit 1
 fi

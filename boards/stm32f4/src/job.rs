@@ -49,7 +49,7 @@ pub struct Job {
     pub setpoints: u32,
     /// FNV-1a over every setpoint's position bits (`firmware_core::digest`,
     /// the host's and QEMU's run digest); fed only with the `digest`
-    /// feature (about 290 instructions a tick), else it stays at its start
+    /// feature (about 220 instructions a tick), else it stays at its start
     /// value.
     pub digest: Fnv1a64,
 }

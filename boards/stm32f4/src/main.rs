@@ -42,6 +42,8 @@
 #![no_main]
 #![forbid(unsafe_code)]
 
+#[cfg(feature = "qemu")]
+mod check;
 mod config;
 mod job;
 mod link;
@@ -218,6 +220,8 @@ mod app {
 
     #[idle(shared = [job, received])]
     fn idle(mut cx: idle::Context) -> ! {
+        #[cfg(feature = "qemu")]
+        crate::qemu::self_check();
         #[cfg(feature = "qemu")]
         crate::qemu::calibrate();
         #[cfg(feature = "baked-table")]
@@ -417,6 +421,18 @@ mod qemu {
     #[inline(never)]
     pub fn mark_end() {
         core::hint::black_box(0x656e_6421u32);
+    }
+
+    /// The board's own logic checked (`crate::check`); exits QEMU with
+    /// failure when a check fails.
+    pub fn self_check() {
+        match crate::check::run() {
+            Ok(()) => hprintln!("self-check: ok (frame receiver, step slot plans)"),
+            Err(what) => {
+                hprintln!("self-check: FAILED: {}", what);
+                debug::exit(debug::EXIT_FAILURE);
+            }
+        }
     }
 
     /// Back-to-back empty windows, before any tick: the marker overhead
