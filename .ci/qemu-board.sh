@@ -38,12 +38,16 @@ grep -E '^(self-check|servo|run):' <<<"$out" | sed 's/^/  qemu /'
 if [ "$host_ticks" != "$qemu_ticks" ] || [ "$host_digest" != "$qemu_digest" ]; then
   echo "host and board setpoints differ" >&2; exit 1
 fi
+python3 "$root/firmware-core/mcu/bench_insn.py" "$elf" --machine netduinoplus2 \
+  --marks board_stm32f4::qemu::mark_begin,board_stm32f4::qemu::mark_end \
+  --qemu-arg=-icount --qemu-arg=shift=3,sleep=off --timeout 120 | grep -E '^(==|group|\(marker|servo-tick)'
 # The same table through the link: framed (boards/stm32f4/frame-table.py), sent into USART2
 # through a FIFO, checked, parsed and run; only tables that fit the board's RAM buffer.
 frame=$(mktemp --suffix=.frame)
 if python3 "$board/frame-table.py" "$table" "$frame" 2>/dev/null; then
-  (cd "$board" && cargo build --release --features qemu --target-dir target/qemu-link)
-  link_elf=$board/target/qemu-link/thumbv7em-none-eabihf/release/board-stm32f4
+  # (the same target directory: only this crate is built again, over the image above)
+  (cd "$board" && cargo build --release --features qemu --target-dir target/qemu)
+  link_elf=$elf
   fifo=$(mktemp -d)
   mkfifo "$fifo/link.in" "$fifo/link.out"
   exec 3<>"$fifo/link.in" 4<>"$fifo/link.out"
@@ -65,6 +69,3 @@ else
   rm -f "$frame"
   echo "  table over USART2: not run ($(stat -c %s "$table") bytes do not fit the 96 KiB RAM buffer)"
 fi
-python3 "$root/firmware-core/mcu/bench_insn.py" "$elf" --machine netduinoplus2 \
-  --marks board_stm32f4::qemu::mark_begin,board_stm32f4::qemu::mark_end \
-  --qemu-arg=-icount --qemu-arg=shift=3,sleep=off --timeout 120 | grep -E '^(==|group|\(marker|servo-tick)'
