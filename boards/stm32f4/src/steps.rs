@@ -72,7 +72,10 @@ pub enum PlanError {
 /// M4 divides 32-bit numbers in hardware, 64-bit ones in a library call).
 fn edge_ns(a: &AxisSteps, k: u32) -> u32 {
     let n2 = a.count.max(1).saturating_mul(2);
-    match (2 * k + 1).checked_mul(a.spacing_num) {
+    match k
+        .checked_mul(2)
+        .and_then(|k2| (k2 + 1).checked_mul(a.spacing_num))
+    {
         Some(num) => a.first_ns.saturating_add(num / n2),
         None => a.edge_ns(k),
     }
@@ -86,9 +89,10 @@ impl SlotPlan {
             return Err(PlanError::Period);
         }
         self.high = [0; SLOTS];
-        for (axis, a) in period.axes.iter().enumerate() {
-            self.dir_high[axis] = a.dir_high;
-            self.count[axis] = a.count;
+        let per_axis = self.dir_high.iter_mut().zip(self.count.iter_mut());
+        for (axis, (a, (dir_high, count))) in period.axes.iter().zip(per_axis).enumerate() {
+            *dir_high = a.dir_high;
+            *count = a.count;
             let bit = 1u8 << axis;
             let mut last: Option<usize> = None;
             for k in 0..a.count {
