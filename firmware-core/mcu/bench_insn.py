@@ -31,10 +31,14 @@ import sys
 import tempfile
 import threading
 
-def qemu_args(machine):
-    """QEMU's arguments before the plugin and the kernel, for `machine`."""
+
+def qemu_args(a):
+    """QEMU's arguments before the plugin and the kernel: the machine
+    (`a.machine`, default mps2-an386) and any extra `a.qemu_arg` (callers
+    such as wcet.py pass a namespace without either)."""
+    machine = getattr(a, "machine", "mps2-an386")
     return ["-cpu", "cortex-m4", "-machine", machine, "-nographic",
-            "-semihosting-config", "enable=on,target=native"]
+            "-semihosting-config", "enable=on,target=native", *getattr(a, "qemu_arg", [])]
 
 
 def symbol_addr(elf, nm, name):
@@ -104,7 +108,7 @@ def run_plugin(a, begin, end, tmp):
     out = os.path.join(tmp, "windows.txt")
     prof = os.path.join(tmp, "prof.txt")
     popt = f",prof={prof}" if a.profile else ""
-    cmd = [a.qemu, *qemu_args(a.machine), *a.qemu_arg, "-plugin", f"{so},begin=0x{begin:x},end=0x{end:x},out={out}{popt}",
+    cmd = [a.qemu, *qemu_args(a), "-plugin", f"{so},begin=0x{begin:x},end=0x{end:x},out={out}{popt}",
            "-kernel", a.elf]
     try:
         p = subprocess.run(cmd, capture_output=True, text=True, timeout=a.timeout)
@@ -153,7 +157,7 @@ def run_exec_log(a, begin, end, tmp):
     result = {"windows": [], "errors": [], "total": 0}
     t = threading.Thread(target=scan, args=(fifo, begin, end, result))
     t.start()
-    cmd = [a.qemu, *qemu_args(a.machine), *a.qemu_arg, "-singlestep", "-d", "exec,nochain", "-D", fifo, "-kernel", a.elf]
+    cmd = [a.qemu, *qemu_args(a), "-singlestep", "-d", "exec,nochain", "-D", fifo, "-kernel", a.elf]
     try:
         p = subprocess.run(cmd, capture_output=True, text=True, timeout=a.timeout)
     except subprocess.TimeoutExpired:
