@@ -4,7 +4,8 @@
 # netduinoplus2 (STM32F405) with one table built into flash, and compares its number of
 # servo ticks and its setpoint digest with the host's (feedsim: firmware-core compiled for
 # x86-64). Then counts the Thumb instructions of each servo tick (the whole tick path:
-# interpolator, step generator, slot plan, digest) with firmware-core/mcu's plugin.
+# interpolator, step generator, slot plan, digest) with firmware-core/mcu's plugin, runs
+# the image with a feed hold, and sends the table over USART2 when it fits the RAM buffer.
 #
 # What QEMU 7.2 cannot show (docs/board.md): the servo rate. Its TIM2-5 model does not
 # keep the programmed period, so the rate printed ("servo: ... Hz", against SysTick in
@@ -41,6 +42,18 @@ fi
 python3 "$root/firmware-core/mcu/bench_insn.py" "$elf" --machine netduinoplus2 \
   --marks board_stm32f4::qemu::mark_begin,board_stm32f4::qemu::mark_end \
   --qemu-arg=-icount --qemu-arg=shift=3,sleep=off --timeout 120 | grep -E '^(==|group|\(marker|servo-tick)'
+# A feed hold on the board image: the (simulated) hold input active for 4,000 servo
+# interrupts (1 s of plan time) from the 2,000th; the hold must be taken, the machine held
+# at rest when the input is released, the resume taken, the run must end, and the steps
+# emitted must equal the last setpoint's position in steps.
+(cd "$board" && BOARD_TABLE="$table" BOARD_QEMU_HOLD_AT=2000 BOARD_QEMU_HOLD_TICKS=4000 \
+  cargo build --release --features qemu,baked-table --target-dir target/qemu)
+out=$(timeout -k 5 120 qemu-system-arm "${qemu_args[@]}" -kernel "$elf" </dev/null 2>&1) || {
+  echo "$out"; echo "hold run failed" >&2; exit 1; }
+if ! grep -q '^feed hold:' <<<"$out" || ! grep -q '^resume:.*Held$' <<<"$out" || ! grep -q '^run: done' <<<"$out"; then
+  echo "$out"; echo "hold run: no hold, not held at rest before the resume, or not done" >&2; exit 1
+fi
+grep -E '^(feed hold|resume|ticks|steps):' <<<"$out" | sed 's/^/  hold run: /'
 # The same table through the link: framed (boards/stm32f4/frame-table.py), sent into USART2
 # through a FIFO, checked, parsed and run; only tables that fit the board's RAM buffer.
 frame=$(mktemp --suffix=.frame)

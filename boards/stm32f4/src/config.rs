@@ -71,7 +71,7 @@ pub const LINK_BAUD: u32 = 115_200;
 /// counts (2 ms at 4 kHz): contact bounce does not hold and resume.
 pub const HOLD_DEBOUNCE_TICKS: u8 = 8;
 
-const fn parse_u32(s: Option<&str>, default: u32) -> u32 {
+pub const fn parse_u32(s: Option<&str>, default: u32) -> u32 {
     let Some(s) = s else { return default };
     let b = s.as_bytes();
     let mut v: u32 = 0;

@@ -47,6 +47,8 @@ pub struct Job {
     state: RunState,
     /// Setpoints produced (= servo ticks of this run).
     pub setpoints: u32,
+    /// The last setpoint's position, mm.
+    pub last_mm: [f64; 3],
     /// FNV-1a over every setpoint's position bits (`firmware_core::digest`,
     /// the host's and QEMU's run digest); fed only with the `digest`
     /// feature (about 220 instructions a tick), else it stays at its start
@@ -64,6 +66,7 @@ impl Job {
             gen: None,
             state: RunState::Running,
             setpoints: 0,
+            last_mm: [0.0; 3],
             digest: Fnv1a64::new(),
         })
     }
@@ -71,6 +74,15 @@ impl Job {
     /// Where the run is.
     pub fn state(&self) -> RunState {
         self.state
+    }
+
+    /// The steps emitted per axis, and the steps of the last setpoint's
+    /// position (rounded as the step generator rounds): equal after every
+    /// period the output took. `None` before the first tick.
+    pub fn steps(&self) -> Option<([i64; 3], [i64; 3])> {
+        let gen = self.gen?;
+        let want = StepGen::new(STEP_CONFIG, SERVO_PERIOD_NS, self.last_mm).ok()?;
+        Some((gen.position_steps(), want.position_steps()))
     }
 
     /// One servo tick. `hold`: `Some(true)` when the feed-hold input became
@@ -82,12 +94,20 @@ impl Job {
         }
         match hold {
             Some(true) => match self.ip.hold() {
-                Ok(()) => defmt::info!("feed hold at s = {} mm", self.ip.s_mm()),
+                Ok(()) => {
+                    defmt::info!("feed hold at s = {} mm", self.ip.s_mm());
+                    #[cfg(feature = "qemu")]
+                    crate::qemu::note("feed hold", self.setpoints, self.ip.s_mm(), self.ip.hold_state());
+                }
                 Err(e) => defmt::warn!("feed hold refused: {}", e),
             },
-            Some(false) => match self.ip.resume() {
-                Ok(()) => defmt::info!("resume at s = {} mm", self.ip.s_mm()),
-                Err(e) => defmt::warn!("resume refused: {}", e),
+            Some(false) => match (self.ip.hold_state(), self.ip.resume()) {
+                (_was, Ok(())) => {
+                    defmt::info!("resume at s = {} mm, from {}", self.ip.s_mm(), _was);
+                    #[cfg(feature = "qemu")]
+                    crate::qemu::note("resume", self.setpoints, self.ip.s_mm(), _was);
+                }
+                (_, Err(e)) => defmt::warn!("resume refused: {}", e),
             },
             None => {}
         }
@@ -104,6 +124,7 @@ impl Job {
             }
         };
         self.setpoints = self.setpoints.wrapping_add(1);
+        self.last_mm = sp.pos_mm;
         #[cfg(feature = "digest")]
         self.digest.setpoint(&sp);
         let gen = match self.gen {

@@ -236,11 +236,11 @@ mod app {
             let end = cx.shared.job.lock(|j| {
                 j.as_ref()
                     .filter(|j| j.state() != RunState::Running)
-                    .map(|j| (j.state(), j.setpoints, j.digest.finish()))
+                    .map(|j| (j.state(), j.setpoints, j.digest.finish(), j.steps()))
             });
-            if let (Some((state, setpoints, digest)), false) = (end, reported) {
+            if let (Some((state, setpoints, digest, steps)), false) = (end, reported) {
                 reported = true;
-                report(state, setpoints, digest);
+                report(state, setpoints, digest, steps);
             }
             cortex_m::asm::wfi();
         }
@@ -279,14 +279,17 @@ mod app {
         }
     }
 
-    fn report(state: RunState, setpoints: u32, digest: u64) {
+    fn report(state: RunState, setpoints: u32, digest: u64, steps: Option<([i64; 3], [i64; 3])>) {
         if cfg!(feature = "digest") {
             defmt::info!("run {}: {} setpoints, digest {=u64:x}", state, setpoints, digest);
         } else {
             defmt::info!("run {}: {} setpoints", state, setpoints);
         }
+        if let Some((emitted, want)) = steps {
+            defmt::info!("steps emitted {}, at the last setpoint {}", emitted, want);
+        }
         #[cfg(feature = "qemu")]
-        crate::qemu::finished(state, setpoints, digest);
+        crate::qemu::finished(state, setpoints, digest, steps);
     }
 
     /// The servo tick: feed-hold input, one interpolator tick, the next
@@ -297,8 +300,12 @@ mod app {
         cx.local.servo_timer.clear_flags(Flag::Update);
         SERVO_IRQS.fetch_add(1, Relaxed);
         // Feed hold: input low (switch to ground, pull-up) = hold. QEMU has
-        // no GPIO model (every pin reads low): the input is not read there.
-        let active = !cfg!(feature = "qemu") && cx.local.hold_pin.is_low();
+        // no GPIO model (every pin reads low): there the input is simulated
+        // (`qemu::hold_input`).
+        #[cfg(not(feature = "qemu"))]
+        let active = cx.local.hold_pin.is_low();
+        #[cfg(feature = "qemu")]
+        let active = crate::qemu::hold_input();
         let mut change = None;
         if active == *cx.local.hold_active {
             *cx.local.hold_run = 0;
@@ -401,10 +408,12 @@ mod app {
 mod qemu {
     use crate::job::RunState;
     use crate::{MILLIS, PULSE_IRQS, SERVO_IRQS};
-    use core::sync::atomic::{AtomicU32, Ordering::Relaxed};
+    use core::sync::atomic::{AtomicBool, AtomicU32, Ordering::Relaxed};
     use cortex_m_semihosting::{debug, hprintln};
 
     static START: [AtomicU32; 3] = [AtomicU32::new(0), AtomicU32::new(0), AtomicU32::new(0)];
+    /// The run has started (`START` holds its start).
+    static STARTED: AtomicBool = AtomicBool::new(false);
     /// Instruction-count windows opened by [`mark_begin`].
     static WINDOWS: AtomicU32 = AtomicU32::new(0);
 
@@ -421,6 +430,40 @@ mod qemu {
     #[inline(never)]
     pub fn mark_end() {
         core::hint::black_box(0x656e_6421u32);
+    }
+
+    /// Build-time `BOARD_QEMU_HOLD_AT` and `BOARD_QEMU_HOLD_TICKS`: the
+    /// simulated feed-hold input is active from that many servo interrupts
+    /// after the run started, for that many (none by default).
+    const HOLD_AT: u32 = parse(option_env!("BOARD_QEMU_HOLD_AT"));
+    const HOLD_TICKS: u32 = parse(option_env!("BOARD_QEMU_HOLD_TICKS"));
+
+    const fn parse(s: Option<&str>) -> u32 {
+        match s {
+            Some(s) => crate::config::parse_u32(Some(s), 0),
+            None => 0,
+        }
+    }
+
+    /// The simulated feed-hold input (QEMU has no GPIO model).
+    pub fn hold_input() -> bool {
+        if HOLD_TICKS == 0 || !STARTED.load(Relaxed) {
+            return false;
+        }
+        let since = SERVO_IRQS.load(Relaxed).wrapping_sub(START[1].load(Relaxed));
+        (HOLD_AT..HOLD_AT.saturating_add(HOLD_TICKS)).contains(&since)
+    }
+
+    /// A hold or resume taken by the interpolator (`state`: the hold state
+    /// just after a hold, just before a resume).
+    pub fn note(what: &str, setpoints: u32, s_mm: f64, state: firmware_core::HoldState) {
+        hprintln!(
+            "{}: at setpoint {}, s = {} mm, {:?}",
+            what,
+            setpoints,
+            s_mm,
+            state
+        );
     }
 
     /// The board's own logic checked (`crate::check`); exits QEMU with
@@ -451,6 +494,7 @@ mod qemu {
         START[0].store(MILLIS.load(Relaxed), Relaxed);
         START[1].store(SERVO_IRQS.load(Relaxed), Relaxed);
         START[2].store(PULSE_IRQS.load(Relaxed), Relaxed);
+        STARTED.store(true, Relaxed);
         hprintln!(
             "board: running (servo period {} us)",
             crate::config::SERVO_PERIOD_US
@@ -459,7 +503,7 @@ mod qemu {
 
     /// The run ended: print the servo rate against the SysTick clock, the
     /// setpoint count and digest, and exit QEMU.
-    pub fn finished(state: RunState, setpoints: u32, digest: u64) {
+    pub fn finished(state: RunState, setpoints: u32, digest: u64, steps: Option<([i64; 3], [i64; 3])>) {
         let ms = MILLIS.load(Relaxed).wrapping_sub(START[0].load(Relaxed));
         let irqs = SERVO_IRQS.load(Relaxed).wrapping_sub(START[1].load(Relaxed));
         let hz = if ms > 0 {
@@ -477,7 +521,22 @@ mod qemu {
         let windows = WINDOWS.load(Relaxed).saturating_sub(64);
         hprintln!("BENCH-GROUP servo-tick {}", windows);
         hprintln!("digest: fnv1a64-pos-le={:016x}", digest);
-        let ok = state == RunState::Done;
+        let steps_ok = match steps {
+            Some((emitted, want)) => {
+                hprintln!(
+                    "steps: emitted [{}, {}, {}], at the last setpoint [{}, {}, {}]",
+                    emitted[0],
+                    emitted[1],
+                    emitted[2],
+                    want[0],
+                    want[1],
+                    want[2]
+                );
+                emitted == want
+            }
+            None => false,
+        };
+        let ok = state == RunState::Done && steps_ok;
         hprintln!("run: {}", if ok { "done" } else { "FAULTED" });
         debug::exit(if ok {
             debug::EXIT_SUCCESS
