@@ -64,14 +64,21 @@ if python3 "$board/frame-table.py" "$table" "$frame" 2>/dev/null; then
   fifo=$(mktemp -d)
   mkfifo "$fifo/link.in" "$fifo/link.out"
   exec 3<>"$fifo/link.in" 4<>"$fifo/link.out"
-  # QEMU's USART drops what arrives before the firmware enables it: send a second later
-  (sleep 1; cat "$frame" >&3) &
-  sender=$!
-  out=$(timeout -k 5 120 qemu-system-arm "${qemu_args[@]}" -serial null -chardev "pipe,id=link,path=$fifo/link" \
-    -serial chardev:link -kernel "$link_elf" </dev/null 2>&1) || { echo "$out"; echo "link run failed" >&2; exit 1; }
-  wait "$sender"
+  timeout -k 5 120 qemu-system-arm "${qemu_args[@]}" -serial null -chardev "pipe,id=link,path=$fifo/link" \
+    -serial chardev:link -kernel "$link_elf" </dev/null >"$fifo/out.txt" 2>&1 &
+  qemu=$!
+  # QEMU's USART drops what arrives before the firmware enables it: send once the
+  # firmware says it waits (at most 30 s)
+  for _ in $(seq 300); do
+    grep -q '^link: waiting' "$fifo/out.txt" && break
+    sleep 0.1
+  done
+  cat "$frame" >&3
+  rc=0; wait "$qemu" || rc=$?
+  out=$(cat "$fifo/out.txt")
   exec 3>&- 4>&-
   rm -rf "$fifo" "$frame"
+  if [ "$rc" -ne 0 ]; then echo "$out"; echo "link run failed" >&2; exit 1; fi
   link_ticks=$(sed -n 's/^ticks: \([0-9]*\).*/\1/p' <<<"$out")
   link_digest=$(sed -n 's/^digest: fnv1a64-pos-le=\([0-9a-f]*\).*/\1/p' <<<"$out")
   echo "  table sent over USART2 ($(stat -c %s "$table") bytes): ${link_ticks} ticks digest ${link_digest}"

@@ -228,6 +228,9 @@ mod app {
         start(&crate::BAKED.0, &mut cx.shared.job);
         #[cfg(not(feature = "baked-table"))]
         defmt::info!("waiting for a table on USART2 (PA3, {} baud)", LINK_BAUD);
+        // (the QEMU script sends the table once it reads this line)
+        #[cfg(all(feature = "qemu", not(feature = "baked-table")))]
+        cortex_m_semihosting::hprintln!("link: waiting for a table on USART2");
         let mut reported = false;
         loop {
             if let Some(bytes) = cx.shared.received.lock(Option::take) {
