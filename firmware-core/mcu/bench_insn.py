@@ -19,6 +19,7 @@ windows are split into groups by them. The first group must be `empty`
 every other window. Nothing is hard-coded: all numbers come from the run.
 
 Usage: bench_insn.py ELF [--method plugin|exec-log] [--csv FILE] [--timeout S]
+       [--machine M] [--marks BEGIN,END] [--qemu-arg ARG]...
 Exit code: the firmware's (semihosting) exit code, or 2 on a measurement error.
 """
 import argparse
@@ -30,8 +31,14 @@ import sys
 import tempfile
 import threading
 
-QEMU_ARGS = ["-cpu", "cortex-m4", "-machine", "mps2-an386", "-nographic",
-             "-semihosting-config", "enable=on,target=native"]
+
+def qemu_args(a):
+    """QEMU's arguments before the plugin and the kernel: the machine
+    (`a.machine`, default mps2-an386) and any extra `a.qemu_arg` (callers
+    such as wcet.py pass a namespace without either)."""
+    machine = getattr(a, "machine", "mps2-an386")
+    return ["-cpu", "cortex-m4", "-machine", machine, "-nographic",
+            "-semihosting-config", "enable=on,target=native", *getattr(a, "qemu_arg", [])]
 
 
 def symbol_addr(elf, nm, name):
@@ -101,7 +108,7 @@ def run_plugin(a, begin, end, tmp):
     out = os.path.join(tmp, "windows.txt")
     prof = os.path.join(tmp, "prof.txt")
     popt = f",prof={prof}" if a.profile else ""
-    cmd = [a.qemu, *QEMU_ARGS, "-plugin", f"{so},begin=0x{begin:x},end=0x{end:x},out={out}{popt}",
+    cmd = [a.qemu, *qemu_args(a), "-plugin", f"{so},begin=0x{begin:x},end=0x{end:x},out={out}{popt}",
            "-kernel", a.elf]
     try:
         p = subprocess.run(cmd, capture_output=True, text=True, timeout=a.timeout)
@@ -150,7 +157,7 @@ def run_exec_log(a, begin, end, tmp):
     result = {"windows": [], "errors": [], "total": 0}
     t = threading.Thread(target=scan, args=(fifo, begin, end, result))
     t.start()
-    cmd = [a.qemu, *QEMU_ARGS, "-singlestep", "-d", "exec,nochain", "-D", fifo, "-kernel", a.elf]
+    cmd = [a.qemu, *qemu_args(a), "-singlestep", "-d", "exec,nochain", "-D", fifo, "-kernel", a.elf]
     try:
         p = subprocess.run(cmd, capture_output=True, text=True, timeout=a.timeout)
     except subprocess.TimeoutExpired:
@@ -174,10 +181,17 @@ def main():
     ap.add_argument("--timeout", type=float, default=3600)
     ap.add_argument("--qemu", default="qemu-system-arm")
     ap.add_argument("--nm", default=shutil.which("arm-none-eabi-nm") or "nm")
+    ap.add_argument("--machine", default="mps2-an386",
+                    help="QEMU machine (boards/stm32f4 under QEMU: netduinoplus2)")
+    ap.add_argument("--qemu-arg", action="append", default=[],
+                    help="one more QEMU argument (repeat for more), e.g. --qemu-arg=-icount --qemu-arg=shift=3,sleep=off")
+    ap.add_argument("--marks", default="firmware_mcu::mark_begin,firmware_mcu::mark_end",
+                    help="the window's begin and end functions (demangled names, comma-separated)")
     a = ap.parse_args()
 
-    begin = symbol_addr(a.elf, a.nm, "firmware_mcu::mark_begin")
-    end = symbol_addr(a.elf, a.nm, "firmware_mcu::mark_end")
+    mark_begin, mark_end = a.marks.split(",")
+    begin = symbol_addr(a.elf, a.nm, mark_begin)
+    end = symbol_addr(a.elf, a.nm, mark_end)
     tmp = tempfile.mkdtemp(prefix="bench-insn-")
     try:
         if a.method == "plugin":

@@ -62,6 +62,7 @@ fn main() {
                 qhat_bound: qb,
                 settings: Default::default(),
                 ends: None,
+                feed: None,
             };
             let pseudo = mk(QhatBound::ControlPoints).solve_pseudo_jerk().unwrap();
             let plan = mk(QhatBound::ControlPoints).solve_plan(&pseudo.ctrl).unwrap();

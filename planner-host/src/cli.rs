@@ -43,7 +43,9 @@ Exit codes:
 /// fit 2, I/O 1, no solution 4.
 pub fn plan_exit_code(e: &PlanError) -> u8 {
     match e {
-        PlanError::Curve(_) | PlanError::Limits(_) | PlanError::Corner { .. } => EXIT_INPUT,
+        PlanError::Curve(_) | PlanError::Limits(_) | PlanError::Corner { .. } | PlanError::FeedProfile(_) => {
+            EXIT_INPUT
+        }
         PlanError::TooFewPoints { .. } | PlanError::OverrideLevel { .. } => EXIT_USAGE,
         PlanError::Io { .. } | PlanError::Table(_) => EXIT_IO,
         PlanError::Level { source, .. } => plan_exit_code(source),

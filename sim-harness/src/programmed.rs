@@ -24,6 +24,13 @@
 //! figure is an upper bound of the true distance either way. The allowance
 //! of a setpoint is the `G64 P` of its move when it has one, else
 //! [`EXACT_MM`].
+//!
+//! **The programmed feed.** Each `F` applies from its block on, also where
+//! the feed changes inside a path the machine does not stop on. The feed
+//! between two setpoints, |x_i − x_{i−1}|/T, is held to the higher of the
+//! two setpoints' moves' programmed feeds (a tick that crosses into a block
+//! with another feed averages both) within [`FEED_TOL`]; rapids are not
+//! measured against it.
 
 use planner_host::gcode::{Move, MoveKind, PathControl, Program};
 use planner_host::program::pieces::ArcPath;
@@ -44,6 +51,10 @@ pub const CURVE_SAMPLES: usize = 256;
 /// measured against the neighbours.
 pub const QUICK: f64 = 0.01;
 
+/// Allowed excess of the feed between two setpoints over the programmed
+/// feed (relative).
+pub const FEED_TOL: f64 = 5e-3;
+
 /// Local minima of the sampled distance that are refined.
 pub const REFINED: usize = 4;
 
@@ -60,21 +71,42 @@ pub struct Worst {
     pub tick: usize,
 }
 
-/// The contour error against the programmed geometry.
+/// The highest feed between two setpoints over the programmed feed.
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
+pub struct FeedWorst {
+    /// Feed over programmed feed.
+    pub ratio: f64,
+    /// The feed between the two setpoints, mm/s.
+    pub feed_mm_s: f64,
+    /// The programmed feed it was held to, mm/s.
+    pub programmed_mm_s: f64,
+    /// Source line of the later setpoint's move.
+    pub line: u32,
+    /// Tick index in the run (the later setpoint).
+    pub tick: usize,
+}
+
+/// The contour error against the programmed geometry, and the feed against
+/// the programmed feeds.
 #[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
 pub struct ProgrammedContour {
     /// Setpoints on moves without a path tolerance: worst distance.
     pub exact: Worst,
     /// Setpoints on moves under `G64 P`: worst distance over its allowance.
     pub toleranced: Worst,
+    /// The feed against each block's `F`.
+    pub feed: FeedWorst,
     /// Setpoints measured.
     pub setpoints: usize,
 }
 
 impl ProgrammedContour {
-    /// True when every setpoint is within its allowance.
+    /// True when every setpoint is within its allowance and no feed is over
+    /// its block's `F` by more than [`FEED_TOL`].
     pub fn pass(&self) -> bool {
-        self.exact.distance_mm <= EXACT_MM && self.toleranced.distance_mm <= self.toleranced.allowed_mm
+        self.exact.distance_mm <= EXACT_MM
+            && self.toleranced.distance_mm <= self.toleranced.allowed_mm
+            && self.feed.ratio <= 1.0 + FEED_TOL
     }
 }
 
@@ -280,6 +312,7 @@ pub fn programmed_contour(run: &ProgramRun, program: &Program) -> Result<Program
     let mut out = ProgrammedContour::default();
     let mut last_t = vec![0.0; moves.len()]; // where each curve's nearest point was last found
     let mut k = 0usize; // index of the current move; setpoints go forward through the program
+    let mut prev: Option<([f64; 3], Option<f64>)> = None; // the last setpoint and its move's feed
     for (tick, (tk, &line)) in run.ticks.iter().zip(&run.blocks).enumerate() {
         if moves.get(k).is_none_or(|m| m.line as u32 != line) {
             // forward first (the usual case), then from the start
@@ -291,6 +324,25 @@ pub fn programmed_contour(run: &ProgramRun, program: &Program) -> Result<Program
                     .ok_or(ProgrammedError::UnknownLine { tick, line })?,
             };
         }
+        // the feed since the last setpoint against the programmed feeds
+        let feed = match moves[k].kind {
+            MoveKind::Rapid => None,
+            _ => moves[k].feed_mm_s,
+        };
+        if let (Some((x0, f0)), Some(f1)) = (prev, feed) {
+            let f = f0.map_or(f1, |f0| f0.max(f1));
+            let v = dist(tk.cmd_mm, x0) / run.period_s;
+            if f > 0.0 && v / f > out.feed.ratio {
+                out.feed = FeedWorst {
+                    ratio: v / f,
+                    feed_mm_s: v,
+                    programmed_mm_s: f,
+                    line,
+                    tick,
+                };
+            }
+        }
+        prev = Some((tk.cmd_mm, feed));
         let allowed = tolerance(&moves[k]).unwrap_or(EXACT_MM);
         // its own move first; the neighbours only when that is not near enough
         // (the distance reported is then an upper bound of the true one)

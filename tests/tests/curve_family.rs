@@ -278,16 +278,27 @@ fn generated_curves_are_deterministic_valid_and_true_to_their_family() {
 ///   segment's axis jerk 1.0258 on the dense re-evaluation (the segment's
 ///   bound on q at its join sampled the geometry at even values of time only);
 /// - fam1_184_weights PAR 0.5: 1.0104 at a bend between the refinement's
-///   24 points per knot span, which the reported 20 per span saw.
+///   24 points per knot span, which the reported 20 per span saw;
+/// - fam1_129_weights (degree 3, weights 0.05–20) ADA 0.5: setpoints' axis
+///   jerk 1.0131, the plan's 1.0156 at 400 points per span, at a peak
+///   between two re-evaluation points that read 0.9992 and 1.0005;
+/// - fam1_129_weights PAR 2: no iterate held — the time-optimal feed
+///   dips to 0.096 mm/s beside a bend of 0.2 µm radius, under the stall
+///   floor (1e-3·v̄) that every iterate was judged by;
+/// - fam1_30_weights (degree 2) PAR 1: no iterate held — q collapsed
+///   between two curvature caps 1.1 mm apart with one knot between them.
 ///
 /// Each now plans, its own dense re-evaluation (20 and 200 points per knot
 /// span of q) is within 1.002 and every setpoint ratio within `1 + TOL`.
-const REGRESSIONS: [(usize, usize, f64); 5] = [
+const REGRESSIONS: [(usize, usize, f64); 8] = [
     (36, 2, 0.5),
     (73, 0, 0.5),
     (95, 2, 2.0),
     (184, 1, 1.0),
     (184, 0, 0.5),
+    (129, 2, 0.5),
+    (129, 0, 2.0),
+    (30, 0, 1.0),
 ];
 
 /// The plan's own limit the refinement aims at (the setpoints add up to

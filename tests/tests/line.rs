@@ -174,7 +174,16 @@ fn jerk_limited_ends_follow_the_s_curve_on_a_line() {
             }
         }
         let t = out.predicted_time_s;
-        let dense = verify::dense_check_ends(&line, &arc, &out.q_knots, &out.q_ctrl, Some(&e), &TABLE1, 20);
+        let dense = verify::dense_check_ends(
+            &line,
+            &arc,
+            &out.q_knots,
+            &out.q_ctrl,
+            Some(&e),
+            &TABLE1,
+            None,
+            20,
+        );
         eprintln!(
             "density {density}: T_plan {t:.5} (S-curve {t_j:.5}), segments {e:?}, dense {:?}",
             dense.ratios

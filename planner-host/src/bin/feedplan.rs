@@ -397,6 +397,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
                 &out.q_ctrl,
                 out.ends.as_ref(),
                 &cfg.limits,
+                cfg.feed_profile.as_ref(),
                 dense,
             );
             let text = if json {

@@ -127,7 +127,7 @@ fn check_profile(fx: &Fixture, active: u16, active_ctrl: &[f64], p: &OverridePro
         let (a, b) = (knots[j + 3], knots[j + 4]);
         for k in 0..=24 {
             let s = a + (b - a) * k as f64 / 24.0;
-            let r = verify::ratios_at(&fx.curve, &fx.arc, knots, &p.full_ctrl, &lim, s);
+            let r = verify::ratios_at(&fx.curve, &fx.arc, knots, &p.full_ctrl, &lim, None, s);
             worst = worst.max(r.worst());
         }
     }

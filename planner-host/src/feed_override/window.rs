@@ -63,6 +63,8 @@ impl OverrideContext {
                 qhat_bound: QhatBound::ControlPoints,
                 settings,
                 ends: None,
+                // override windows replan a curve's table: one feed limit
+                feed: None,
             };
             let t = Instant::now();
             let r = trust_region::solve_window(&lp, &caps, &self.certified, &fixed, Some(&reference));
@@ -107,6 +109,7 @@ impl OverrideContext {
                 qhat_bound: QhatBound::ControlPoints,
                 settings: self.solver,
                 ends: None,
+                feed: None,
             };
             let bad = trust_region::violations(
                 &lp,

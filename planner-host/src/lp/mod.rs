@@ -5,6 +5,8 @@
 //!   basis functions of q at a point.
 //! - `end_rows`: jerk-limited start and stop segments joined C² to q, and
 //!   the rows of their joins.
+//! - `feed_profile`: the feed limit v̄(s) along a path whose programmed
+//!   feed changes.
 //! - `problem`: one LP ([`FeedLp`]): its rows, objective and solver.
 //! - `banded_ipm`: the banded interior-point solver of those LPs.
 //! - `two_stage`: the paper's formulation, the pseudo-jerk LP then the
@@ -16,6 +18,7 @@
 pub(crate) mod banded_ipm;
 pub(crate) mod basis_rows;
 pub(crate) mod end_rows;
+pub mod feed_profile;
 pub(crate) mod machining_time;
 pub(crate) mod problem;
 pub(crate) mod trust_region;
@@ -23,6 +26,7 @@ pub(crate) mod two_stage;
 
 pub use basis_rows::{greville, knot_vector, BasisRow};
 pub use end_rows::EndMode;
+pub use feed_profile::{FeedProfile, FeedProfileError};
 pub use problem::{
     EvalPoint, FeedLp, LpError, LpSolution, LpStats, Objective, QhatBound, SolverSettings, Stage,
 };

@@ -21,6 +21,7 @@ use firmware_core::Limits;
 use crate::geometry::arc_length::PathDerivs;
 use crate::lp::basis_rows::{BasisRow, ORDER};
 use crate::lp::end_rows::EndRows;
+use crate::lp::feed_profile::FeedProfile;
 
 /// Which LP a result or an error belongs to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
@@ -173,6 +174,9 @@ pub struct FeedLp<'a> {
     /// Jerk-limited start and stop segments (`crate::lp::end_rows`): their join
     /// rows are added to both LPs; `None`: q(0) = q(L) = 0 with a step.
     pub ends: Option<&'a EndRows>,
+    /// The feed limit along the path (`crate::lp::feed_profile`), capped by
+    /// `limits.vbar`; `None`: `limits.vbar` everywhere.
+    pub feed: Option<&'a FeedProfile>,
 }
 
 /// A solved LP: the control points of q (a_1 = a_N = 0 included).
@@ -272,9 +276,27 @@ impl<'a> FeedLp<'a> {
         self.knots.len().saturating_sub(ORDER)
     }
 
+    /// The feed limit v̄(s) of (11) at `s`, mm/s.
+    pub fn vbar_at(&self, s: f64) -> f64 {
+        match self.feed {
+            Some(f) => f.at(s).min(self.limits.vbar),
+            None => self.limits.vbar,
+        }
+    }
+
+    /// The largest v̄ over [a, b], mm/s.
+    pub fn vbar_max_on(&self, a: f64, b: f64) -> f64 {
+        match self.feed {
+            Some(f) => f.max_on(a, b).min(self.limits.vbar),
+            None => self.limits.vbar,
+        }
+    }
+
     /// Largest q allowed at a point by the velocity limits (8) and (11).
-    pub fn q_max(&self, geo: &PathDerivs) -> f64 {
-        let mut q = self.limits.vbar * self.limits.vbar;
+    pub fn q_max(&self, p: &EvalPoint) -> f64 {
+        let geo = &p.geo;
+        let vbar = self.vbar_at(p.s);
+        let mut q = vbar * vbar;
         for k in 0..3 {
             let r1 = geo.d1[k].abs();
             if r1 > 0.0 {
@@ -698,6 +720,7 @@ mod tests {
             qhat_bound: QhatBound::ControlPoints,
             settings: SolverSettings::default(),
             ends: None,
+            feed: None,
         };
         let err = lp.solve_pseudo_jerk().unwrap_err();
         assert_eq!(err.stage, Stage::PseudoJerk);

@@ -267,10 +267,29 @@ const KINDS: [RowKind; 8] = [
     RowKind::TJerk,
 ];
 
+/// The stall floor relative to the toolpath's static cap q̄₀ (see
+/// `crate::plan::stall`): an iterate stalls at a check point where q falls
+/// below min(q_floor, STALL_CAP_REL·q̄₀) there.
+pub const STALL_CAP_REL: f64 = 1e-6;
+
 /// Static caps q̄₀ at a point: velocity (8)(11), then the curvature terms of
 /// (9) and (10) alone: |r″_k| q ≤ A_k, |r‴_k| q^{3/2} ≤ J_k.
 fn static_cap_at(lp: &FeedLp, p: &EvalPoint) -> f64 {
-    static_cap(&lp.limits, &p.geo)
+    static_cap(&lp.limits, &p.geo).min(lp.q_max(p))
+}
+
+/// The bounds a_i ≤ v̄² on the control points, v̄ the highest feed limit
+/// over the support of N_i: with one feed limit, the convex hull makes (11)
+/// hold everywhere; with a feed profile the rows q(s) ≤ v̄(s)² at the check
+/// points hold the lower stretches.
+fn control_upper(lp: &FeedLp) -> Vec<f64> {
+    (0..lp.n_ctrl())
+        .map(|i| {
+            let (a, b) = (lp.knots[i], lp.knots[(i + ORDER).min(lp.knots.len() - 1)]);
+            let v = lp.vbar_max_on(a, b);
+            v * v
+        })
+        .collect()
 }
 
 /// The static cap q̄₀ of the geometry `geo` under `limits` (see `static_cap_at`).
@@ -341,7 +360,7 @@ pub fn excess(lp: &FeedLp, ctrl: &[f64], p: &EvalPoint, caps: &[JumpCap]) -> f64
     if !lp.executes(p.s) {
         return 0.0;
     }
-    let v = values(lp, p, lp.q_max(&p.geo), ctrl);
+    let v = values(lp, p, lp.q_max(p), ctrl);
     let (sh, sht) = jerk_share(p.s, caps);
     let acc = v[1..5].iter().fold(0.0f64, |m, x| m.max(x.abs()));
     let jerk = v[5..8].iter().fold(v[8].abs() / sht, |m, x| m.max(x.abs() / sh));
@@ -442,7 +461,7 @@ pub fn violations(lp: &FeedLp, ctrl: &[f64], cand: &[EvalPoint], caps: &[JumpCap
         .enumerate()
         .filter(|(_, p)| lp.executes(p.s))
         .filter(|(_, p)| {
-            let v = values(lp, p, lp.q_max(&p.geo), ctrl);
+            let v = values(lp, p, lp.q_max(p), ctrl);
             let (sh, sht) = jerk_share(p.s, caps);
             v[0] > limit * limit
                 || v[1..5].iter().any(|x| x.abs() > limit)
@@ -551,10 +570,9 @@ pub fn solve_window(
     let t0 = Instant::now();
     let relaxed = relaxed(lp);
     let lp = &relaxed;
-    let n = lp.n_ctrl();
     let mut rows = Vec::with_capacity(lp.points.len() * 11);
     for p in lp.points {
-        rows.push(Row::q_at(&p.basis, lp.q_max(&p.geo)));
+        rows.push(Row::q_at(&p.basis, lp.q_max(p)));
         for kind in [RowKind::Acc(0), RowKind::Acc(1), RowKind::Acc(2), RowKind::TAcc] {
             let start = rows.len();
             lp.kind_rows(p, kind, 1.0, &mut rows);
@@ -570,7 +588,7 @@ pub fn solve_window(
             Some(Row::q_at(&crate::lp::basis_rows::BasisRow::at(lp.knots, s)?, cap))
         }),
     );
-    let upper = vec![lp.limits.vbar * lp.limits.vbar; n];
+    let upper = control_upper(lp);
     let pseudo = lp.solve_rows(
         Stage::PseudoJerk,
         &rows,
@@ -654,7 +672,13 @@ fn solve_with(
     let mut cap_margin = vec![0.0; cap_rows.len()];
     let n = lp.n_ctrl();
     let lim = lp.limits;
-    let qmax: Vec<f64> = pts.iter().map(|p| lp.q_max(&p.geo)).collect();
+    let qmax: Vec<f64> = pts.iter().map(|p| lp.q_max(p)).collect();
+    // the stall floor at each check point (`q_floor`, lowered where the
+    // toolpath itself holds the feed low)
+    let floors: Vec<f64> = pts
+        .iter()
+        .map(|p| q_floor.min(STALL_CAP_REL * static_cap_at(lp, p)))
+        .collect();
     let mut qbar: Vec<f64> = match &win {
         None => pts.iter().map(|p| static_cap_at(lp, p)).collect(),
         Some(w) => w.qbar0.iter().zip(&qmax).map(|(&q, &m)| q.min(m)).collect(),
@@ -665,7 +689,7 @@ fn solve_with(
         Some(_) => vec![Q_ROW | 0xffff; pts.len()],
     };
     // the control-point bound a_i ≤ v̄² makes the feed (11) hold everywhere (convex hull)
-    let upper = vec![lim.vbar * lim.vbar; n];
+    let upper = control_upper(lp);
     let floor = (FLOOR_FEED_REL * lim.vbar).powi(2);
     // Inside the end segments ([`crate::lp::end_rows`]) q is not executed: no rows,
     // no check, no time there.
@@ -981,7 +1005,7 @@ fn solve_with(
             let sq = q_now[i].sqrt();
             let r = Ratios {
                 vel: (0..3).fold(0.0, |m: f64, k| m.max((p.geo.d1[k] * sq).abs() / lim.v[k])),
-                feed: sq / lim.vbar,
+                feed: sq / lp.vbar_at(p.s),
                 acc: v[1..4].iter().fold(0.0, |m: f64, x| m.max(x.abs())),
                 tacc: v[4].abs(),
                 jerk: v[5..8].iter().fold(0.0, |m: f64, x| m.max(x.abs())),
@@ -994,7 +1018,11 @@ fn solve_with(
         // jerk there is bounded by q(s) ≤ q_cap alone (no check point sees it)
         let cap_ratio = cap_ratio(&cap_rows, &sol.ctrl);
         // an iterate that stalls the feed at a check point is no plan
-        let moves = q_now.iter().zip(&executed).all(|(&q, &e)| !e || q >= q_floor);
+        let moves = q_now
+            .iter()
+            .zip(&executed)
+            .zip(&floors)
+            .all(|((&q, &e), &f)| !e || q >= f);
         let feasible = ratios.worst() <= 1.0 + cfg.tol && cap_ratio <= 1.0 + CAP_TOL && moves;
         if std::env::var_os("FEEDLP_SLP_DEBUG").is_some() {
             eprintln!(

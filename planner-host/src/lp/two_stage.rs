@@ -30,7 +30,7 @@ impl FeedLp<'_> {
             }
         };
         // (8), (11): q ≤ q_max
-        push(b.d[0], self.q_max(&p.geo), false);
+        push(b.d[0], self.q_max(p), false);
         // (9): |r″ q + ½ r′ q′| ≤ A_k
         for k in 0..3 {
             let c = core::array::from_fn(|j| p.geo.d2[k] * b.d[0][j] + 0.5 * p.geo.d1[k] * b.d[1][j]);

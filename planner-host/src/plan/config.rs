@@ -5,6 +5,7 @@ use firmware_core::Limits;
 
 use crate::limits::TABLE1;
 use crate::lp::end_rows::EndMode;
+use crate::lp::feed_profile::FeedProfile;
 use crate::lp::problem::{Objective, QhatBound, SolverSettings};
 use crate::lp::trust_region::CertifiedConfig;
 use crate::plan::su_fit;
@@ -81,6 +82,12 @@ pub struct PlanConfig {
     /// percent). 100 is skipped; every entry must be finite, > 0 and distinct.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub override_levels: Vec<f64>,
+    /// The feed limit along the path where it changes (a part program's
+    /// `F` words inside a run of tangent moves): row (11) becomes
+    /// q(s) ≤ v̄(s)², each stretch's feed capped at `limits.vbar`
+    /// (`crate::lp::feed_profile`). `None`: `limits.vbar` everywhere.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub feed_profile: Option<FeedProfile>,
 }
 
 fn display<S: serde::Serializer, T: std::fmt::Display>(v: &T, s: S) -> Result<S::Ok, S::Error> {
@@ -105,6 +112,7 @@ impl Default for PlanConfig {
             ends: EndMode::Jerk,
             servo_period_s: 250e-6,
             override_levels: Vec::new(),
+            feed_profile: None,
         }
     }
 }

@@ -4,6 +4,7 @@ use firmware_core::table;
 
 use crate::geometry::curve_error::CurveError;
 use crate::limits::LimitsError;
+use crate::lp::feed_profile::FeedProfileError;
 use crate::lp::problem::LpError;
 use crate::plan::stall::StallAt;
 
@@ -80,6 +81,9 @@ pub enum PlanError {
         /// Why its plan failed.
         source: Box<PlanError>,
     },
+    /// The feed profile is not a valid step function.
+    #[error("feed profile: {0}")]
+    FeedProfile(#[from] FeedProfileError),
     /// Writing the table failed.
     #[error("cannot write {path}: {source}")]
     Io {

@@ -106,6 +106,13 @@ pub fn with_breaks(samples: &[f64], arc: &ArcLength) -> Vec<f64> {
     merge_breaks(samples, arc.spans().iter().skip(1).map(|sp| sp.s0))
 }
 
+/// The samples with the feed profile's breaks (where the programmed feed
+/// changes) merged in as knots of q too ([`merge_breaks`]): the limit (11)
+/// steps there, and a knot gives the check points on both sides.
+pub fn with_feed_breaks(samples: &[f64], breaks: &[f64]) -> Vec<f64> {
+    merge_breaks(samples, breaks.iter().copied())
+}
+
 /// [`with_breaks`] on the break positions themselves (increasing arc
 /// lengths). A sample that already stands on a break is never moved onto
 /// the next one: two breaks closer than 5 % of the span between them each

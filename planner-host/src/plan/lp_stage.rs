@@ -65,6 +65,13 @@ pub const CUT_SPLITS: usize = 4;
 /// Evaluations of the peak search ([`peak`]) around each re-evaluation
 /// point that exceeds a limit.
 pub const PEAK_EVALS: usize = 24;
+/// A re-evaluation point whose excess is a local maximum of the grid and at
+/// least this is searched too ([`LpStage::hidden_peaks`]): the grid may
+/// straddle a peak above the limit while reading under it on both sides
+/// (fam1_129_weights ADA 0.5: 0.9992 and 1.0005 at points 0.042 mm apart,
+/// 1.0156 at the axis-jerk peak between them, which the setpoints read as
+/// 1.0131).
+pub const PEAK_LOOK: f64 = 0.97;
 
 /// Check points of the certified formulation: `per_span` evenly spaced
 /// points in every non-empty knot span of q, the span's left knot first, and
@@ -337,6 +344,43 @@ impl LpStage<'_> {
         (near, brackets)
     }
 
+    /// Peaks of the excess above REFINE_TRIGGER that the re-evaluation grid
+    /// `dense` does not show: each grid point (outside `bad`, the points
+    /// already over the trigger) whose excess is a local maximum of the grid
+    /// and at least PEAK_LOOK is searched with [`LpStage::peak`] between its
+    /// neighbours; the peaks found over the trigger are returned.
+    fn hidden_peaks(
+        &self,
+        lp: &FeedLp,
+        ctrl: &[f64],
+        caps: &[crate::lp::JumpCap],
+        dense: &[EvalPoint],
+        bad: &[usize],
+    ) -> Vec<EvalPoint> {
+        let e: Vec<f64> = dense
+            .par_iter()
+            .map(|p| trust_region::excess(lp, ctrl, p, caps))
+            .collect();
+        let mut out = Vec::new();
+        for i in 0..e.len() {
+            let left = if i > 0 { e[i - 1] } else { f64::NEG_INFINITY };
+            let right = e.get(i + 1).copied().unwrap_or(f64::NEG_INFINITY);
+            if e[i] < PEAK_LOOK || e[i] < left || e[i] < right || bad.binary_search(&i).is_ok() {
+                continue;
+            }
+            let (a, b) = (
+                dense[i.saturating_sub(1)].s,
+                dense[(i + 1).min(dense.len() - 1)].s,
+            );
+            if let Some(p) = self.peak(lp, ctrl, caps, a, b) {
+                if trust_region::excess(lp, ctrl, &p, caps) > REFINE_TRIGGER {
+                    out.push(p);
+                }
+            }
+        }
+        out
+    }
+
     pub(crate) fn eval(&self, s: f64) -> Option<EvalPoint> {
         Some(EvalPoint {
             s,
@@ -355,8 +399,24 @@ impl LpStage<'_> {
         refine: Refine,
     ) -> Result<Solved, PlanError> {
         let (cfg, knots, curve, arc) = (self.cfg, self.knots, self.curve, self.arc);
+        // the feed profile at this plan's v̄ (an override level scales it)
+        let profile = cfg
+            .feed_profile
+            .as_ref()
+            .map(|f| f.scaled(limits.vbar / cfg.limits.vbar).capped(limits.vbar));
+        // the end segments at the lowest feed where they may reach: their
+        // joins lie at most L/3 from each end (`EndRows::new`)
+        let end_limits = match &profile {
+            Some(f) => Limits {
+                vbar: f
+                    .min_on(0.0, self.length / 3.0)
+                    .min(f.min_on(2.0 * self.length / 3.0, self.length)),
+                ..*limits
+            },
+            None => *limits,
+        };
         let end_rows = match cfg.ends {
-            EndMode::Jerk => EndRows::new(knots, limits, &|s| path_derivs_at(curve, arc, s)),
+            EndMode::Jerk => EndRows::new(knots, &end_limits, &|s| path_derivs_at(curve, arc, s)),
             EndMode::Step => None,
         };
         let feed_lp = FeedLp {
@@ -374,6 +434,7 @@ impl LpStage<'_> {
                 Formulation::Certified => cfg.solver,
             },
             ends: end_rows.as_ref(),
+            feed: profile.as_ref(),
         };
         let (ctrl, qhat_ctrl, lp_stats, check, pts, forced, rounds) = match cfg.formulation {
             Formulation::Paper => {
@@ -472,7 +533,9 @@ impl LpStage<'_> {
                     // cut, q may bend between it and its neighbours
                     let (near, brackets) = self.beside_cuts(&pts, &added);
                     let bad_near = trust_region::violations(&lp, &c.ctrl, &near, &caps, REFINE_TRIGGER);
-                    if (bad.is_empty() && bad_near.is_empty()) || round == last_round {
+                    // peaks over the trigger between grid points that read under it
+                    let hidden = self.hidden_peaks(&lp, &c.ctrl, &caps, dense, &bad);
+                    if (bad.is_empty() && bad_near.is_empty() && hidden.is_empty()) || round == last_round {
                         let rounds = round - first_round;
                         break (c.ctrl, Vec::new(), lps, Some(c.check), pts, forced, rounds);
                     }
@@ -483,6 +546,7 @@ impl LpStage<'_> {
                         .map(|&i| (at(i.saturating_sub(1)), at(i + 1)))
                         .chain(bad_near.iter().map(|&i| brackets[i]))
                         .filter_map(|(a, b)| self.peak(&lp, &c.ctrl, &caps, a, b))
+                        .chain(hidden)
                         .collect();
                     round += 1;
                     // the old points keep their row masks, the new ones are forced
@@ -517,9 +581,17 @@ impl LpStage<'_> {
             }
         };
         let ends = end_rows.as_ref().and_then(|e| e.segments(&ctrl));
+        // the toolpath's static cap at s, for the stall floor where the
+        // geometry itself holds the feed low
+        let cap = |s: f64| {
+            let feed = profile.as_ref().map_or(f64::INFINITY, |f| f.at(s).powi(2));
+            self.eval(s)
+                .map_or(f64::INFINITY, |p| trust_region::static_cap(limits, &p.geo))
+                .min(feed)
+        };
         let stall = match (&end_rows, ends) {
-            (None, _) => find_stall(knots, &ctrl, limits),
-            (Some(_), Some(e)) => find_stall_between(knots, &ctrl, limits, e.s_start, e.s_stop),
+            (None, _) => find_stall(knots, &ctrl, limits, &cap),
+            (Some(_), Some(e)) => find_stall_between(knots, &ctrl, limits, e.s_start, e.s_stop, &cap),
             (Some(e), None) => Some(StallAt::Interior {
                 s_mm: e.start.s,
                 feed_mm_s: 0.0,

@@ -67,6 +67,10 @@ pub struct PlanOutput {
     pub check_points: Vec<(f64, bool)>,
     /// Refinement rounds the base plan ran (certified).
     pub refine_rounds: usize,
+    /// How often the sampling's spans were bisected after a failed plan
+    /// (`plan::pipeline::KNOT_RETRIES`): 0 when the plan held on the
+    /// sampling asked for.
+    pub knot_bisections: usize,
     /// The override levels of [`PlanConfig::override_levels`], sorted by
     /// percent (level id k ≥ 1 of docs/override-design.md is `levels[k − 1]`).
     #[serde(skip_serializing_if = "Vec::is_empty")]
@@ -120,6 +124,11 @@ impl LevelPlan {
                 vbar: self.vbar_mm_s,
                 ..plan.config.limits
             },
+            plan.config
+                .feed_profile
+                .as_ref()
+                .map(|f| f.scaled(self.vbar_mm_s / plan.config.limits.vbar))
+                .as_ref(),
             per_span,
         )
     }
@@ -136,6 +145,7 @@ impl PlanOutput {
             &self.q_ctrl,
             self.ends.as_ref(),
             &self.config.limits,
+            self.config.feed_profile.as_ref(),
             per_span,
         )
     }
@@ -154,6 +164,13 @@ impl PlanOutput {
             self.sampling_points,
             self.control_points
         );
+        if self.knot_bisections > 0 {
+            let _ = writeln!(
+                o,
+                "  no plan held on that sampling: its spans bisected {} time(s), the LPs below are the plan's on them",
+                self.knot_bisections
+            );
+        }
         for lp in &self.lp {
             let _ = writeln!(
                 o,

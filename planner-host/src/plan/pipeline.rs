@@ -15,7 +15,7 @@ use crate::lp::end_rows::EndMode;
 use crate::lp::problem::EvalPoint;
 use crate::plan::config::{Formulation, PlanConfig};
 use crate::plan::error::PlanError;
-use crate::plan::knots::{end_room, refine_turning, with_breaks, TurnInU};
+use crate::plan::knots::{end_room, refine_turning, with_breaks, with_feed_breaks, TurnInU};
 use crate::plan::levels::validate_levels;
 use crate::plan::lp_stage::{check_points, LpStage, Refine, Solved};
 use crate::plan::output::PlanOutput;
@@ -75,40 +75,72 @@ pub fn plan_curve_with_progress(
         Formulation::Paper => samples,
         Formulation::Certified => {
             let turn = TurnInU::new(curve, &arc);
-            refine_turning(
-                &with_breaks(&samples, &arc),
-                cfg.certified.max_turn_rad,
-                |a, b| turn.turning(a, b),
-            )
+            let mut samples = with_breaks(&samples, &arc);
+            if let Some(f) = &cfg.feed_profile {
+                samples = with_feed_breaks(&samples, f.breaks());
+            }
+            refine_turning(&samples, cfg.certified.max_turn_rad, |a, b| turn.turning(a, b))
         }
     };
     dbg_t("refine");
-    let samples = match cfg.ends {
-        EndMode::Jerk => end_room(samples, &cfg.limits, length, &|s| path_derivs_at(curve, &arc, s))?,
-        EndMode::Step => samples,
+    // The plan on the sampling asked for; if it fails (a stall, or no LP of
+    // the sequence held every limit), once more on every span bisected.
+    let mut retry_samples = samples;
+    let mut bisections = 0;
+    let (knots, base, geometry_time_s) = loop {
+        let samples = match cfg.ends {
+            EndMode::Jerk => end_room(retry_samples.clone(), &cfg.limits, length, &|s| {
+                path_derivs_at(curve, &arc, s)
+            })?,
+            EndMode::Step => retry_samples.clone(),
+        };
+        let knots = basis_rows::knot_vector(&samples);
+        let eval = |s: f64| {
+            Some(EvalPoint {
+                s,
+                geo: path_derivs_at(curve, &arc, s),
+                basis: BasisRow::at(&knots, s)?,
+            })
+        };
+        let (points, is_knot): (Vec<EvalPoint>, Vec<bool>) = match cfg.formulation {
+            Formulation::Paper => basis_rows::greville(&knots)
+                .into_iter()
+                .filter_map(|g| Some((eval(g)?, false)))
+                .unzip(),
+            // evaluated in parallel, in order
+            Formulation::Certified => check_points(&knots, cfg.certified.checks_per_span)
+                .into_par_iter()
+                .filter_map(|(s, k)| Some((eval(s)?, k)))
+                .unzip(),
+        };
+        let geometry_time_s = t0.elapsed().as_secs_f64();
+        dbg_t("check points");
+        let stage = LpStage {
+            curve,
+            arc: &arc,
+            knots: &knots,
+            cfg,
+            length,
+            dense: std::sync::OnceLock::new(),
+            progress,
+            steps,
+            done: std::sync::atomic::AtomicUsize::new(0),
+        };
+        match stage.solve(&cfg.limits, &jumps, points, is_knot, Refine::Rounds) {
+            Ok(base) => {
+                stage.step_done();
+                break (knots, base, geometry_time_s);
+            }
+            Err(PlanError::Stall { .. } | PlanError::Lp(_))
+                if cfg.formulation == Formulation::Certified && bisections < KNOT_RETRIES =>
+            {
+                retry_samples = bisect_all(&retry_samples);
+                bisections += 1;
+            }
+            Err(e) => return Err(e),
+        }
     };
-    let knots = basis_rows::knot_vector(&samples);
-    let eval = |s: f64| {
-        Some(EvalPoint {
-            s,
-            geo: path_derivs_at(curve, &arc, s),
-            basis: BasisRow::at(&knots, s)?,
-        })
-    };
-    let (points, is_knot): (Vec<EvalPoint>, Vec<bool>) = match cfg.formulation {
-        Formulation::Paper => basis_rows::greville(&knots)
-            .into_iter()
-            .filter_map(|g| Some((eval(g)?, false)))
-            .unzip(),
-        // evaluated in parallel, in order
-        Formulation::Certified => check_points(&knots, cfg.certified.checks_per_span)
-            .into_par_iter()
-            .filter_map(|(s, k)| Some((eval(s)?, k)))
-            .unzip(),
-    };
-    let geometry_time_s = t0.elapsed().as_secs_f64();
-    dbg_t("check points");
-
+    dbg_t("LPs");
     let stage = LpStage {
         curve,
         arc: &arc,
@@ -118,11 +150,8 @@ pub fn plan_curve_with_progress(
         dense: std::sync::OnceLock::new(),
         progress,
         steps,
-        done: std::sync::atomic::AtomicUsize::new(0),
+        done: std::sync::atomic::AtomicUsize::new(1),
     };
-    let base = stage.solve(&cfg.limits, &jumps, points, is_knot, Refine::Rounds)?;
-    stage.step_done();
-    dbg_t("LPs");
     let levels = stage.levels(&base)?;
     dbg_t("levels");
     let Solved {
@@ -188,6 +217,28 @@ pub fn plan_curve_with_progress(
         table_bytes: bytes,
         check_points,
         refine_rounds: rounds,
+        knot_bisections: bisections,
         levels,
     })
+}
+
+/// Retries of a failed certified plan, each on every span of the sampling
+/// bisected: a cubic q between two curvature caps at the knots of a degree-2
+/// toolpath 1.1 mm apart, with one knot between them, can only sag under
+/// both (fam1_30_weights PAR 1: q collapsed to 5e-5 (mm/s)² between caps of
+/// 6.6 and 2.2, with static caps near 3,000 all around, and no iterate held);
+/// with twice the knots it rises between them.
+pub const KNOT_RETRIES: usize = 1;
+
+/// The samples with every interval bisected.
+fn bisect_all(samples: &[f64]) -> Vec<f64> {
+    let mut out = Vec::with_capacity(2 * samples.len());
+    for w in samples.windows(2) {
+        out.push(w[0]);
+        if w[1] > w[0] {
+            out.push(0.5 * (w[0] + w[1]));
+        }
+    }
+    out.extend(samples.last().copied());
+    out
 }

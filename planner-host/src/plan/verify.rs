@@ -12,6 +12,7 @@ use crate::geometry::arc_length::{path_derivs_at, ArcLength};
 use crate::geometry::curve::Nurbs;
 use crate::limits::Ratios;
 use crate::lp::basis_rows::BasisRow;
+use crate::lp::feed_profile::FeedProfile;
 
 /// Fewest time samples per end segment in [`dense_check_ends`].
 pub(crate) const SEGMENT_MIN_POINTS: usize = 200;
@@ -29,13 +30,15 @@ pub struct DenseReport {
     pub argmax_s: Ratios,
 }
 
-/// Ratios to the limits at one arc length `s` of the plan (knots, ctrl).
+/// Ratios to the limits at one arc length `s` of the plan (knots, ctrl);
+/// the feed against `feed`'s v̄(s) where there is a profile.
 pub(crate) fn ratios_at(
     curve: &Nurbs,
     arc: &ArcLength,
     knots: &[f64],
     ctrl: &[f64],
     lim: &Limits,
+    feed: Option<&FeedProfile>,
     s: f64,
 ) -> Ratios {
     let Some(b) = BasisRow::at(knots, s) else {
@@ -44,16 +47,24 @@ pub(crate) fn ratios_at(
     let q = b.apply(0, ctrl).max(0.0);
     let (q1, q2) = (b.apply(1, ctrl), b.apply(2, ctrl));
     let sd = q.sqrt();
-    ratios_kin(curve, arc, lim, s, [sd, 0.5 * q1, 0.5 * q2 * sd])
+    ratios_kin(curve, arc, lim, feed, s, [sd, 0.5 * q1, 0.5 * q2 * sd])
 }
 
 /// Ratios to the limits at arc length `s` moving with `[ṡ, s̈, s⃛]`.
-pub(crate) fn ratios_kin(curve: &Nurbs, arc: &ArcLength, lim: &Limits, s: f64, kin: [f64; 3]) -> Ratios {
+pub(crate) fn ratios_kin(
+    curve: &Nurbs,
+    arc: &ArcLength,
+    lim: &Limits,
+    feed: Option<&FeedProfile>,
+    s: f64,
+    kin: [f64; 3],
+) -> Ratios {
     let [sd, sdd, sddd] = kin;
     let q = sd * sd;
     let g = path_derivs_at(curve, arc, s);
+    let vbar = feed.map_or(lim.vbar, |f| f.at(s).min(lim.vbar));
     let mut r = Ratios {
-        feed: sd / lim.vbar,
+        feed: sd / vbar,
         tacc: sdd.abs() / lim.abar,
         tjerk: sddd.abs() / lim.jbar,
         ..Ratios::default()
@@ -79,12 +90,14 @@ pub fn dense_check(
     lim: &Limits,
     per_span: usize,
 ) -> DenseReport {
-    dense_check_ends(curve, arc, knots, ctrl, None, lim, per_span)
+    dense_check_ends(curve, arc, knots, ctrl, None, lim, None, per_span)
 }
 
 /// [`dense_check`] of a plan with end segments: q on [s₁, s₂] as there, and
 /// each segment at `per_span` × (its knot spans, at least `SEGMENT_MIN_POINTS`)
-/// points evenly spaced in time, from the exact s(t) of the segment.
+/// points evenly spaced in time, from the exact s(t) of the segment; the
+/// feed against `feed`'s v̄(s) where the plan has a profile.
+#[allow(clippy::too_many_arguments)]
 pub fn dense_check_ends(
     curve: &Nurbs,
     arc: &ArcLength,
@@ -92,6 +105,7 @@ pub fn dense_check_ends(
     ctrl: &[f64],
     ends: Option<&EndSegments>,
     lim: &Limits,
+    feed: Option<&FeedProfile>,
     per_span: usize,
 ) -> DenseReport {
     let per_span = per_span.max(1);
@@ -121,18 +135,18 @@ pub fn dense_check_ends(
         let n2 = (per_span * spans_in(e.s_stop, length)).max(SEGMENT_MIN_POINTS);
         for k in 0..=n1 {
             let [s, v, a, j] = e.start_at(e.t_start * k as f64 / n1 as f64);
-            samples.push((s, ratios_kin(curve, arc, lim, s, [v, a, j])));
+            samples.push((s, ratios_kin(curve, arc, lim, feed, s, [v, a, j])));
         }
         for k in 0..=n2 {
             let [s, v, a, j] = e.stop_at(length, e.t_stop * k as f64 / n2 as f64);
-            samples.push((s, ratios_kin(curve, arc, lim, s, [v, a, j])));
+            samples.push((s, ratios_kin(curve, arc, lim, feed, s, [v, a, j])));
         }
     }
     for (i, (a, b)) in spans.into_iter().enumerate() {
         let count = if i + 1 == n_spans { per_span + 1 } else { per_span };
         for k in 0..count {
             let s = a + (b - a) * k as f64 / per_span as f64;
-            samples.push((s, ratios_at(curve, arc, knots, ctrl, lim, s)));
+            samples.push((s, ratios_at(curve, arc, knots, ctrl, lim, feed, s)));
         }
     }
     for (s, r) in samples {

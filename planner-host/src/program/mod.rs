@@ -4,6 +4,8 @@
 //!
 //! - [`pieces`]: one move as a NURBS piece (lines and arcs exactly, helices
 //!   fitted within 1e-4 mm, NURBS as given), degree elevation;
+//! - [`blend`]: corners next to arcs and NURBS blocks under `G64 P`
+//!   rounded by a curvature-continuous quintic within the tolerance;
 //! - [`fit`]: runs of G1 chords under `G64 P` as one smooth spline within
 //!   the tolerance;
 //! - [`paths`]: runs of tangent-continuous feed moves joined into one curve,
@@ -14,6 +16,7 @@
 //! - [`file`]: the program file, the tables in order with their source
 //!   lines, CRC-checked.
 
+pub mod blend;
 pub mod file;
 pub mod fit;
 pub mod paths;

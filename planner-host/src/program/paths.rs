@@ -8,19 +8,20 @@
 //!   tangent of the next differ by at most [`JOIN_ANGLE_RAD`] (half the
 //!   planner's corner threshold [`CORNER_ANGLE_RAD`], so that a join this
 //!   code accepts is never refused by the planner as a corner);
-//! - the feed is the same (a new `F` inside a tangent run ends the path
-//!   there, with a stop, and a warning: the LP plans one feed limit per
-//!   path); feeds above the machine's feed limit count as the limit
-//!   ([`paths_for`]);
+//! - (the feed may change: each `F` applies from its block on, and the path
+//!   is planned with the feed limit v̄(s) of its blocks,
+//!   `crate::lp::feed_profile`; feeds above the machine's feed limit count
+//!   as the limit, [`paths_for`]);
 //! - the move ending the run is not under G61 (exact stop: the machine
 //!   stops at the end of every move).
 //!
-//! Anything else — a corner, a rapid, a feed change, G61 — ends the path:
-//! the machine stops there, except inside a run of chords.
+//! Anything else — a corner, a rapid, G61 — ends the path: the machine
+//! stops there, except inside a run of chords.
 //!
 //! **Runs of chords under `G64 P tol`.** Consecutive G1 lines under a path
-//! tolerance (`G64 P` > 0 on both moves at the corner), at the same feed,
-//! whose direction turns by at most [`FIT_MAX_TURN_RAD`] at each corner, form
+//! tolerance (`G64 P` > 0 on both moves at the corner), at the same feed
+//! (a feed change ends the run, with a stop and a warning: the fitted
+//! spline does not keep the chords' ends as knots), whose direction turns by at most [`FIT_MAX_TURN_RAD`] at each corner, form
 //! one run; the run becomes one path, a smooth cubic B-spline within the
 //! smallest tolerance of its moves from the programmed lines
 //! ([`super::fit`]): the machine neither stops nor crawls at the chords'
@@ -55,6 +56,7 @@
 use crate::gcode::{Move, MoveKind, PathControl, Program};
 use crate::geometry::curve::Nurbs;
 use crate::geometry::junction::CORNER_ANGLE_RAD;
+use crate::program::blend::{blend_corner, Blend};
 use crate::program::fit::{fit_chords, FitError};
 use crate::program::pieces::{self, angle_between, move_length, norm, sub, Piece, PieceError};
 
@@ -87,6 +89,9 @@ pub struct PathPiece {
     pub line: usize,
     /// Parameter u of the path's curve where the move ends.
     pub u_end: f64,
+    /// The move's programmed feed, mm/s, capped like the path's (None for
+    /// a rapid).
+    pub feed_mm_s: Option<f64>,
 }
 
 /// A run of moves followed without stopping, as one curve.
@@ -97,7 +102,8 @@ pub struct Path {
     /// The toolpath, u ∈ [0, 1].
     pub curve: Nurbs,
     /// Programmed feed, mm/s, capped at the machine's feed limit when one
-    /// was given ([`paths_for`]) (None for a rapid).
+    /// was given ([`paths_for`]) (None for a rapid); the highest of its
+    /// moves' feeds where they differ ([`Path::feed_stretches`]).
     pub feed_mm_s: Option<f64>,
     /// The moves, in order.
     pub pieces: Vec<PathPiece>,
@@ -107,6 +113,24 @@ pub struct Path {
     pub last_line: usize,
     /// A fitted run of chords: how close it stays to the programmed lines.
     pub fit: Option<Fitted>,
+}
+
+impl Path {
+    /// Where the feed changes along the path: `(u where the move starts,
+    /// its feed)` for each move whose feed differs from the one before, the
+    /// first at u = 0; `None` when one feed holds throughout (or a rapid).
+    pub fn feed_stretches(&self) -> Option<Vec<(f64, f64)>> {
+        let mut out: Vec<(f64, f64)> = Vec::new();
+        let mut u0 = 0.0;
+        for p in &self.pieces {
+            let f = p.feed_mm_s?;
+            if out.last().is_none_or(|&(_, g)| g != f) {
+                out.push((u0, f));
+            }
+            u0 = p.u_end;
+        }
+        (out.len() > 1).then_some(out)
+    }
 }
 
 /// How a run of chords was fitted ([`super::fit`]).
@@ -161,6 +185,8 @@ pub struct Paths {
     pub paths: Vec<Path>,
     /// What was dropped, split or not done.
     pub warnings: Vec<String>,
+    /// Corners rounded by a blend ([`super::blend`]).
+    pub blended_corners: usize,
 }
 
 /// How moves become paths.
@@ -185,10 +211,29 @@ impl Default for PathOptions {
 
 struct Open {
     kind: PathKind,
+    /// The path tolerance (`G64 P`) of the last move, if any.
+    last_tol: Option<f64>,
     feed: Option<f64>,
     pieces: Vec<(usize, Piece, f64)>,
+    /// Each piece's feed.
+    feeds: Vec<Option<f64>>,
     /// A run of chords to fit: the tolerance so far (mm).
     chords: Option<f64>,
+}
+
+/// The path tolerance of a feed move under `G64 P` > 0.
+fn path_tolerance(m: &Move) -> Option<f64> {
+    match (m.kind, m.path_control) {
+        (MoveKind::Rapid, _) => None,
+        (
+            _,
+            PathControl::Continuous {
+                tolerance_mm: Some(t),
+                ..
+            },
+        ) if t > 0.0 => Some(t),
+        _ => None,
+    }
 }
 
 /// The path tolerance of a G1 move under `G64 P` > 0.
@@ -255,6 +300,8 @@ pub fn paths_for(program: &Program, opts: &PathOptions) -> Result<Paths, PathErr
             PathKind::Feed
         };
         let tol = chord_tolerance(m).filter(|_| opts.fit_chords);
+        let blend_tol = path_tolerance(m).filter(|_| opts.fit_chords);
+        let mut blended: Option<Blend> = None;
         // what the open path becomes: None (a stop before m), or its run
         // tolerance after m joins (Some(None): not a run of chords)
         let joined: Option<Option<f64>> = match &open {
@@ -275,30 +322,62 @@ pub fn paths_for(program: &Program, opts: &PathOptions) -> Result<Paths, PathErr
                     (None, _) if tangent => Some(None),
                     _ => None,
                 };
-                if run.is_some() && !same_feed {
+                let chord_run = matches!(run, Some(Some(_)));
+                if chord_run && !same_feed {
                     out.warnings.push(format!(
-                        "LINE {}: the feed changes inside a continuous run ({:.3} to {:.3} mm/min): the machine stops there in this version",
+                        "LINE {}: the feed changes inside a run of G64 P chords ({:.3} to {:.3} mm/min): the run is fitted in two parts, with a stop between",
                         m.line,
                         o.feed.unwrap_or(0.0) * 60.0,
                         m.feed_mm_s.unwrap_or(0.0) * 60.0
                     ));
                 }
                 let curve_corner = run.is_none() && !tangent && turn <= FIT_MAX_TURN_RAD;
-                if curve_corner && tol.is_some() && !warned_curve_corner {
-                    out.warnings.push(format!(
-                        "LINE {}: a corner next to an arc or NURBS block is an exact stop even under G64 P (only runs of G1 lines are blended)",
-                        m.line
-                    ));
-                    warned_curve_corner = true;
+                // a corner next to an arc or NURBS block (or after a single
+                // line) under G64 P on both moves: a G2 blend within P
+                let blendable = o.chords.is_none() || o.pieces.len() == 1;
+                if let (true, true, Some(ta), Some(tb), Some(last)) =
+                    (curve_corner, blendable, o.last_tol, blend_tol, o.pieces.last())
+                {
+                    blended = blend_corner(&last.1, &piece, ta.min(tb));
+                    if blended.is_none() && !warned_curve_corner {
+                        out.warnings.push(format!(
+                            "LINE {}: the corner cannot be blended within G64 P{}: an exact stop",
+                            m.line,
+                            ta.min(tb)
+                        ));
+                        warned_curve_corner = true;
+                    }
                 }
-                run.filter(|_| same_feed)
+                match blended {
+                    Some(_) => Some(None),
+                    None => run.filter(|r| same_feed || r.is_none()),
+                }
             }
             _ => None,
         };
         match (joined, open.as_mut()) {
             (Some(run), Some(o)) => {
+                let (piece, len) = match blended.take() {
+                    Some(bl) => {
+                        if let Some(last) = o.pieces.last_mut() {
+                            last.1 = bl.before;
+                            last.2 = (last.2 - bl.cut_mm).max(MIN_MOVE_MM);
+                        }
+                        o.pieces.push((m.line, bl.blend, bl.blend_mm.max(MIN_MOVE_MM)));
+                        o.feeds.push(cap(m.feed_mm_s));
+                        out.blended_corners += 1;
+                        (bl.after, (len - bl.cut_mm).max(MIN_MOVE_MM))
+                    }
+                    None => (piece, len),
+                };
                 o.chords = run;
+                o.last_tol = path_tolerance(m);
                 o.pieces.push((m.line, piece, len));
+                o.feeds.push(cap(m.feed_mm_s));
+                o.feed = match (o.feed, cap(m.feed_mm_s)) {
+                    (Some(a), Some(b)) => Some(a.max(b)),
+                    (a, b) => a.or(b),
+                };
             }
             _ => {
                 if let Some(o) = open.take() {
@@ -306,8 +385,10 @@ pub fn paths_for(program: &Program, opts: &PathOptions) -> Result<Paths, PathErr
                 }
                 open = Some(Open {
                     kind,
+                    last_tol: path_tolerance(m),
                     feed: cap(m.feed_mm_s),
                     pieces: vec![(m.line, piece, len)],
+                    feeds: vec![cap(m.feed_mm_s)],
                     chords: tol,
                 });
             }
@@ -348,7 +429,11 @@ fn close_into(o: Open, out: &mut Paths) -> Result<(), PathError> {
                 .pieces
                 .iter()
                 .zip(&fit.vertex_u[1..])
-                .map(|(p, &u)| PathPiece { line: p.0, u_end: u })
+                .map(|(p, &u)| PathPiece {
+                    line: p.0,
+                    u_end: u,
+                    feed_mm_s: o.feed,
+                })
                 .collect();
             out.paths.push(Path {
                 kind: o.kind,
@@ -375,8 +460,10 @@ fn close_into(o: Open, out: &mut Paths) -> Result<(), PathError> {
             for p in o.pieces {
                 out.paths.push(close(Open {
                     kind: o.kind,
+                    last_tol: None,
                     feed: o.feed,
                     pieces: vec![p],
+                    feeds: vec![o.feed],
                     chords: None,
                 })?);
             }
@@ -445,7 +532,7 @@ fn close(o: Open) -> Result<Path, PathError> {
     let mut out_pieces = Vec::with_capacity(o.pieces.len());
     let mut u0 = 0.0;
     let n = o.pieces.len();
-    for (k, (line, piece, len)) in o.pieces.iter().enumerate() {
+    for (k, ((line, piece, len), &feed)) in o.pieces.iter().zip(&o.feeds).enumerate() {
         let mut e = piece.elevated(p);
         let u1 = if k + 1 == n { 1.0 } else { u0 + len / total };
         let (a, b) = (e.knots[0], e.knots[e.knots.len() - 1]);
@@ -468,6 +555,7 @@ fn close(o: Open) -> Result<Path, PathError> {
         out_pieces.push(PathPiece {
             line: *line,
             u_end: u1,
+            feed_mm_s: feed,
         });
         u0 = u1;
     }

@@ -159,6 +159,42 @@ impl Piece {
         c
     }
 
+    /// The piece cut at parameter `u` (strictly inside its range): the part
+    /// before and the part after, each clamped, the curve unchanged (`u`
+    /// inserted until it has multiplicity `degree`; the control point
+    /// there is the curve's point at `u`).
+    pub fn split_at(&self, u: f64) -> Option<(Piece, Piece)> {
+        let (a, b) = (*self.knots.first()?, *self.knots.last()?);
+        if !(u > a && u < b) {
+            return None;
+        }
+        let p = self.degree;
+        let mut c = self.clone();
+        let mult = c.knots.iter().filter(|&&k| k == u).count();
+        for _ in mult..p {
+            c = c.insert_knot(u);
+        }
+        let first = c.knots.iter().position(|&k| k == u)?;
+        if first == 0 || first > c.hpoints.len() {
+            return None;
+        }
+        let mut lk = c.knots[..first].to_vec();
+        lk.resize(first + p + 1, u);
+        let mut rk = vec![u; p + 1];
+        rk.extend_from_slice(c.knots.get(first + p..)?);
+        let before = Piece {
+            degree: p,
+            knots: lk,
+            hpoints: c.hpoints[..first].to_vec(),
+        };
+        let after = Piece {
+            degree: p,
+            knots: rk,
+            hpoints: c.hpoints[first - 1..].to_vec(),
+        };
+        Some((before, after))
+    }
+
     /// Boehm's single knot insertion (Piegl & Tiller A5.1, r = 1) on the
     /// homogeneous points; `u` strictly inside the range.
     fn insert_knot(&self, u: f64) -> Piece {

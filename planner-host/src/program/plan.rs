@@ -18,6 +18,7 @@ use rayon::prelude::*;
 
 use crate::gcode::Program;
 use crate::geometry::arc_length::ArcLength;
+use crate::lp::feed_profile::FeedProfile;
 use crate::machine::Machine;
 use crate::plan::{plan_curve, PlanConfig, PlanError};
 use crate::program::file::{Entry, EntryKind, FilePiece, ProgramFile};
@@ -92,8 +93,14 @@ pub struct PlannedPath {
     pub moves: usize,
     /// Programmed feed, mm/s (None: rapid).
     pub feed_mm_s: Option<f64>,
-    /// The feed limit it was planned with, mm/s.
+    /// The feed limit it was planned with, mm/s (the highest of its
+    /// feed profile's, when the feed changes along it).
     pub vbar_mm_s: f64,
+    /// Where the programmed feed changes along the path: `(s mm, feed
+    /// mm/s)` from each change on, the first at s = 0; empty when one feed
+    /// holds throughout.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub feed_profile: Vec<(f64, f64)>,
     /// Length, mm.
     pub length_mm: f64,
     /// Degree of its curve.
@@ -192,10 +199,32 @@ fn plan_path(
         PathKind::Feed => p.feed_mm_s.unwrap_or(limits.vbar).min(limits.vbar),
         PathKind::Rapid => machine.rapid_mm_s,
     };
+    // each move's feed from its block on: the feed limit v̄(s) of the path
+    let feed_profile = match p.kind {
+        PathKind::Feed => p
+            .feed_stretches()
+            .map(|st| {
+                let pairs: Vec<(f64, f64)> = st
+                    .iter()
+                    .map(|&(u, f)| (if u == 0.0 { 0.0 } else { arc.s_of_u(u) }, f.min(limits.vbar)))
+                    .collect();
+                FeedProfile::new(&pairs)
+            })
+            .transpose()
+            .map_err(|e| ProgramError::Plan {
+                first_line: p.first_line,
+                last_line: p.last_line,
+                index,
+                source: PlanError::FeedProfile(e),
+            })?,
+        PathKind::Rapid => None,
+    };
+    let stretches: Vec<(f64, f64)> = feed_profile.iter().flat_map(|f| f.stretches()).collect();
     let cfg = PlanConfig {
         limits,
         servo_period_s: machine.servo_period_s,
         density_per_mm: opts.density_per_mm.max(MIN_POINTS / length),
+        feed_profile,
         ..PlanConfig::default()
     };
     let out = plan_curve(&p.curve, &cfg).map_err(|source| ProgramError::Plan {
@@ -221,6 +250,7 @@ fn plan_path(
         moves: n,
         feed_mm_s: p.feed_mm_s,
         vbar_mm_s: limits.vbar,
+        feed_profile: stretches,
         length_mm: length,
         degree: p.curve.degree,
         predicted_time_s: out.predicted_time_s,
@@ -290,7 +320,7 @@ impl PlannedProgram {
         );
         for (i, p) in self.paths.iter().enumerate().take(SUMMARY_PATHS) {
             o.push_str(&format!(
-                "  path {:>3}  LINE {}..{}  {:<5} {:>3} moves  {:>10.3} mm  v {:>8.3} mm/s  {:>8.4} s  (plan {:.1} ms)\n",
+                "  path {:>3}  LINE {}..{}  {:<5} {:>3} moves  {:>10.3} mm  v {:>8.3} mm/s{}  {:>8.4} s  (plan {:.1} ms)\n",
                 i + 1,
                 p.first_line,
                 p.last_line,
@@ -301,6 +331,10 @@ impl PlannedProgram {
                 p.moves,
                 p.length_mm,
                 p.vbar_mm_s,
+                match p.feed_profile.len() {
+                    0 => String::new(),
+                    n => format!(" (F changes {} times)", n - 1),
+                },
                 p.predicted_time_s,
                 p.plan_time_s * 1e3
             ));

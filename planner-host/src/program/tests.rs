@@ -157,14 +157,23 @@ fn nurbs_blocks_are_kept_and_lines_elevated_beside_them() {
 }
 
 #[test]
-fn corners_feed_changes_and_rapids_end_paths() {
+fn corners_and_rapids_end_paths_and_a_feed_change_does_not() {
     let (_, p) = read("G21 G17 G64 F600\nG0 X1 Y0\nG1 X10\nG1 X20\nG1 Y10\nG1 Y20 F300\nG0 Z5\nM2\n");
     let shape: Vec<(usize, usize)> = p.paths.iter().map(|x| (x.first_line, x.last_line)).collect();
-    assert_eq!(shape, vec![(2, 2), (3, 4), (5, 5), (6, 6), (7, 7)]);
+    assert_eq!(shape, vec![(2, 2), (3, 4), (5, 6), (7, 7)]);
+    assert!(p.warnings.is_empty(), "{:?}", p.warnings);
+    // the feed from each block on: 10 mm/s on Y0..Y10, 5 mm/s from Y10
+    let joined = &p.paths[2];
+    assert_eq!(joined.feed_mm_s, Some(10.0));
+    assert_eq!(joined.feed_stretches(), Some(vec![(0.0, 10.0), (0.5, 5.0)]));
+    assert_eq!(p.paths[1].feed_stretches(), None);
+    // inside a run of G64 P chords a feed change still splits the run
+    let (_, p) = read("G21 G17 G64 P0.1 F600\nG1 X10\nG1 X20 Y1 F300\nM2\n");
+    assert_eq!(p.paths.len(), 2);
     assert!(p
         .warnings
         .iter()
-        .any(|w| w.contains("LINE 6") && w.contains("feed changes")));
+        .any(|w| w.contains("LINE 3") && w.contains("run of G64 P chords")));
     // two feeds above the machine's feed limit are the same feed
     let prog = read_str(
         "G21 G17 F60000\nG1 X10\nG1 X20 F90000\nM2\n",
@@ -182,7 +191,14 @@ fn corners_feed_changes_and_rapids_end_paths() {
     assert_eq!(capped.paths.len(), 1);
     assert_eq!(capped.paths[0].feed_mm_s, Some(100.0));
     assert!(capped.warnings.is_empty());
-    assert_eq!(paths_of(&prog).unwrap().paths.len(), 2);
+    assert_eq!(capped.paths[0].feed_stretches(), None);
+    // without the cap: one path whose feed rises from 1,000 to 1,500 mm/s
+    let uncapped = paths_of(&prog).unwrap();
+    assert_eq!(uncapped.paths.len(), 1);
+    assert_eq!(
+        uncapped.paths[0].feed_stretches(),
+        Some(vec![(0.0, 1000.0), (0.5, 1500.0)])
+    );
     // G61 stops after every move, even a tangent one
     let (_, p) = read("G21 G17 G61 F600\nG1 X10\nG1 X20\nM2\n");
     assert_eq!(p.paths.len(), 2);
@@ -214,10 +230,38 @@ fn corners_feed_changes_and_rapids_end_paths() {
     // a reversal is sharper than a blend may turn: a stop
     let (_, p) = read("G21 G17 G64 P0.1 F600\nG1 X10\nG1 X0.5 Y0.1\nM2\n");
     assert_eq!(p.paths.len(), 2);
-    // a corner between an arc and a line stays a stop, with a warning
-    let (_, p) = read("G21 G17 G64 P0.1 F600\nG1 X10\nG3 X10 Y10 I-5 J5\nG1 X0\nM2\n");
-    assert!(p.paths.len() >= 2);
-    assert!(p.warnings.iter().any(|w| w.contains("next to an arc")));
+    // corners between an arc and lines are blended within P: one path
+    let text = "G21 G17 G64 P0.1 F600\nG1 X10\nG3 X10 Y10 I-5 J5\nG1 X0\nM2\n";
+    let (moves, p) = read(text);
+    assert_eq!(p.paths.len(), 1, "{:?}", p.warnings);
+    assert_eq!(p.blended_corners, 2);
+    // the moves and the two blends, the blends on the lines after their corners
+    let lines: Vec<usize> = p.paths[0].pieces.iter().map(|x| x.line).collect();
+    assert_eq!(lines, vec![2, 3, 3, 4, 4]);
+    // every point of the path within P of a programmed move
+    let far = (0..=4000)
+        .map(|k| p.paths[0].curve.point(f64::from(k) / 4000.0))
+        .map(|x| {
+            moves
+                .iter()
+                .flat_map(|m| [0.0, 0.25, 0.5, 0.75, 1.0].map(|t| distance(m, x, t)))
+                .fold(f64::INFINITY, f64::min)
+        })
+        .fold(0.0f64, f64::max);
+    assert!(far <= 0.1 && far > 1e-3, "{far}");
+    // ... and stay stops under G64 without P, or with exact corners asked for
+    let (_, p) = read("G21 G17 G64 F600\nG1 X10\nG3 X10 Y10 I-5 J5\nG1 X0\nM2\n");
+    assert_eq!((p.paths.len(), p.blended_corners), (3, 0));
+    let prog = read_str(text, ReadOptions::default()).unwrap();
+    let exact = crate::program::paths::paths_for(
+        &prog,
+        &crate::program::paths::PathOptions {
+            fit_chords: false,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    assert_eq!((exact.paths.len(), exact.blended_corners), (3, 0));
 }
 
 #[test]

@@ -852,7 +852,7 @@ fn run_program_cmd(
         }
         if let Some(c) = &programmed {
             outln!(
-                "contour against the programmed geometry ({} setpoints): exact moves {:.3e} mm (allowed {:.0e}, LINE {}), moves under G64 P {:.3e} mm (allowed {:.3e}, LINE {}); {}",
+                "contour against the programmed geometry ({} setpoints): exact moves {:.3e} mm (allowed {:.0e}, LINE {}), moves under G64 P {:.3e} mm (allowed {:.3e}, LINE {}); feed against each block's F: ratio {:.4} ({:.3} of {:.3} mm/s, LINE {}); {}",
                 c.setpoints,
                 c.exact.distance_mm,
                 sim_harness::programmed::EXACT_MM,
@@ -860,6 +860,10 @@ fn run_program_cmd(
                 c.toleranced.distance_mm,
                 c.toleranced.allowed_mm,
                 c.toleranced.line,
+                c.feed.ratio,
+                c.feed.feed_mm_s,
+                c.feed.programmed_mm_s,
+                c.feed.line,
                 if c.pass() { "pass" } else { "FAIL" }
             );
         }
@@ -868,14 +872,17 @@ fn run_program_cmd(
         return Err(Failure {
             code: EXIT_LIMIT,
             message: format!(
-                "{}: a setpoint leaves the programmed path: {:.3e} mm at LINE {} (allowed {:.0e}), {:.3e} mm at LINE {} (allowed {:.3e})",
+                "{}: a setpoint leaves the programmed path or its feed: {:.3e} mm at LINE {} (allowed {:.0e}), {:.3e} mm at LINE {} (allowed {:.3e}), feed {:.4} of F at LINE {} (allowed {})",
                 table.display(),
                 c.exact.distance_mm,
                 c.exact.line,
                 sim_harness::programmed::EXACT_MM,
                 c.toleranced.distance_mm,
                 c.toleranced.line,
-                c.toleranced.allowed_mm
+                c.toleranced.allowed_mm,
+                c.feed.ratio,
+                c.feed.line,
+                1.0 + sim_harness::programmed::FEED_TOL
             ),
         });
     }
@@ -950,6 +957,7 @@ fn demo(out: &Path) -> Result<(), Failure> {
         &planned.q_ctrl,
         planned.ends.as_ref(),
         &cfg.limits,
+        None,
         20,
     );
     outln!("== plan");
