@@ -14,6 +14,8 @@
 //! costs an LP or two where a sequence started afresh cost eight or more
 //! (16 of the 27 LPs of the 10,000-chord surfacing program). Each later
 //! round re-evaluates the plan beside the points the rounds added, too.
+//! Where a limit is still exceeded after the last round, the rounds run
+//! once more with each sequence started afresh, as they did before.
 
 use std::borrow::Cow;
 
