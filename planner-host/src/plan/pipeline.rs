@@ -115,17 +115,7 @@ pub fn plan_curve_with_progress(
         };
         let geometry_time_s = t0.elapsed().as_secs_f64();
         dbg_t("check points");
-        let stage = LpStage {
-            curve,
-            arc: &arc,
-            knots: &knots,
-            cfg,
-            length,
-            dense: std::sync::OnceLock::new(),
-            progress,
-            steps,
-            done: std::sync::atomic::AtomicUsize::new(0),
-        };
+        let stage = lp_stage(curve, &arc, &knots, cfg, progress, steps, 0);
         match stage.solve(&cfg.limits, &jumps, points, is_knot, Refine::Rounds) {
             Ok(base) => {
                 stage.step_done();
@@ -141,17 +131,8 @@ pub fn plan_curve_with_progress(
         }
     };
     dbg_t("LPs");
-    let stage = LpStage {
-        curve,
-        arc: &arc,
-        knots: &knots,
-        cfg,
-        length,
-        dense: std::sync::OnceLock::new(),
-        progress,
-        steps,
-        done: std::sync::atomic::AtomicUsize::new(1),
-    };
+    // the levels on the knots the base plan held on, the base counted as done
+    let stage = lp_stage(curve, &arc, &knots, cfg, progress, steps, 1);
     let levels = stage.levels(&base)?;
     dbg_t("levels");
     let Solved {
@@ -220,6 +201,29 @@ pub fn plan_curve_with_progress(
         knot_bisections: bisections,
         levels,
     })
+}
+
+/// The LP stage of a plan on `knots`, `done` of its `steps` finished.
+fn lp_stage<'a>(
+    curve: &'a Nurbs,
+    arc: &'a ArcLength,
+    knots: &'a [f64],
+    cfg: &'a PlanConfig,
+    progress: &'a (dyn Fn(usize, usize) + Sync),
+    steps: usize,
+    done: usize,
+) -> LpStage<'a> {
+    LpStage {
+        curve,
+        arc,
+        knots,
+        cfg,
+        length: arc.total(),
+        dense: std::sync::OnceLock::new(),
+        progress,
+        steps,
+        done: std::sync::atomic::AtomicUsize::new(done),
+    }
 }
 
 /// Retries of a failed certified plan, each on every span of the sampling

@@ -156,6 +156,18 @@ fn nurbs_blocks_are_kept_and_lines_elevated_beside_them() {
     }
 }
 
+/// The paths of `prog` with a stop at every corner (`--exact-corners`).
+fn exact_corners(prog: &crate::gcode::Program) -> Paths {
+    crate::program::paths::paths_for(
+        prog,
+        &crate::program::paths::PathOptions {
+            fit_chords: false,
+            ..Default::default()
+        },
+    )
+    .unwrap()
+}
+
 #[test]
 fn corners_and_rapids_end_paths_and_a_feed_change_does_not() {
     let (_, p) = read("G21 G17 G64 F600\nG0 X1 Y0\nG1 X10\nG1 X20\nG1 Y10\nG1 Y20 F300\nG0 Z5\nM2\n");
@@ -214,14 +226,7 @@ fn corners_and_rapids_end_paths_and_a_feed_change_does_not() {
     assert_eq!(u_ends.len(), 3);
     assert!(u_ends.windows(2).all(|w| w[0] < w[1]) && u_ends[2] == 1.0);
     // ... unless exact corners are asked for
-    let exact = crate::program::paths::paths_for(
-        &prog,
-        &crate::program::paths::PathOptions {
-            fit_chords: false,
-            ..Default::default()
-        },
-    )
-    .unwrap();
+    let exact = exact_corners(&prog);
     assert_eq!(exact.paths.len(), 3);
     assert!(exact
         .warnings
@@ -253,14 +258,7 @@ fn corners_and_rapids_end_paths_and_a_feed_change_does_not() {
     let (_, p) = read("G21 G17 G64 F600\nG1 X10\nG3 X10 Y10 I-5 J5\nG1 X0\nM2\n");
     assert_eq!((p.paths.len(), p.blended_corners), (3, 0));
     let prog = read_str(text, ReadOptions::default()).unwrap();
-    let exact = crate::program::paths::paths_for(
-        &prog,
-        &crate::program::paths::PathOptions {
-            fit_chords: false,
-            ..Default::default()
-        },
-    )
-    .unwrap();
+    let exact = exact_corners(&prog);
     assert_eq!((exact.paths.len(), exact.blended_corners), (3, 0));
 }
 
