@@ -13,10 +13,19 @@
 //! fixed-point position coefficients actually use (the room a compact
 //! encoding has).
 //!
-//!     cargo run --release -p planner-host --example table_budget -- [CURVE ...]
+//!     cargo run --release -p planner-host --example table_budget -- [--prototype] [CURVE ...]
 //!
 //! CURVE is a built-in name (butterfly, circle, fan, star, trident) or a
 //! curve JSON file; without one, the Butterfly.
+//!
+//! `--prototype` adds the measurement of the PROTOTYPE compact chunk
+//! encoding (module `compact`): the table's pieces encoded losslessly, and
+//! longer pieces re-fitted across s → u segments, each encoded, decoded and
+//! compared, in bytes per mm with the q spans and the chunk framing;
+//! `--fit-tol MM` the same with another fit tolerance for the re-fitted
+//! pieces (default the table's 2e-11 mm).
+
+mod compact;
 
 use std::path::Path;
 
@@ -24,7 +33,7 @@ use firmware_core::math::source::Point4Array;
 use firmware_core::table::layout::{CRC_LEN, DIR_ENTRY_LEN};
 use firmware_core::table::Section;
 use firmware_core::{F64Array, Table};
-use planner_host::{cli, plan_curve, PlanConfig};
+use planner_host::{cli, plan_curve, ArcLength, PlanConfig};
 
 /// Full feed of TABLE1, mm/s.
 const FULL_FEED_MM_S: f64 = 166.67;
@@ -128,7 +137,7 @@ fn quantile(sorted: &[f64], q: f64) -> f64 {
     sorted[((sorted.len() - 1) as f64 * q).round() as usize]
 }
 
-fn report(arg: &str) -> Result<(), String> {
+fn report(arg: &str, prototype: Option<f64>) -> Result<(), String> {
     let curve = cli::load_curve(Path::new(arg)).map_err(|e| format!("{arg}: {e}"))?;
     let out = plan_curve(&curve, &PlanConfig::default()).map_err(|e| format!("{arg}: {e}"))?;
     let bytes = &out.table_bytes;
@@ -268,24 +277,108 @@ fn report(arg: &str) -> Result<(), String> {
          k = 0..7: x {:?}, y {:?}, z {:?}; centre − previous centre: {centre_delta_bits} bits\n",
         width[0], width[1], width[2]
     );
+    if let Some(fit_tol) = prototype {
+        prototype_report(&curve, &table, len, fit_tol);
+    }
     Ok(())
 }
 
+/// The PROTOTYPE compact encoding on this curve (see [`compact`]).
+fn prototype_report(curve: &planner_host::Nurbs, table: &Table, len: f64, fit_tol: f64) {
+    use compact::{Breaks, CHUNK_MM, HEADER_LEN, U_FORM_LEN};
+    let q_knots: Vec<f64> = table.q_knots().iter().collect();
+    let ours = compact::table_pieces(table);
+    let arc = ArcLength::new(curve);
+    let refit = compact::refit(curve, &arc, table, fit_tol);
+    println!(
+        "PROTOTYPE compact encoding: chunks of {CHUNK_MM} mm, header {HEADER_LEN} + CRC 4 + COBS; \
+         q spans as h (Q20 LEB128) + f64 ctrl, 3 spans repeated a chunk; u form not sent \
+         (with it: + {U_FORM_LEN} bytes a piece)\n"
+    );
+    println!(
+        "| pieces | count | per mm | median length mm | piece B/mm | B/piece | q B/mm | framing B/mm | \
+         **total B/mm** | + u form | round trip |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|---|---|");
+    let mut rates = Vec::new();
+    for (label, pieces, breaks) in [
+        ("table's, lossless", &ours, Breaks::Table),
+        (
+            "re-fitted across s→u segments, Q20 breaks",
+            &refit.pieces,
+            Breaks::Grid,
+        ),
+    ] {
+        let e = compact::encode_chunks(pieces, &q_knots, breaks);
+        let n = pieces.len();
+        let mut lens: Vec<f64> = pieces.iter().map(|p| p.len_mm()).collect();
+        lens.sort_by(f64::total_cmp);
+        let total = e.piece_bytes + e.q_bytes + e.frame_bytes;
+        rates.push((label, total as f64 / table.predicted_time_s(), e.at));
+        println!(
+            "| {label} | {n} | {:.3} | {:.3} | {:.1} | {:.1} | {:.1} | {:.1} | **{:.1}** | {:.1} | {} of {n} pieces differ |",
+            n as f64 / len,
+            quantile(&lens, 0.5),
+            e.piece_bytes as f64 / len,
+            e.piece_bytes as f64 / n as f64,
+            e.q_bytes as f64 / len,
+            e.frame_bytes as f64 / len,
+            total as f64 / len,
+            (total + U_FORM_LEN * n) as f64 / len,
+            e.mismatches
+        );
+    }
+    println!(
+        "\nlink rate of the streams over the planned motion (bytes/s; worst window of 0.25 s / 1 s / 4 s):\n"
+    );
+    println!("| pieces | mean over T | 0.25 s | 1 s | 4 s | full feed × B/mm |");
+    println!("|---|---|---|---|---|---|");
+    for (label, mean, at) in &rates {
+        let total: usize = at.iter().map(|a| a.1).sum();
+        println!(
+            "| {label} | {mean:.0} | {:.0} | {:.0} | {:.0} | {:.0} |",
+            compact::peak_rate(table, at, 0.25),
+            compact::peak_rate(table, at, 1.0),
+            compact::peak_rate(table, at, 4.0),
+            total as f64 / len * FULL_FEED_MM_S
+        );
+    }
+    let (diff, step) = compact::compare(&refit.pieces, &ours, 9);
+    println!(
+        "\nre-fitted pieces (tolerance {fit_tol:e} mm): largest |piece − r(s)| at the 29 check points {:.2e} mm ({} pieces over \
+         the tolerance after 10 bisections); largest |re-fitted − table's pieces| {diff:.2e} mm \
+         (9 points a piece; includes the table's s → u map error, ≤ 1e-6 mm in s); \
+         largest step between re-fitted pieces {step} Q40 units ({:.1e} mm)\n",
+        refit.max_fit_err,
+        refit.over_tol,
+        step as f64 / (1u64 << 40) as f64
+    );
+}
+
 fn main() {
-    let mut args: Vec<String> = std::env::args().skip(1).collect();
+    let args: Vec<String> = std::env::args().skip(1).collect();
     if args.iter().any(|a| a == "-h" || a == "--help") {
-        println!("usage: table_budget [CURVE ...]   (built-in name or curve JSON; default butterfly)");
+        println!("usage: table_budget [--prototype | --fit-tol MM] [CURVE ...]   (built-in name or curve JSON; default butterfly)");
         return;
     }
+    let all = args.join(" ");
+    let mut prototype = None;
+    let mut rest = Vec::new();
+    let mut it = args.into_iter();
+    while let Some(a) = it.next() {
+        match a.as_str() {
+            "--prototype" => prototype = prototype.or(Some(compact::FIT_TOL_MM)),
+            "--fit-tol" => prototype = it.next().and_then(|x| x.parse().ok()),
+            _ => rest.push(a),
+        }
+    }
+    let mut args = rest;
     if args.is_empty() {
         args.push("butterfly".into());
     }
-    println!(
-        "command: cargo run --release -p planner-host --example table_budget -- {}\n",
-        args.join(" ")
-    );
+    println!("command: cargo run --release -p planner-host --example table_budget -- {all}\n");
     for a in &args {
-        if let Err(e) = report(a) {
+        if let Err(e) = report(a, prototype) {
             eprintln!("table_budget: {e}");
             std::process::exit(1);
         }
