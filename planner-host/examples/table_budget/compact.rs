@@ -16,7 +16,10 @@
 //!   length 0.1 s of feed, 0.1–16 mm, degree-7 Chebyshev–Lobatto fit, Q40
 //!   coefficients, bisection until within 2e-11 mm at 29 points, measured
 //!   with the tick's own fixed-point Horner), centre and shift derived from
-//!   the breaks; encoded, decoded and compared the same way.
+//!   the breaks; encoded, decoded and compared the same way, with b₁ … b₇
+//!   as they are, or b₁, b₂ (and b₃) sent as residuals from the previous
+//!   piece's τ-derivatives at the join (integer arithmetic, so host and MCU
+//!   would decode the same bits).
 //!
 //! The fixed-point helpers below copy firmware-core's `servo_forms`
 //! (crate-private there) so that the positions are the tick's, bit for bit.
@@ -124,6 +127,30 @@ impl Piece {
         piece_tau(s, self.centre, self.shift).map(|t| self.eval(t))
     }
 
+    /// b_m (m = 1, 2, 3) continuing `prev`'s m-th derivative at this piece's
+    /// start: from b_{m+1} … b₇ (sent before it), all in integers.
+    fn bm_pred(&self, prev: Option<&Piece>, a: usize, m: usize) -> i64 {
+        let (Some(p), Some(ts)) = (prev, piece_tau(self.start, self.centre, self.shift)) else {
+            return 0;
+        };
+        let Some(te) = piece_tau(p.end, p.centre, p.shift) else {
+            return 0;
+        };
+        // d/dτ_new = 2^(e_new − e_prev) d/dτ_prev, e = 21 − shift.
+        let d = (p.shift as i32 - self.shift as i32) * m as i32;
+        let target = i128::from(deriv(&p.b[a], m, te));
+        let target = if d >= 0 {
+            target << d.min(60)
+        } else {
+            target >> (-d).min(120)
+        };
+        let mut z = self.b[a];
+        z[..=m].iter_mut().for_each(|x| *x = 0);
+        let base = i128::from(deriv(&z, m, ts));
+        let fact = (1..=m as i128).product::<i128>();
+        ((target - base) / fact).clamp(i128::from(i64::MIN), i128::from(i64::MAX)) as i64
+    }
+
     /// b₀ continuing `prev` at this piece's start: prev's end value minus
     /// this piece's Horner without b₀ (b₀ is added last, so exactly).
     fn b0_pred(&self, prev: Option<&Piece>, a: usize) -> i64 {
@@ -137,6 +164,18 @@ impl Piece {
         z.b[a][0] = 0;
         end[a].wrapping_sub(z.eval(t)[a])
     }
+}
+
+/// The m-th τ-derivative (m = 1, 2, 3) of one axis' polynomial at τ (Q61):
+/// Σ_{k≥m} k!/(k−m)! b_k τ^(k−m), Horner with the tick's `mul_tau`.
+fn deriv(b: &[i64; POS_COEFFS], m: usize, tau: i64) -> i64 {
+    let t = split_tau(tau);
+    let f = |k: usize| ((k + 1 - m)..=k).product::<usize>() as i64;
+    let mut acc = f(POS_DEG).wrapping_mul(b[POS_DEG]);
+    for k in (m..POS_DEG).rev() {
+        acc = mul_tau(acc, t).wrapping_add(f(k).wrapping_mul(b[k]));
+    }
+    acc
 }
 
 /// The table's pieces.
@@ -231,7 +270,7 @@ fn grid_centre_shift(start: i64, end: i64) -> (i64, u32) {
     (start + half, (61 - ceil_log2_int(half.max(1))) as u32)
 }
 
-fn encode_piece(w: &mut W, p: &Piece, prev: Option<&Piece>, breaks: Breaks, last: bool) {
+fn encode_piece(w: &mut W, p: &Piece, prev: Option<&Piece>, (breaks, deriv): (Breaks, usize), last: bool) {
     let len = p.end - p.start;
     match breaks {
         Breaks::Table => {
@@ -251,14 +290,22 @@ fn encode_piece(w: &mut W, p: &Piece, prev: Option<&Piece>, breaks: Breaks, last
             w.zvar(p.b[a][0].wrapping_sub(prev.map_or(0, |q| q.b[a][0])));
             continue;
         }
-        for k in 1..POS_COEFFS {
+        for k in deriv + 1..POS_COEFFS {
             w.zvar(p.b[a][k]);
+        }
+        for m in (1..=deriv).rev() {
+            w.zvar(p.b[a][m].wrapping_sub(p.bm_pred(prev, a, m)));
         }
         w.zvar(p.b[a][0].wrapping_sub(p.b0_pred(prev, a)));
     }
 }
 
-fn decode_piece(r: &mut R, (start, s_b): (i64, i64), prev: Option<&Piece>, breaks: Breaks) -> Option<Piece> {
+fn decode_piece(
+    r: &mut R,
+    (start, s_b): (i64, i64),
+    prev: Option<&Piece>,
+    (breaks, deriv): (Breaks, usize),
+) -> Option<Piece> {
     let mut p = Piece {
         start,
         end: 0,
@@ -290,8 +337,11 @@ fn decode_piece(r: &mut R, (start, s_b): (i64, i64), prev: Option<&Piece>, break
             p.b[a][0] = r.zvar()?.wrapping_add(prev.map_or(0, |q| q.b[a][0]));
             continue;
         }
-        for k in 1..POS_COEFFS {
+        for k in deriv + 1..POS_COEFFS {
             p.b[a][k] = r.zvar()?;
+        }
+        for m in (1..=deriv).rev() {
+            p.b[a][m] = r.zvar()?.wrapping_add(p.bm_pred(prev, a, m));
         }
         p.b[a][0] = r.zvar()?.wrapping_add(p.b0_pred(prev, a));
     }
@@ -317,8 +367,10 @@ pub struct Encoded {
 
 /// Encode `pieces` and the q spans of `q_knots` into chunks of
 /// [`CHUNK_MM`] (the first piece of each chunk sent without a
-/// predecessor), decode every chunk again and compare.
-pub fn encode_chunks(pieces: &[Piece], q_knots: &[f64], breaks: Breaks) -> Encoded {
+/// predecessor), decode every chunk again and compare. `how`: how breaks
+/// are sent, and how many of b₁, b₂, b₃ are sent as residuals from the
+/// previous piece's derivatives at the join (0: all as they are).
+pub fn encode_chunks(pieces: &[Piece], q_knots: &[f64], how: (Breaks, usize)) -> Encoded {
     let chunk_of = |s: f64| (s / CHUNK_MM).floor().max(0.0) as usize;
     let n_chunks = pieces.last().map_or(0, |p| chunk_of(fx_to_f64(p.start)) + 1);
     let mut out = Encoded {
@@ -345,13 +397,7 @@ pub fn encode_chunks(pieces: &[Piece], q_knots: &[f64], breaks: Breaks) -> Encod
         while i < pieces.len() && chunk_of(fx_to_f64(pieces[i].start)) == c {
             let last = i + 1 == pieces.len() || chunk_of(fx_to_f64(pieces[i + 1].start)) != c;
             let before = w.0.len();
-            encode_piece(
-                &mut w,
-                &pieces[i],
-                (i > first).then(|| &pieces[i - 1]),
-                breaks,
-                last,
-            );
+            encode_piece(&mut w, &pieces[i], (i > first).then(|| &pieces[i - 1]), how, last);
             out.at.push((fx_to_f64(pieces[i].start), w.0.len() - before));
             i += 1;
         }
@@ -361,7 +407,7 @@ pub fn encode_chunks(pieces: &[Piece], q_knots: &[f64], breaks: Breaks) -> Encod
         let mut prev: Option<Piece> = None;
         for p in &pieces[first..i] {
             let start = prev.map_or(p.start, |q| q.end);
-            match decode_piece(&mut r, (start, s_b), prev.as_ref(), breaks) {
+            match decode_piece(&mut r, (start, s_b), prev.as_ref(), how) {
                 Some(d) if d == *p => prev = Some(d),
                 _ => {
                     out.mismatches += 1;

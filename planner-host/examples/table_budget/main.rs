@@ -301,15 +301,25 @@ fn prototype_report(curve: &planner_host::Nurbs, table: &Table, len: f64, fit_to
     );
     println!("|---|---|---|---|---|---|---|---|---|---|---|");
     let mut rates = Vec::new();
-    for (label, pieces, breaks) in [
-        ("table's, lossless", &ours, Breaks::Table),
+    for (label, pieces, how) in [
+        ("table's, lossless", &ours, (Breaks::Table, 0)),
         (
             "re-fitted across s→u segments, Q20 breaks",
             &refit.pieces,
-            Breaks::Grid,
+            (Breaks::Grid, 0),
+        ),
+        (
+            "re-fitted, b₁ b₂ predicted at the join",
+            &refit.pieces,
+            (Breaks::Grid, 2),
+        ),
+        (
+            "re-fitted, b₁ b₂ b₃ predicted at the join",
+            &refit.pieces,
+            (Breaks::Grid, 3),
         ),
     ] {
-        let e = compact::encode_chunks(pieces, &q_knots, breaks);
+        let e = compact::encode_chunks(pieces, &q_knots, how);
         let n = pieces.len();
         let mut lens: Vec<f64> = pieces.iter().map(|p| p.len_mm()).collect();
         lens.sort_by(f64::total_cmp);
