@@ -643,3 +643,28 @@ pub fn peak_rate(table: &Table, at: &[(f64, usize)], window_s: f64) -> f64 {
     }
     best
 }
+
+/// Bytes of the q spans (non-zero length) in three encodings: h (Q20 LEB128)
+/// with the ctrl as f64, as f32, and as zig-zag deltas on a grid of
+/// 2^-`grid_frac` (mm/s)² (sizes only: the last two change the plan
+/// slightly and would need its verification again).
+pub fn q_sizes(q_knots: &[f64], q_ctrl: &[f64], grid_frac: i32) -> [usize; 3] {
+    let mut out = [0usize; 3];
+    let mut prev = 0i64;
+    for (i, k) in q_knots.windows(2).filter(|k| k[1] > k[0]).enumerate() {
+        let mut w = W::default();
+        w.var(((k[1] - k[0]) * f64::from(1u32 << GRID_FRAC)).round() as u64);
+        let h = w.0.len();
+        // One new ctrl a span: span i is the first reached by ctrl i + 3
+        // (N ctrl, N − 3 spans; the first three are the chunk's context).
+        let c = q_ctrl.get(i + 3).copied().unwrap_or(0.0);
+        let g = (c * 2f64.powi(grid_frac)).round() as i64;
+        let mut d = W::default();
+        d.zvar(g - prev);
+        prev = g;
+        out[0] += h + 8;
+        out[1] += h + 4;
+        out[2] += h + d.0.len();
+    }
+    out
+}

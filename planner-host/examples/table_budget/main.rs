@@ -353,6 +353,15 @@ fn prototype_report(curve: &planner_host::Nurbs, table: &Table, len: f64, fit_to
             total as f64 / len * FULL_FEED_MM_S
         );
     }
+    let q_ctrl: Vec<f64> = table.q_ctrl().iter().collect();
+    let [q64, q32, qd] = compact::q_sizes(&q_knots, &q_ctrl, 8);
+    println!(
+        "\nq spans alone (h in Q20 + one ctrl a span, without the chunk context): f64 ctrl {:.1} B/mm, \
+         f32 ctrl {:.1} B/mm, ctrl deltas on a 2^-8 (mm/s)² grid {:.1} B/mm",
+        q64 as f64 / len,
+        q32 as f64 / len,
+        qd as f64 / len
+    );
     let (diff, step) = compact::compare(&refit.pieces, &ours, 9);
     println!(
         "\nre-fitted pieces (tolerance {fit_tol:e} mm): largest |piece − r(s)| at the 29 check points {:.2e} mm ({} pieces over \
