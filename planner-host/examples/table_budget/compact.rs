@@ -15,7 +15,8 @@
 //!   knot span (not inside each s → u segment), by the table's rule (piece
 //!   length 0.1 s of feed, 0.1–16 mm, degree-7 Chebyshev–Lobatto fit, Q40
 //!   coefficients, bisection until within 2e-11 mm at 29 points, measured
-//!   with the tick's own fixed-point Horner), centre and shift derived from
+//!   with the tick's own fixed-point Horner; also at degree 9 and 11, which
+//!   the tick does not have), centre and shift derived from
 //!   the breaks; encoded, decoded and compared the same way, with b₁ … b₇
 //!   as they are, or b₁, b₂ (and b₃) sent as residuals from the previous
 //!   piece's τ-derivatives at the join (integer arithmetic, so host and MCU
@@ -35,8 +36,6 @@ const POS_COEFFS: usize = POS_DEG + 1;
 const PIECE_WORDS: usize = 27;
 /// The table's fit tolerance, mm (`servo_forms::fit::FIT_TOL_MM`).
 pub const FIT_TOL_MM: f64 = 2e-11;
-/// Points per piece at which the fit is measured (`FIT_CHECKS`).
-const FIT_CHECKS: usize = 4 * POS_DEG + 1;
 /// Most bisections of one piece (`MAX_SPLIT`).
 const MAX_SPLIT: u32 = 10;
 /// Breaks of the re-fitted pieces and q knots on a grid of 2⁻²⁰ mm.
@@ -87,18 +86,19 @@ fn ceil_log2_int(x: i64) -> i32 {
     64 - (x - 1).leading_zeros() as i32
 }
 
-/// A piece as the tick reads it.
+/// A piece as the tick reads it: C coefficients an axis (degree C − 1;
+/// the table's is 8, degree 7).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Piece {
+pub struct Piece<const C: usize = POS_COEFFS> {
     start: i64,
     end: i64,
     centre: i64,
     shift: u32,
     mask: u32,
-    b: [[i64; POS_COEFFS]; 3],
+    b: [[i64; C]; 3],
 }
 
-impl Piece {
+impl<const C: usize> Piece<C> {
     /// Length, mm.
     pub fn len_mm(&self) -> f64 {
         fx_to_f64(self.end - self.start)
@@ -113,8 +113,8 @@ impl Piece {
             *o = if self.mask & (1 << a) != 0 {
                 b[0]
             } else {
-                let mut acc = b[POS_DEG];
-                for k in (0..POS_DEG).rev() {
+                let mut acc = b[C - 1];
+                for k in (0..C - 1).rev() {
                     acc = mul_tau(acc, t).wrapping_add(b[k]);
                 }
                 acc
@@ -129,7 +129,7 @@ impl Piece {
 
     /// b_m (m = 1, 2, 3) continuing `prev`'s m-th derivative at this piece's
     /// start: from b_{m+1} … b₇ (sent before it), all in integers.
-    fn bm_pred(&self, prev: Option<&Piece>, a: usize, m: usize) -> i64 {
+    fn bm_pred(&self, prev: Option<&Piece<C>>, a: usize, m: usize) -> i64 {
         let (Some(p), Some(ts)) = (prev, piece_tau(self.start, self.centre, self.shift)) else {
             return 0;
         };
@@ -153,7 +153,7 @@ impl Piece {
 
     /// b₀ continuing `prev` at this piece's start: prev's end value minus
     /// this piece's Horner without b₀ (b₀ is added last, so exactly).
-    fn b0_pred(&self, prev: Option<&Piece>, a: usize) -> i64 {
+    fn b0_pred(&self, prev: Option<&Piece<C>>, a: usize) -> i64 {
         let (Some(p), Some(t)) = (prev, piece_tau(self.start, self.centre, self.shift)) else {
             return 0;
         };
@@ -168,11 +168,11 @@ impl Piece {
 
 /// The m-th τ-derivative (m = 1, 2, 3) of one axis' polynomial at τ (Q61):
 /// Σ_{k≥m} k!/(k−m)! b_k τ^(k−m), Horner with the tick's `mul_tau`.
-fn deriv(b: &[i64; POS_COEFFS], m: usize, tau: i64) -> i64 {
+fn deriv<const C: usize>(b: &[i64; C], m: usize, tau: i64) -> i64 {
     let t = split_tau(tau);
     let f = |k: usize| ((k + 1 - m)..=k).product::<usize>() as i64;
-    let mut acc = f(POS_DEG).wrapping_mul(b[POS_DEG]);
-    for k in (m..POS_DEG).rev() {
+    let mut acc = f(C - 1).wrapping_mul(b[C - 1]);
+    for k in (m..C - 1).rev() {
         acc = mul_tau(acc, t).wrapping_add(f(k).wrapping_mul(b[k]));
     }
     acc
@@ -270,7 +270,13 @@ fn grid_centre_shift(start: i64, end: i64) -> (i64, u32) {
     (start + half, (61 - ceil_log2_int(half.max(1))) as u32)
 }
 
-fn encode_piece(w: &mut W, p: &Piece, prev: Option<&Piece>, (breaks, deriv): (Breaks, usize), last: bool) {
+fn encode_piece<const C: usize>(
+    w: &mut W,
+    p: &Piece<C>,
+    prev: Option<&Piece<C>>,
+    (breaks, deriv): (Breaks, usize),
+    last: bool,
+) {
     let len = p.end - p.start;
     match breaks {
         Breaks::Table => {
@@ -290,7 +296,7 @@ fn encode_piece(w: &mut W, p: &Piece, prev: Option<&Piece>, (breaks, deriv): (Br
             w.zvar(p.b[a][0].wrapping_sub(prev.map_or(0, |q| q.b[a][0])));
             continue;
         }
-        for k in deriv + 1..POS_COEFFS {
+        for k in deriv + 1..C {
             w.zvar(p.b[a][k]);
         }
         for m in (1..=deriv).rev() {
@@ -300,19 +306,19 @@ fn encode_piece(w: &mut W, p: &Piece, prev: Option<&Piece>, (breaks, deriv): (Br
     }
 }
 
-fn decode_piece(
+fn decode_piece<const C: usize>(
     r: &mut R,
     (start, s_b): (i64, i64),
-    prev: Option<&Piece>,
+    prev: Option<&Piece<C>>,
     (breaks, deriv): (Breaks, usize),
-) -> Option<Piece> {
+) -> Option<Piece<C>> {
     let mut p = Piece {
         start,
         end: 0,
         centre: 0,
         shift: 0,
         mask: 0,
-        b: [[0; POS_COEFFS]; 3],
+        b: [[0; C]; 3],
     };
     match breaks {
         Breaks::Table => {
@@ -337,7 +343,7 @@ fn decode_piece(
             p.b[a][0] = r.zvar()?.wrapping_add(prev.map_or(0, |q| q.b[a][0]));
             continue;
         }
-        for k in deriv + 1..POS_COEFFS {
+        for k in deriv + 1..C {
             p.b[a][k] = r.zvar()?;
         }
         for m in (1..=deriv).rev() {
@@ -370,7 +376,7 @@ pub struct Encoded {
 /// predecessor), decode every chunk again and compare. `how`: how breaks
 /// are sent, and how many of b₁, b₂, b₃ are sent as residuals from the
 /// previous piece's derivatives at the join (0: all as they are).
-pub fn encode_chunks(pieces: &[Piece], q_knots: &[f64], how: (Breaks, usize)) -> Encoded {
+pub fn encode_chunks<const C: usize>(pieces: &[Piece<C>], q_knots: &[f64], how: (Breaks, usize)) -> Encoded {
     let chunk_of = |s: f64| (s / CHUNK_MM).floor().max(0.0) as usize;
     let n_chunks = pieces.last().map_or(0, |p| chunk_of(fx_to_f64(p.start)) + 1);
     let mut out = Encoded {
@@ -404,7 +410,7 @@ pub fn encode_chunks(pieces: &[Piece], q_knots: &[f64], how: (Breaks, usize)) ->
         let s_b = if i > first { pieces[i - 1].end } else { 0 };
         // decode again
         let mut r = R { b: &w.0, at: 0 };
-        let mut prev: Option<Piece> = None;
+        let mut prev: Option<Piece<C>> = None;
         for p in &pieces[first..i] {
             let start = prev.map_or(p.start, |q| q.end);
             match decode_piece(&mut r, (start, s_b), prev.as_ref(), how) {
@@ -430,9 +436,9 @@ pub fn encode_chunks(pieces: &[Piece], q_knots: &[f64], how: (Breaks, usize)) ->
 // ------------------------------------------------------------- re-fitting
 
 /// The longer pieces and what their fit measured.
-pub struct Refit {
+pub struct Refit<const C: usize> {
     /// The pieces, in order.
-    pub pieces: Vec<Piece>,
+    pub pieces: Vec<Piece<C>>,
     /// Largest |piece − r(s)| at the check points, mm.
     pub max_fit_err: f64,
     /// Pieces still over the tolerance after [`MAX_SPLIT`] bisections.
@@ -441,19 +447,20 @@ pub struct Refit {
 
 /// Fit one piece on [start, end] (Q40) to `r`; its largest error.
 #[allow(clippy::needless_range_loop)] // divided differences: index arithmetic, as in `servo_forms::fit`
-fn fit(start: i64, end: i64, r: &dyn Fn(f64) -> [f64; 3]) -> (Piece, f64) {
+fn fit<const C: usize>(start: i64, end: i64, r: &dyn Fn(f64) -> [f64; 3]) -> (Piece<C>, f64) {
+    let deg = C - 1;
     let (centre, shift) = grid_centre_shift(start, end);
     let scale = 2f64.powi(21 - shift as i32);
     let (c, half) = (fx_to_f64(centre), fx_to_f64((end - start) / 2));
-    let mut tau = [0.0f64; POS_COEFFS];
-    let mut d = [[0.0f64; 3]; POS_COEFFS];
+    let mut tau = [0.0f64; C];
+    let mut d = [[0.0f64; 3]; C];
     for (i, (ti, di)) in tau.iter_mut().zip(d.iter_mut()).enumerate() {
-        let x = -half * (std::f64::consts::PI * i as f64 / POS_DEG as f64).cos();
+        let x = -half * (std::f64::consts::PI * i as f64 / deg as f64).cos();
         *ti = x / scale;
         *di = r(c + x);
     }
-    for level in 1..=POS_DEG {
-        for k in (level..=POS_DEG).rev() {
+    for level in 1..=deg {
+        for k in (level..=deg).rev() {
             let den = tau[k] - tau[k - level];
             let lo = d[k - 1];
             for (dk, l) in d[k].iter_mut().zip(lo) {
@@ -461,11 +468,11 @@ fn fit(start: i64, end: i64, r: &dyn Fn(f64) -> [f64; 3]) -> (Piece, f64) {
             }
         }
     }
-    let mut cp = [[0.0f64; 3]; POS_COEFFS];
-    cp[0] = d[POS_DEG];
-    for k in (0..POS_DEG).rev() {
-        let mut next = [[0.0f64; 3]; POS_COEFFS];
-        for j in 0..=(POS_DEG - k) {
+    let mut cp = [[0.0f64; 3]; C];
+    cp[0] = d[deg];
+    for k in (0..deg).rev() {
+        let mut next = [[0.0f64; 3]; C];
+        for j in 0..=(deg - k) {
             for a in 0..3 {
                 let hi = if j > 0 { cp[j - 1][a] } else { 0.0 };
                 next[j][a] = hi - tau[k] * cp[j][a];
@@ -482,10 +489,10 @@ fn fit(start: i64, end: i64, r: &dyn Fn(f64) -> [f64; 3]) -> (Piece, f64) {
         centre,
         shift,
         mask: 0,
-        b: [[0; POS_COEFFS]; 3],
+        b: [[0; C]; 3],
     };
     for a in 0..3 {
-        for k in 0..POS_COEFFS {
+        for k in 0..C {
             p.b[a][k] = (cp[k][a] * FX_ONE).round() as i64;
         }
         if p.b[a][1..].iter().all(|&x| x == 0) {
@@ -494,8 +501,9 @@ fn fit(start: i64, end: i64, r: &dyn Fn(f64) -> [f64; 3]) -> (Piece, f64) {
     }
     let (s0, s1) = (fx_to_f64(start), fx_to_f64(end));
     let mut err = 0.0f64;
-    for j in 0..FIT_CHECKS {
-        let s = s0 + (s1 - s0) * j as f64 / (FIT_CHECKS - 1) as f64;
+    let checks = 4 * deg + 1; // the table's `FIT_CHECKS` = 29 at degree 7
+    for j in 0..checks {
+        let s = s0 + (s1 - s0) * j as f64 / (checks - 1) as f64;
         let Some(pos) = p.eval_s(to_fx(s)) else {
             return (p, f64::INFINITY);
         };
@@ -508,7 +516,7 @@ fn fit(start: i64, end: i64, r: &dyn Fn(f64) -> [f64; 3]) -> (Piece, f64) {
 
 /// Re-fit r(s) (exact arc length, `ArcLength::u_of_s`) in pieces inside
 /// each NURBS knot span, by the table's length rule and bisection.
-pub fn refit(curve: &Nurbs, arc: &ArcLength, table: &Table, tol_mm: f64) -> Refit {
+pub fn refit<const C: usize>(curve: &Nurbs, arc: &ArcLength, table: &Table, tol_mm: f64) -> Refit<C> {
     let q = QSpline::new(table.q_knots(), table.q_ctrl());
     let feed = |s: f64| {
         q.as_ref()
@@ -559,7 +567,7 @@ pub fn refit(curve: &Nurbs, arc: &ArcLength, table: &Table, tol_mm: f64) -> Refi
             };
             stack.push((b, a, 0u32));
             while let Some((hi, lo, depth)) = stack.pop() {
-                let (p, err) = fit(q40(lo), q40(hi), &r);
+                let (p, err) = fit::<C>(q40(lo), q40(hi), &r);
                 if err > tol_mm && depth < MAX_SPLIT && hi - lo >= 2 {
                     let m = lo + (hi - lo) / 2;
                     stack.push((hi, m, depth + 1));
@@ -580,7 +588,7 @@ pub fn refit(curve: &Nurbs, arc: &ArcLength, table: &Table, tol_mm: f64) -> Refi
 
 /// Largest |a − b| (mm) between two piece sets at `n` points per piece of
 /// `a`, and the largest step (Q40 units) between consecutive pieces of `a`.
-pub fn compare(a: &[Piece], b: &[Piece], n: usize) -> (f64, u64) {
+pub fn compare<const A: usize, const B: usize>(a: &[Piece<A>], b: &[Piece<B>], n: usize) -> (f64, u64) {
     let mut diff = 0.0f64;
     let mut step = 0u64;
     for (i, p) in a.iter().enumerate() {

@@ -20,8 +20,9 @@
 //!
 //! `--prototype` adds the measurement of the PROTOTYPE compact chunk
 //! encoding (module `compact`): the table's pieces encoded losslessly, and
-//! longer pieces re-fitted across s → u segments, each encoded, decoded and
-//! compared, in bytes per mm with the q spans and the chunk framing;
+//! longer pieces re-fitted across s → u segments (degree 7, and 9 and 11 for
+//! comparison), each encoded, decoded and compared, in bytes per mm with
+//! the q spans and the chunk framing;
 //! `--fit-tol MM` the same with another fit tolerance for the re-fitted
 //! pieces (default the table's 2e-11 mm).
 
@@ -283,13 +284,39 @@ fn report(arg: &str, prototype: Option<f64>) -> Result<(), String> {
     Ok(())
 }
 
+/// One set of pieces encoded, decoded and compared.
+struct Variant {
+    label: &'static str,
+    n: usize,
+    median_mm: f64,
+    e: compact::Encoded,
+}
+
+fn variant<const C: usize>(
+    label: &'static str,
+    pieces: &[compact::Piece<C>],
+    q_knots: &[f64],
+    how: (compact::Breaks, usize),
+) -> Variant {
+    let mut lens: Vec<f64> = pieces.iter().map(|p| p.len_mm()).collect();
+    lens.sort_by(f64::total_cmp);
+    Variant {
+        label,
+        n: pieces.len(),
+        median_mm: quantile(&lens, 0.5),
+        e: compact::encode_chunks(pieces, q_knots, how),
+    }
+}
+
 /// The PROTOTYPE compact encoding on this curve (see [`compact`]).
 fn prototype_report(curve: &planner_host::Nurbs, table: &Table, len: f64, fit_tol: f64) {
     use compact::{Breaks, CHUNK_MM, HEADER_LEN, U_FORM_LEN};
     let q_knots: Vec<f64> = table.q_knots().iter().collect();
     let ours = compact::table_pieces(table);
     let arc = ArcLength::new(curve);
-    let refit = compact::refit(curve, &arc, table, fit_tol);
+    let refit = compact::refit::<8>(curve, &arc, table, fit_tol);
+    let refit9 = compact::refit::<10>(curve, &arc, table, fit_tol);
+    let refit11 = compact::refit::<12>(curve, &arc, table, fit_tol);
     println!(
         "PROTOTYPE compact encoding: chunks of {CHUNK_MM} mm, header {HEADER_LEN} + CRC 4 + COBS; \
          q spans as h (Q20 LEB128) + f64 ctrl, 3 spans repeated a chunk; u form not sent \
@@ -301,34 +328,48 @@ fn prototype_report(curve: &planner_host::Nurbs, table: &Table, len: f64, fit_to
     );
     println!("|---|---|---|---|---|---|---|---|---|---|---|");
     let mut rates = Vec::new();
-    for (label, pieces, how) in [
-        ("table's, lossless", &ours, (Breaks::Table, 0)),
-        (
+    let variants = [
+        variant("table's, lossless", &ours, &q_knots, (Breaks::Table, 0)),
+        variant(
             "re-fitted across s→u segments, Q20 breaks",
             &refit.pieces,
+            &q_knots,
             (Breaks::Grid, 0),
         ),
-        (
+        variant(
             "re-fitted, b₁ b₂ predicted at the join",
             &refit.pieces,
+            &q_knots,
             (Breaks::Grid, 2),
         ),
-        (
+        variant(
             "re-fitted, b₁ b₂ b₃ predicted at the join",
             &refit.pieces,
+            &q_knots,
             (Breaks::Grid, 3),
         ),
-    ] {
-        let e = compact::encode_chunks(pieces, &q_knots, how);
-        let n = pieces.len();
-        let mut lens: Vec<f64> = pieces.iter().map(|p| p.len_mm()).collect();
-        lens.sort_by(f64::total_cmp);
+        variant(
+            "re-fitted at degree 9, b₁ b₂ b₃ predicted",
+            &refit9.pieces,
+            &q_knots,
+            (Breaks::Grid, 3),
+        ),
+        variant(
+            "re-fitted at degree 11, b₁ b₂ b₃ predicted",
+            &refit11.pieces,
+            &q_knots,
+            (Breaks::Grid, 3),
+        ),
+    ];
+    for v in variants.iter() {
+        let (e, n) = (&v.e, v.n);
         let total = e.piece_bytes + e.q_bytes + e.frame_bytes;
-        rates.push((label, total as f64 / table.predicted_time_s(), e.at));
+        rates.push((v.label, total as f64 / table.predicted_time_s(), &e.at));
         println!(
-            "| {label} | {n} | {:.3} | {:.3} | {:.1} | {:.1} | {:.1} | {:.1} | **{:.1}** | {:.1} | {} of {n} pieces differ |",
+            "| {} | {n} | {:.3} | {:.3} | {:.1} | {:.1} | {:.1} | {:.1} | **{:.1}** | {:.1} | {} of {n} pieces differ |",
+            v.label,
             n as f64 / len,
-            quantile(&lens, 0.5),
+            v.median_mm,
             e.piece_bytes as f64 / len,
             e.piece_bytes as f64 / n as f64,
             e.q_bytes as f64 / len,
@@ -362,16 +403,38 @@ fn prototype_report(curve: &planner_host::Nurbs, table: &Table, len: f64, fit_to
         q32 as f64 / len,
         qd as f64 / len
     );
-    let (diff, step) = compact::compare(&refit.pieces, &ours, 9);
-    println!(
-        "\nre-fitted pieces (tolerance {fit_tol:e} mm): largest |piece − r(s)| at the 29 check points {:.2e} mm ({} pieces over \
-         the tolerance after 10 bisections); largest |re-fitted − table's pieces| {diff:.2e} mm \
-         (9 points a piece; includes the table's s → u map error, ≤ 1e-6 mm in s); \
-         largest step between re-fitted pieces {step} Q40 units ({:.1e} mm)\n",
-        refit.max_fit_err,
-        refit.over_tol,
-        step as f64 / (1u64 << 40) as f64
-    );
+    println!();
+    let fits = [
+        (
+            7,
+            refit.max_fit_err,
+            refit.over_tol,
+            compact::compare(&refit.pieces, &ours, 9),
+        ),
+        (
+            9,
+            refit9.max_fit_err,
+            refit9.over_tol,
+            compact::compare(&refit9.pieces, &ours, 9),
+        ),
+        (
+            11,
+            refit11.max_fit_err,
+            refit11.over_tol,
+            compact::compare(&refit11.pieces, &ours, 9),
+        ),
+    ];
+    for (deg, err, over, (diff, step)) in fits {
+        println!(
+            "re-fitted pieces, degree {deg} (tolerance {fit_tol:e} mm): largest |piece − r(s)| at the {} check points \
+             {err:.2e} mm ({over} pieces over the tolerance after 10 bisections); largest |re-fitted − table's pieces| \
+             {diff:.2e} mm (9 points a piece; includes the table's s → u map error, ≤ 1e-6 mm in s); \
+             largest step between re-fitted pieces {step} Q40 units ({:.1e} mm)",
+            4 * deg + 1,
+            step as f64 / (1u64 << 40) as f64
+        );
+    }
+    println!();
 }
 
 fn main() {
