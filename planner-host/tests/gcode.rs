@@ -336,6 +336,43 @@ fn surfacing_chords_lie_on_their_surface_under_their_tolerances() {
 }
 
 #[test]
+fn chords_with_feed_changes_keep_each_feed_from_its_block_on() {
+    let p = own("feeds-chords.ngc");
+    let surface = |x: f64, y: f64| 2.0 * (x / 8.0).sin() * (y / 10.0).cos();
+    let lines: Vec<&Move> = p.moves.iter().filter(|m| m.kind == MoveKind::Line).collect();
+    // the plunge, 120 chords out, 6 of the step-over, 120 back
+    assert_eq!(lines.len(), 1 + 120 + 6 + 120);
+    for m in &lines[1..] {
+        assert!(
+            (m.end[2] - surface(m.end[0], m.end[1])).abs() <= 5e-4,
+            "LINE {}",
+            m.line
+        );
+    }
+    // the feed of each chord from where it starts: the row out at F1500 up
+    // to x = 20, F3000 to x = 40, F900 after; the step-over and the row back
+    // at F2400 down to x = 25.5, F1200 after
+    let feed_at = |m: &Move| -> f64 {
+        let (x, y) = (m.start[0], m.start[1]);
+        if y == 0.0 && m.end[1] == 0.0 {
+            match x {
+                x if x < 20.0 - 1e-9 => 1500.0,
+                x if x < 40.0 - 1e-9 => 3000.0,
+                _ => 900.0,
+            }
+        } else if m.end[1] > y || x > 25.5 + 1e-9 {
+            2400.0
+        } else {
+            1200.0
+        }
+    };
+    close(lines[0].feed_mm_s.unwrap(), 5.0);
+    for m in &lines[1..] {
+        close(m.feed_mm_s.unwrap() * 60.0, feed_at(m));
+    }
+}
+
+#[test]
 fn g5_nurbs_start_at_the_current_point_with_uniform_knots() {
     let p = own("nurbs-g5-quarter.ngc");
     let m = &p.moves;

@@ -337,6 +337,19 @@ fn plan_at(
     planner_host::plan::plan_curve(&case.curve, &cfg)
 }
 
+/// [`plan_at`], its error noted in `bad` under `name`.
+fn planned(
+    case: &e2e_tests::curve_family::Case,
+    sampling: planner_host::sampling::Sampling,
+    density: f64,
+    name: &str,
+    bad: &mut Vec<String>,
+) -> Option<planner_host::plan::PlanOutput> {
+    plan_at(case, sampling, density)
+        .map_err(|e| bad.push(format!("{name}: {e}")))
+        .ok()
+}
+
 /// Run `case` through the firmware and note every setpoint ratio above
 /// 1 + [`TOL`] (with the sweep's rest padding), or the run's error.
 fn check_setpoints(
@@ -363,12 +376,8 @@ fn runs_that_exceeded_or_stalled_now_hold_every_limit() {
     let mut bad = Vec::new();
     for (index, sampling, density) in REGRESSIONS {
         let (case, label, sampling, name) = regression_case(index, sampling, density);
-        let plan = match plan_at(&case, sampling, density) {
-            Ok(p) => p,
-            Err(e) => {
-                bad.push(format!("{name}: {e}"));
-                continue;
-            }
+        let Some(plan) = planned(&case, sampling, density, &name, &mut bad) else {
+            continue;
         };
         let arc = planner_host::ArcLength::new(&case.curve);
         for per_span in [20, 200] {
@@ -408,12 +417,8 @@ fn plans_hold_the_caps_at_curvature_jumps() {
     let mut bad = Vec::new();
     for (index, sampling, density) in CAP_REGRESSIONS {
         let (case, label, sampling, name) = regression_case(index, sampling, density);
-        let plan = match plan_at(&case, sampling, density) {
-            Ok(p) => p,
-            Err(e) => {
-                bad.push(format!("{name}: {e}"));
-                continue;
-            }
+        let Some(plan) = planned(&case, sampling, density, &name, &mut bad) else {
+            continue;
         };
         assert!(!plan.curvature_jumps.is_empty(), "{name}: no curvature jumps");
         for j in &plan.curvature_jumps {

@@ -19,14 +19,16 @@
 //! stops there, except inside a run of chords.
 //!
 //! **Runs of chords under `G64 P tol`.** Consecutive G1 lines under a path
-//! tolerance (`G64 P` > 0 on both moves at the corner), at the same feed
-//! (a feed change ends the run, with a stop and a warning: the fitted
-//! spline does not keep the chords' ends as knots), whose direction turns by at most [`FIT_MAX_TURN_RAD`] at each corner, form
+//! tolerance (`G64 P` > 0 on both moves at the corner), whose direction
+//! turns by at most [`FIT_MAX_TURN_RAD`] at each corner, form
 //! one run; the run becomes one path, a smooth cubic B-spline within the
 //! smallest tolerance of its moves from the programmed lines
 //! ([`super::fit`]): the machine neither stops nor crawls at the chords'
 //! corners, and a corner between two long lines is rounded within the
-//! tolerance. A run whose fit does not reach the tolerance keeps its corners
+//! tolerance. A feed change inside the run does not end it: each chord's
+//! feed applies from the spline's parameter at the chord's first vertex
+//! (the chord-length parameter the fit keeps, within the tolerance of the
+//! vertex), as on any other path. A run whose fit does not reach the tolerance keeps its corners
 //! as exact stops (with a warning). Corners between arcs or NURBS blocks are
 //! exact stops even under G64 P (a warning says so once), and so are all
 //! corners under `G64` without P (LinuxCNC then blends without a bound on
@@ -314,7 +316,6 @@ pub fn paths_for(program: &Program, opts: &PathOptions) -> Result<Paths, PathErr
                     _ => f64::INFINITY,
                 };
                 let tangent = turn <= JOIN_ANGLE_RAD;
-                let same_feed = cap(o.feed) == cap(m.feed_mm_s);
                 let run = match (o.chords, tol) {
                     (Some(r), Some(t)) if turn <= FIT_MAX_TURN_RAD => Some(Some(r.min(t))),
                     // a single line under G64 P may still go on tangentially into a curve
@@ -322,15 +323,6 @@ pub fn paths_for(program: &Program, opts: &PathOptions) -> Result<Paths, PathErr
                     (None, _) if tangent => Some(None),
                     _ => None,
                 };
-                let chord_run = matches!(run, Some(Some(_)));
-                if chord_run && !same_feed {
-                    out.warnings.push(format!(
-                        "LINE {}: the feed changes inside a run of G64 P chords ({:.3} to {:.3} mm/min): the run is fitted in two parts, with a stop between",
-                        m.line,
-                        o.feed.unwrap_or(0.0) * 60.0,
-                        m.feed_mm_s.unwrap_or(0.0) * 60.0
-                    ));
-                }
                 let curve_corner = run.is_none() && !tangent && turn <= FIT_MAX_TURN_RAD;
                 // a corner next to an arc or NURBS block (or after a single
                 // line) under G64 P on both moves: a G2 blend within P
@@ -350,7 +342,7 @@ pub fn paths_for(program: &Program, opts: &PathOptions) -> Result<Paths, PathErr
                 }
                 match blended {
                     Some(_) => Some(None),
-                    None => run.filter(|r| same_feed || r.is_none()),
+                    None => run,
                 }
             }
             _ => None,
@@ -429,10 +421,11 @@ fn close_into(o: Open, out: &mut Paths) -> Result<(), PathError> {
                 .pieces
                 .iter()
                 .zip(&fit.vertex_u[1..])
-                .map(|(p, &u)| PathPiece {
+                .zip(&o.feeds)
+                .map(|((p, &u), &feed)| PathPiece {
                     line: p.0,
                     u_end: u,
-                    feed_mm_s: o.feed,
+                    feed_mm_s: feed,
                 })
                 .collect();
             out.paths.push(Path {
@@ -457,13 +450,13 @@ fn close_into(o: Open, out: &mut Paths) -> Result<(), PathError> {
             out.warnings.push(format!(
                 "LINE {first}..{last}: the chords are not blended ({why}): their corners are exact stops"
             ));
-            for p in o.pieces {
+            for (p, feed) in o.pieces.into_iter().zip(o.feeds) {
                 out.paths.push(close(Open {
                     kind: o.kind,
                     last_tol: None,
-                    feed: o.feed,
+                    feed,
                     pieces: vec![p],
-                    feeds: vec![o.feed],
+                    feeds: vec![feed],
                     chords: None,
                 })?);
             }
@@ -597,5 +590,35 @@ mod tests {
         let p = paths("G21 G90 G17 F600\nG1 X10\nG3 X20 Y10 I0 J10\nG1 Y20\nM2\n");
         assert_eq!(p.paths.len(), 1);
         assert_eq!(p.paths[0].pieces.len(), 3);
+    }
+
+    #[test]
+    fn a_feed_change_inside_a_run_of_chords_keeps_one_fitted_path() {
+        // twenty chords of 0.5 mm on a gentle arc, the feed doubled after ten
+        let mut text = String::from("G21 G90 G17 G64 P0.01\nG0 X0 Y1\n");
+        for k in 1..=20 {
+            let x = 0.5 * k as f64;
+            let feed = match k {
+                1 => " F1200",
+                11 => " F2400",
+                _ => "",
+            };
+            text.push_str(&format!("G1 X{x:.3} Y{:.4}{feed}\n", 1.0 + 0.002 * x * x));
+        }
+        text.push_str("M2\n");
+        let p = paths(&text);
+        let feeds: Vec<&Path> = p.paths.iter().filter(|p| p.kind == PathKind::Feed).collect();
+        assert_eq!(feeds.len(), 1, "{:?}", p.warnings);
+        let path = feeds[0];
+        assert!(path.fit.is_some());
+        assert_eq!(path.feed_mm_s, Some(40.0));
+        let st = path.feed_stretches().unwrap();
+        assert_eq!(st.len(), 2);
+        assert_eq!(st[0], (0.0, 20.0));
+        // the second feed from the spline's parameter at the first vertex
+        // of its block: halfway along the run of equal chords
+        assert_eq!(st[1].1, 40.0);
+        assert!((st[1].0 - 0.5).abs() < 0.01, "{st:?}");
+        assert!(p.warnings.is_empty(), "{:?}", p.warnings);
     }
 }

@@ -179,13 +179,15 @@ fn corners_and_rapids_end_paths_and_a_feed_change_does_not() {
     assert_eq!(joined.feed_mm_s, Some(10.0));
     assert_eq!(joined.feed_stretches(), Some(vec![(0.0, 10.0), (0.5, 5.0)]));
     assert_eq!(p.paths[1].feed_stretches(), None);
-    // inside a run of G64 P chords a feed change still splits the run
+    // inside a run of G64 P chords too: one fitted path, the second feed
+    // from the second chord on
     let (_, p) = read("G21 G17 G64 P0.1 F600\nG1 X10\nG1 X20 Y1 F300\nM2\n");
-    assert_eq!(p.paths.len(), 2);
-    assert!(p
-        .warnings
-        .iter()
-        .any(|w| w.contains("LINE 3") && w.contains("run of G64 P chords")));
+    assert_eq!(p.paths.len(), 1);
+    assert!(p.paths[0].fit.is_some());
+    assert!(p.warnings.is_empty(), "{:?}", p.warnings);
+    let st = p.paths[0].feed_stretches().unwrap();
+    assert_eq!(st.len(), 2);
+    assert_eq!((st[0], st[1].1), ((0.0, 10.0), 5.0));
     // two feeds above the machine's feed limit are the same feed
     let prog = read_str(
         "G21 G17 F60000\nG1 X10\nG1 X20 F90000\nM2\n",
