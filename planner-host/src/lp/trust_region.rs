@@ -56,7 +56,8 @@
 //! a dense re-evaluation of the accepted plan q* exceeds a limit; the
 //! sequence then goes on from q* (`solve_from`): its first LP linearised at
 //! q̄ = q*, with every row it had taken in, and done at its first accepted
-//! iterate within `stop_rel` of q*'s time.
+//! iterate within [`WARM_SLACK`] of q*'s time. Where the round's plan ends
+//! slower than that, the round is solved afresh too and the faster plan kept.
 //!
 //! **Objective.** Either ∫q ds (eq. 7, `c_i = ∫N_i`) or the linearised
 //! machining time: T = ∫ q^{-1/2} ds has gradient −½∫N_i q_k^{-3/2} ds, so
@@ -124,6 +125,28 @@ impl Default for CertifiedConfig {
     }
 }
 
+/// How much slower than the plan it starts from a refinement round that
+/// goes on from it ([`solve_from`]) may end, relative: it is done at its
+/// first accepted iterate within this, and [`crate::plan`] solves a round
+/// whose plan ends slower afresh too and keeps the faster plan. At ρ_min
+/// from q̄ = q* the sequence cannot climb far from where the new rows push
+/// it: stopping anywhere within `stop_rel` of the round before, four rounds
+/// ended up to 11.8 % slower than rounds started afresh (fam1_15_c1_knots
+/// LEN 1).
+pub const WARM_SLACK: f64 = 1e-3;
+
+/// A sequence has settled when its last two LPs, both at ρ_min, changed the
+/// plan's time by less than this (relative), or when it was a refinement
+/// round that went on from a settled plan and stopped at its first LP
+/// within [`WARM_SLACK`]. A round that goes on from a plan that had not
+/// settled is done when an accepted iterate gains less than this at ρ_min
+/// (instead of `stop_rel`): near ρ_min the sequence often gains 0.15–0.3 %
+/// per LP for ten LPs or more (a round started afresh, with its larger LP
+/// budget, went on gaining so, and ended up to 2 % faster than rounds that
+/// stopped by `stop_rel`). The 10,000-chord surfacing path's last two LPs
+/// differ by 0.008 %.
+pub const SETTLED_REL: f64 = 5e-4;
+
 /// Feed below which the time weights stop growing, relative to v̄.
 pub const FLOOR_FEED_REL: f64 = 0.02;
 
@@ -178,13 +201,15 @@ pub struct CertifiedPlan {
 /// What a sequence had built up by its last LP: the row masks of its check
 /// points (bit 2k: +row of the k-th limit, 2k + 1: −row, 16: q ≤ q̄), whether
 /// the lower trust region was on, the margins of the caps at the curvature
-/// jumps, and the machining time of the plan it chose.
+/// jumps, the machining time of the plan it chose, and whether it had
+/// settled ([`SETTLED_REL`]).
 #[derive(Debug, Clone, Default)]
 pub(crate) struct SequenceState {
     pub(crate) mask: Vec<u32>,
     pub(crate) keep_floor: bool,
     pub(crate) cap_margin: Vec<f64>,
     pub(crate) time_s: f64,
+    pub(crate) settled: bool,
 }
 
 /// Where a refinement round's sequence starts ([`solve_from`]): the plan
@@ -507,11 +532,13 @@ pub fn solve(
 /// any iterate of the sequence does, and lowers q* only where the new rows
 /// ask. The next LPs grow the trust region by ρ_min, as the sequence did at
 /// its end. The round stops at its first accepted iterate whose time is
-/// within `stop_rel` of the accepted plan's (or better): the cutting planes
-/// cost that little, and a sequence started afresh from the static caps
-/// (what a round used to run: 16 LPs on the 10,000-chord surfacing path,
-/// 11 before) ends within the same margin of it. Otherwise the usual rules
-/// of the sequence apply.
+/// within [`WARM_SLACK`] of the accepted plan's (or better), if the sequence
+/// that gave that plan had settled ([`SETTLED_REL`]): the cutting planes
+/// mostly cost that little. Otherwise the rules of the sequence apply, with
+/// [`SETTLED_REL`] in place of `stop_rel` (a sequence cut off by its LP
+/// budget while it still gained goes on gaining), and a plan slower than the
+/// one it went on from is no proof that the round must be: [`crate::plan`]
+/// then solves it afresh too.
 pub(crate) fn solve_from(
     lp: &FeedLp,
     is_knot: &[bool],
@@ -723,6 +750,7 @@ fn solve_with(
     // A refinement round (`solve_from`): linearised at the accepted plan q*
     // itself, its rows kept, the rows active at q* added; then ρ_min.
     let mut reference_time = None;
+    let mut settled_before = false;
     if let Some(st) = start {
         let q_star: Vec<f64> = pts.iter().map(|p| p.basis.apply(0, &st.ctrl).max(0.0)).collect();
         for (i, p) in pts.iter().enumerate() {
@@ -749,7 +777,17 @@ fn solve_with(
         last_ctrl.clone_from(&st.ctrl);
         warm = Some(st.ctrl.clone());
         reference_time = Some(st.state.time_s);
+        settled_before = st.state.settled;
     }
+    // the plan times of the last two LPs (NaN unless at ρ_min), and whether
+    // a refinement round stopped within WARM_SLACK of a settled plan
+    let mut last_times = [f64::NAN; 2];
+    let mut stopped_warm = false;
+    // a refinement round from a plan that had not settled stops only once it gains little
+    let stop_rel = match start {
+        Some(_) => cfg.stop_rel.min(SETTLED_REL),
+        None => cfg.stop_rel,
+    };
     // Up to max_lps LPs; if none of them held every limit yet, or the last
     // one missed the check but was faster than the best by more than
     // UNSETTLED (see there), up to three times as many; if none held every
@@ -1042,16 +1080,19 @@ fn solve_with(
             );
         }
         let mut done = false;
-        unsettled = !feasible
-            && win.is_none()
-            && best.as_ref().is_some_and(|b| {
-                crate::lp::machining_time::plan_time(lp.knots, &sol.ctrl, lp.ends) < b.0 * (1.0 - UNSETTLED)
-            });
+        let plan_t = match &win {
+            None => crate::lp::machining_time::plan_time(lp.knots, &sol.ctrl, lp.ends),
+            Some(_) => f64::NAN,
+        };
+        let at_min = rho <= cfg.rho_min * 1.0001;
+        last_times = [last_times[1], if at_min { plan_t } else { f64::NAN }];
+        unsettled =
+            !feasible && win.is_none() && best.as_ref().is_some_and(|b| plan_t < b.0 * (1.0 - UNSETTLED));
         if feasible {
             // a window is judged by its own time (its spans' ∫ds/√q): the
             // rest of the path does not change
             let t = match &win {
-                None => crate::lp::machining_time::plan_time(lp.knots, &sol.ctrl, lp.ends),
+                None => plan_t,
                 Some(_) => window_time(lp, &sol.ctrl),
             };
             let better = best.as_ref().is_none_or(|b| t < b.0);
@@ -1062,10 +1103,12 @@ fn solve_with(
             // a window stops as soon as an accepted iterate gains little:
             // its trust region need not shrink to ρ_min first (half the LPs,
             // window times within ~0.1 % on the Butterfly)
-            done = gain < cfg.stop_rel && (win.is_some() || rho <= cfg.rho_min * 1.0001);
+            done = gain < stop_rel && (win.is_some() || rho <= cfg.rho_min * 1.0001);
             // a refinement round: done at the first accepted iterate within
-            // stop_rel of the plan it started from (see `solve_from`)
-            done |= reference_time.is_some_and(|r| t <= r * (1.0 + cfg.stop_rel));
+            // WARM_SLACK of the plan it started from, if the sequence before
+            // had settled (see `solve_from`)
+            stopped_warm = settled_before && reference_time.is_some_and(|r| t <= r * (1.0 + WARM_SLACK));
+            done |= stopped_warm;
         }
         if done {
             break;
@@ -1099,6 +1142,7 @@ fn solve_with(
                 keep_floor,
                 cap_margin,
                 time_s,
+                settled: stopped_warm || (last_times[1] - last_times[0]).abs() < SETTLED_REL * last_times[0],
             },
         }),
         None => Err(LpError {

@@ -560,7 +560,27 @@ impl LpStage<'_> {
                                 let c =
                                     trust_region::solve_from(&lp, &forced, &caps, &ccfg(round), r, q_floor)?;
                                 lps.extend(c.lps.iter().cloned());
-                                c
+                                // a round that ends slower than the plan it went
+                                // on from by more than WARM_SLACK is solved afresh
+                                // too (as the rounds were before the warm start),
+                                // and the faster plan kept: from q* at ρ_min the
+                                // sequence may stay near a slower plan than the
+                                // one the new rows allow
+                                if c.state.time_s > r.state.time_s * (1.0 + trust_region::WARM_SLACK) {
+                                    match trust_region::solve(&lp, &forced, &caps, &ccfg(round), q_floor) {
+                                        Ok(f) => {
+                                            lps.extend(f.lps.iter().cloned());
+                                            if f.state.time_s < c.state.time_s {
+                                                f
+                                            } else {
+                                                c
+                                            }
+                                        }
+                                        Err(_) => c,
+                                    }
+                                } else {
+                                    c
+                                }
                             }
                         };
                         let bad = trust_region::violations(&lp, &c.ctrl, dense, &caps, REFINE_TRIGGER);
