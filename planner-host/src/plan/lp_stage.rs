@@ -194,7 +194,7 @@ impl LpStage<'_> {
     /// toolpath narrower than the grid (r‴ of a weighted curve can rise
     /// tenfold within 0.01 mm next to a knot) is then seen by the grid.
     #[allow(clippy::too_many_arguments)]
-    fn bisect_fast(
+    pub(crate) fn bisect_fast(
         &self,
         a: &EvalPoint,
         ca: f64,
@@ -284,7 +284,7 @@ impl LpStage<'_> {
     /// already over the trigger) whose excess is a local maximum of the grid
     /// and at least PEAK_LOOK is searched with [`LpStage::peak`] between its
     /// neighbours; the peaks found over the trigger are returned.
-    fn hidden_peaks(
+    pub(crate) fn hidden_peaks(
         &self,
         lp: &FeedLp,
         ctrl: &[f64],
