@@ -225,7 +225,7 @@ impl LpStage<'_> {
     /// bracket around the best of them, PEAK_EVALS evaluations in all. A
     /// narrow spike of the ratio lies between two re-evaluation points; the
     /// check point goes onto its peak, not onto a grid point beside it.
-    fn peak(
+    pub(crate) fn peak(
         &self,
         lp: &FeedLp,
         ctrl: &[f64],
