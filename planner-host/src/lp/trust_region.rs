@@ -454,9 +454,6 @@ struct Window<'w> {
     /// window that comes to rest inside itself ([`crate::plan::windowed`])
     /// has ∫ds/√q infinite at its end.
     judge_hi: Option<f64>,
-    /// Rows enter by activity, as in the whole path's sequence (the knots'
-    /// rows from the start), instead of every row in every LP.
-    sparse: bool,
 }
 
 /// The certified sequence restricted to a window (the feedrate override,
@@ -493,7 +490,7 @@ pub fn solve_window(
     fixed: &[Option<f64>],
     reference: Option<&[f64]>,
 ) -> Result<CertifiedPlan, LpError> {
-    solve_window_until(lp, caps, cfg, fixed, reference, None, None)
+    solve_window_until(lp, caps, cfg, fixed, reference, None)
 }
 
 /// [`solve_window`], the window judged by its time up to `judge_hi` (a
@@ -508,7 +505,6 @@ pub(crate) fn solve_window_until(
     fixed: &[Option<f64>],
     reference: Option<&[f64]>,
     judge_hi: Option<f64>,
-    knots_at: Option<&[bool]>,
 ) -> Result<CertifiedPlan, LpError> {
     let t0 = Instant::now();
     let relaxed = relaxed(lp);
@@ -563,11 +559,10 @@ pub(crate) fn solve_window_until(
                 .clamp(0.0, 1.0)
         })
         .collect();
-    let all = vec![true; lp.points.len()];
-    let is_knot = knots_at.unwrap_or(&all);
+    let is_knot = vec![true; lp.points.len()];
     let mut plan = solve_with(
         lp,
-        is_knot,
+        &is_knot,
         caps,
         cfg,
         Some(Window {
@@ -575,7 +570,6 @@ pub(crate) fn solve_window_until(
             qbar0,
             free_weight,
             judge_hi,
-            sparse: knots_at.is_some(),
         }),
         0.0,
     )?;
@@ -630,8 +624,8 @@ fn solve_with(
     };
     // Row masks: bit 2k = +row of KINDS[k], bit 2k+1 = −row, bit 16 = the q ≤ q̄ row.
     let mut mask: Vec<u32> = match &win {
-        Some(w) if !w.sparse => vec![Q_ROW | 0xffff; pts.len()],
-        _ => is_knot.iter().map(|&k| if k { KNOT_ROWS } else { 0 }).collect(),
+        None => is_knot.iter().map(|&k| if k { KNOT_ROWS } else { 0 }).collect(),
+        Some(_) => vec![Q_ROW | 0xffff; pts.len()],
     };
     // the control-point bound a_i ≤ v̄² makes the feed (11) hold everywhere (convex hull)
     let upper = control_upper(lp);
