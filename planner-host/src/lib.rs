@@ -42,7 +42,6 @@ pub mod machine;
 pub mod plan;
 pub mod program;
 pub mod sampling;
-pub mod windowed;
 
 pub use feed_override::{OverrideContext, OverrideOutcome};
 pub use geometry::{builtin, ArcLength, CurveError, Nurbs};

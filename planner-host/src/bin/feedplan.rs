@@ -121,6 +121,14 @@ enum Cmd {
         /// (docs/override-design.md).
         #[arg(long, value_parser = parse_levels)]
         override_levels: Option<Levels>,
+        /// Plan window by window (certified formulation): each window plans this much path
+        /// ahead of what the windows before committed, joins it C² and comes to rest inside
+        /// itself; mm.
+        #[arg(long)]
+        window_mm: Option<f64>,
+        /// With --window-mm: path each window commits, mm (default a third of the window).
+        #[arg(long, requires = "window_mm")]
+        commit_mm: Option<f64>,
     },
     /// Compute one feedrate-override transition profile (paper §4) for inspection: the table's
     /// plan (or level --from) overridden at --at to level --to; the table must hold that level
@@ -327,6 +335,8 @@ fn run(cli: Cli) -> Result<(), Failure> {
             period_us,
             quiet,
             override_levels,
+            window_mm,
+            commit_mm,
         } => {
             if formulation != Formulation::Paper && (objective.is_some() || qhat_bound.is_some()) {
                 return Err(Failure::new(
@@ -340,13 +350,14 @@ fn run(cli: Cli) -> Result<(), Failure> {
                 if formulation != Formulation::Certified
                     || sampling != Sampling::Len
                     || override_levels.is_some()
+                    || window_mm.is_some()
                     || ends.is_some()
                     || checks_per_span.is_some()
                     || period_us.is_some()
                 {
                     return Err(Failure::new(
                         EXIT_USAGE,
-                        "a G-code program is planned with the certified formulation, jerk-limited ends and the machine file's servo period: --formulation, --sampling, --ends, --checks-per-span, --override-levels and --period-us go with a curve",
+                        "a G-code program is planned with the certified formulation, jerk-limited ends and the machine file's servo period: --formulation, --sampling, --ends, --checks-per-span, --override-levels, --window-mm and --period-us go with a curve",
                     ));
                 }
                 let opts = planner_host::program::ProgramOptions {
@@ -375,6 +386,21 @@ fn run(cli: Cli) -> Result<(), Failure> {
             };
             if let Some(c) = checks_per_span {
                 cfg.certified.checks_per_span = c;
+            }
+            if let Some(w) = window_mm {
+                let c = commit_mm.unwrap_or(w / 3.0);
+                if !(w.is_finite() && c.is_finite() && c > 0.0 && c < w)
+                    || formulation != Formulation::Certified
+                {
+                    return Err(Failure::new(
+                        EXIT_USAGE,
+                        format!("--window-mm {w} --commit-mm {c}: a window must commit more than 0 and less than its length, with the certified formulation"),
+                    ));
+                }
+                cfg.windows = Some(planner_host::plan::WindowConfig {
+                    window_mm: w,
+                    commit_mm: c,
+                });
             }
             let pb = progress_bar(quiet);
             pb.set_message(format!("planning {}", curve.name));

@@ -558,6 +558,10 @@ struct Window<'w> {
     /// Σ N_j over the free control points j at each check point: how much
     /// of q the LP can move there.
     free_weight: Vec<f64>,
+    /// The window's time is measured up to this s (a knot) when given: a
+    /// window that comes to rest inside itself ([`crate::plan::windowed`])
+    /// has ∫ds/√q infinite at its end.
+    judge_hi: Option<f64>,
 }
 
 /// The certified sequence restricted to a window (the feedrate override,
@@ -593,6 +597,22 @@ pub fn solve_window(
     cfg: &CertifiedConfig,
     fixed: &[Option<f64>],
     reference: Option<&[f64]>,
+) -> Result<CertifiedPlan, LpError> {
+    solve_window_until(lp, caps, cfg, fixed, reference, None)
+}
+
+/// [`solve_window`], the window judged by its time up to `judge_hi` (a
+/// knot) when given, instead of over all its spans, and then run until the
+/// trust region has shrunk to ρ_min as the whole path's sequence is (a
+/// window of [`crate::plan::windowed`] starts from q̂ beyond the window
+/// before, further from its optimum than an override window starts).
+pub(crate) fn solve_window_until(
+    lp: &FeedLp,
+    caps: &[JumpCap],
+    cfg: &CertifiedConfig,
+    fixed: &[Option<f64>],
+    reference: Option<&[f64]>,
+    judge_hi: Option<f64>,
 ) -> Result<CertifiedPlan, LpError> {
     let t0 = Instant::now();
     let relaxed = relaxed(lp);
@@ -657,6 +677,7 @@ pub fn solve_window(
             fixed,
             qbar0,
             free_weight,
+            judge_hi,
         }),
         None,
         0.0,
@@ -667,12 +688,13 @@ pub fn solve_window(
 }
 
 /// ∫ds/√q of `ctrl` over the knot spans holding the check points of `lp`.
-fn window_time(lp: &FeedLp, ctrl: &[f64]) -> f64 {
+fn window_time(lp: &FeedLp, ctrl: &[f64], judge_hi: Option<f64>) -> f64 {
     let (Some(a), Some(b)) = (lp.points.first(), lp.points.last()) else {
         return 0.0;
     };
     let lo = lp.knots[lp.knots.partition_point(|&u| u <= a.s).saturating_sub(1)];
     let hi = lp.knots[lp.knots.partition_point(|&u| u < b.s).min(lp.knots.len() - 1)];
+    let hi = judge_hi.map_or(hi, |j| j.min(hi));
     crate::lp::machining_time::machining_time_between(lp.knots, ctrl, lo, hi)
 }
 
@@ -1093,7 +1115,7 @@ fn solve_with(
             // rest of the path does not change
             let t = match &win {
                 None => plan_t,
-                Some(_) => window_time(lp, &sol.ctrl),
+                Some(w) => window_time(lp, &sol.ctrl, w.judge_hi),
             };
             let better = best.as_ref().is_none_or(|b| t < b.0);
             let gain = best.as_ref().map_or(f64::INFINITY, |b| (b.0 - t) / b.0);
@@ -1103,7 +1125,10 @@ fn solve_with(
             // a window stops as soon as an accepted iterate gains little:
             // its trust region need not shrink to ρ_min first (half the LPs,
             // window times within ~0.1 % on the Butterfly)
-            done = gain < stop_rel && (win.is_some() || rho <= cfg.rho_min * 1.0001);
+            // (a window that comes to rest inside itself converges as the
+            // whole path's sequence does: its start point is poorer)
+            done = gain < stop_rel
+                && (win.as_ref().is_some_and(|w| w.judge_hi.is_none()) || rho <= cfg.rho_min * 1.0001);
             // a refinement round: done at the first accepted iterate within
             // WARM_SLACK of the plan it started from, if the sequence before
             // had settled (see `solve_from`)

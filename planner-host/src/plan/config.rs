@@ -88,6 +88,10 @@ pub struct PlanConfig {
     /// (`crate::lp::feed_profile`). `None`: `limits.vbar` everywhere.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub feed_profile: Option<FeedProfile>,
+    /// Plan q window by window ([`crate::plan::windowed`]) instead of as
+    /// one sequence over the whole path.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub windows: Option<crate::plan::windowed::WindowConfig>,
 }
 
 fn display<S: serde::Serializer, T: std::fmt::Display>(v: &T, s: S) -> Result<S::Ok, S::Error> {
@@ -113,6 +117,7 @@ impl Default for PlanConfig {
             servo_period_s: 250e-6,
             override_levels: Vec::new(),
             feed_profile: None,
+            windows: None,
         }
     }
 }

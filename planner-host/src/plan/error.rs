@@ -81,6 +81,16 @@ pub enum PlanError {
         /// Why its plan failed.
         source: Box<PlanError>,
     },
+    /// A window of a windowed plan ([`crate::plan::windowed`]) has no plan.
+    #[error("window {window} (from s = {s_mm:.3} mm): {source}")]
+    Window {
+        /// Which window (0-based).
+        window: usize,
+        /// Where it joins the committed plan, mm.
+        s_mm: f64,
+        /// The LP's failure.
+        source: LpError,
+    },
     /// The feed profile is not a valid step function.
     #[error("feed profile: {0}")]
     FeedProfile(#[from] FeedProfileError),

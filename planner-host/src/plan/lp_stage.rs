@@ -231,7 +231,7 @@ impl LpStage<'_> {
     /// toolpath narrower than the grid (r‴ of a weighted curve can rise
     /// tenfold within 0.01 mm next to a knot) is then seen by the grid.
     #[allow(clippy::too_many_arguments)]
-    fn bisect_fast(
+    pub(crate) fn bisect_fast(
         &self,
         a: &EvalPoint,
         ca: f64,
@@ -262,7 +262,7 @@ impl LpStage<'_> {
     /// bracket around the best of them, PEAK_EVALS evaluations in all. A
     /// narrow spike of the ratio lies between two re-evaluation points; the
     /// check point goes onto its peak, not onto a grid point beside it.
-    fn peak(
+    pub(crate) fn peak(
         &self,
         lp: &FeedLp,
         ctrl: &[f64],
@@ -351,7 +351,7 @@ impl LpStage<'_> {
     /// already over the trigger) whose excess is a local maximum of the grid
     /// and at least PEAK_LOOK is searched with [`LpStage::peak`] between its
     /// neighbours; the peaks found over the trigger are returned.
-    fn hidden_peaks(
+    pub(crate) fn hidden_peaks(
         &self,
         lp: &FeedLp,
         ctrl: &[f64],

@@ -6,6 +6,7 @@
 //! 3. `knots`: the sampling Γ turned into the knots of q.
 //! 4. `lp_stage`: the check points, the LPs ([`crate::lp`]) and their
 //!    refinement rounds, the `stall` check, the machining time.
+//!    [`windowed`]: the same LPs window by window along the path.
 //! 5. `levels`: the feedrate override levels, each a whole plan.
 //! 6. `pipeline`: the steps above in order, and the table encoding.
 //! 7. `output`: the finished plan ([`PlanOutput`]); [`verify`]: its dense
@@ -24,6 +25,7 @@ pub(crate) mod pipeline;
 pub(crate) mod stall;
 pub mod su_fit;
 pub mod verify;
+pub mod windowed;
 
 pub use crate::lp::machining_time::machining_time;
 pub use atomic_write::{write_atomic, write_file_atomic};
@@ -32,3 +34,4 @@ pub use error::PlanError;
 pub use output::{LevelPlan, PlanOutput};
 pub use pipeline::{plan_curve, plan_curve_with_progress};
 pub use stall::StallAt;
+pub use windowed::{WindowConfig, WindowStats};

@@ -71,6 +71,9 @@ pub struct PlanOutput {
     /// (`plan::pipeline::KNOT_RETRIES`): 0 when the plan held on the
     /// sampling asked for.
     pub knot_bisections: usize,
+    /// What the windows cost, when planned window by window
+    /// ([`crate::plan::windowed`]).
+    pub windows: Option<crate::plan::windowed::WindowStats>,
     /// The override levels of [`PlanConfig::override_levels`], sorted by
     /// percent (level id k ≥ 1 of docs/override-design.md is `levels[k − 1]`).
     #[serde(skip_serializing_if = "Vec::is_empty")]
@@ -171,7 +174,21 @@ impl PlanOutput {
                 self.knot_bisections
             );
         }
-        for lp in &self.lp {
+        if let (Some(w), Some(c)) = (&self.windows, &self.config.windows) {
+            let _ = writeln!(
+                o,
+                "  {} windows of {} mm committing {} mm, {} LPs: the first {:.1} ms (commits {:.1} mm), the longest {:.1} ms, all {:.1} ms",
+                w.windows,
+                c.window_mm,
+                c.commit_mm,
+                self.lp.len(),
+                w.first_window_s * 1e3,
+                w.first_commit_mm,
+                w.max_window_s * 1e3,
+                w.windows_s * 1e3
+            );
+        }
+        for lp in self.lp.iter().filter(|_| self.windows.is_none()) {
             let _ = writeln!(
                 o,
                 "  {:<14} {:>6} variables {:>7} rows {:>8} nonzeros {:>4} iterations {:>9.2} ms  {}",

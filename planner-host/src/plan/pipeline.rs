@@ -87,6 +87,7 @@ pub fn plan_curve_with_progress(
     // the sequence held every limit), once more on every span bisected.
     let mut retry_samples = samples;
     let mut bisections = 0;
+    let mut window_stats = None;
     let (knots, base, geometry_time_s) = loop {
         let samples = match cfg.ends {
             EndMode::Jerk => end_room(retry_samples.clone(), &cfg.limits, length, &|s| {
@@ -102,21 +103,34 @@ pub fn plan_curve_with_progress(
                 basis: BasisRow::at(&knots, s)?,
             })
         };
-        let (points, is_knot): (Vec<EvalPoint>, Vec<bool>) = match cfg.formulation {
-            Formulation::Paper => basis_rows::greville(&knots)
-                .into_iter()
-                .filter_map(|g| Some((eval(g)?, false)))
-                .unzip(),
-            // evaluated in parallel, in order
-            Formulation::Certified => check_points(&knots, cfg.certified.checks_per_span)
-                .into_par_iter()
-                .filter_map(|(s, k)| Some((eval(s)?, k)))
-                .unzip(),
-        };
-        let geometry_time_s = t0.elapsed().as_secs_f64();
-        dbg_t("check points");
         let stage = lp_stage(curve, &arc, &knots, cfg, progress, steps, 0);
-        match stage.solve(&cfg.limits, &jumps, points, is_knot, Refine::Rounds) {
+        let mut geometry_time_s = t0.elapsed().as_secs_f64();
+        let solved = match (&cfg.windows, cfg.formulation) {
+            // window by window: each window evaluates its own check points
+            (Some(w), Formulation::Certified) => {
+                stage.solve_windowed(&cfg.limits, &jumps, w).map(|(s, st)| {
+                    window_stats = Some(st);
+                    s
+                })
+            }
+            _ => {
+                let (points, is_knot): (Vec<EvalPoint>, Vec<bool>) = match cfg.formulation {
+                    Formulation::Paper => basis_rows::greville(&knots)
+                        .into_iter()
+                        .filter_map(|g| Some((eval(g)?, false)))
+                        .unzip(),
+                    // evaluated in parallel, in order
+                    Formulation::Certified => check_points(&knots, cfg.certified.checks_per_span)
+                        .into_par_iter()
+                        .filter_map(|(s, k)| Some((eval(s)?, k)))
+                        .unzip(),
+                };
+                dbg_t("check points");
+                geometry_time_s = t0.elapsed().as_secs_f64();
+                stage.solve(&cfg.limits, &jumps, points, is_knot, Refine::Rounds)
+            }
+        };
+        match solved {
             Ok(base) => {
                 stage.step_done();
                 break (knots, base, geometry_time_s);
@@ -199,6 +213,7 @@ pub fn plan_curve_with_progress(
         check_points,
         refine_rounds: rounds,
         knot_bisections: bisections,
+        windows: window_stats,
         levels,
     })
 }

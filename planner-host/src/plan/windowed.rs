@@ -1,0 +1,498 @@
+//! Windowed planning: q planned window by window along the path, each
+//! window joined C² to what the windows before committed and ending at rest,
+//! so that the machine can start once the first window is planned and the
+//! plan never commits to a speed it cannot brake from (docs/streaming-design.md).
+//!
+//! q is the cubic B-spline of the whole path's knot vector (17), as in
+//! [`crate::plan::plan_curve`]; a window is a stretch of its control points.
+//! Window k frees the control points after the committed ones up to about
+//! [`WindowConfig::window_mm`] of path ahead (i_l < i < i_m) and fixes
+//!
+//! - a_i, i ≤ i_l, to what the windows before committed: q, q′, q″ are
+//!   continuous across the join by construction (one spline, its control
+//!   points kept), so the tick crosses a join as it crosses any knot;
+//! - a_i, i ≥ i_m, to 0: q, q′ and q″ vanish at U_{i_m+3}, and the window's
+//!   plan comes to rest before it within every limit (the LP holds its rows up
+//!   to there, and q ≡ 0 after). Committing only a part of the window that
+//!   ends at least one window's braking before U_{i_m} keeps a stop inside
+//!   what has been planned;
+//! - the last window frees everything to the path's end, with the stop join
+//!   of the end segments (`crate::lp::end_rows`); the first frees the start
+//!   join. A join is never split between fixed and free control points.
+//!
+//! Each window is the certified sequence on its fixed control points
+//! ([`trust_region::solve_window_until`]: a pseudo-jerk LP, then linearised
+//! LPs from min(q̂, the window before up to halfway between its commit and
+//! its end: the window before over its whole length, braking included, held
+//! the next one low, +8.8 % on the Butterfly), judged by its time up to that
+//! halfway point (q vanishes at its end) and run until its trust region has
+//! shrunk to ρ_min (stopping at the first iterate that gains little, as an
+//! override window does, lost 3 %). Rows entering by activity as in the
+//! whole path's sequence would cost 12 % of machining time on the Butterfly
+//! at 120/40 mm; every row is in every LP, as in an override window. Refinement
+//! rounds run on the window's own dense re-evaluation points as the whole
+//! plan's do (points over [`REFINE_TRIGGER`], the peaks beside them and the
+//! hidden peaks become check points; the forced points past the commit carry
+//! over to the next window), and its control points up to about
+//! [`WindowConfig::commit_mm`] past the join are committed. The geometry
+//! (check points, dense points) is evaluated per window, only for the spans
+//! the window touches, on both cores; the sampling, the knot vector and the
+//! curvature jumps are still the whole path's.
+//!
+//! A window that commits too close to its end can find no plan: the LPs are
+//! linearised, and the committed state, within the refinement's tolerance
+//! of the limits, can leave the first LP without a feasible point (the
+//! 11 m meander at 60/30 and 90/60 mm; 80/40, 120/40, 200/150 plan). That
+//! is an error ([`PlanError::Window`]), never a plan past the limits.
+
+use std::time::Instant;
+
+use firmware_core::Limits;
+
+use crate::geometry::arc_length::path_derivs_at;
+use crate::geometry::junction::Jump;
+use crate::lp::basis_rows::{BasisRow, ORDER};
+use crate::lp::end_rows::{EndMode, EndRows};
+use crate::lp::machining_time::{machining_time, machining_time_between};
+use crate::lp::problem::{EvalPoint, FeedLp, LpStats};
+use crate::lp::trust_region;
+use crate::plan::error::PlanError;
+use crate::plan::lp_stage::{
+    check_points, LpStage, Solved, PEAK_LOOK, REFINE_PER_CURVE_SPAN, REFINE_PER_SPAN, REFINE_ROUNDS,
+    REFINE_TRIGGER, REPORT_PER_SPAN,
+};
+use crate::plan::stall::{find_stall, find_stall_between, StallAt};
+use rayon::prelude::*;
+
+/// How long the windows are and how much of each is committed.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct WindowConfig {
+    /// Path a window plans ahead of its join, mm.
+    pub window_mm: f64,
+    /// Path a window commits past its join, mm (less than `window_mm` by at
+    /// least the braking distance at full feed).
+    pub commit_mm: f64,
+}
+
+impl Default for WindowConfig {
+    fn default() -> Self {
+        WindowConfig {
+            window_mm: 120.0,
+            commit_mm: 40.0,
+        }
+    }
+}
+
+/// What the windows cost.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+pub struct WindowStats {
+    /// Windows solved.
+    pub windows: usize,
+    /// Wall time from the start of the first window to its commit, s.
+    pub first_window_s: f64,
+    /// Largest wall time of one window, s.
+    pub max_window_s: f64,
+    /// All windows, s.
+    pub windows_s: f64,
+    /// Path committed by the first window, mm.
+    pub first_commit_mm: f64,
+}
+
+impl LpStage<'_> {
+    /// The re-evaluation points of the knot spans of q in [lo, hi] (as
+    /// [`LpStage::dense`] makes them for the whole path), with four in each
+    /// curvature jump's reach.
+    fn dense_between(&self, lo: f64, hi: f64, caps: &[crate::lp::JumpCap]) -> Vec<EvalPoint> {
+        let (curve, arc) = (self.curve, self.arc);
+        let a = self.knots.partition_point(|&u| u < lo).saturating_sub(1);
+        let b = (self.knots.partition_point(|&u| u <= hi) + 1).min(self.knots.len());
+        let at: Vec<f64> = self.knots[a..b]
+            .windows(2)
+            .filter(|w| w[1] > w[0] && w[1] > lo && w[0] < hi)
+            .flat_map(|w| {
+                let even = |n: usize| (1..n).map(move |k| w[0] + (w[1] - w[0]) * k as f64 / n as f64);
+                even(REFINE_PER_SPAN).chain(even(REPORT_PER_SPAN))
+            })
+            .collect();
+        // evaluated on both cores, in order
+        let mut v: Vec<EvalPoint> = at.par_iter().filter_map(|&s| self.eval(s)).collect();
+        let (u_lo, u_hi) = (arc.u_of_s(lo.max(0.0)), arc.u_of_s(hi.min(self.length)));
+        for sp in arc.spans().iter().filter(|sp| sp.u1 > u_lo && sp.u0 < u_hi) {
+            for k in 1..REFINE_PER_CURVE_SPAN {
+                let u = sp.u0 + (sp.u1 - sp.u0) * k as f64 / REFINE_PER_CURVE_SPAN as f64;
+                let s = arc.s_of_u(u);
+                if s <= lo || s >= hi {
+                    continue;
+                }
+                if let Some(basis) = BasisRow::at(self.knots, s) {
+                    v.push(EvalPoint {
+                        s,
+                        geo: arc.derivs_s(curve, u),
+                        basis,
+                    });
+                }
+            }
+        }
+        v.extend(
+            caps.iter()
+                .flat_map(|&(s, _, r)| [s - r, s - 0.5 * r, s + 0.5 * r, s + r])
+                .filter(|&s| s > lo && s < hi)
+                .filter_map(|s| self.eval(s)),
+        );
+        v.sort_by(|a, b| a.s.total_cmp(&b.s));
+        v.dedup_by(|a, b| a.s == b.s);
+        let lim = &self.cfg.limits;
+        let cap = |p: &EvalPoint| trust_region::static_cap(lim, &p.geo);
+        let mut out = Vec::with_capacity(v.len());
+        for w in v.windows(2) {
+            out.push(w[0]);
+            self.bisect_fast(&w[0], cap(&w[0]), &w[1], cap(&w[1]), 0, &cap, &mut out);
+        }
+        out.extend(v.last().copied());
+        out
+    }
+
+    /// Plan with `limits` window by window (see the module docs).
+    pub(crate) fn solve_windowed(
+        &self,
+        limits: &Limits,
+        jumps: &[Jump],
+        wc: &WindowConfig,
+    ) -> Result<(Solved, WindowStats), PlanError> {
+        let (cfg, knots, curve, arc) = (self.cfg, self.knots, self.curve, self.arc);
+        let profile = cfg.feed_profile.clone();
+        let end_limits = match &profile {
+            Some(f) => Limits {
+                vbar: f
+                    .min_on(0.0, self.length / 3.0)
+                    .min(f.min_on(2.0 * self.length / 3.0, self.length)),
+                ..*limits
+            },
+            None => *limits,
+        };
+        let end_rows = match cfg.ends {
+            EndMode::Jerk => EndRows::new(knots, &end_limits, &|s| path_derivs_at(curve, arc, s)),
+            EndMode::Step => None,
+        };
+        let caps: Vec<crate::lp::JumpCap> = jumps
+            .iter()
+            .map(|j| crate::lp::jump_cap(j, cfg.servo_period_s))
+            .collect();
+        let n = knots.len() - ORDER;
+        // the joins' control points: never split between fixed and free
+        let join = |s: f64| crate::feed_override::context::join_ctrl(knots, s);
+        let start_last = end_rows.and_then(|e| join(e.start.s)).map_or(0, |j| j.1);
+        let stop_first = end_rows.and_then(|e| join(e.stop.s)).map_or(n - 1, |j| j.0);
+        let knot_at = |s: f64| knots.partition_point(|&u| u < s);
+        let mut committed = vec![0.0; n];
+        // the first linearisation point beyond the window before: q̂ alone
+        let mut prev = vec![f64::MAX; n];
+        // forced check points the window before found past its commit
+        let mut carried: Vec<EvalPoint> = Vec::new();
+        let mut i_l = 0usize;
+        let mut stats = WindowStats::default();
+        let mut lps: Vec<LpStats> = Vec::new();
+        let mut all_pts: Vec<(EvalPoint, bool)> = Vec::new();
+        let mut rounds = 0;
+        let t_all = Instant::now();
+        loop {
+            let t = Instant::now();
+            let s_join = knots[i_l + ORDER - 1];
+            let mut i_m = knot_at(s_join + wc.window_mm).max(i_l + 3 * ORDER);
+            // the last window when the next would reach the stop join
+            let last = i_m + ORDER >= stop_first;
+            if last {
+                i_m = n - 1;
+            }
+            // what this window commits: about commit_mm past the join, the
+            // start join whole, never into the window's braking
+            let i_c = knot_at(s_join + wc.commit_mm)
+                .max(start_last)
+                .min(i_m.saturating_sub(2 * ORDER))
+                .max(i_l + 1);
+            // the window is judged by its time up to halfway between its
+            // commit and its end (q vanishes at its end: ∫ds/√q is infinite)
+            let judge_hi = (!last).then(|| knots[(i_c + i_m) / 2]);
+            let fixed: Vec<Option<f64>> = (0..n)
+                .map(|i| {
+                    if i <= i_l {
+                        Some(committed[i])
+                    } else if i >= i_m {
+                        Some(0.0)
+                    } else {
+                        None
+                    }
+                })
+                .collect();
+            // check points of the spans that touch a free control point
+            let (lo_s, hi_s) = (knots[i_l + 1], knots[(i_m + ORDER - 1).min(knots.len() - 1)]);
+            let a = knot_at(lo_s).saturating_sub(1);
+            let b = (knots.partition_point(|&u| u <= hi_s)).min(knots.len());
+            // (a knot's rows, and a forced point's, from the first LP on)
+            let mut cand: Vec<(EvalPoint, bool)> = check_points(&knots[a..b], cfg.certified.checks_per_span)
+                .into_iter()
+                .filter(|&(s, _)| s >= lo_s && s <= hi_s)
+                .filter_map(|(s, k)| Some((self.eval(s)?, k)))
+                .collect();
+            cand.extend(
+                carried
+                    .iter()
+                    .filter(|p| p.s >= lo_s && p.s <= hi_s)
+                    .map(|&p| (p, true)),
+            );
+            cand.sort_by(|a, b| a.0.s.total_cmp(&b.0.s));
+            cand.dedup_by(|a, b| a.0.s == b.0.s);
+            let (mut pts, mut at_knot): (Vec<EvalPoint>, Vec<bool>) = cand.into_iter().unzip();
+            let win_caps: Vec<crate::lp::JumpCap> = caps
+                .iter()
+                .copied()
+                .filter(|&(s, _, r)| s + r > lo_s && s - r < hi_s)
+                .collect();
+            let dense = self.dense_between(lo_s, hi_s, &win_caps);
+            let t_geo = t.elapsed().as_secs_f64();
+            let settings = crate::lp::problem::SolverSettings {
+                banded_max_iter: Some(
+                    crate::feed_override::config::WINDOW_BANDED_MAX_ITER.min(cfg.solver.max_iter),
+                ),
+                ..cfg.solver
+            };
+            let base_lp = FeedLp {
+                knots,
+                points: &[],
+                limits: *limits,
+                // as an override window: ∫q, a ≤ â
+                objective: crate::lp::problem::Objective::Integral,
+                qhat_bound: crate::lp::problem::QhatBound::ControlPoints,
+                settings,
+                ends: end_rows.as_ref(),
+                feed: profile.as_ref(),
+            };
+            let solve = |pts: &[EvalPoint]| {
+                let lp = FeedLp {
+                    points: pts,
+                    ..base_lp.clone()
+                };
+                trust_region::solve_window_until(
+                    &lp,
+                    &win_caps,
+                    &cfg.certified,
+                    &fixed,
+                    Some(&prev),
+                    judge_hi,
+                )
+            };
+            let window_err = |e: crate::lp::problem::LpError| PlanError::Window {
+                window: stats.windows,
+                s_mm: s_join,
+                source: e,
+            };
+            let mut plan = solve(&pts).map_err(window_err)?;
+            let t_lp1 = t.elapsed().as_secs_f64();
+            lps.extend(plan.lps.iter().cloned());
+            for _ in 0..REFINE_ROUNDS {
+                let lp = FeedLp {
+                    points: &pts,
+                    ..base_lp.clone()
+                };
+                // the excess once at every dense point (both cores): the
+                // points over the trigger, the peaks beside them, and the
+                // peaks between points that read under it (as the whole plan)
+                let e: Vec<f64> = dense
+                    .par_iter()
+                    .map(|p| trust_region::excess(&lp, &plan.ctrl, p, &win_caps))
+                    .collect();
+                let bad: Vec<usize> = (0..e.len()).filter(|&i| e[i] > REFINE_TRIGGER).collect();
+                let look: Vec<usize> = (0..e.len())
+                    .filter(|&i| {
+                        let left = if i > 0 { e[i - 1] } else { f64::NEG_INFINITY };
+                        let right = e.get(i + 1).copied().unwrap_or(f64::NEG_INFINITY);
+                        e[i] >= PEAK_LOOK && e[i] >= left && e[i] >= right
+                    })
+                    .collect();
+                let peaks: Vec<EvalPoint> = look
+                    .par_iter()
+                    .filter_map(|&i| {
+                        // between its neighbours
+                        let at = |k: usize| dense[k.min(dense.len() - 1)].s;
+                        let p = self.peak(&lp, &plan.ctrl, &win_caps, at(i.saturating_sub(1)), at(i + 1))?;
+                        (e[i] > REFINE_TRIGGER
+                            || trust_region::excess(&lp, &plan.ctrl, &p, &win_caps) > REFINE_TRIGGER)
+                            .then_some(p)
+                    })
+                    .collect();
+                if bad.is_empty() && peaks.is_empty() {
+                    break;
+                }
+                let hidden = peaks;
+                let mut merged: Vec<(EvalPoint, bool)> = pts.drain(..).zip(at_knot.drain(..)).collect();
+                merged.extend(bad.iter().map(|&k| (dense[k], true)));
+                merged.extend(hidden.into_iter().map(|p| (p, true)));
+                merged.sort_by(|a, b| a.0.s.total_cmp(&b.0.s));
+                merged.dedup_by(|a, b| a.0.s == b.0.s);
+                (pts, at_knot) = merged.into_iter().unzip();
+                rounds += 1;
+                match solve(&pts) {
+                    Ok(p) => {
+                        lps.extend(p.lps.iter().cloned());
+                        plan = p;
+                    }
+                    // a round whose LP fails keeps the plan before it
+                    Err(_) => break,
+                }
+            }
+            let dt = t.elapsed().as_secs_f64();
+            if std::env::var_os("FEEDLP_WIN_DEBUG").is_some() {
+                eprintln!(
+                    "window {} s {:.1}: pts {} dense {} geo {:.1} ms, first solve {:.1} ms ({} LPs), rest {:.1} ms, LP time {:.1} ms",
+                    stats.windows,
+                    s_join,
+                    pts.len(),
+                    dense.len(),
+                    t_geo * 1e3,
+                    (t_lp1 - t_geo) * 1e3,
+                    plan.lps.len(),
+                    (dt - t_lp1) * 1e3,
+                    plan.lps.iter().map(|l| l.solve_time_s).sum::<f64>() * 1e3
+                );
+            }
+            stats.max_window_s = stats.max_window_s.max(dt);
+            if last {
+                committed[i_l + 1..].copy_from_slice(&plan.ctrl[i_l + 1..]);
+                all_pts.extend(pts.into_iter().map(|p| (p, true)));
+                stats.windows += 1;
+                if stats.windows == 1 {
+                    stats.first_window_s = dt;
+                    stats.first_commit_mm = self.length;
+                }
+                break;
+            }
+            committed[i_l + 1..=i_c].copy_from_slice(&plan.ctrl[i_l + 1..=i_c]);
+            let s_commit = knots[i_c + 1];
+            carried = pts
+                .iter()
+                .zip(&at_knot)
+                .filter(|(p, &f)| f && p.s >= s_commit)
+                .map(|(p, _)| *p)
+                .collect();
+            all_pts.extend(pts.into_iter().filter(|p| p.s < s_commit).map(|p| (p, true)));
+            // the next window's first linearisation point: this plan up to
+            // halfway between its commit and its end (before its braking),
+            // q̂ beyond
+            prev.clone_from(&plan.ctrl);
+            for x in prev.iter_mut().skip((i_c + i_m) / 2) {
+                *x = f64::MAX;
+            }
+            stats.windows += 1;
+            if stats.windows == 1 {
+                stats.first_window_s = dt;
+                stats.first_commit_mm = s_commit;
+            }
+            i_l = i_c;
+        }
+        stats.windows_s = t_all.elapsed().as_secs_f64();
+        all_pts.sort_by(|a, b| a.0.s.total_cmp(&b.0.s));
+        all_pts.dedup_by(|a, b| a.0.s == b.0.s);
+        let (pts, forced): (Vec<EvalPoint>, Vec<bool>) = all_pts.into_iter().unzip();
+        let ctrl = committed;
+        let ends = end_rows.as_ref().and_then(|e| e.segments(&ctrl));
+        let cap = |s: f64| {
+            let feed = profile.as_ref().map_or(f64::INFINITY, |f| f.at(s).powi(2));
+            self.eval(s)
+                .map_or(f64::INFINITY, |p| trust_region::static_cap(limits, &p.geo))
+                .min(feed)
+        };
+        let stall = match (&end_rows, ends) {
+            (None, _) => find_stall(knots, &ctrl, limits, &cap),
+            (Some(_), Some(e)) => find_stall_between(knots, &ctrl, limits, e.s_start, e.s_stop, &cap),
+            (Some(e), None) => Some(StallAt::Interior {
+                s_mm: e.start.s,
+                feed_mm_s: 0.0,
+            }),
+        };
+        if let Some(at) = stall {
+            return Err(PlanError::Stall {
+                at,
+                length_mm: self.length,
+            });
+        }
+        let predicted_time_s = match ends {
+            Some(e) => e.t_start + machining_time_between(knots, &ctrl, e.s_start, e.s_stop) + e.t_stop,
+            None => machining_time(knots, &ctrl),
+        };
+        Ok((
+            Solved {
+                ctrl,
+                qhat_ctrl: Vec::new(),
+                lps,
+                check: None,
+                pts,
+                forced,
+                rounds,
+                ends,
+                predicted_time_s,
+            },
+            stats,
+        ))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::arc_length::ArcLength;
+    use crate::plan::verify::dense_check_ends;
+    use crate::plan::{plan_curve, PlanConfig};
+
+    /// The Butterfly planned window by window: within 1 % of the whole
+    /// plan's machining time, every limit held on the dense re-evaluation
+    /// (joins included), the first window committed before the rest are
+    /// planned. Printed: `cargo test --release -p planner-host windowed -- --nocapture`.
+    #[test]
+    fn windows_plan_the_butterfly_as_the_whole_path_does() {
+        let curve = crate::geometry::builtin::butterfly().unwrap();
+        let arc = ArcLength::new(&curve);
+        let whole = plan_curve(&curve, &PlanConfig::default()).unwrap();
+        for w in [
+            WindowConfig {
+                window_mm: 60.0,
+                commit_mm: 20.0,
+            },
+            WindowConfig::default(),
+        ] {
+            let cfg = PlanConfig {
+                windows: Some(w),
+                ..PlanConfig::default()
+            };
+            let out = plan_curve(&curve, &cfg).unwrap();
+            let st = out.windows.clone().unwrap();
+            let dense = dense_check_ends(
+                &curve,
+                &arc,
+                &out.q_knots,
+                &out.q_ctrl,
+                out.ends.as_ref(),
+                &cfg.limits,
+                None,
+                20,
+            );
+            eprintln!(
+                "{w:?}: {} windows, {} LPs, {:.4} s against {:.4} s ({:+.3} %), dense worst {:.4}, first window {:.1} ms ({:.1} mm), longest {:.1} ms, all {:.1} ms; whole plan {:.1} ms",
+                st.windows,
+                out.lp.len(),
+                out.predicted_time_s,
+                whole.predicted_time_s,
+                (out.predicted_time_s / whole.predicted_time_s - 1.0) * 100.0,
+                dense.ratios.worst(),
+                st.first_window_s * 1e3,
+                st.first_commit_mm,
+                st.max_window_s * 1e3,
+                st.windows_s * 1e3,
+                whole.total_time_s * 1e3,
+            );
+            assert!(st.windows > 2);
+            assert!(st.first_commit_mm < out.path_length_mm / 2.0);
+            assert!(out.predicted_time_s <= whole.predicted_time_s * 1.01);
+            assert!(dense.ratios.worst() <= 1.005, "{:?}", dense.ratios);
+        }
+    }
+}
