@@ -202,14 +202,17 @@ pub struct CertifiedPlan {
 /// points (bit 2k: +row of the k-th limit, 2k + 1: −row, 16: q ≤ q̄), whether
 /// the lower trust region was on, the margins of the caps at the curvature
 /// jumps, the machining time of the plan it chose, and whether it had
-/// settled ([`SETTLED_REL`]).
+/// settled: `drift`, the relative change of the plan's time over its last
+/// two LPs at ρ_min (∞ unless both were; 0 for a refinement round that
+/// stopped at its first LP within [`WARM_SLACK`] of a settled plan). It has
+/// settled when `drift` < [`SETTLED_REL`].
 #[derive(Debug, Clone, Default)]
 pub(crate) struct SequenceState {
     pub(crate) mask: Vec<u32>,
     pub(crate) keep_floor: bool,
     pub(crate) cap_margin: Vec<f64>,
     pub(crate) time_s: f64,
-    pub(crate) settled: bool,
+    pub(crate) drift: f64,
 }
 
 /// Where a refinement round's sequence starts ([`solve_from`]): the plan
@@ -799,7 +802,7 @@ fn solve_with(
         last_ctrl.clone_from(&st.ctrl);
         warm = Some(st.ctrl.clone());
         reference_time = Some(st.state.time_s);
-        settled_before = st.state.settled;
+        settled_before = st.state.drift < SETTLED_REL;
     }
     // the plan times of the last two LPs (NaN unless at ρ_min), and whether
     // a refinement round stopped within WARM_SLACK of a settled plan
@@ -1167,7 +1170,17 @@ fn solve_with(
                 keep_floor,
                 cap_margin,
                 time_s,
-                settled: stopped_warm || (last_times[1] - last_times[0]).abs() < SETTLED_REL * last_times[0],
+                drift: if stopped_warm {
+                    0.0
+                } else {
+                    // NaN (not both at ρ_min) as ∞
+                    let d = (last_times[1] - last_times[0]).abs() / last_times[0];
+                    if d.is_nan() {
+                        f64::INFINITY
+                    } else {
+                        d
+                    }
+                },
             },
         }),
         None => Err(LpError {
