@@ -273,6 +273,10 @@ pub struct StreamSize {
     pub chunk_bytes: usize,
     /// Bytes on the link: each chunk in a DATA frame (kind, COBS, delimiter).
     pub framed_bytes: usize,
+    /// Of the chunk bytes: the q parts (knots and control points).
+    pub q_bytes: usize,
+    /// Of the chunk bytes: the pieces (with their u form, if sent).
+    pub piece_bytes: usize,
 }
 
 impl StreamSize {
@@ -282,8 +286,16 @@ impl StreamSize {
             chunks: chunks.len(),
             chunk_bytes: chunks.iter().map(Vec::len).sum(),
             framed_bytes: chunks.iter().map(|c| framed_len(c)).sum(),
+            q_bytes: infos(chunks).map(|i| i.q_part_len()).sum(),
+            piece_bytes: infos(chunks).map(|i| i.piece_part_len()).sum(),
         }
     }
+}
+
+fn infos(chunks: &[Vec<u8>]) -> impl Iterator<Item = firmware_core::stream::ChunkInfo> + '_ {
+    chunks
+        .iter()
+        .filter_map(|c| Chunk::parse(c).ok().map(|c| *c.info()))
 }
 
 /// Bytes of `chunk` in a DATA frame on the link.

@@ -66,6 +66,14 @@ impl ChunkInfo {
         self.s_b
             .wrapping_sub(i64::from(self.commit) << (crate::servo_forms::fixed::FX_FRAC - COMMIT_FRAC))
     }
+    /// Payload bytes of the q part (first span, q flags, knots, control points).
+    pub fn q_part_len(&self) -> usize {
+        self.pieces_at.saturating_sub(HEADER_LEN)
+    }
+    /// Payload bytes of the pieces (first break, then every piece).
+    pub fn piece_part_len(&self) -> usize {
+        self.len.saturating_sub(CRC_LEN).saturating_sub(self.pieces_at)
+    }
     /// s_a ≤ s < s_b, or s = s_b on the last chunk.
     pub fn holds(&self, s: i64) -> bool {
         self.s_a <= s && (s < self.s_b || self.is_last() && s == self.s_b)
