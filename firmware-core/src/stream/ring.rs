@@ -15,7 +15,7 @@ use crate::stream::chunk::{Chunk, ChunkInfo};
 use crate::stream::error::StreamError;
 
 /// Chunk slots of a ring unless chosen otherwise.
-pub const DEFAULT_SLOTS: usize = 64;
+pub const DEFAULT_SLOTS: usize = 32;
 
 /// What an accepted push reports (an ACK carries both).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
