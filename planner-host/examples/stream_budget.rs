@@ -10,7 +10,10 @@
 //! CURVE is a built-in name (butterfly, circle, fan, star, trident) or a
 //! curve JSON file; without one, all five built-in curves. `--chunk-mm`:
 //! chunk length (default 32). `--link FILE`: also write the first curve's
-//! stream (u form, framed) to FILE, e.g. as a fuzz seed.
+//! stream (u form, framed) to FILE, e.g. as a fuzz seed or for the MCU
+//! (`firmware-core/mcu`, bin `stream-decode`); `--digest`: print each
+//! curve's decode digest (u form; `Fnv1a64::chunk` over every chunk in
+//! order), the number the MCU's `stream-decode` prints for the same stream.
 
 use std::path::Path;
 
@@ -24,11 +27,13 @@ fn main() {
     let mut args = std::env::args().skip(1);
     let mut chunk_mm = 32.0;
     let mut link: Option<String> = None;
+    let mut digest = false;
     let mut curves = vec![];
     while let Some(a) = args.next() {
         match a.as_str() {
             "--chunk-mm" => chunk_mm = args.next().and_then(|v| v.parse().ok()).expect("--chunk-mm MM"),
             "--link" => link = Some(args.next().expect("--link FILE")),
+            "--digest" => digest = true,
             _ => curves.push(a),
         }
     }
@@ -66,6 +71,13 @@ fn main() {
                 s.q_bytes as f64 / len,
                 s.piece_bytes as f64 / len
             ));
+            if u_form && digest {
+                let mut d = firmware_core::digest::Fnv1a64::new();
+                for c in &chunks {
+                    d.chunk(&firmware_core::stream::Chunk::parse(c).expect("the chunk parses"));
+                }
+                println!("{}: decode digest 0x{:016x}", out.curve, d.finish());
+            }
             if u_form && k == 0 {
                 if let Some(path) = &link {
                     let mut bytes = vec![];
