@@ -472,23 +472,31 @@ pub(crate) fn predict_bm(cur: &PieceForm, prev: Option<&PieceForm>, a: usize, m:
     };
     // d/dτ_cur = 2^(e_cur − e_prev) d/dτ_prev, e = 21 − shift
     let d = (p.shift() as i32 - cur.shift() as i32).saturating_mul(m as i32);
-    let target = i128::from(deriv(&p.coeffs(a), m, te));
+    let target = deriv(&p.coeffs(a), m, te);
     let target = if d >= 0 {
-        target << d.min(60)
+        // × 2^d, saturating (i64 only: i128 is soft arithmetic on the M4)
+        let sh = d.unsigned_abs().min(63);
+        if target.unsigned_abs().leading_zeros() > sh {
+            target << sh
+        } else if target < 0 {
+            i64::MIN
+        } else {
+            i64::MAX
+        }
     } else {
-        target >> d.unsigned_abs().min(120)
+        target >> d.unsigned_abs().min(63)
     };
     let mut z = cur.coeffs(a);
     for x in z.iter_mut().take(m + 1) {
         *x = 0;
     }
-    let base = i128::from(deriv(&z, m, ts));
-    let fact: i128 = match m {
+    let base = deriv(&z, m, ts);
+    let fact: i64 = match m {
         2 => 2,
         3 => 6,
         _ => 1,
     };
-    (target.wrapping_sub(base) / fact).clamp(i128::from(i64::MIN), i128::from(i64::MAX)) as i64
+    target.saturating_sub(base) / fact
 }
 
 /// b₀ of axis `a` of `cur` that makes it start where `prev` ends (the
