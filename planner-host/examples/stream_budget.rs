@@ -5,11 +5,12 @@
 //! of path printed, with and without the f32 u form, chunks alone and in
 //! DATA frames on the link (COBS and delimiter).
 //!
-//!     cargo run --release -p planner-host --example stream_budget -- [--chunk-mm MM] [--link FILE] [CURVE ...]
+//!     cargo run --release -p planner-host --example stream_budget -- [--chunk-mm MM] [--max-bytes N] [--link FILE] [--digest] [CURVE ...]
 //!
 //! CURVE is a built-in name (butterfly, circle, fan, star, trident) or a
 //! curve JSON file; without one, all five built-in curves. `--chunk-mm`:
-//! chunk length (default 32). `--link FILE`: also write the first curve's
+//! chunk length (default 32). `--max-bytes N`: halve longer chunks until
+//! they fit N bytes (`ChunkOptions::max_chunk_bytes`). `--link FILE`: also write the first curve's
 //! stream (u form, framed) to FILE, e.g. as a fuzz seed or for the MCU
 //! (`firmware-core/mcu`, bin `stream-decode`); `--digest`: print each
 //! curve's decode digest (u form; `Fnv1a64::chunk` over every chunk in
@@ -28,12 +29,16 @@ fn main() {
     let mut chunk_mm = 32.0;
     let mut link: Option<String> = None;
     let mut digest = false;
+    let mut max_bytes: Option<usize> = None;
     let mut curves = vec![];
     while let Some(a) = args.next() {
         match a.as_str() {
             "--chunk-mm" => chunk_mm = args.next().and_then(|v| v.parse().ok()).expect("--chunk-mm MM"),
             "--link" => link = Some(args.next().expect("--link FILE")),
             "--digest" => digest = true,
+            "--max-bytes" => {
+                max_bytes = Some(args.next().and_then(|v| v.parse().ok()).expect("--max-bytes N"))
+            }
             _ => curves.push(a),
         }
     }
@@ -55,6 +60,7 @@ fn main() {
             let opts = ChunkOptions {
                 chunk_mm,
                 u_form,
+                max_chunk_bytes: max_bytes,
                 ..ChunkOptions::default()
             };
             let chunks = chunk_table(&table, &opts).expect("the table cuts into chunks");

@@ -36,6 +36,9 @@ pub struct ChunkOptions {
     pub plan_id: u32,
     /// Seq of the first chunk.
     pub first_seq: u32,
+    /// Largest chunk, bytes (header, payload, CRC): a longer stretch is
+    /// halved (by pieces) until it fits or is one piece. `None`: no bound.
+    pub max_chunk_bytes: Option<usize>,
 }
 
 impl Default for ChunkOptions {
@@ -45,6 +48,7 @@ impl Default for ChunkOptions {
             u_form: true,
             plan_id: 1,
             first_seq: 0,
+            max_chunk_bytes: None,
         }
     }
 }
@@ -171,11 +175,41 @@ pub fn chunk_rows(rows: &TableRows, opts: &ChunkOptions) -> Result<Vec<Vec<u8>>,
         cuts.push((j0, j1));
         j0 = j1;
     }
+    let mut buf = vec![];
+    let mut encode = |rows: &TableRows, (j0, j1): (usize, usize), head: ChunkHead, index: usize| {
+        let stretch = rows.stretch(j0, j1, opts.u_form).ok_or(ChunkTableError::Empty)?;
+        // a generous bound: every value at its widest encoding
+        let bound = 64 + 10 * (stretch.q_knots.len() + stretch.q_ctrl.len()) + 320 * stretch.words.len();
+        buf.resize(bound, 0);
+        let len = encode_chunk(&head, &stretch, &mut buf)
+            .map_err(|error| ChunkTableError::Encode { index, error })?;
+        Ok::<Vec<u8>, ChunkTableError>(buf[..len].to_vec())
+    };
+    // halve stretches over the byte bound (the header's size does not depend on its fields)
+    if let Some(max) = opts.max_chunk_bytes {
+        let mut fitted = Vec::with_capacity(cuts.len());
+        let mut todo: Vec<(usize, usize)> = cuts.into_iter().rev().collect();
+        while let Some((j0, j1)) = todo.pop() {
+            let head = ChunkHead {
+                seq: 0,
+                plan_id: 0,
+                commit: 0,
+                first: false,
+                last: false,
+            };
+            if j1 - j0 > 1 && encode(rows, (j0, j1), head, fitted.len())?.len() > max {
+                let mid = j0 + (j1 - j0) / 2;
+                todo.push((mid, j1));
+                todo.push((j0, mid));
+            } else {
+                fitted.push((j0, j1));
+            }
+        }
+        cuts = fitted;
+    }
     let n = cuts.len();
     let mut out = Vec::with_capacity(n);
-    let mut buf = vec![];
-    for (index, &(j0, j1)) in cuts.iter().enumerate() {
-        let stretch = rows.stretch(j0, j1, opts.u_form).ok_or(ChunkTableError::Empty)?;
+    for (index, &jj) in cuts.iter().enumerate() {
         let head = ChunkHead {
             seq: opts.first_seq.wrapping_add(index as u32),
             plan_id: opts.plan_id,
@@ -183,12 +217,7 @@ pub fn chunk_rows(rows: &TableRows, opts: &ChunkOptions) -> Result<Vec<Vec<u8>>,
             first: index == 0,
             last: index + 1 == n,
         };
-        // a generous bound: every value at its widest encoding
-        let bound = 64 + 10 * (stretch.q_knots.len() + stretch.q_ctrl.len()) + 320 * stretch.words.len();
-        buf.resize(bound, 0);
-        let len = encode_chunk(&head, &stretch, &mut buf)
-            .map_err(|error| ChunkTableError::Encode { index, error })?;
-        out.push(buf[..len].to_vec());
+        out.push(encode(rows, jj, head, index)?);
     }
     Ok(out)
 }

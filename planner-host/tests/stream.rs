@@ -89,3 +89,41 @@ fn every_chunk_covers_its_stretch_and_chunks_tile_the_path() {
         ChunkTableError::ChunkLength(0.0)
     );
 }
+
+#[test]
+fn a_byte_bound_halves_long_chunks_and_stays_lossless() {
+    let curve = builtin::by_name("butterfly").unwrap().unwrap();
+    let out = plan_curve(&curve, &PlanConfig::default()).unwrap();
+    let table = Table::parse(&out.table_bytes).unwrap();
+    let rows = TableRows::of(&table);
+    let free = chunk_table(&table, &ChunkOptions::default()).unwrap();
+    let max = 4096;
+    assert!(
+        free.iter().any(|c| c.len() > max),
+        "the unbounded cut has chunks over {max} bytes"
+    );
+    let opts = ChunkOptions {
+        max_chunk_bytes: Some(max),
+        ..ChunkOptions::default()
+    };
+    let chunks = chunk_table(&table, &opts).unwrap();
+    assert!(chunks.len() > free.len());
+    for c in &chunks {
+        let info = *Chunk::parse(c).unwrap().info();
+        assert!(
+            c.len() <= max || info.n_p == 1,
+            "{} bytes, {} pieces",
+            c.len(),
+            info.n_p
+        );
+    }
+    assert_eq!(
+        first_difference(&rows, &decode_chunks(&chunks).unwrap(), true),
+        None
+    );
+    let mut ring: ChunkRing<{ 1 << 20 }, 1024> = ChunkRing::new();
+    for c in &chunks {
+        ring.push(c).unwrap();
+    }
+    assert!(ring.has_last());
+}
