@@ -1,13 +1,12 @@
 //! Link framing: COBS edge cases, DATA/ACK/NAK round trips, a plan through
 //! the byte-at-a-time decoder into the ring with garbage between frames,
-//! oversized frames, and proptests: no panic on arbitrary bytes through
-//! the decoder and the ring; frames survive any noise between them.
+//! oversized frames. (The proptests, no panic on arbitrary bytes and frames
+//! that survive noise, are in `tests/tests/stream_link.rs`: firmware-core
+//! keeps no dev-dependency that pulls in std features.)
 
 use std::format;
 use std::vec;
 use std::vec::Vec;
-
-use proptest::prelude::*;
 
 use super::stream_fixtures::*;
 use crate::stream::frame::{
@@ -160,68 +159,4 @@ fn an_oversized_frame_is_reported_and_the_next_one_decodes() {
     assert_eq!(got, vec![Err(FrameError::Oversize), Ok(vec![1, 1, 2, 3])]);
     // a block cut short by a delimiter
     assert_eq!(decode_all::<64>(&[0x05, 1, 2, 0x00]), vec![Err(FrameError::Cobs)]);
-}
-
-proptest! {
-    #![proptest_config(ProptestConfig::with_cases(256))]
-
-    /// Any bytes: the decoder and the ring never panic, and the ring only
-    /// ever holds chunks that parse.
-    #[test]
-    fn arbitrary_bytes_through_decoder_and_ring_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..4096)) {
-        let mut dec: FrameDecoder<512> = FrameDecoder::new();
-        let mut ring: ChunkRing<2048, 4> = ChunkRing::new();
-        for &b in &bytes {
-            if let Some(Ok(Frame::Data(c))) = dec.feed(b) {
-                let _ = ring.push(c);
-                let _ = Chunk::parse(c);
-            }
-        }
-        for c in ring.iter() {
-            prop_assert!(Chunk::parse(c.as_bytes()).is_ok());
-            let _ = c.q_spans().count();
-            let _ = c.pieces().count();
-        }
-    }
-
-    /// A valid chunk with random bytes overwritten and the CRC resealed:
-    /// parse gives a chunk or an error, never a panic; decoding what parsed
-    /// never panics either.
-    #[test]
-    fn resealed_mutations_of_a_chunk_never_panic(edits in proptest::collection::vec((any::<usize>(), any::<u8>()), 1..8)) {
-        let bytes = line_table();
-        let t = Table::parse(&bytes).unwrap();
-        let mut c = chunk_table(&t, 20.0, true, 1, 0).remove(1);
-        for (at, v) in edits {
-            let n = c.len();
-            c[at % n] = v;
-        }
-        reseal(&mut c);
-        if let Ok(ch) = Chunk::parse(&c) {
-            let _ = ch.q_spans().count();
-            prop_assert_eq!(ch.pieces().count(), usize::from(ch.info().n_p));
-        }
-    }
-
-    /// Frames survive arbitrary noise between them: every frame after a
-    /// delimiter decodes intact.
-    #[test]
-    fn frames_survive_noise_between_them(
-        bodies in proptest::collection::vec(proptest::collection::vec(any::<u8>(), 0..300), 1..6),
-        noise in proptest::collection::vec(proptest::collection::vec(any::<u8>(), 0..40), 6),
-    ) {
-        let mut link = vec![];
-        for (b, n) in bodies.iter().zip(&noise) {
-            link.extend(n);
-            link.push(DELIMITER);
-            link.extend(data_frame(b));
-        }
-        let got: Vec<Vec<u8>> = decode_all::<400>(&link).into_iter().filter_map(Result::ok).collect();
-        let want: Vec<Vec<u8>> = bodies.iter().map(|b| [&[KIND_DATA][..], b].concat()).collect();
-        // noise may decode to frames of its own; the real ones are all there, in order
-        let mut it = got.iter();
-        for w in &want {
-            prop_assert!(it.any(|g| g == w), "frame lost: {:?}", w);
-        }
-    }
 }
