@@ -168,14 +168,26 @@ impl<'a> Chunk<'a> {
         info.knots_at = HEADER_LEN + r.at;
         let mut prev = 0u64;
         let mut prev_val = f64::NEG_INFINITY;
-        for _ in 0..usize::from(info.n_q) + Q_EXTRA_KNOTS {
+        // U_{i₀} is the knot sent third, U_{i₁+1} the (n_q + 3)-th
+        let (first_at, end_at) = (2, usize::from(info.n_q) + 2);
+        let (mut q_start, mut q_end) = (0i64, 0i64);
+        for j in 0..usize::from(info.n_q) + Q_EXTRA_KNOTS {
             let bits = prev.wrapping_add(r.zvar()? as u64);
             let k = f64::from_bits(bits);
             if !k.is_finite() || !(k >= prev_val) {
                 return Err(Malformed::Knots.into());
             }
+            if j == first_at {
+                q_start = to_fx(k);
+            }
+            if j == end_at {
+                q_end = to_fx(k);
+            }
             prev = bits;
             prev_val = k;
+        }
+        if q_start > info.s_a || q_end < info.s_b {
+            return Err(Malformed::QCoverage.into());
         }
         info.ctrl_at = HEADER_LEN + r.at;
         for _ in 0..usize::from(info.n_q) + Q_EXTRA_CTRL {

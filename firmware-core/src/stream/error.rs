@@ -27,6 +27,8 @@ pub enum Malformed {
     Knots,
     /// A q control point not finite.
     Ctrl,
+    /// The q spans do not cover [s_a, s_b]: U_{i₀} > s_a or U_{i₁+1} < s_b (Q40).
+    QCoverage,
     /// A piece break not finite, or not above the one before.
     Breaks,
     /// The first piece does not start at s_a.

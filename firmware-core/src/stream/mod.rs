@@ -56,6 +56,7 @@
 //! +------------+---------------------------------------------------------+
 //! ```
 //!
+//! The spans cover the chunk: `to_fx`(U_{i₀}) ≤ s_a and `to_fx`(U_{i₁+1}) ≥ s_b.
 //! Span i's rows are `q_fixed` and `q_local` (about its end on the spline's
 //! last span) of the 6 knots U_{i−2} … U_{i+3} and the 4 control points
 //! P_{i−3} … P_i: the window `QSpline::span_poly` reads, so the result is

@@ -277,6 +277,19 @@ fn encode_chunk_refuses_bad_stretches() {
         encode_chunk(&head, &bad, &mut out).unwrap_err(),
         ChunkEncodeError::Invalid(ChunkError::Malformed(Malformed::Knots))
     );
+    // q spans that end before s_b: the previous stretch's
+    let s0 = stretch(&r, c[0], true);
+    let bad = Stretch {
+        first_span: s0.first_span,
+        q_knots: s0.q_knots,
+        q_ctrl: s0.q_ctrl,
+        q_ends_spline: false,
+        ..s
+    };
+    assert_eq!(
+        encode_chunk(&head, &bad, &mut out).unwrap_err(),
+        ChunkEncodeError::Invalid(ChunkError::Malformed(Malformed::QCoverage))
+    );
     // a constant axis that moves
     let mut words = s.words.to_vec();
     let mask = (words[0][2] >> 8) & 7;
