@@ -640,11 +640,17 @@ mod tests {
     fn a_feed_change_at_a_sharp_corner_ends_a_run_of_chords() {
         // a plunge at F300, then chords at F1500: the 90° corner with the
         // feed change is a stop; the same corner at one feed is fitted
-        let chords: String = (1..=10).map(|k| format!("G1 X{:.1} Y0.01\n", 0.5 * k as f64)).collect();
-        let split = paths(&format!("G21 G90 G17 G64 P0.01\nG0 X0 Y0 Z2\nG1 Z0 F300\nF1500\n{chords}M2\n"));
+        let chords: String = (1..=10)
+            .map(|k| format!("G1 X{:.1} Y0.01\n", 0.5 * k as f64))
+            .collect();
+        let split = paths(&format!(
+            "G21 G90 G17 G64 P0.01\nG0 X0 Y0 Z2\nG1 Z0 F300\nF1500\n{chords}M2\n"
+        ));
         let feeds = |p: &Paths| p.paths.iter().filter(|p| p.kind == PathKind::Feed).count();
         assert_eq!(feeds(&split), 2, "{:?}", split.warnings);
-        let one = paths(&format!("G21 G90 G17 G64 P0.01\nG0 X0 Y0 Z2\nG1 Z0 F1500\n{chords}M2\n"));
+        let one = paths(&format!(
+            "G21 G90 G17 G64 P0.01\nG0 X0 Y0 Z2\nG1 Z0 F1500\n{chords}M2\n"
+        ));
         assert_eq!(feeds(&one), 1, "{:?}", one.warnings);
     }
 }
