@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Short fuzz run of the table parser (docs/robustness.md).
+# Short fuzz run of the table parser and the chunk stream (docs/robustness.md).
 #
 # 1. Replays the committed corpus (fuzz/corpus, fuzz/regressions) on stable
 #    Rust through the same invariant check (tests/tests/fuzz_corpus.rs).
@@ -34,7 +34,7 @@ if ! have_tools; then
 fi
 
 cd fuzz
-for t in table_parse table_mutate; do
+for t in table_parse table_mutate stream_link; do
   echo "== cargo fuzz run $t for ${SECS} s"
   work=$(mktemp -d)
   trap 'rm -rf "$work"' EXIT

@@ -8,6 +8,9 @@
 //!   build time; default `tables/butterfly.bin`. If the default is missing an
 //!   empty table is embedded (with a warning); a missing `MCU_TABLE` is an
 //!   error. The program sees the path as `env!("MCU_TABLE_PATH")`.
+//! * Chunk stream for the `stream-decode` bin: `MCU_STREAM` (a file of DATA
+//!   frames, e.g. `stream_budget --link`), default none (an empty file). The
+//!   program sees it as `env!("MCU_STREAM_PATH")`.
 //! * Override profiles for the worst-case tick sweep: `MCU_OVERRIDES` (a
 //!   file written by `wcet.py`, format in `src/main.rs`), default none (an
 //!   empty file). The program sees it as `env!("MCU_OVERRIDES_PATH")`.
@@ -58,6 +61,24 @@ fn main() {
     };
     println!("cargo:rerun-if-changed={}", table.display());
     println!("cargo:rustc-env=MCU_TABLE_PATH={}", table.display());
+
+    println!("cargo:rerun-if-env-changed=MCU_STREAM");
+    let stream = match env::var_os("MCU_STREAM") {
+        Some(p) => {
+            let p = manifest.join(p);
+            if !p.is_file() {
+                panic!("MCU_STREAM={} is not a file", p.display());
+            }
+            p
+        }
+        None => {
+            let none = out.join("no-stream.bin");
+            fs::write(&none, []).unwrap();
+            none
+        }
+    };
+    println!("cargo:rerun-if-changed={}", stream.display());
+    println!("cargo:rustc-env=MCU_STREAM_PATH={}", stream.display());
 
     println!("cargo:rerun-if-env-changed=MCU_OVERRIDES");
     let overrides = match env::var_os("MCU_OVERRIDES") {

@@ -4,8 +4,14 @@
 //! For every setpoint in tick order (the first, at t = 0, included), feed
 //! `pos_mm[0]`, `pos_mm[1]`, `pos_mm[2]` as `f64::to_bits().to_le_bytes()`
 //! (24 bytes per tick). Equal digests mean bit-identical setpoints.
+//!
+//! A decode digest ([`Fnv1a64::chunk`]) does the same for what a chunk
+//! decodes to, so a chunk decoded on the MCU and on the host can be
+//! compared: every q span (index, knots, f32 bits, i64), then every piece
+//! (breaks, words, f32 bits), all little-endian.
 
 use crate::interp::setpoint::Setpoint;
+use crate::stream::{Chunk, PieceForm, QSpanForm};
 
 /// FNV-1a, 64 bit (offset basis 0xcbf29ce484222325, prime 0x100000001b3).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -46,6 +52,42 @@ impl Fnv1a64 {
     pub fn setpoint(&mut self, sp: &Setpoint) {
         for &c in &sp.pos_mm {
             self.f64(c);
+        }
+    }
+
+    /// Feed one decoded q span: index (u32), U_i, U_{i+1}, the five f32
+    /// (bits), the five i64.
+    pub fn q_span(&mut self, q: &QSpanForm) {
+        self.bytes(&q.span.to_le_bytes());
+        self.f64(q.start);
+        self.f64(q.end);
+        for c in q.local {
+            self.bytes(&c.to_bits().to_le_bytes());
+        }
+        for c in q.fixed {
+            self.bytes(&c.to_le_bytes());
+        }
+    }
+
+    /// Feed one decoded piece: start, end, the 27 words, the seven f32 (bits).
+    pub fn piece(&mut self, p: &PieceForm) {
+        self.f64(p.start);
+        self.f64(p.end);
+        for w in p.words {
+            self.bytes(&w.to_le_bytes());
+        }
+        for u in p.u {
+            self.bytes(&u.to_bits().to_le_bytes());
+        }
+    }
+
+    /// Feed everything `chunk` decodes to: its q spans, then its pieces.
+    pub fn chunk(&mut self, chunk: &Chunk) {
+        for q in chunk.q_spans() {
+            self.q_span(&q);
+        }
+        for p in chunk.pieces() {
+            self.piece(&p);
         }
     }
 

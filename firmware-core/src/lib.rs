@@ -45,6 +45,10 @@
 //! - [`output`]: [`SetpointSink`], the trait setpoints leave through; with
 //!   the `embedded-hal` feature, `output::hal`: an SPI frame sink and a
 //!   sync-strobe sink on embedded-hal 1.0 traits (examples).
+//! - [`stream`]: the plan in chunks (format version 1) for streaming:
+//!   [`stream::Chunk`] decodes to the tick's q-span and piece forms,
+//!   [`stream::ChunkRing`] holds received chunks, [`stream::frame`] the
+//!   COBS link framing (not yet read by the tick).
 //! - [`digest`] (the run digest host and MCU compare) and [`dry_run`] (the
 //!   invariant checker behind the fuzz targets).
 //!
@@ -105,6 +109,7 @@ pub mod math;
 pub mod output;
 pub mod path;
 pub(crate) mod servo_forms;
+pub mod stream;
 pub mod table;
 
 #[cfg(test)]

@@ -25,3 +25,12 @@ plan fuzz/seeds/arc.json 0.5
 plan planner-host/curves/trident.json 0.5
 cp fuzz/seeds/*.bin fuzz/corpus/table_parse/
 ls -l fuzz/seeds/*.bin
+# stream_link seeds: planned tables cut into chunks, framed as on the link
+# (planner-host's stream_budget example; PlanConfig::default()).
+cargo build --release -q -p planner-host --example stream_budget
+SB=./target/release/examples/stream_budget
+mkdir -p fuzz/corpus/stream_link
+"$SB" --chunk-mm 2 --link fuzz/corpus/stream_link/line-2mm fuzz/seeds/line.json >/dev/null
+"$SB" --chunk-mm 4 --link fuzz/corpus/stream_link/arc-4mm fuzz/seeds/arc.json >/dev/null
+"$SB" --chunk-mm 4 --link fuzz/corpus/stream_link/trident-4mm trident >/dev/null
+ls -l fuzz/corpus/stream_link

@@ -24,6 +24,9 @@
 //!   canonical moves — lines, arcs, NURBS — in mm and mm/s.
 //! - [`program`]: a program's moves to paths (tangent runs as one NURBS,
 //!   rapids, stops at corners), each planned, and the program file.
+//! - [`stream`]: a planned table cut into the firmware's streaming chunks
+//!   (lossless: they decode to the table's own q spans and pieces), and
+//!   their size in bytes per mm.
 //! - [`cli`]: what `feedplan` and `feedsim` share: exit codes, the curve
 //!   argument (a file or a built-in name), stdout that may close.
 //!
@@ -42,6 +45,7 @@ pub mod machine;
 pub mod plan;
 pub mod program;
 pub mod sampling;
+pub mod stream;
 
 pub use feed_override::{OverrideContext, OverrideOutcome};
 pub use geometry::{builtin, ArcLength, CurveError, Nurbs};

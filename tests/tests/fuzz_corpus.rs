@@ -8,6 +8,10 @@
 #[allow(dead_code)]
 mod mutate;
 
+#[path = "../../fuzz/src/stream.rs"]
+#[allow(dead_code)]
+mod stream;
+
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
@@ -71,6 +75,21 @@ fn table_parse_corpus_replays_clean() {
 fn table_mutate_corpus_replays_clean() {
     let tally = replay("table_mutate", mutate::apply);
     assert!(tally.keys().any(|k| k.starts_with("Refused")));
+}
+
+#[test]
+fn stream_link_corpus_replays_clean() {
+    let inputs = files("stream_link");
+    assert!(!inputs.is_empty(), "no corpus for stream_link");
+    let mut accepted = 0;
+    for path in &inputs {
+        let data = std::fs::read(path).unwrap();
+        let r = std::panic::catch_unwind(|| stream::check_stream(&data))
+            .unwrap_or_else(|_| panic!("stream_link: {} breaks an invariant", path.display()));
+        println!("stream_link: {}: {r:?}", path.display());
+        accepted += r.accepted;
+    }
+    assert!(accepted >= 1, "the seed streams reach the ring");
 }
 
 #[test]

@@ -1,6 +1,6 @@
 //! Cross-module tests, by topic: the table (parse, encode, derived forms,
 //! end segments, override levels), the tick, the tick across knots of q,
-//! feed override, output.
+//! feed override, output; streaming (chunks, the ring, the link framing).
 
 mod encode;
 mod ends;
@@ -12,4 +12,8 @@ mod levels;
 #[cfg(feature = "embedded-hal")]
 mod output;
 mod parse;
+mod stream_chunk;
+mod stream_fixtures;
+mod stream_frame;
+mod stream_ring;
 mod tick;
