@@ -144,7 +144,7 @@ pub const WARM_SLACK: f64 = 1e-3;
 /// per LP for ten LPs or more (a round started afresh, with its larger LP
 /// budget, went on gaining so, and ended up to 2 % faster than rounds that
 /// stopped by `stop_rel`). The 10,000-chord surfacing path's last two LPs
-/// differ by 0.008 %.
+/// differ by 0.017 %.
 pub const SETTLED_REL: f64 = 5e-4;
 
 /// Feed below which the time weights stop growing, relative to v̄.

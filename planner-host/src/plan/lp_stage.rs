@@ -12,8 +12,8 @@
 //! from the plan it accepted ([`crate::lp::trust_region`]'s `solve_from`):
 //! its first LP linearised at that plan, its rows kept, so that a round
 //! costs an LP or two where a sequence started afresh cost eight or more
-//! (one LP where a round afresh takes 16 or 17 on the 10,000-chord
-//! surfacing program). A round whose plan ends more than
+//! (one LP where a round afresh takes 16 on the 10,000-chord surfacing
+//! program). A round whose plan ends more than
 //! [`trust_region::WARM_SLACK`] slower than the plan it went on from, or
 //! that went on from a sequence that had not settled, is solved afresh too
 //! and the faster plan kept. Each later round re-evaluates the plan beside
