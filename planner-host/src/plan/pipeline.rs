@@ -65,8 +65,6 @@ pub fn plan_curve_with_progress(
     let samples = sampling::sample(curve, &arc, cfg.sampling, m)?;
     dbg_t("sampling");
     let budget = SetpointBudget::new(&cfg.limits, &cfg.override_levels, cfg.servo_period_s);
-    let su = SuMap::fit_within(curve, &arc, cfg.su_tol_mm, Some(&budget))?;
-    dbg_t("s-u map");
     let jumps = match cfg.formulation {
         Formulation::Paper => Vec::new(),
         Formulation::Certified => junction::curvature_jumps(curve, &arc, &cfg.limits, cfg.servo_period_s),
@@ -85,65 +83,79 @@ pub fn plan_curve_with_progress(
     dbg_t("refine");
     // The plan on the sampling asked for; if it fails (a stall, or no LP of
     // the sequence held every limit), once more on every span bisected.
-    let mut retry_samples = samples;
-    let mut bisections = 0;
-    let mut window_stats = None;
-    let (knots, base, geometry_time_s) = loop {
-        let samples = match cfg.ends {
-            EndMode::Jerk => end_room(retry_samples.clone(), &cfg.limits, length, &|s| {
-                path_derivs_at(curve, &arc, s)
-            })?,
-            EndMode::Step => retry_samples.clone(),
-        };
-        let knots = basis_rows::knot_vector(&samples);
-        let eval = |s: f64| {
-            Some(EvalPoint {
-                s,
-                geo: path_derivs_at(curve, &arc, s),
-                basis: BasisRow::at(&knots, s)?,
-            })
-        };
-        let stage = lp_stage(curve, &arc, &knots, cfg, progress, steps, 0);
-        let mut geometry_time_s = t0.elapsed().as_secs_f64();
-        let solved = match (&cfg.windows, cfg.formulation) {
-            // window by window: each window evaluates its own check points
-            (Some(w), Formulation::Certified) => {
-                stage.solve_windowed(&cfg.limits, &jumps, w).map(|(s, st)| {
-                    window_stats = Some(st);
-                    s
+    let plan_q = || -> Result<_, PlanError> {
+        let mut retry_samples = samples;
+        let mut bisections = 0;
+        let mut window_stats = None;
+        let (knots, base, geometry_time_s) = loop {
+            let samples = match cfg.ends {
+                EndMode::Jerk => end_room(retry_samples.clone(), &cfg.limits, length, &|s| {
+                    path_derivs_at(curve, &arc, s)
+                })?,
+                EndMode::Step => retry_samples.clone(),
+            };
+            let knots = basis_rows::knot_vector(&samples);
+            let eval = |s: f64| {
+                Some(EvalPoint {
+                    s,
+                    geo: path_derivs_at(curve, &arc, s),
+                    basis: BasisRow::at(&knots, s)?,
                 })
-            }
-            _ => {
-                let (points, is_knot): (Vec<EvalPoint>, Vec<bool>) = match cfg.formulation {
-                    Formulation::Paper => basis_rows::greville(&knots)
-                        .into_iter()
-                        .filter_map(|g| Some((eval(g)?, false)))
-                        .unzip(),
-                    // evaluated in parallel, in order
-                    Formulation::Certified => check_points(&knots, cfg.certified.checks_per_span)
-                        .into_par_iter()
-                        .filter_map(|(s, k)| Some((eval(s)?, k)))
-                        .unzip(),
-                };
-                dbg_t("check points");
-                geometry_time_s = t0.elapsed().as_secs_f64();
-                stage.solve(&cfg.limits, &jumps, points, is_knot, Refine::Rounds)
+            };
+            let stage = lp_stage(curve, &arc, &knots, cfg, progress, steps, 0);
+            let mut geometry_time_s = t0.elapsed().as_secs_f64();
+            let solved = match (&cfg.windows, cfg.formulation) {
+                // window by window: each window evaluates its own check points
+                (Some(w), Formulation::Certified) => {
+                    stage.solve_windowed(&cfg.limits, &jumps, w).map(|(s, st)| {
+                        window_stats = Some(st);
+                        s
+                    })
+                }
+                _ => {
+                    let (points, is_knot): (Vec<EvalPoint>, Vec<bool>) = match cfg.formulation {
+                        Formulation::Paper => basis_rows::greville(&knots)
+                            .into_iter()
+                            .filter_map(|g| Some((eval(g)?, false)))
+                            .unzip(),
+                        // evaluated in parallel, in order
+                        Formulation::Certified => check_points(&knots, cfg.certified.checks_per_span)
+                            .into_par_iter()
+                            .filter_map(|(s, k)| Some((eval(s)?, k)))
+                            .unzip(),
+                    };
+                    dbg_t("check points");
+                    geometry_time_s = t0.elapsed().as_secs_f64();
+                    stage.solve(&cfg.limits, &jumps, points, is_knot, Refine::Rounds)
+                }
+            };
+            match solved {
+                Ok(base) => {
+                    stage.step_done();
+                    break (knots, base, geometry_time_s);
+                }
+                Err(PlanError::Stall { .. } | PlanError::Lp(_))
+                    if cfg.formulation == Formulation::Certified && bisections < KNOT_RETRIES =>
+                {
+                    retry_samples = bisect_all(&retry_samples);
+                    bisections += 1;
+                }
+                Err(e) => return Err(e),
             }
         };
-        match solved {
-            Ok(base) => {
-                stage.step_done();
-                break (knots, base, geometry_time_s);
-            }
-            Err(PlanError::Stall { .. } | PlanError::Lp(_))
-                if cfg.formulation == Formulation::Certified && bisections < KNOT_RETRIES =>
-            {
-                retry_samples = bisect_all(&retry_samples);
-                bisections += 1;
-            }
-            Err(e) => return Err(e),
-        }
+        Ok((knots, base, geometry_time_s, bisections, window_stats))
     };
+    // the s → u map (it does not depend on q) beside the LPs
+    let (su, planned) = rayon::join(
+        || {
+            let su = SuMap::fit_within(curve, &arc, cfg.su_tol_mm, Some(&budget));
+            dbg_t("s-u map");
+            su
+        },
+        plan_q,
+    );
+    let su = su?;
+    let (knots, base, geometry_time_s, bisections, window_stats) = planned?;
     dbg_t("LPs");
     // the levels on the knots the base plan held on, the base counted as done
     let stage = lp_stage(curve, &arc, &knots, cfg, progress, steps, 1);
