@@ -62,17 +62,6 @@ pub struct OverrideContext {
     pub config: OverrideConfig,
 }
 
-/// Control points of a join at `s` with a non-zero basis value or
-/// derivative there: (lowest, highest).
-pub(crate) fn join_ctrl(knots: &[f64], s: f64) -> Option<(usize, usize)> {
-    let b = BasisRow::at(knots, s)?;
-    let big = b.d.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
-    let nz: Vec<usize> = (0..ORDER)
-        .filter(|&j| b.d.iter().any(|r| r[j].abs() > 1e-12 * big))
-        .collect();
-    Some((b.first + *nz.first()?, b.first + *nz.last()?))
-}
-
 impl OverrideContext {
     /// Build the context of `plan` (made by [`crate::plan::plan_curve`] from
     /// `curve`; `arc` its arc length).
@@ -209,8 +198,12 @@ impl OverrideContext {
             Profile {
                 percent,
                 vbar,
-                start_join_last: ends.and_then(|e| join_ctrl(&knots, e.s_start)).map(|j| j.1),
-                stop_join_first: ends.and_then(|e| join_ctrl(&knots, e.s_stop)).map(|j| j.0),
+                start_join_last: ends
+                    .and_then(|e| basis_rows::join_ctrl(&knots, e.s_start))
+                    .map(|j| j.1),
+                stop_join_first: ends
+                    .and_then(|e| basis_rows::join_ctrl(&knots, e.s_stop))
+                    .map(|j| j.0),
                 q_g: grev_basis.iter().map(|b| b.apply(0, &ctrl)).collect(),
                 a_g: grev_basis.iter().map(|b| 0.5 * b.apply(1, &ctrl)).collect(),
                 ctrl,

@@ -68,6 +68,17 @@ impl BasisRow {
     }
 }
 
+/// Control points of a join at `s` with a non-zero basis value or
+/// derivative there: (lowest, highest).
+pub(crate) fn join_ctrl(knots: &[f64], s: f64) -> Option<(usize, usize)> {
+    let b = BasisRow::at(knots, s)?;
+    let big = b.d.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
+    let nz: Vec<usize> = (0..ORDER)
+        .filter(|&j| b.d.iter().any(|r| r[j].abs() > 1e-12 * big))
+        .collect();
+    Some((b.first + *nz.first()?, b.first + *nz.last()?))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -91,7 +91,7 @@ pub struct PlanConfig {
     /// Plan q window by window ([`crate::plan::windowed`]) instead of as
     /// one sequence over the whole path.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub windows: Option<crate::plan::windowed::WindowConfig>,
+    pub windows: Option<WindowConfig>,
 }
 
 fn display<S: serde::Serializer, T: std::fmt::Display>(v: &T, s: S) -> Result<S::Ok, S::Error> {
@@ -118,6 +118,25 @@ impl Default for PlanConfig {
             override_levels: Vec::new(),
             feed_profile: None,
             windows: None,
+        }
+    }
+}
+
+/// How long the windows are and how much of each is committed.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct WindowConfig {
+    /// Path a window plans ahead of its join, mm.
+    pub window_mm: f64,
+    /// Path a window commits past its join, mm (less than `window_mm` by at
+    /// least the braking distance at full feed).
+    pub commit_mm: f64,
+}
+
+impl Default for WindowConfig {
+    fn default() -> Self {
+        WindowConfig {
+            window_mm: 120.0,
+            commit_mm: 40.0,
         }
     }
 }

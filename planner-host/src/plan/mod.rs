@@ -29,9 +29,8 @@ pub mod windowed;
 
 pub use crate::lp::machining_time::machining_time;
 pub use atomic_write::{write_atomic, write_file_atomic};
-pub use config::{Formulation, PlanConfig};
+pub use config::{Formulation, PlanConfig, WindowConfig};
 pub use error::PlanError;
-pub use output::{LevelPlan, PlanOutput};
+pub use output::{LevelPlan, PlanOutput, WindowStats};
 pub use pipeline::{plan_curve, plan_curve_with_progress};
 pub use stall::StallAt;
-pub use windowed::{WindowConfig, WindowStats};

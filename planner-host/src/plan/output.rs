@@ -73,7 +73,7 @@ pub struct PlanOutput {
     pub knot_bisections: usize,
     /// What the windows cost, when planned window by window
     /// ([`crate::plan::windowed`]).
-    pub windows: Option<crate::plan::windowed::WindowStats>,
+    pub windows: Option<WindowStats>,
     /// The override levels of [`PlanConfig::override_levels`], sorted by
     /// percent (level id k ≥ 1 of docs/override-design.md is `levels[k − 1]`).
     #[serde(skip_serializing_if = "Vec::is_empty")]
@@ -252,4 +252,19 @@ impl PlanOutput {
         );
         o
     }
+}
+
+/// What the windows cost.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+pub struct WindowStats {
+    /// Windows solved.
+    pub windows: usize,
+    /// Wall time from the start of the first window to its commit, s.
+    pub first_window_s: f64,
+    /// Largest wall time of one window, s.
+    pub max_window_s: f64,
+    /// All windows, s.
+    pub windows_s: f64,
+    /// Path committed by the first window, mm.
+    pub first_commit_mm: f64,
 }

@@ -56,47 +56,15 @@ use crate::lp::end_rows::{EndMode, EndRows};
 use crate::lp::machining_time::{machining_time, machining_time_between};
 use crate::lp::problem::{EvalPoint, FeedLp, LpStats};
 use crate::lp::trust_region;
+use crate::plan::config::WindowConfig;
 use crate::plan::error::PlanError;
 use crate::plan::lp_stage::{
     check_points, LpStage, Solved, PEAK_LOOK, REFINE_PER_CURVE_SPAN, REFINE_PER_SPAN, REFINE_ROUNDS,
     REFINE_TRIGGER, REPORT_PER_SPAN,
 };
+use crate::plan::output::WindowStats;
 use crate::plan::stall::{find_stall, find_stall_between, StallAt};
 use rayon::prelude::*;
-
-/// How long the windows are and how much of each is committed.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
-pub struct WindowConfig {
-    /// Path a window plans ahead of its join, mm.
-    pub window_mm: f64,
-    /// Path a window commits past its join, mm (less than `window_mm` by at
-    /// least the braking distance at full feed).
-    pub commit_mm: f64,
-}
-
-impl Default for WindowConfig {
-    fn default() -> Self {
-        WindowConfig {
-            window_mm: 120.0,
-            commit_mm: 40.0,
-        }
-    }
-}
-
-/// What the windows cost.
-#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
-pub struct WindowStats {
-    /// Windows solved.
-    pub windows: usize,
-    /// Wall time from the start of the first window to its commit, s.
-    pub first_window_s: f64,
-    /// Largest wall time of one window, s.
-    pub max_window_s: f64,
-    /// All windows, s.
-    pub windows_s: f64,
-    /// Path committed by the first window, mm.
-    pub first_commit_mm: f64,
-}
 
 impl LpStage<'_> {
     /// The re-evaluation points of the knot spans of q in [lo, hi] (as
@@ -180,7 +148,7 @@ impl LpStage<'_> {
             .collect();
         let n = knots.len() - ORDER;
         // the joins' control points: never split between fixed and free
-        let join = |s: f64| crate::feed_override::context::join_ctrl(knots, s);
+        let join = |s: f64| crate::lp::basis_rows::join_ctrl(knots, s);
         let start_last = end_rows.and_then(|e| join(e.start.s)).map_or(0, |j| j.1);
         let stop_first = end_rows.and_then(|e| join(e.stop.s)).map_or(n - 1, |j| j.0);
         let knot_at = |s: f64| knots.partition_point(|&u| u < s);
