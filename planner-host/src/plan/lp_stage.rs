@@ -681,18 +681,44 @@ impl LpStage<'_> {
                 }
             }
         };
-        let ends = end_rows.as_ref().and_then(|e| e.segments(&ctrl));
+        let (ends, predicted_time_s) =
+            self.ends_and_time(limits, profile.as_ref(), end_rows.as_ref(), &ctrl)?;
+        Ok(Solved {
+            ctrl,
+            qhat_ctrl,
+            lps: lp_stats,
+            check,
+            pts,
+            forced,
+            rounds,
+            ends,
+            predicted_time_s,
+        })
+    }
+
+    /// The end segments of the plan `ctrl`, its stall check (a stall is
+    /// [`PlanError::Stall`]) and its predicted machining time: the last step
+    /// of [`LpStage::solve`] and of the windowed plan.
+    pub(crate) fn ends_and_time(
+        &self,
+        limits: &Limits,
+        profile: Option<&crate::lp::feed_profile::FeedProfile>,
+        end_rows: Option<&EndRows>,
+        ctrl: &[f64],
+    ) -> Result<(Option<EndSegments>, f64), PlanError> {
+        let knots = self.knots;
+        let ends = end_rows.and_then(|e| e.segments(ctrl));
         // the toolpath's static cap at s, for the stall floor where the
         // geometry itself holds the feed low
         let cap = |s: f64| {
-            let feed = profile.as_ref().map_or(f64::INFINITY, |f| f.at(s).powi(2));
+            let feed = profile.map_or(f64::INFINITY, |f| f.at(s).powi(2));
             self.eval(s)
                 .map_or(f64::INFINITY, |p| trust_region::static_cap(limits, &p.geo))
                 .min(feed)
         };
-        let stall = match (&end_rows, ends) {
-            (None, _) => find_stall(knots, &ctrl, limits, &cap),
-            (Some(_), Some(e)) => find_stall_between(knots, &ctrl, limits, e.s_start, e.s_stop, &cap),
+        let stall = match (end_rows, ends) {
+            (None, _) => find_stall(knots, ctrl, limits, &cap),
+            (Some(_), Some(e)) => find_stall_between(knots, ctrl, limits, e.s_start, e.s_stop, &cap),
             (Some(e), None) => Some(StallAt::Interior {
                 s_mm: e.start.s,
                 feed_mm_s: 0.0,
@@ -705,19 +731,9 @@ impl LpStage<'_> {
             });
         }
         let predicted_time_s = match ends {
-            Some(e) => e.t_start + machining_time_between(knots, &ctrl, e.s_start, e.s_stop) + e.t_stop,
-            None => machining_time(knots, &ctrl),
+            Some(e) => e.t_start + machining_time_between(knots, ctrl, e.s_start, e.s_stop) + e.t_stop,
+            None => machining_time(knots, ctrl),
         };
-        Ok(Solved {
-            ctrl,
-            qhat_ctrl,
-            lps: lp_stats,
-            check,
-            pts,
-            forced,
-            rounds,
-            ends,
-            predicted_time_s,
-        })
+        Ok((ends, predicted_time_s))
     }
 }

@@ -53,7 +53,6 @@ use crate::geometry::arc_length::path_derivs_at;
 use crate::geometry::junction::Jump;
 use crate::lp::basis_rows::{BasisRow, ORDER};
 use crate::lp::end_rows::{EndMode, EndRows};
-use crate::lp::machining_time::{machining_time, machining_time_between};
 use crate::lp::problem::{EvalPoint, FeedLp, LpStats};
 use crate::lp::trust_region;
 use crate::plan::config::WindowConfig;
@@ -63,7 +62,6 @@ use crate::plan::lp_stage::{
     REFINE_TRIGGER, REPORT_PER_SPAN,
 };
 use crate::plan::output::WindowStats;
-use crate::plan::stall::{find_stall, find_stall_between, StallAt};
 use rayon::prelude::*;
 
 impl LpStage<'_> {
@@ -362,31 +360,8 @@ impl LpStage<'_> {
         all_pts.dedup_by(|a, b| a.0.s == b.0.s);
         let (pts, forced): (Vec<EvalPoint>, Vec<bool>) = all_pts.into_iter().unzip();
         let ctrl = committed;
-        let ends = end_rows.as_ref().and_then(|e| e.segments(&ctrl));
-        let cap = |s: f64| {
-            let feed = profile.as_ref().map_or(f64::INFINITY, |f| f.at(s).powi(2));
-            self.eval(s)
-                .map_or(f64::INFINITY, |p| trust_region::static_cap(limits, &p.geo))
-                .min(feed)
-        };
-        let stall = match (&end_rows, ends) {
-            (None, _) => find_stall(knots, &ctrl, limits, &cap),
-            (Some(_), Some(e)) => find_stall_between(knots, &ctrl, limits, e.s_start, e.s_stop, &cap),
-            (Some(e), None) => Some(StallAt::Interior {
-                s_mm: e.start.s,
-                feed_mm_s: 0.0,
-            }),
-        };
-        if let Some(at) = stall {
-            return Err(PlanError::Stall {
-                at,
-                length_mm: self.length,
-            });
-        }
-        let predicted_time_s = match ends {
-            Some(e) => e.t_start + machining_time_between(knots, &ctrl, e.s_start, e.s_stop) + e.t_stop,
-            None => machining_time(knots, &ctrl),
-        };
+        let (ends, predicted_time_s) =
+            self.ends_and_time(limits, profile.as_ref(), end_rows.as_ref(), &ctrl)?;
         Ok((
             Solved {
                 ctrl,
