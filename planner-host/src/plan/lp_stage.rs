@@ -404,27 +404,8 @@ impl LpStage<'_> {
         is_knot: Vec<bool>,
         refine: Refine,
     ) -> Result<Solved, PlanError> {
-        let (cfg, knots, curve, arc) = (self.cfg, self.knots, self.curve, self.arc);
-        // the feed profile at this plan's v̄ (an override level scales it)
-        let profile = cfg
-            .feed_profile
-            .as_ref()
-            .map(|f| f.scaled(limits.vbar / cfg.limits.vbar).capped(limits.vbar));
-        // the end segments at the lowest feed where they may reach: their
-        // joins lie at most L/3 from each end (`EndRows::new`)
-        let end_limits = match &profile {
-            Some(f) => Limits {
-                vbar: f
-                    .min_on(0.0, self.length / 3.0)
-                    .min(f.min_on(2.0 * self.length / 3.0, self.length)),
-                ..*limits
-            },
-            None => *limits,
-        };
-        let end_rows = match cfg.ends {
-            EndMode::Jerk => EndRows::new(knots, &end_limits, &|s| path_derivs_at(curve, arc, s)),
-            EndMode::Step => None,
-        };
+        let (cfg, knots) = (self.cfg, self.knots);
+        let (profile, end_rows) = self.profile_and_end_rows(limits);
         let feed_lp = FeedLp {
             knots,
             points: &points,
@@ -735,5 +716,33 @@ impl LpStage<'_> {
             None => machining_time(knots, ctrl),
         };
         Ok((ends, predicted_time_s))
+    }
+
+    /// The feed profile at the v̄ of `limits` (an override level scales it)
+    /// and the end segments' rows at the lowest feed where they may reach
+    /// (their joins lie at most L/3 from each end, `EndRows::new`).
+    pub(crate) fn profile_and_end_rows(
+        &self,
+        limits: &Limits,
+    ) -> (Option<crate::lp::feed_profile::FeedProfile>, Option<EndRows>) {
+        let (cfg, curve, arc) = (self.cfg, self.curve, self.arc);
+        let profile = cfg
+            .feed_profile
+            .as_ref()
+            .map(|f| f.scaled(limits.vbar / cfg.limits.vbar).capped(limits.vbar));
+        let end_limits = match &profile {
+            Some(f) => Limits {
+                vbar: f
+                    .min_on(0.0, self.length / 3.0)
+                    .min(f.min_on(2.0 * self.length / 3.0, self.length)),
+                ..*limits
+            },
+            None => *limits,
+        };
+        let end_rows = match cfg.ends {
+            EndMode::Jerk => EndRows::new(self.knots, &end_limits, &|s| path_derivs_at(curve, arc, s)),
+            EndMode::Step => None,
+        };
+        (profile, end_rows)
     }
 }

@@ -49,10 +49,8 @@ use std::time::Instant;
 
 use firmware_core::Limits;
 
-use crate::geometry::arc_length::path_derivs_at;
 use crate::geometry::junction::Jump;
 use crate::lp::basis_rows::{BasisRow, ORDER};
-use crate::lp::end_rows::{EndMode, EndRows};
 use crate::lp::problem::{EvalPoint, FeedLp, LpStats};
 use crate::lp::trust_region;
 use crate::plan::config::WindowConfig;
@@ -125,21 +123,8 @@ impl LpStage<'_> {
         jumps: &[Jump],
         wc: &WindowConfig,
     ) -> Result<(Solved, WindowStats), PlanError> {
-        let (cfg, knots, curve, arc) = (self.cfg, self.knots, self.curve, self.arc);
-        let profile = cfg.feed_profile.clone();
-        let end_limits = match &profile {
-            Some(f) => Limits {
-                vbar: f
-                    .min_on(0.0, self.length / 3.0)
-                    .min(f.min_on(2.0 * self.length / 3.0, self.length)),
-                ..*limits
-            },
-            None => *limits,
-        };
-        let end_rows = match cfg.ends {
-            EndMode::Jerk => EndRows::new(knots, &end_limits, &|s| path_derivs_at(curve, arc, s)),
-            EndMode::Step => None,
-        };
+        let (cfg, knots) = (self.cfg, self.knots);
+        let (profile, end_rows) = self.profile_and_end_rows(limits);
         let caps: Vec<crate::lp::JumpCap> = jumps
             .iter()
             .map(|j| crate::lp::jump_cap(j, cfg.servo_period_s))
