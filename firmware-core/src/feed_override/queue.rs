@@ -109,7 +109,7 @@ pub(crate) struct Overrides<'a, const Q: usize, const W: usize> {
 }
 
 /// The q span containing `s` (the last one at or past L).
-fn span_of(table: &Table, s: f64) -> usize {
+pub(crate) fn span_of(table: &Table, s: f64) -> usize {
     let knots = table.q_knots();
     let spans = table.q_ctrl().len().saturating_sub(CONTEXT);
     (1..spans)
@@ -119,14 +119,16 @@ fn span_of(table: &Table, s: f64) -> usize {
 }
 
 impl<'a, const Q: usize, const W: usize> Overrides<'a, Q, W> {
-    pub(crate) fn new(table: &Table<'a>, base: LevelRun<'a>) -> Self {
+    /// No profile yet, on `base`; `start_join`: the q span holding the
+    /// base plan's start join s₁, if any.
+    pub(crate) fn new(start_join: Option<usize>, base: LevelRun<'a>) -> Self {
         Overrides {
             slots: core::array::from_fn(|_| Window::empty(base)),
             spare: Window::empty(base),
             queue: heapless::Vec::new(),
             active: None,
             last_seq: None,
-            start_join: table.ends().map(|e| span_of(table, e.s_start)),
+            start_join,
             lo: 0,
             n: 0,
         }

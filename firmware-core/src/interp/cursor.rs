@@ -2,19 +2,21 @@
 //! moves along them: the current q span and the current piece; q and √q at
 //! a given s.
 
+use crate::interp::rows::{PlanRows, Rows};
 use crate::math::source::{F64Array, LeF32, LeF64};
 use crate::servo_forms::fixed::{fx_small_f32, sqrt_q32, to_fx, Q_FRAC};
 use crate::servo_forms::piece::{
     piece_shift_mask, pos_derivs, PieceU, PIECE_F64_LEN, PIECE_HEAD_LEN, POS_BYTES,
 };
 use crate::servo_forms::q_span::{feed_near, q_fx_eval, QLocal, Q_FX_LEN, Q_LOCAL_LEN};
+use crate::table::view::Table;
 
 /// The current q span: its index among the q spans (knot span 3 + idx),
 /// its start U_i and end U_{i+1} in Q40 (the end `i64::MAX` for the last
 /// span), the anchor of its f32 form (U_i, or U_{i+1} for the last span,
 /// see [`crate::servo_forms`]), and its fixed-point cubic and shift.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
-pub(crate) struct QCur {
+pub struct QCur {
     pub(crate) idx: usize,
     pub(crate) start: i64,
     pub(crate) next: i64,
@@ -50,7 +52,7 @@ impl QCur {
 /// The current piece: index, start and next break (Q40, `i64::MAX` after
 /// the last piece), u_a, the centre (Q40) and the shift of τ.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
-pub(crate) struct PCur {
+pub struct PCur {
     pub(crate) idx: usize,
     pub(crate) start: i64,
     pub(crate) next: i64,
@@ -66,11 +68,12 @@ pub(crate) struct PCur {
     pub(crate) pos_at: usize,
 }
 
-/// The table data the fast path reads (zero-copy views). Coefficients are
-/// read from here every tick (the position's) or on span entry (q's, 32
-/// bytes), never recomputed.
+/// The table data the fast path reads (zero-copy views), and the table
+/// they view. Coefficients are read from here every tick (the position's)
+/// or on span entry (q's, 32 bytes), never recomputed.
 #[derive(Clone, Copy, Debug)]
-pub(crate) struct Views<'a> {
+pub struct Views<'a> {
+    pub(crate) table: Table<'a>,
     pub(crate) q_knots: LeF64<'a>,
     pub(crate) q_local: LeF32<'a>,
     pub(crate) q_fixed: LeF64<'a>,
@@ -83,14 +86,9 @@ pub(crate) struct Views<'a> {
     pub(crate) per: usize,
 }
 
-impl Views<'_> {
-    /// q span `idx` (for new and reset; the tick moves with [`Views::fill_q`]).
-    pub(crate) fn q(&self, idx: usize) -> Option<QCur> {
-        let mut qc = QCur::default();
-        self.fill_q(&mut qc, idx, to_fx(self.q_knots.get(idx.checked_add(3)?)?))?;
-        Some(qc)
-    }
+impl<'a> PlanRows<'a> for Views<'a> {}
 
+impl Views<'_> {
     #[inline]
     fn q_poly(&self, idx: usize) -> Option<QLocal> {
         Some(QLocal::from_array(
@@ -98,20 +96,34 @@ impl Views<'_> {
                 .get_array::<Q_LOCAL_LEN>(idx.checked_mul(Q_LOCAL_LEN)?)?,
         ))
     }
+}
 
-    /// Piece `idx` (for new and reset; the tick moves with
-    /// [`Views::fill_piece`]).
-    pub(crate) fn piece(&self, idx: usize) -> Option<PCur> {
-        let mut pc = PCur::default();
-        self.fill_piece(&mut pc, idx, to_fx(self.piece_breaks.get(idx)?))?;
-        Some(pc)
+impl<'a> Rows<'a> for Views<'a> {
+    #[inline(always)]
+    fn q_last(&self) -> usize {
+        self.q_last
     }
-
+    #[inline(always)]
+    fn p_last(&self) -> usize {
+        self.p_last
+    }
+    #[inline(always)]
+    fn q_knot(&self, i: usize) -> Option<f64> {
+        self.q_knots.get(i)
+    }
+    #[inline(always)]
+    fn piece_break(&self, idx: usize) -> Option<f64> {
+        self.piece_breaks.get(idx)
+    }
+    fn use_q_forms(&mut self, q_local: LeF32<'a>, q_fixed: LeF64<'a>) {
+        self.q_local = q_local;
+        self.q_fixed = q_fixed;
+    }
     /// The path's r′, r″, r‴ at s (Q40) on piece `idx`
     /// ([`pos_derivs`]), reading only what they need of the piece (its
     /// centre, shift, constant axes and coefficients) rather than a whole
     /// cursor: for the feed hold's look-ahead and the next piece's start.
-    pub(crate) fn piece_derivs(&self, idx: usize, s: i64) -> Option<[[f32; 3]; 3]> {
+    fn piece_derivs(&self, idx: usize, s: i64) -> Option<[[f32; 3]; 3]> {
         let b = idx.checked_mul(PIECE_F64_LEN)?;
         let pos_at = b.checked_add(3)?.checked_mul(8)?;
         let c: &[u8; POS_BYTES] = self
@@ -129,7 +141,7 @@ impl Views<'_> {
     /// struct copy: a copy of the 80-byte cursor through `Option` cost ~160
     /// instructions a piece entry).
     #[inline]
-    pub(crate) fn fill_piece(&self, pc: &mut PCur, idx: usize, start: i64) -> Option<()> {
+    fn fill_piece(&self, pc: &mut PCur, idx: usize, start: i64) -> Option<()> {
         let b = idx.checked_mul(PIECE_F64_LEN)?;
         let pos_at = b.checked_add(3)?.checked_mul(8)?;
         self.piece_f64
@@ -157,7 +169,7 @@ impl Views<'_> {
 
     /// Moves `qc` to q span `idx` starting at `start` (Q40) in place.
     #[inline]
-    pub(crate) fn fill_q(&self, qc: &mut QCur, idx: usize, start: i64) -> Option<()> {
+    fn fill_q(&self, qc: &mut QCur, idx: usize, start: i64) -> Option<()> {
         let at = idx.checked_mul(8 * Q_FX_LEN)?;
         let w: &[u8; 8 * Q_FX_LEN] = self
             .q_fixed
@@ -176,33 +188,9 @@ impl Views<'_> {
         self.put_q(qc, idx, start, c, self.q_poly(idx)?)
     }
 
-    /// Moves `qc` to q span `idx` starting at `start` (Q40) with the fixed
-    /// form `c` (cubic and shift) and the f32 form `poly`.
-    #[inline(always)]
-    pub(crate) fn put_q(
-        &self,
-        qc: &mut QCur,
-        idx: usize,
-        start: i64,
-        c: [i64; Q_FX_LEN],
-        poly: QLocal,
-    ) -> Option<()> {
-        let end = to_fx(self.q_knots.get(idx.checked_add(4)?)?);
-        let [c0, c1, c2, c3, shift] = c;
-        let last = idx >= self.q_last;
-        qc.shift = u32::try_from(shift).ok()?;
-        qc.poly = poly;
-        qc.c = [c0, c1, c2, c3];
-        qc.idx = idx;
-        qc.start = start;
-        qc.next = if last { i64::MAX } else { end };
-        qc.anchor = if last { end } else { start };
-        Some(())
-    }
-
     /// The position coefficients of the current piece.
     #[inline]
-    pub(crate) fn coeffs(&self, pc: &PCur) -> Option<&[u8; POS_BYTES]> {
+    fn coeffs(&self, pc: &PCur) -> Option<&[u8; POS_BYTES]> {
         self.piece_f64
             .as_bytes()
             .get(pc.pos_at..pc.pos_at.wrapping_add(POS_BYTES))?
@@ -221,9 +209,9 @@ pub(crate) fn tau_of(s: i64, origin: i64, shift: u32) -> i64 {
 
 /// q-local t at s = 0 (the first span's start, or, if there is only one q
 /// span, −h from its end anchor).
-fn t0_q(v: &Views<'_>) -> Option<f32> {
-    if v.q_last == 0 {
-        Some(-(v.q_knots.get(4)?) as f32)
+fn t0_q<'a, R: Rows<'a>>(v: &R) -> Option<f32> {
+    if v.q_last() == 0 {
+        Some(-(v.q_knot(4)?) as f32)
     } else {
         Some(0.0)
     }
@@ -233,9 +221,9 @@ fn t0_q(v: &Views<'_>) -> Option<f32> {
 /// the fixed-point form, the derivatives from the f32 form), √q in f32 and
 /// in Q32 ([`q_eval`]). A scan over the spans: for [`Interpolator::new`](crate::interp::interpolator::Interpolator::new),
 /// reset and the start segment's join only.
-pub(crate) fn q_state_at(v: &Views<'_>, s: i64, guess: f32) -> Option<QState> {
+pub(crate) fn q_state_at<'a, R: Rows<'a>>(v: &R, s: i64, guess: f32) -> Option<QState> {
     let mut qc = v.q(0)?;
-    while qc.idx < v.q_last && s >= qc.next {
+    while qc.idx < v.q_last() && s >= qc.next {
         qc = v.q(qc.idx.checked_add(1)?)?;
     }
     let poly = qc.poly;

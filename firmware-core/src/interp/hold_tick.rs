@@ -52,20 +52,20 @@
 use crate::feed_hold::constraints::{mn, mx, sqrt32, Ahead, Kin};
 use crate::feed_hold::controller::{scaled_step, TickScale, LAM_FRAC, PERIOD_TICKS, THETA};
 use crate::feed_hold::{HoldError, HoldState, HoldStats};
-use crate::interp::cursor::{q_eval, q_eval_f32, tau_of, PCur, QCur, Views};
+use crate::interp::cursor::{q_eval, q_eval_f32, tau_of, PCur, QCur};
 use crate::interp::hold_run::{
     tau_f32, Prepared, Stage, Sweep, AHEAD_FACTOR, AHEAD_MAX_MM, AHEAD_N, AHEAD_PER_TICK, COAST_ABOVE,
     END_FACTOR, TAU_FRAC,
 };
 use crate::interp::interpolator::{Interpolator, Phase};
+use crate::interp::rows::PlanRows;
 use crate::interp::setpoint::{Fault, Setpoint};
 use crate::limits::EndSegments;
-use crate::math::source::F64Array;
 use crate::servo_forms::fixed::{f32_to_fx, f64_to_fixed, fx_small_f32, fx_to_f64, mul_hi, to_fx};
 use crate::servo_forms::piece::pos_derivs;
 use crate::servo_forms::q_span::QLocal;
 
-impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
+impl<'a, const Q: usize, const W: usize, R: PlanRows<'a>> Interpolator<'a, Q, W, R> {
     /// Request a feed hold: decelerate to rest on the path within the
     /// acceleration and jerk limits (see [`crate::feed_hold`]). Idempotent; a
     /// no-op while stopping or held.
@@ -192,7 +192,7 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
     /// points already passed are skipped (eight to a step). Pieces and q
     /// spans are found by binary search and read from the views (the
     /// current ones from their cursors).
-    fn sweep_points(c: &SweepCtx<'_, '_>, sw: &mut Sweep, joined: &mut Ahead, count: usize) {
+    fn sweep_points(c: &SweepCtx<'_, R>, sw: &mut Sweep, joined: &mut Ahead, count: usize) {
         let s = c.s;
         let v_ = c.views;
         // Work units left: a step is eight (a point is five: its piece,
@@ -240,9 +240,9 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
                     // cost however many pieces the look-ahead spans).
                     let at = fx_to_f64(sk.saturating_add(1)).to_bits();
                     let pi = c.pc.idx.wrapping_add(count_below(
-                        &v_.piece_breaks,
+                        |i| v_.piece_break(i),
                         c.pc.idx.wrapping_add(1),
-                        v_.p_last,
+                        v_.p_last(),
                         at,
                     ));
                     (sw.sk, sw.pi) = (sk, pi);
@@ -255,9 +255,9 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
                         let i = c.qc.idx;
                         let at = fx_to_f64(sk.saturating_add(1)).to_bits();
                         i.wrapping_add(count_below(
-                            &v_.q_knots,
+                            |i| v_.q_knot(i),
                             i.wrapping_add(4),
-                            v_.q_last.wrapping_add(3),
+                            v_.q_last().wrapping_add(3),
                             at,
                         ))
                     } else {
@@ -356,7 +356,7 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         let n1 = self.pc.idx.wrapping_add(1);
         let ahead = if only_next { 1 } else { 2 };
         for idx in [n1, n1.wrapping_add(1)].into_iter().take(ahead) {
-            if idx <= self.views.p_last && self.start_dr(idx).is_none() {
+            if idx <= self.views.p_last() && self.start_dr(idx).is_none() {
                 self.piece_start_derivs(idx);
                 return;
             }
@@ -390,7 +390,7 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         let mut did = false;
         let n = self.pc.idx.wrapping_add(1);
         let start = self.pc.next;
-        if self.pc.idx < v.p_last && !matches!(&fh.next_pc, Some(p) if p.idx == n && p.start == start) {
+        if self.pc.idx < v.p_last() && !matches!(&fh.next_pc, Some(p) if p.idx == n && p.start == start) {
             let pc = fh.next_pc.get_or_insert_with(PCur::default);
             if v.fill_piece(pc, n, start).is_none() {
                 fh.next_pc = None;
@@ -399,7 +399,7 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         }
         let n = self.qc.idx.wrapping_add(1);
         let start = self.qc.next;
-        if self.qc.idx < v.q_last
+        if self.qc.idx < v.q_last()
             && n.wrapping_sub(self.ov.lo) >= self.ov.n
             && !matches!(&fh.next_qc, Some(q) if q.idx == n && q.start == start)
         {
@@ -417,14 +417,14 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
     /// are there (the same cursors reading the table would give), the rest
     /// as [`Self::seek`] does.
     fn hold_seek(&mut self, s: i64) -> Option<(f32, f32, QLocal)> {
-        if s >= self.pc.next && self.pc.idx < self.views.p_last {
+        if s >= self.pc.next && self.pc.idx < self.views.p_last() {
             if let Some(p) = self.fh.next_pc.take() {
                 if p.idx == self.pc.idx.wrapping_add(1) && p.start == self.pc.next {
                     self.pc = p;
                 }
             }
         }
-        if s >= self.qc.next && self.qc.idx < self.views.q_last {
+        if s >= self.qc.next && self.qc.idx < self.views.q_last() {
             if let Some(q) = self.fh.next_qc.take() {
                 let n = self.qc.idx.wrapping_add(1);
                 if q.idx == n && q.start == self.qc.next && n.wrapping_sub(self.ov.lo) >= self.ov.n {
@@ -460,7 +460,7 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
 
     /// What [`Self::sweep_points`] reads of the interpolator.
     #[inline(always)]
-    fn sweep_ctx(&self) -> SweepCtx<'_, 'a> {
+    fn sweep_ctx(&self) -> SweepCtx<'_, R> {
         SweepCtx {
             s: self.s,
             views: &self.views,
@@ -656,7 +656,7 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         let reach = s.saturating_add(f32_to_fx(
             (2 * PERIOD_TICKS) as f32 * self.h * mx(0.0, p1) * mx(0.0, self.fh.ctl.lambda_f32()),
         ));
-        let near = self.pc.next <= reach && self.pc.idx < self.views.p_last;
+        let near = self.pc.next <= reach && self.pc.idx < self.views.p_last();
         // (the next piece's derivatives are usually there already)
         let n1 = self.pc.idx.wrapping_add(1);
         let dr_n = if near {
@@ -708,7 +708,7 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
     fn next_piece_derivs(&mut self) {
         let n1 = self.pc.idx.wrapping_add(1);
         for idx in [n1, n1.wrapping_add(1)] {
-            if idx <= self.views.p_last && self.start_dr(idx).is_none() {
+            if idx <= self.views.p_last() && self.start_dr(idx).is_none() {
                 self.piece_start_derivs(idx);
             }
         }
@@ -722,7 +722,7 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         let start = if idx == n1 {
             Some(self.pc.next)
         } else {
-            self.views.piece_breaks.get(idx).map(to_fx)
+            self.views.piece_break(idx).map(to_fx)
         };
         let keep = |i: usize| i == n1 || i == n1.wrapping_add(1);
         let slot = usize::from(keep(self.fh.next_dr[0].0) && !keep(self.fh.next_dr[1].0));
@@ -783,9 +783,9 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
 /// What the look-ahead's steps read of the interpolator
 /// ([`Interpolator::sweep_points`]): s, the views, the cursors, the plan's
 /// ṡ_p (a guess for q), the stop segment's entry and the end segments.
-struct SweepCtx<'c, 'a> {
+struct SweepCtx<'c, R> {
     s: i64,
-    views: &'c Views<'a>,
+    views: &'c R,
     pc: &'c PCur,
     qc: &'c QCur,
     v: f32,
@@ -804,11 +804,12 @@ fn at4(x: &[f32; 4], i: usize) -> f32 {
 /// s + 2⁻⁴⁰ mm, as the cursors' Q40 compare `to_fx(b) ≤ s` counts them):
 /// a binary search on the bit patterns (integer compares; a non-negative
 /// f64's bits order as its value).
-fn count_below<A: F64Array>(arr: &A, first: usize, last: usize, at: u64) -> usize {
+#[inline(never)]
+fn count_below(get: impl Fn(usize) -> Option<f64>, first: usize, last: usize, at: u64) -> usize {
     let (mut lo, mut hi) = (first, last.wrapping_add(1).max(first));
     while lo < hi {
         let mid = lo + (hi - lo) / 2;
-        let b = arr.get(mid).map_or(u64::MAX, |x| x.to_bits());
+        let b = get(mid).map_or(u64::MAX, |x| x.to_bits());
         // (a negative value counts as 0)
         let b = if b >> 63 != 0 && b != u64::MAX { 0 } else { b };
         if b < at {

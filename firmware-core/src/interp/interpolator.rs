@@ -1,14 +1,15 @@
 //! [`Interpolator`]: its state, construction and queries. The tick itself is
 //! in [`crate::interp::tick`], feed hold in [`crate::interp::hold_tick`].
 
-use crate::feed_override::queue::{Now, Overrides};
+use crate::feed_override::queue::{span_of, Now, Overrides};
 use crate::feed_override::{Accepted, OverrideError, OverrideProfile};
 use crate::interp::cursor::{q_state_at, PCur, QCur, QState, Views};
 use crate::interp::end_segments::{SegConsts, SegRun};
 use crate::interp::hold_run::HoldRun;
 use crate::interp::level_run::LevelRun;
+use crate::interp::rows::{PlanRows, Rows};
 use crate::interp::setpoint::{Fault, InterpError, Setpoint};
-use crate::limits::EndSegments;
+use crate::limits::{EndSegments, Limits};
 use crate::log;
 use crate::math::source::{F64Array, Point4Array};
 use crate::servo_forms::fixed::{fx_to_f64, step_scale, to_fx};
@@ -22,6 +23,21 @@ pub const STALL_REL: f64 = 1e-14;
 /// Feed floor, relative to `vbar`: a falling feed below `STALL_FEED_REL · vbar`
 /// away from L is a stall (the planner's interior-stall check uses the same floor).
 pub const STALL_FEED_REL: f64 = 1e-6;
+
+/// What the interpolator needs of a plan beyond its rows.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct PlanHead {
+    /// Path length L, mm.
+    pub(crate) length_mm: f64,
+    pub(crate) limits: Limits,
+    /// The start and stop segments; the stop's values count only once
+    /// `stop_known` (a streamed plan learns them with its last chunk).
+    pub(crate) ends: Option<EndSegments>,
+    pub(crate) stop_known: bool,
+    /// Position (mm) and u of the path's start and end.
+    pub(crate) first: ([f64; 3], f64),
+    pub(crate) last: ([f64; 3], f64),
+}
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) enum Phase {
@@ -54,9 +70,7 @@ pub const OVERRIDE_W: usize = 64;
 // (Thumb-2 loads reach 4 KiB from a base register; the windows are ~13 KiB).
 #[derive(Clone, Debug)]
 #[repr(C)]
-pub struct Interpolator<'a, const Q: usize = 0, const W: usize = 0> {
-    table: Table<'a>,
-    pub(crate) views: Views<'a>,
+pub struct Interpolator<'a, const Q: usize = 0, const W: usize = 0, R = Views<'a>> {
     pub(crate) period_s: f64,
     /// The period in f32 for the Taylor step.
     pub(crate) h: f32,
@@ -107,6 +121,9 @@ pub struct Interpolator<'a, const Q: usize = 0, const W: usize = 0> {
     pub(crate) phase: Phase,
     /// Feed hold and resume ([`crate::feed_hold`]).
     pub(crate) fh: HoldRun,
+    /// Where the plan's rows come from: a whole table, or a window of
+    /// streamed chunks ([`PlanRows`]).
+    pub(crate) views: R,
     /// Override profiles: the queue and the active one.
     pub(crate) ov: Overrides<'a, Q, W>,
 }
@@ -124,7 +141,7 @@ impl<'a> Interpolator<'a> {
     }
 }
 
-impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
+impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W, Views<'a>> {
     /// As [`Interpolator::new`], with room for `Q` queued override profiles
     /// of up to `W` control points each (`Interpolator::<2, 16>::new_sized`).
     pub fn new_sized(table: Table<'a>, period_s: f64) -> Result<Self, InterpError> {
@@ -134,13 +151,13 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
                 "interpolator: L={=f64} mm, predicted {=f64} s, T={=f64} s; {=usize} q spans, \
                  {=usize} pieces, degree {=u32}, {=usize} control points, table {=usize} bytes",
                 ip.length_mm,
-                ip.table.predicted_time_s(),
+                ip.views.table.predicted_time_s(),
                 ip.period_s,
                 ip.views.q_last.saturating_add(1),
                 ip.views.p_last.saturating_add(1),
-                ip.table.nurbs_degree(),
-                ip.table.nurbs_points().len(),
-                ip.table.as_bytes().len(),
+                ip.views.table.nurbs_degree(),
+                ip.views.table.nurbs_points().len(),
+                ip.views.table.as_bytes().len(),
             ),
             Err(e) => log::warn!("interpolator refused: {} (T={=f64} s)", e, period_s),
         }
@@ -158,6 +175,7 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
         let q_spans = table.q_local().len() / Q_LOCAL_LEN;
         let per = piece_f32_len(p);
         let views = Views {
+            table,
             q_knots: table.q_knots(),
             q_local: table.q_local(),
             q_fixed: table.q_fixed(),
@@ -168,28 +186,111 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
             p_last: table.piece_breaks().len().checked_sub(2).ok_or(bad)?,
             per,
         };
-        let qc = views.q(0).ok_or(bad)?;
-        let pc = views.piece(0).ok_or(bad)?;
-        let qs = q_state_at(&views, 0, 0.0).ok_or(bad)?;
         let [x0, y0, z0, _] = pts.get(0).ok_or(bad)?;
         let [x1, y1, z1, _] = pts.get(pts.len().checked_sub(1).ok_or(bad)?).ok_or(bad)?;
         let length_mm = table.path_length_mm();
-        let v_floor = STALL_FEED_REL * table.limits().vbar;
+        let head = PlanHead {
+            length_mm,
+            limits: table.limits(),
+            ends: table.ends(),
+            stop_known: true,
+            first: ([x0, y0, z0], knots.get(p).ok_or(bad)?),
+            last: ([x1, y1, z1], knots.last().ok_or(bad)?),
+        };
+        let base = LevelRun::new(&table.level(0).ok_or(bad)?, length_mm, period_s);
+        let start_join = table.ends().map(|e| span_of(&table, e.s_start));
+        Self::assemble(views, period_s, &head, Overrides::new(start_join, base))
+    }
+
+    /// The table.
+    pub fn table(&self) -> &Table<'a> {
+        &self.views.table
+    }
+
+    /// Offer a feedrate-override profile ([`crate::feed_override`],
+    /// `docs/override-design.md`): checked, its window forms computed, and
+    /// queued to become active at the tick that enters q span `p.first`; or
+    /// refused with nothing changed. Not for the tick context: it costs two
+    /// f64 span evaluations per window span.
+    pub fn offer_override(&mut self, p: &OverrideProfile) -> Result<Accepted, OverrideError> {
+        let now = Now {
+            span: self.qc.idx,
+            s: self.s,
+            done: self.phase == Phase::Done,
+            faulted: matches!(self.phase, Phase::Faulted(_)),
+            length_mm: self.length_mm,
+            period_s: self.period_s,
+        };
+        let r = self.ov.offer(&self.views.table, p, now);
+        match &r {
+            Ok(a) => log::info!(
+                "override {=u32} to level {=u16} accepted: splice at {=f64} mm, {=u8} superseded",
+                a.seq,
+                p.level,
+                a.splice_s_mm,
+                a.superseded
+            ),
+            Err(e) => log::warn!("override {=u32} refused: {}", p.seq, e),
+        }
+        r
+    }
+
+    /// Back to the start (also clears a fault and every override: the base
+    /// plan again, queue empty, sequence numbers forgotten).
+    pub fn reset(&mut self) {
+        self.ov.clear();
+        if let Some(base) = self.views.table.level(0) {
+            self.use_level(&LevelRun::new(&base, self.length_mm, self.period_s));
+        }
+        self.k = 0;
+        self.s = 0;
+        if let (Some(qc), Some(pc)) = (self.views.q(0), self.views.piece(0)) {
+            (self.qc, self.pc) = (qc, pc);
+        }
+        self.qs = q_state_at(&self.views, 0, 0.0).unwrap_or_default();
+        self.seg = SegRun {
+            d: self.segk.start_d,
+            ..SegRun::default()
+        };
+        self.phase = Phase::Start;
+        self.fh.reset();
+    }
+}
+
+impl<'a, const Q: usize, const W: usize, R: PlanRows<'a>> Interpolator<'a, Q, W, R> {
+    /// The interpolator at the start of the plan `head` whose rows `views`
+    /// holds (at least its first q span and piece), ticking every
+    /// `period_s` seconds.
+    pub(crate) fn assemble(
+        views: R,
+        period_s: f64,
+        head: &PlanHead,
+        ov: Overrides<'a, Q, W>,
+    ) -> Result<Self, InterpError> {
+        if !(period_s.is_finite() && period_s > 0.0) {
+            return Err(InterpError::BadPeriod);
+        }
+        let bad = InterpError::Inconsistent;
+        let qc = views.q(0).ok_or(bad)?;
+        let pc = views.piece(0).ok_or(bad)?;
+        let qs = q_state_at(&views, 0, 0.0).ok_or(bad)?;
+        let length_mm = head.length_mm;
+        let v_floor = STALL_FEED_REL * head.limits.vbar;
         let first = Setpoint {
             t_s: 0.0,
             s_mm: 0.0,
-            u: knots.get(p).ok_or(bad)?,
+            u: head.first.1,
             feed_mm_s: f64::from(qs.v),
-            pos_mm: [x0, y0, z0],
+            pos_mm: head.first.0,
         };
         let last = Setpoint {
             t_s: 0.0,
             s_mm: length_mm,
-            u: knots.last().ok_or(bad)?,
+            u: head.last.1,
             feed_mm_s: 0.0,
-            pos_mm: [x1, y1, z1],
+            pos_mm: head.last.0,
         };
-        let ends = table.ends();
+        let ends = head.ends;
         // The join tick: the first k with k·T > t_switch.
         let (k_join, h_join) = match ends {
             Some(e) => {
@@ -209,13 +310,18 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
             Some(e) => {
                 let s1 = to_fx(e.s_start);
                 let guess = q_state_at(&views, s1, 0.0).ok_or(bad)?.v;
-                (to_fx(e.s_stop), q_state_at(&views, s1, guess).ok_or(bad)?)
+                let stop_at = if head.stop_known {
+                    to_fx(e.s_stop)
+                } else {
+                    i64::MAX
+                };
+                (stop_at, q_state_at(&views, s1, guess).ok_or(bad)?)
             }
-            None => (to_fx(length_mm), QState::default()),
+            None if head.stop_known => (to_fx(length_mm), QState::default()),
+            None => (i64::MAX, QState::default()),
         };
-        let base = LevelRun::new(&table.level(0).ok_or(bad)?, length_mm, period_s);
         Ok(Interpolator {
-            ov: Overrides::new(&table, base),
+            ov,
             ends,
             stop_at,
             k_join,
@@ -232,7 +338,6 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
             segk: ends
                 .map(|e| SegConsts::new(&e, length_mm, period_s))
                 .unwrap_or_default(),
-            table,
             views,
             period_s,
             h: period_s as f32,
@@ -259,46 +364,13 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
             stall_ds: (STALL_REL * length_mm) as f32,
             end_tol: (MATCH_TOL_REL * length_mm) as f32,
             phase: Phase::Start,
-            fh: HoldRun::new(&table.limits()),
+            fh: HoldRun::new(&head.limits),
         })
-    }
-
-    /// The table.
-    pub fn table(&self) -> &Table<'a> {
-        &self.table
     }
 
     /// The tick period T, s.
     pub fn period_s(&self) -> f64 {
         self.period_s
-    }
-
-    /// Offer a feedrate-override profile ([`crate::feed_override`],
-    /// `docs/override-design.md`): checked, its window forms computed, and
-    /// queued to become active at the tick that enters q span `p.first`; or
-    /// refused with nothing changed. Not for the tick context: it costs two
-    /// f64 span evaluations per window span.
-    pub fn offer_override(&mut self, p: &OverrideProfile) -> Result<Accepted, OverrideError> {
-        let now = Now {
-            span: self.qc.idx,
-            s: self.s,
-            done: self.phase == Phase::Done,
-            faulted: matches!(self.phase, Phase::Faulted(_)),
-            length_mm: self.length_mm,
-            period_s: self.period_s,
-        };
-        let r = self.ov.offer(&self.table, p, now);
-        match &r {
-            Ok(a) => log::info!(
-                "override {=u32} to level {=u16} accepted: splice at {=f64} mm, {=u8} superseded",
-                a.seq,
-                p.level,
-                a.splice_s_mm,
-                a.superseded
-            ),
-            Err(e) => log::warn!("override {=u32} refused: {}", p.seq, e),
-        }
-        r
     }
 
     /// The active override profile's sequence number (`None`: none since the
@@ -314,8 +386,7 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
 
     /// Run on `run`'s level from the next q span entry on.
     pub(crate) fn use_level(&mut self, run: &LevelRun<'a>) {
-        self.views.q_local = run.q_local;
-        self.views.q_fixed = run.q_fixed;
+        self.views.use_q_forms(run.q_local, run.q_fixed);
         self.ends = run.ends;
         self.stop_at = run.stop_at;
         self.segk = run.segk;
@@ -334,26 +405,5 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
     /// `true` once the end point has been returned.
     pub fn is_done(&self) -> bool {
         self.phase == Phase::Done
-    }
-
-    /// Back to the start (also clears a fault and every override: the base
-    /// plan again, queue empty, sequence numbers forgotten).
-    pub fn reset(&mut self) {
-        self.ov.clear();
-        if let Some(base) = self.table.level(0) {
-            self.use_level(&LevelRun::new(&base, self.length_mm, self.period_s));
-        }
-        self.k = 0;
-        self.s = 0;
-        if let (Some(qc), Some(pc)) = (self.views.q(0), self.views.piece(0)) {
-            (self.qc, self.pc) = (qc, pc);
-        }
-        self.qs = q_state_at(&self.views, 0, 0.0).unwrap_or_default();
-        self.seg = SegRun {
-            d: self.segk.start_d,
-            ..SegRun::default()
-        };
-        self.phase = Phase::Start;
-        self.fh.reset();
     }
 }

@@ -73,8 +73,13 @@ pub(crate) mod hold_run;
 pub(crate) mod hold_tick;
 pub(crate) mod interpolator;
 pub(crate) mod level_run;
+pub(crate) mod rows;
 pub(crate) mod setpoint;
+pub(crate) mod streamed;
 pub(crate) mod tick;
 
+pub use self::cursor::Views;
 pub use self::interpolator::{Interpolator, OVERRIDE_Q, OVERRIDE_W, STALL_FEED_REL, STALL_REL};
+pub use self::rows::PlanRows;
 pub use self::setpoint::{Fault, InterpError, RunError, Setpoint};
+pub use self::streamed::{StopError, StreamHead};

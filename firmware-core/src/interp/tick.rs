@@ -5,6 +5,7 @@ use crate::interp::crossing::{ahead_f32, jump_share, s_derivs, time_left};
 use crate::interp::cursor::{q_eval, tau_of};
 use crate::interp::end_segments::{to_q80, SegRun};
 use crate::interp::interpolator::{Interpolator, Phase};
+use crate::interp::rows::PlanRows;
 use crate::interp::setpoint::{Fault, RunError, Setpoint};
 use crate::log;
 use crate::output::SetpointSink;
@@ -12,12 +13,12 @@ use crate::servo_forms::fixed::{f32_to_fx, f64_to_fixed, fx_small_f32, fx_to_f64
 use crate::servo_forms::piece::pos_eval;
 use crate::servo_forms::q_span::{pos, QLocal};
 
-impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
+impl<'a, const Q: usize, const W: usize, R: PlanRows<'a>> Interpolator<'a, Q, W, R> {
     /// Moves the q cursor to the span containing `s` (out of line: the
     /// tick path only compares s with the span end).
     #[inline(never)]
     fn next_q_spans(&mut self, s: i64) -> Option<()> {
-        while self.qc.idx < self.views.q_last && s >= self.qc.next {
+        while self.qc.idx < self.views.q_last() && s >= self.qc.next {
             let (idx, start) = (self.qc.idx.checked_add(1)?, self.qc.next);
             // Overrides: one range compare (n = 0 without any).
             if idx.wrapping_sub(self.ov.lo) < self.ov.n {
@@ -40,7 +41,7 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
     fn cross_knots(&mut self, s: i64, s_new: i64, h: f32, taylor: [f32; 4]) -> Option<i64> {
         let mut delta = 0.0f32;
         let mut est = s_new;
-        while self.qc.idx < self.views.q_last && est >= self.qc.next && self.qc.next < self.stop_at {
+        while self.qc.idx < self.views.q_last() && est >= self.qc.next && self.qc.next < self.stop_at {
             let u = self.qc.next;
             let past = u > s;
             let old = self.qc.poly.eval(self.qc.t_local(u));
@@ -454,7 +455,7 @@ impl<'a, const Q: usize, const W: usize> Interpolator<'a, Q, W> {
     #[inline]
     pub(crate) fn seek(&mut self, s: i64) -> Option<(f32, f32, QLocal)> {
         let v = &self.views;
-        while self.pc.idx < v.p_last && s >= self.pc.next {
+        while self.pc.idx < v.p_last() && s >= self.pc.next {
             let (idx, start) = (self.pc.idx.checked_add(1)?, self.pc.next);
             v.fill_piece(&mut self.pc, idx, start)?;
         }

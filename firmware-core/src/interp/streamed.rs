@@ -1,0 +1,141 @@
+//! The interpolator over a streamed plan: the same tick, reading its rows
+//! from a [`PlanWindow`] that chunks fill ahead of the motion and the tick
+//! frees behind it, instead of from a whole table.
+//!
+//! A streamed plan starts from a [`StreamHead`] (what the tick needs
+//! beyond the rows: the path's length and ends, the limits, the start
+//! segment) and its first chunk. Between ticks the caller pushes the chunks
+//! that arrive ([`Interpolator::push_chunk`]) and frees the rows passed
+//! ([`Interpolator::release_passed`]); with the plan's last chunk comes its
+//! stop segment ([`Interpolator::set_stop`]), which the tick needs before it
+//! reaches s₂. Ticks are bit-identical to the run over the whole table the
+//! chunks were cut from, as long as the rows are there before the tick
+//! needs them; a row that is not there is a fault ([`Fault::Eval`]), never
+//! a guess.
+//!
+//! Override levels are a table's: a streamed plan has none (a new feed is
+//! a replanned stretch, spliced in as new chunks).
+
+use crate::feed_override::queue::Overrides;
+use crate::interp::end_segments::SegConsts;
+use crate::interp::interpolator::{Interpolator, Phase, PlanHead};
+use crate::interp::level_run::LevelRun;
+use crate::interp::setpoint::InterpError;
+use crate::limits::{EndSegments, Limits};
+use crate::math::source::{LeF32, LeF64};
+use crate::servo_forms::fixed::to_fx;
+use crate::stream::chunk::Chunk;
+use crate::stream::window::{PlanWindow, WindowError};
+
+#[cfg(doc)]
+use crate::interp::setpoint::Fault;
+
+/// What a streamed plan tells the interpolator besides its chunks.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct StreamHead {
+    /// Path length L, mm.
+    pub length_mm: f64,
+    /// Kinematic limits.
+    pub limits: Limits,
+    /// The start segment (its stop part is ignored: the stop comes with
+    /// the last chunk, [`Interpolator::set_stop`]); `None`: the plan has no
+    /// end segments.
+    pub ends: Option<EndSegments>,
+    /// Position (mm) and u at s = 0.
+    pub first_pos_mm: [f64; 3],
+    /// u at s = 0.
+    pub first_u: f64,
+    /// Position (mm) at s = L.
+    pub last_pos_mm: [f64; 3],
+    /// u at s = L.
+    pub last_u: f64,
+}
+
+/// Why the stop segment was refused (nothing changed).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum StopError {
+    /// The plan has no end segments, or the stop is known already.
+    NotExpected,
+    /// The motion is already at or past the segment's start s₂.
+    TooLate,
+}
+
+impl<'a, const Q: usize, const W: usize, const NQ: usize, const NP: usize>
+    Interpolator<'a, Q, W, PlanWindow<NQ, NP>>
+{
+    /// An interpolator at the start of a streamed plan, whose `window`
+    /// holds its first chunk at least, ticking every `period_s` seconds.
+    pub fn streamed(
+        head: &StreamHead,
+        window: PlanWindow<NQ, NP>,
+        period_s: f64,
+    ) -> Result<Self, InterpError> {
+        let length_mm = head.length_mm;
+        if !(length_mm.is_finite() && length_mm > 0.0) {
+            return Err(InterpError::Inconsistent);
+        }
+        let plan = PlanHead {
+            length_mm,
+            limits: head.limits,
+            ends: head.ends,
+            stop_known: false,
+            first: (head.first_pos_mm, head.first_u),
+            last: (head.last_pos_mm, head.last_u),
+        };
+        let base = LevelRun {
+            id: 0,
+            q_local: LeF32::new(&[]).ok_or(InterpError::Inconsistent)?,
+            q_fixed: LeF64::new(&[]).ok_or(InterpError::Inconsistent)?,
+            ends: head.ends,
+            stop_at: i64::MAX,
+            segk: head
+                .ends
+                .map(|e| SegConsts::new(&e, length_mm, period_s))
+                .unwrap_or_default(),
+        };
+        Self::assemble(window, period_s, &plan, Overrides::new(None, base))
+    }
+
+    /// The rows held.
+    pub fn window(&self) -> &PlanWindow<NQ, NP> {
+        &self.views
+    }
+
+    /// Append a chunk's rows ([`PlanWindow::push`]); not for the tick
+    /// context. A plan without end segments ends at L with the last chunk.
+    pub fn push_chunk(&mut self, chunk: &Chunk<'_>) -> Result<(), WindowError> {
+        self.views.push(chunk)?;
+        if chunk.info().is_last() && self.ends.is_none() {
+            self.stop_at = self.len_fx;
+        }
+        Ok(())
+    }
+
+    /// Free the rows behind the tick's q span and piece.
+    pub fn release_passed(&mut self) {
+        self.views.release_before(self.qc.idx, self.pc.idx);
+    }
+
+    /// The plan's stop segment (its start part is ignored): needed before
+    /// the motion reaches its s₂, refused after.
+    pub fn set_stop(&mut self, stop: &EndSegments) -> Result<(), StopError> {
+        let Some(mut e) = self.ends else {
+            return Err(StopError::NotExpected);
+        };
+        if self.stop_at != i64::MAX {
+            return Err(StopError::NotExpected);
+        }
+        let s2 = to_fx(stop.s_stop);
+        if self.s >= s2 || matches!(self.phase, Phase::Done | Phase::Faulted(_)) {
+            return Err(StopError::TooLate);
+        }
+        (e.s_stop, e.jerk_stop, e.t_stop) = (stop.s_stop, stop.jerk_stop, stop.t_stop);
+        self.ends = Some(e);
+        self.stop_at = s2;
+        self.segk = SegConsts::new(&e, self.length_mm, self.period_s);
+        Ok(())
+    }
+}

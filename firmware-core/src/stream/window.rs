@@ -1,0 +1,465 @@
+//! [`PlanWindow`]: the stretch of a streamed plan the tick runs on — the
+//! q spans and position pieces of the chunks received so far, decoded once
+//! on arrival, held in fixed arrays (capacity as const generics, no heap),
+//! and freed as soon as the tick has passed them.
+//!
+//! A chunk ([`Chunk`]) is pushed whole: its q spans and pieces are decoded
+//! by [`Chunk::q_spans`] and [`Chunk::pieces`] (the same rows a table holds,
+//! bit for bit) and appended after the rows held, or the push is refused
+//! with nothing changed ([`WindowError`]). Rows carry their global index (q
+//! span `i` is knot span `i + 3` of the whole spline, piece `j` the j-th of
+//! the path), so the tick ([`crate::interp::PlanRows`]) reads the window as
+//! it reads a table; a row the window does not hold, behind or ahead, reads
+//! as `None`, which the tick reports as a fault, never as data.
+//!
+//! Continuity is checked on every push: the chunk must belong to the plan
+//! being held, its first piece must start where the last held piece ends
+//! (Q40, exactly), and its q spans must continue the held ones (a span
+//! meeting two chunks is sent in both: the copy already held is skipped
+//! after checking that it is the same row). The last chunk of the plan
+//! fixes the last q span's and the last piece's indices, which the tick
+//! runs to the end of the path.
+//!
+//! RAM: 56 bytes a q span, 260 bytes a piece (the 27 words of the table's
+//! piece, its breaks and its f32 u form); `PlanWindow<64, 128>` is 36 KiB.
+
+use crate::interp::cursor::{tau_of, PCur, QCur};
+use crate::interp::rows::{PlanRows, Rows};
+use crate::servo_forms::fixed::to_fx;
+use crate::servo_forms::piece::{
+    piece_shift_mask, pos_derivs, PieceU, PIECE_F64_LEN, PIECE_HEAD_LEN, POS_BYTES,
+};
+use crate::servo_forms::q_span::{QLocal, Q_FX_LEN, Q_LOCAL_LEN};
+use crate::stream::chunk::{Chunk, PieceForm, QSpanForm};
+
+/// Bytes of a piece's words.
+const WORD_BYTES: usize = 8 * PIECE_F64_LEN;
+/// Byte offset of the position coefficients in a piece's words (after
+/// u_a, the centre and the shift/mask word).
+const POS_AT: usize = 8 * 3;
+
+/// Why a chunk could not join the window (nothing changed).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum WindowError {
+    /// Not enough free rows for the chunk's q spans or pieces; free the
+    /// passed ones first ([`PlanWindow::release_before`]).
+    Full {
+        /// Free q span rows, pieces.
+        free_q: usize,
+        /// Free piece rows.
+        free_p: usize,
+    },
+    /// The chunk belongs to another plan than the rows held.
+    OtherPlan {
+        /// The plan held.
+        held: u32,
+        /// The chunk's.
+        found: u32,
+    },
+    /// The chunk does not start where the rows held end (Q40 mm).
+    Gap {
+        /// End of the last held piece.
+        held_end: i64,
+        /// The chunk's first piece start.
+        start: i64,
+    },
+    /// The chunk's q spans skip or repeat spans, or repeat one differently.
+    QSpans {
+        /// The next knot span the window expects.
+        expected: u32,
+        /// The chunk's first.
+        found: u32,
+    },
+    /// A chunk after the plan's last.
+    AfterLast,
+    /// The chunk's rows could not be decoded (it was not checked by
+    /// [`Chunk::parse`]), or it holds no piece.
+    Undecodable,
+}
+
+impl core::fmt::Display for WindowError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match *self {
+            WindowError::Full { free_q, free_p } => {
+                write!(
+                    f,
+                    "plan window full ({free_q} q span rows, {free_p} piece rows free)"
+                )
+            }
+            WindowError::OtherPlan { held, found } => {
+                write!(f, "chunk of plan {found} while plan {held} is held")
+            }
+            WindowError::Gap { held_end, start } => {
+                write!(
+                    f,
+                    "chunk starts at {start} (Q40 mm), the window ends at {held_end}"
+                )
+            }
+            WindowError::QSpans { expected, found } => {
+                write!(
+                    f,
+                    "chunk's q spans start at knot span {found}, expected {expected}"
+                )
+            }
+            WindowError::AfterLast => write!(f, "chunk after the plan's last"),
+            WindowError::Undecodable => write!(f, "chunk rows not decodable"),
+        }
+    }
+}
+
+/// One q span as the tick reads it, with its global index.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+struct QRow {
+    idx: usize,
+    start: f64,
+    end: f64,
+    fixed: [i64; Q_FX_LEN],
+    local: [f32; Q_LOCAL_LEN],
+}
+
+/// One piece as the tick reads it, with its global index: its breaks, its
+/// words as little-endian bytes (the table's section-12 row) and its f32
+/// u form.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct PRow {
+    idx: usize,
+    start: f64,
+    end: f64,
+    words: [u8; WORD_BYTES],
+    u: [f32; PIECE_HEAD_LEN],
+}
+
+impl Default for PRow {
+    fn default() -> Self {
+        PRow {
+            idx: usize::MAX,
+            start: 0.0,
+            end: 0.0,
+            words: [0; WORD_BYTES],
+            u: [0.0; PIECE_HEAD_LEN],
+        }
+    }
+}
+
+impl PRow {
+    fn word(&self, i: usize) -> Option<u64> {
+        let b = self.words.get(8 * i..8 * i + 8)?;
+        let mut w = [0u8; 8];
+        w.copy_from_slice(b);
+        Some(u64::from_le_bytes(w))
+    }
+}
+
+/// The q spans and pieces of a streamed plan held for the tick: up to `NQ`
+/// q spans and `NP` pieces, in order, from the oldest not yet released.
+#[derive(Clone, Debug)]
+pub struct PlanWindow<const NQ: usize, const NP: usize> {
+    q: [QRow; NQ],
+    p: [PRow; NP],
+    /// Global index of the oldest held q span and piece; rows held.
+    q_lo: usize,
+    q_n: usize,
+    p_lo: usize,
+    p_n: usize,
+    /// The plan's last q span and piece, once its last chunk is in.
+    q_last: usize,
+    p_last: usize,
+    plan_id: Option<u32>,
+    /// End of the last held piece, Q40 mm (the next chunk's s_a).
+    held_end: i64,
+    /// Next knot span expected (first span of the next chunk, or the
+    /// repeat of the last one held).
+    next_span: u32,
+}
+
+impl<const NQ: usize, const NP: usize> Default for PlanWindow<NQ, NP> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<const NQ: usize, const NP: usize> PlanWindow<NQ, NP> {
+    /// An empty window.
+    pub fn new() -> Self {
+        PlanWindow {
+            q: [QRow::default(); NQ],
+            p: [PRow::default(); NP],
+            q_lo: 0,
+            q_n: 0,
+            p_lo: 0,
+            p_n: 0,
+            q_last: usize::MAX,
+            p_last: usize::MAX,
+            plan_id: None,
+            held_end: 0,
+            next_span: 3,
+        }
+    }
+
+    /// Forget every row (a new plan starts at its first chunk).
+    pub fn clear(&mut self) {
+        *self = Self::new();
+    }
+
+    /// q span rows and piece rows free.
+    pub fn free(&self) -> (usize, usize) {
+        (NQ - self.q_n, NP - self.p_n)
+    }
+
+    /// q span rows and piece rows held.
+    pub fn held(&self) -> (usize, usize) {
+        (self.q_n, self.p_n)
+    }
+
+    /// Start of the oldest held piece and end of the newest, Q40 mm
+    /// (`None` when empty).
+    pub fn span_held(&self) -> Option<(i64, i64)> {
+        let first = self.prow(self.p_lo)?;
+        Some((to_fx(first.start), self.held_end))
+    }
+
+    /// End of the rows held, Q40 mm (0 when empty): the tick cannot pass it.
+    pub fn held_end(&self) -> i64 {
+        self.held_end
+    }
+
+    /// `true` once the plan's last chunk is held (the path's end is in the
+    /// window or already passed).
+    pub fn has_last(&self) -> bool {
+        self.p_last != usize::MAX
+    }
+
+    /// Whether `chunk` would fit now: its q spans (those not yet held) and
+    /// pieces against the free rows.
+    pub fn fits(&self, chunk: &Chunk<'_>) -> bool {
+        let info = chunk.info();
+        let repeat = usize::from(self.q_n > 0 && info.first_span.wrapping_add(1) == self.next_span);
+        let nq = usize::from(info.n_q).saturating_sub(repeat);
+        nq <= NQ - self.q_n && usize::from(info.n_p) <= NP - self.p_n
+    }
+
+    /// Append `chunk`'s rows (checked by [`Chunk::parse`]), or refuse it
+    /// with nothing changed. Decodes every row once (not for the tick
+    /// context: ~10⁴ instructions a row on a Cortex-M4F).
+    pub fn push(&mut self, chunk: &Chunk<'_>) -> Result<(), WindowError> {
+        let info = *chunk.info();
+        if self.has_last() {
+            return Err(WindowError::AfterLast);
+        }
+        match self.plan_id {
+            Some(held) if held != info.plan_id => {
+                return Err(WindowError::OtherPlan {
+                    held,
+                    found: info.plan_id,
+                })
+            }
+            _ => {}
+        }
+        let first_chunk = self.plan_id.is_none() && self.p_n == 0 && self.p_lo == 0;
+        if first_chunk {
+            if !info.is_first() || info.first_span != 3 {
+                return Err(WindowError::QSpans {
+                    expected: 3,
+                    found: info.first_span,
+                });
+            }
+        } else if info.s_a != self.held_end {
+            return Err(WindowError::Gap {
+                held_end: self.held_end,
+                start: info.s_a,
+            });
+        }
+        // q spans: the chunk's first is the next expected, or the repeat of
+        // the last held one.
+        let repeat = !first_chunk && info.first_span.wrapping_add(1) == self.next_span;
+        if !(info.first_span == self.next_span || repeat) {
+            return Err(WindowError::QSpans {
+                expected: self.next_span,
+                found: info.first_span,
+            });
+        }
+        if !self.fits(chunk) {
+            let (free_q, free_p) = self.free();
+            return Err(WindowError::Full { free_q, free_p });
+        }
+        if info.n_p == 0 {
+            return Err(WindowError::Undecodable);
+        }
+        // Decode into the free rows first (nothing visible changes until
+        // everything decoded and matched).
+        let (q_at, p_at) = (self.q_lo + self.q_n, self.p_lo + self.p_n);
+        let mut nq = 0usize;
+        for (k, form) in chunk.q_spans().enumerate() {
+            if k == 0 && repeat {
+                let held = self.qrow(q_at.wrapping_sub(1)).copied();
+                if held != Some(Self::q_row(q_at.wrapping_sub(1), &form)) {
+                    return Err(WindowError::QSpans {
+                        expected: self.next_span,
+                        found: info.first_span,
+                    });
+                }
+                continue;
+            }
+            let idx = q_at + nq;
+            let slot = idx % NQ;
+            let Some(row) = self.q.get_mut(slot) else {
+                return Err(WindowError::Undecodable);
+            };
+            *row = Self::q_row(idx, &form);
+            nq += 1;
+        }
+        let mut np = 0usize;
+        let mut end = info.s_a;
+        for form in chunk.pieces() {
+            if to_fx(form.start) != end {
+                return Err(WindowError::Undecodable);
+            }
+            let idx = p_at + np;
+            let slot = idx % NP;
+            let Some(row) = self.p.get_mut(slot) else {
+                return Err(WindowError::Undecodable);
+            };
+            *row = Self::p_row(idx, &form);
+            end = to_fx(form.end);
+            np += 1;
+        }
+        if np != usize::from(info.n_p) || end != info.s_b {
+            return Err(WindowError::Undecodable);
+        }
+        self.q_n += nq;
+        self.p_n += np;
+        self.held_end = info.s_b;
+        self.plan_id = Some(info.plan_id);
+        self.next_span = info.first_span.wrapping_add(u32::from(info.n_q));
+        if info.is_last() {
+            self.q_last = (self.q_lo + self.q_n).saturating_sub(1);
+            self.p_last = (self.p_lo + self.p_n).saturating_sub(1);
+        }
+        Ok(())
+    }
+
+    /// Free the q spans before global index `q` and the pieces before `p`
+    /// (those the tick has passed: [`crate::interp::Interpolator::release_passed`]).
+    pub fn release_before(&mut self, q: usize, p: usize) {
+        let dq = q.saturating_sub(self.q_lo).min(self.q_n);
+        self.q_lo += dq;
+        self.q_n -= dq;
+        let dp = p.saturating_sub(self.p_lo).min(self.p_n);
+        self.p_lo += dp;
+        self.p_n -= dp;
+    }
+
+    fn q_row(idx: usize, f: &QSpanForm) -> QRow {
+        QRow {
+            idx,
+            start: f.start,
+            end: f.end,
+            fixed: f.fixed,
+            local: f.local,
+        }
+    }
+
+    fn p_row(idx: usize, f: &PieceForm) -> PRow {
+        let mut words = [0u8; WORD_BYTES];
+        for (dst, w) in words.chunks_exact_mut(8).zip(f.words.iter()) {
+            dst.copy_from_slice(&w.to_le_bytes());
+        }
+        PRow {
+            idx,
+            start: f.start,
+            end: f.end,
+            words,
+            u: f.u,
+        }
+    }
+
+    #[inline(always)]
+    fn qrow(&self, idx: usize) -> Option<&QRow> {
+        if idx.wrapping_sub(self.q_lo) >= self.q_n {
+            return None;
+        }
+        self.q.get(idx % NQ)
+    }
+
+    #[inline(always)]
+    fn prow(&self, idx: usize) -> Option<&PRow> {
+        if idx.wrapping_sub(self.p_lo) >= self.p_n {
+            return None;
+        }
+        self.p.get(idx % NP)
+    }
+}
+
+impl<'a, const NQ: usize, const NP: usize> PlanRows<'a> for PlanWindow<NQ, NP> {}
+
+impl<'a, const NQ: usize, const NP: usize> Rows<'a> for PlanWindow<NQ, NP> {
+    fn q_last(&self) -> usize {
+        self.q_last
+    }
+
+    fn p_last(&self) -> usize {
+        self.p_last
+    }
+
+    fn q_knot(&self, i: usize) -> Option<f64> {
+        // knot i starts q span i − 3 and ends q span i − 4
+        if let Some(r) = i.checked_sub(3).and_then(|j| self.qrow(j)) {
+            return Some(r.start);
+        }
+        i.checked_sub(4).and_then(|j| self.qrow(j)).map(|r| r.end)
+    }
+
+    fn piece_break(&self, idx: usize) -> Option<f64> {
+        if let Some(r) = self.prow(idx) {
+            return Some(r.start);
+        }
+        idx.checked_sub(1).and_then(|j| self.prow(j)).map(|r| r.end)
+    }
+
+    #[inline]
+    fn fill_q(&self, qc: &mut QCur, idx: usize, start: i64) -> Option<()> {
+        let r = self.qrow(idx)?;
+        let (fixed, local) = (r.fixed, r.local);
+        self.put_q(qc, idx, start, fixed, QLocal::from_array(local))
+    }
+
+    #[inline]
+    fn fill_piece(&self, pc: &mut PCur, idx: usize, start: i64) -> Option<()> {
+        let r = self.prow(idx)?;
+        let (shift, constant) = piece_shift_mask(r.word(2)?)?;
+        pc.next = if idx >= self.p_last {
+            i64::MAX
+        } else {
+            to_fx(r.end)
+        };
+        pc.u0 = to_fx(f64::from_bits(r.word(0)?));
+        pc.centre = r.word(1)? as i64;
+        pc.head = PieceU::from_array(r.u);
+        pc.idx = idx;
+        pc.start = start;
+        pc.shift = shift;
+        pc.constant = constant;
+        // (the row's slot: the coefficients are read from there)
+        pc.pos_at = idx % NP;
+        Some(())
+    }
+
+    #[inline]
+    fn coeffs(&self, pc: &PCur) -> Option<&[u8; POS_BYTES]> {
+        let r = self.p.get(pc.pos_at)?;
+        if r.idx != pc.idx {
+            return None;
+        }
+        r.words.get(POS_AT..POS_AT + POS_BYTES)?.try_into().ok()
+    }
+
+    fn piece_derivs(&self, idx: usize, s: i64) -> Option<[[f32; 3]; 3]> {
+        let r = self.prow(idx)?;
+        let (shift, constant) = piece_shift_mask(r.word(2)?)?;
+        let centre = r.word(1)? as i64;
+        let c: &[u8; POS_BYTES] = r.words.get(POS_AT..POS_AT + POS_BYTES)?.try_into().ok()?;
+        Some(pos_derivs(c, tau_of(s, centre, shift), shift, constant))
+    }
+}
