@@ -46,6 +46,7 @@ pub mod plan;
 pub mod program;
 pub mod sampling;
 pub mod stream;
+pub mod stream_hold;
 
 pub use feed_override::{OverrideContext, OverrideOutcome};
 pub use geometry::{builtin, ArcLength, CurveError, Nurbs};

@@ -48,6 +48,7 @@ pub mod run;
 pub mod scenario;
 pub mod servo;
 pub mod steps;
+pub mod stream;
 
 pub use check::{check_trajectory, CheckConfig, CheckReport, Trajectory};
 pub use geometry::CurveGeometry;

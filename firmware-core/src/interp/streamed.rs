@@ -16,6 +16,7 @@
 //! Override levels are a table's: a streamed plan has none (a new feed is
 //! a replanned stretch, spliced in as new chunks).
 
+use crate::feed_hold::{HoldError, HoldState};
 use crate::feed_override::queue::Overrides;
 use crate::interp::end_segments::SegConsts;
 use crate::interp::interpolator::{Interpolator, Phase, PlanHead};
@@ -50,6 +51,22 @@ pub struct StreamHead {
     pub last_pos_mm: [f64; 3],
     /// u at s = L.
     pub last_u: f64,
+}
+
+/// How the stream keeps up with the motion ([`Interpolator::keep_fed`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum Feeding {
+    /// The rows held reach past the motion's hold point.
+    Fed,
+    /// The motion reached the hold point of the last chunk held without
+    /// the next one: a feed hold was pressed now.
+    Starving,
+    /// Stopping or at rest for want of chunks.
+    Starved,
+    /// New chunks came while starved: the hold was released (resume).
+    Resumed,
 }
 
 /// Why the stop segment was refused (nothing changed).
@@ -112,6 +129,38 @@ impl<'a, const Q: usize, const W: usize, const NQ: usize, const NP: usize>
             self.stop_at = self.len_fx;
         }
         Ok(())
+    }
+
+    /// Call between ticks, after pushing what arrived: presses a feed hold
+    /// when the motion has reached the hold point of the last chunk held
+    /// (the chunk's s_c: a hold pressed there stops inside the rows held,
+    /// within every limit) and the next chunk is not there, and resumes
+    /// such a hold once it is. A hold pressed by the operator is left
+    /// alone: [`Interpolator::resume`] releases it.
+    pub fn keep_fed(&mut self) -> Result<Feeding, HoldError> {
+        let w = &self.views;
+        if let Some(end) = w.starved {
+            if w.held_end() == end {
+                return Ok(Feeding::Starved);
+            }
+            self.views.starved = None;
+            self.resume()?;
+            return Ok(Feeding::Resumed);
+        }
+        let running = self.hold_state() == HoldState::Running;
+        if running && self.s >= w.hold_point() && !matches!(self.phase, Phase::Done) {
+            let end = w.held_end();
+            self.hold()?;
+            self.views.starved = Some(end);
+            return Ok(Feeding::Starving);
+        }
+        Ok(Feeding::Fed)
+    }
+
+    /// The window cut back to the chunks ending at `s_end` (Q40 mm,
+    /// [`PlanWindow::truncate`]): for a host's dry run of a starved stream.
+    pub fn truncate_window(&mut self, s_end: i64) -> bool {
+        self.views.truncate(s_end)
     }
 
     /// Free the rows behind the tick's q span and piece.

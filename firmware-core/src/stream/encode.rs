@@ -5,7 +5,7 @@
 use crate::servo_forms::fixed::to_fx;
 use crate::servo_forms::piece::{PIECE_F64_LEN, PIECE_HEAD_LEN, POS_COEFFS};
 use crate::stream::chunk::{predict_b0, predict_bm, predict_centre, Chunk, PieceForm};
-use crate::stream::error::ChunkEncodeError;
+use crate::stream::error::{ChunkEncodeError, ChunkError};
 use crate::stream::layout::{
     field, flags, q_flags, COMMIT_FRAC, CRC_LEN, HEADER_LEN, MAGIC, Q_EXTRA_CTRL, Q_EXTRA_KNOTS, VERSION,
 };
@@ -211,4 +211,20 @@ pub fn commit_q20(mm: f64) -> u32 {
     } else {
         0
     }
+}
+
+/// Rewrite the hold point of an encoded chunk: its commit field (s_b − s_c,
+/// Q20 mm) and its CRC; the chunk is parsed before and after, so a chunk
+/// that does not parse is refused and nothing is written.
+pub fn set_commit(chunk: &mut [u8], commit: u32) -> Result<(), ChunkError> {
+    Chunk::parse(chunk)?;
+    let body = chunk.len() - CRC_LEN;
+    if let Some(f) = chunk.get_mut(field::COMMIT..field::COMMIT + 4) {
+        f.copy_from_slice(&commit.to_le_bytes());
+    }
+    let crc = crc32(chunk.get(..body).unwrap_or(&[]));
+    if let Some(f) = chunk.get_mut(body..) {
+        f.copy_from_slice(&crc.to_le_bytes());
+    }
+    Chunk::parse(chunk).map(|_| ())
 }

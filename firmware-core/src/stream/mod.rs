@@ -115,7 +115,7 @@ pub(crate) mod varint;
 pub(crate) mod window;
 
 pub use self::chunk::{Chunk, ChunkInfo, PieceForm, Pieces, QSpanForm, QSpans};
-pub use self::encode::{commit_q20, encode_chunk, ChunkHead, Stretch};
+pub use self::encode::{commit_q20, encode_chunk, set_commit, ChunkHead, Stretch};
 pub use self::error::{ChunkEncodeError, ChunkError, Malformed, StreamError};
 pub use self::frame::{Frame, FrameDecoder, FrameError};
 pub use self::ring::{ChunkRing, PushOk, DEFAULT_SLOTS};

@@ -172,6 +172,12 @@ pub struct PlanWindow<const NQ: usize, const NP: usize> {
     /// Next knot span expected (first span of the next chunk, or the
     /// repeat of the last one held).
     next_span: u32,
+    /// The hold point s_c of the last chunk held (Q40 mm; `i64::MAX` once
+    /// the plan's last chunk is in): a hold pressed at s ≥ s_c still stops
+    /// inside the rows held.
+    hold_at: i64,
+    /// A hold pressed for want of chunks, and the end of the rows held then.
+    pub(crate) starved: Option<i64>,
 }
 
 impl<const NQ: usize, const NP: usize> Default for PlanWindow<NQ, NP> {
@@ -195,6 +201,8 @@ impl<const NQ: usize, const NP: usize> PlanWindow<NQ, NP> {
             plan_id: None,
             held_end: 0,
             next_span: 3,
+            hold_at: i64::MIN,
+            starved: None,
         }
     }
 
@@ -223,6 +231,20 @@ impl<const NQ: usize, const NP: usize> PlanWindow<NQ, NP> {
     /// End of the rows held, Q40 mm (0 when empty): the tick cannot pass it.
     pub fn held_end(&self) -> i64 {
         self.held_end
+    }
+
+    /// The hold point s_c of the last chunk held, Q40 mm (`i64::MAX` once
+    /// the plan's last chunk is held; `i64::MIN` when empty): the motion
+    /// must not pass it without the next chunk ([`crate::interp::Feeding`]).
+    pub fn hold_point(&self) -> i64 {
+        self.hold_at
+    }
+
+    /// Whether the motion may start on the rows held: the plan's last chunk
+    /// is in, or the last chunk's hold point lies ahead of the start (a hold
+    /// pressed there, for want of the next chunk, still stops in time).
+    pub fn ready(&self) -> bool {
+        self.has_last() || self.hold_at > 0
     }
 
     /// `true` once the plan's last chunk is held (the path's end is in the
@@ -333,11 +355,56 @@ impl<const NQ: usize, const NP: usize> PlanWindow<NQ, NP> {
         self.held_end = info.s_b;
         self.plan_id = Some(info.plan_id);
         self.next_span = info.first_span.wrapping_add(u32::from(info.n_q));
+        self.hold_at = if info.is_last() {
+            i64::MAX
+        } else {
+            info.commit_point()
+        };
         if info.is_last() {
             self.q_last = (self.q_lo + self.q_n).saturating_sub(1);
             self.p_last = (self.p_lo + self.p_n).saturating_sub(1);
         }
         Ok(())
+    }
+
+    /// The window as it would be had no chunk after the one ending at
+    /// `s_end` (Q40 mm) come: the pieces after it and the q spans starting
+    /// at or after it dropped, the plan's end unknown again, the hold point
+    /// cleared. For a host's dry run of the firmware (where a hold must be
+    /// pressed to stop inside the chunks held); `s_end` not a held piece
+    /// end: nothing changes and `false`.
+    pub fn truncate(&mut self, s_end: i64) -> bool {
+        let mut keep_p = None;
+        for k in 0..self.p_n {
+            if let Some(r) = self.prow(self.p_lo + k) {
+                if to_fx(r.end) == s_end {
+                    keep_p = Some(k + 1);
+                    break;
+                }
+            }
+        }
+        let Some(np) = keep_p else {
+            return false;
+        };
+        let mut nq = self.q_n;
+        while nq > 0
+            && self
+                .qrow(self.q_lo + nq - 1)
+                .is_some_and(|r| to_fx(r.start) >= s_end)
+        {
+            nq -= 1;
+        }
+        if np < self.p_n || nq < self.q_n || self.has_last() {
+            self.p_n = np;
+            self.q_n = nq;
+            self.held_end = s_end;
+            // (the next chunk repeats the span holding s_end)
+            self.next_span = u32::try_from(self.q_lo + nq + 3).unwrap_or(u32::MAX);
+            self.q_last = usize::MAX;
+            self.p_last = usize::MAX;
+            self.hold_at = i64::MIN;
+        }
+        true
     }
 
     /// Free the q spans before global index `q` and the pieces before `p`

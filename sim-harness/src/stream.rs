@@ -1,0 +1,261 @@
+//! A streamed run: the plan's chunks sent over a simulated serial link into
+//! the firmware's bounded chunk ring, decoded into its plan window as room
+//! frees, and ticked by the streamed interpolator — the firmware's own
+//! code, tick by tick, with the link's bandwidth, latency, credits and
+//! stalls in the timeline.
+//!
+//! Timeline (one step per servo tick, t = k·T from the host's start):
+//!
+//! - **Host**: sends the next chunk, framed (COBS, `firmware_core::stream::frame`
+//!   sizes), when the link is idle and the firmware's last reported ring
+//!   space, less what was sent since, has room for it (credits); the frame
+//!   occupies the link for its bytes at the link's rate, arrives one latency
+//!   later. During a stall the link carries nothing.
+//! - **Firmware**, each tick: every arrived chunk is pushed into the ring
+//!   ([`ChunkRing::push`]: CRC, order, continuity), the ring's oldest chunks
+//!   move into the plan window as it has room ([`Interpolator::push_chunk`]),
+//!   the rows passed are freed, [`Interpolator::keep_fed`] presses a hold
+//!   when the motion reaches the last chunk's hold point without the next
+//!   one (and releases it when the chunk comes), then the tick. The ring's
+//!   free space goes back to the host one latency later.
+//!
+//! Motion starts when the first chunk is in the window; the setpoints'
+//! times are the firmware's own clock from then on.
+
+use firmware_core::interp::{Feeding, Interpolator};
+use firmware_core::stream::frame::encoded_max_len;
+use firmware_core::stream::{ChunkRing, PlanWindow};
+use firmware_core::{Setpoint, Table};
+use planner_host::stream_hold::stream_head;
+
+/// The link and the firmware's buffers.
+#[derive(Clone, Debug, PartialEq)]
+pub struct StreamLink {
+    /// Payload rate, bytes/s (a UART at B baud, 8N1: B/10).
+    pub bytes_per_s: f64,
+    /// One-way latency, s (both directions).
+    pub latency_s: f64,
+    /// The link carries nothing over these (start, duration) intervals, s.
+    pub stalls: Vec<(f64, f64)>,
+    /// Servo period, s.
+    pub period_s: f64,
+}
+
+/// What a streamed run measured.
+#[derive(Clone, Debug, PartialEq)]
+pub struct StreamRun {
+    /// The setpoints (time from the start of motion).
+    pub setpoints: Vec<Setpoint>,
+    /// When the first chunk was in the window (motion starts), s after the
+    /// host began sending.
+    pub first_motion_s: f64,
+    /// Ticks stopping or held for want of chunks.
+    pub starved_ticks: u64,
+    /// Holds pressed for want of chunks.
+    pub starvations: u64,
+    /// Most bytes of chunks in the ring at once.
+    pub ring_peak_bytes: usize,
+    /// Most pieces in the plan window at once.
+    pub window_peak_pieces: usize,
+    /// Chunks and framed bytes sent.
+    pub chunks: usize,
+    /// Framed bytes sent.
+    pub framed_bytes: usize,
+    /// The largest s reached while each starvation hold was on, and the end
+    /// of the rows held then (mm): the motion never passes the rows.
+    pub starved_reach_mm: Vec<(f64, f64)>,
+}
+
+/// Why a streamed run stopped.
+#[derive(Debug, thiserror::Error, PartialEq)]
+#[non_exhaustive]
+pub enum StreamRunError {
+    /// The table has no start or end point.
+    #[error("the table has no start or end point")]
+    Head,
+    /// The ring refused a chunk (the host sends in order and within credits).
+    #[error("chunk {index} refused by the ring: {message}")]
+    Ring {
+        /// Which chunk.
+        index: usize,
+        /// Why.
+        message: String,
+    },
+    /// The plan window refused a chunk.
+    #[error("chunk {index} refused by the plan window: {message}")]
+    Window {
+        /// Which chunk.
+        index: usize,
+        /// Why.
+        message: String,
+    },
+    /// The firmware faulted.
+    #[error("fault at tick {tick}: {message}")]
+    Fault {
+        /// Tick.
+        tick: u64,
+        /// What.
+        message: String,
+    },
+    /// The motion did not end in time.
+    #[error("no end after {0} ticks")]
+    TooLong(u64),
+}
+
+/// Stream `chunks` (the plan of `table`, hold points set) through `link`
+/// into a ring of `CAP` bytes and a window of `NQ` q spans and `NP` pieces.
+pub fn run_stream<const CAP: usize, const NQ: usize, const NP: usize>(
+    table: &Table,
+    chunks: &[Vec<u8>],
+    link: &StreamLink,
+) -> Result<StreamRun, StreamRunError> {
+    let head = stream_head(table).ok_or(StreamRunError::Head)?;
+    let framed: Vec<usize> = chunks.iter().map(|c| encoded_max_len(c.len()) + 1).collect();
+    let n = chunks.len();
+    let mut ring: Box<ChunkRing<CAP, 64>> = Box::default();
+    // host: chunks sent (arrival time, index), FIFO; the link busy until
+    // `link_free_at`; the ring space reports (seen by the host at, free)
+    let mut sent: Vec<(f64, usize)> = Vec::with_capacity(n);
+    let mut arrived = 0usize;
+    let mut link_free_at = 0.0f64;
+    let mut reports: std::collections::VecDeque<(f64, usize)> = [(0.0, CAP)].into();
+    let mut counted = 0usize; // sent chunks a report had seen arrive
+                              // firmware
+    let mut ip: Option<Interpolator<'static, 0, 0, PlanWindow<NQ, NP>>> = None;
+    let mut window = PlanWindow::<NQ, NP>::new();
+    let mut pushed = 0usize;
+    let mut run = StreamRun {
+        setpoints: vec![],
+        first_motion_s: f64::NAN,
+        starved_ticks: 0,
+        starvations: 0,
+        ring_peak_bytes: 0,
+        window_peak_pieces: 0,
+        chunks: n,
+        framed_bytes: framed.iter().sum(),
+        starved_reach_mm: vec![],
+    };
+    let mut stop_set = false;
+    let mut ring_bytes = 0usize;
+    // (the largest s while starved, the end of the rows held then)
+    let mut starve: Option<(f64, i64)> = None;
+    let fx = |x: i64| x as f64 / (1u64 << 40) as f64;
+    let stalled = |t: f64| link.stalls.iter().any(|&(a, d)| t >= a && t < a + d);
+    let limit = 50_000_000u64;
+    for k in 0..limit {
+        let t = k as f64 * link.period_s;
+        // host: the latest report it has seen, and what it had not counted
+        while reports.len() > 1 && reports[1].0 <= t {
+            reports.pop_front();
+        }
+        let (seen, free) = reports[0];
+        let generated = seen - link.latency_s;
+        while counted < sent.len() && sent[counted].0 <= generated {
+            counted += 1;
+        }
+        let pending: usize = sent[counted..].iter().map(|&(_, i)| chunks[i].len()).sum();
+        let next = sent.len();
+        if next < n && link_free_at <= t && !stalled(t) && free.saturating_sub(pending) >= chunks[next].len()
+        {
+            let mut end = t + framed[next] as f64 / link.bytes_per_s;
+            // a stall starting during the frame holds it up
+            for &(a, d) in &link.stalls {
+                if a >= t && a < end {
+                    end += d;
+                }
+            }
+            link_free_at = end;
+            sent.push((end + link.latency_s, next));
+        }
+        // firmware: arrivals into the ring
+        let mut changed = false;
+        while arrived < sent.len() && sent[arrived].0 <= t {
+            let i = sent[arrived].1;
+            ring.push(&chunks[i]).map_err(|e| StreamRunError::Ring {
+                index: i,
+                message: e.to_string(),
+            })?;
+            ring_bytes += chunks[i].len();
+            arrived += 1;
+            changed = true;
+        }
+        run.ring_peak_bytes = run.ring_peak_bytes.max(ring_bytes);
+        // ring → window, as it has room
+        while let Some(c) = ring.get(0) {
+            let info = *c.info();
+            let fits = match &ip {
+                Some(ip) => ip.window().fits(&c),
+                None => window.fits(&c),
+            };
+            if !fits {
+                break;
+            }
+            let r = match &mut ip {
+                Some(ip) => ip.push_chunk(&c),
+                None => window.push(&c),
+            };
+            r.map_err(|e| StreamRunError::Window {
+                index: pushed,
+                message: e.to_string(),
+            })?;
+            ring.release_through(info.s_b);
+            ring_bytes -= info.len;
+            pushed += 1;
+            changed = true;
+            if ip.is_none() && window.ready() {
+                let w = std::mem::take(&mut window);
+                ip = Some(Interpolator::streamed(&head, w, link.period_s).map_err(|e| {
+                    StreamRunError::Fault {
+                        tick: 0,
+                        message: format!("{e:?}"),
+                    }
+                })?);
+                run.first_motion_s = t;
+            }
+        }
+        if changed {
+            reports.push_back((t + link.latency_s, ring.free()));
+        }
+        let Some(ipr) = ip.as_mut() else { continue };
+        if pushed == n && !stop_set {
+            if let Some(e) = table.ends() {
+                ipr.set_stop(&e).map_err(|e| StreamRunError::Fault {
+                    tick: ipr.ticks(),
+                    message: format!("stop segment refused: {e:?}"),
+                })?;
+            }
+            stop_set = true;
+        }
+        ipr.release_passed();
+        run.window_peak_pieces = run.window_peak_pieces.max(ipr.window().held().1);
+        match ipr.keep_fed() {
+            Ok(Feeding::Starving) => {
+                run.starvations += 1;
+                run.starved_ticks += 1;
+                starve = Some((ipr.s_mm(), ipr.window().held_end()));
+            }
+            Ok(Feeding::Starved) => run.starved_ticks += 1,
+            Ok(Feeding::Resumed) => {
+                if let Some((reach, end)) = starve.take() {
+                    run.starved_reach_mm.push((reach, fx(end)));
+                }
+            }
+            _ => {}
+        }
+        let sp = ipr.tick().map_err(|f| StreamRunError::Fault {
+            tick: ipr.ticks(),
+            message: format!("{f:?}"),
+        })?;
+        if let Some((reach, _)) = starve.as_mut() {
+            *reach = reach.max(sp.s_mm);
+        }
+        run.setpoints.push(sp);
+        if ipr.is_done() {
+            if let Some((reach, end)) = starve.take() {
+                run.starved_reach_mm.push((reach, fx(end)));
+            }
+            return Ok(run);
+        }
+    }
+    Err(StreamRunError::TooLong(limit))
+}

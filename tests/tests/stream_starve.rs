@@ -1,0 +1,164 @@
+//! A streamed plan over a simulated serial link (`sim_harness::stream`):
+//! with the link keeping up, the streamed run equals the whole table's run
+//! bit for bit; when the link stalls mid-path, the firmware presses a feed
+//! hold at the last chunk's hold point, comes to rest inside the chunks it
+//! holds (never past them), within every limit on the setpoints (the
+//! project's checker, 50 ticks at rest before and after), and resumes when
+//! the chunks come again, finishing the path.
+
+use firmware_core::{Interpolator, Setpoint, Table};
+use planner_host::plan::{plan_curve, PlanConfig};
+use planner_host::stream::{chunk_table, ChunkOptions};
+use planner_host::stream_hold::{set_hold_points, HoldSearch};
+use sim_harness::stream::{run_stream, StreamLink, StreamRun};
+
+const T: f64 = 250e-6;
+/// Ring bytes, window q spans and pieces (the feed hold from the plan's
+/// start needs ~200 mm of the Butterfly's rows ahead: its whole 1,763
+/// pieces fit).
+const CAP: usize = 64 * 1024;
+const NQ: usize = 1024;
+const NP: usize = 2048;
+/// The checker's tolerance on every ratio.
+const TOL: f64 = 0.01;
+
+struct Planned {
+    bytes: Vec<u8>,
+    chunks: Vec<Vec<u8>>,
+}
+
+fn planned(name: &str) -> Planned {
+    let curve = planner_host::builtin::by_name(name).unwrap().unwrap();
+    let out = plan_curve(&curve, &PlanConfig::default()).unwrap();
+    let table = Table::parse(&out.table_bytes).unwrap();
+    let opts = ChunkOptions {
+        chunk_mm: 8.0,
+        u_form: true,
+        ..ChunkOptions::default()
+    };
+    let mut chunks = chunk_table(&table, &opts).unwrap();
+    let hp = set_hold_points::<NQ, NP>(&table, &mut chunks, &HoldSearch::default()).unwrap();
+    let lead = hp.lead_mm.iter().copied().fold(0.0, f64::max);
+    println!(
+        "{name}: {} chunks, {} hold tests, longest lead s_b − s_c {lead:.1} mm",
+        chunks.len(),
+        hp.tests
+    );
+    Planned {
+        bytes: out.table_bytes,
+        chunks,
+    }
+}
+
+fn link(baud: f64, stalls: Vec<(f64, f64)>) -> StreamLink {
+    StreamLink {
+        bytes_per_s: baud / 10.0,
+        latency_s: 0.005,
+        stalls,
+        period_s: T,
+    }
+}
+
+fn check(table: &Table, sp: &[Setpoint]) -> sim_harness::CheckReport {
+    let curve = sim_harness::CurveGeometry::from_table(table).unwrap().curve;
+    let cfg = sim_harness::CheckConfig {
+        limits: table.limits(),
+        pad_rest: 50,
+        tol: TOL,
+        ..Default::default()
+    };
+    let traj = sim_harness::Trajectory {
+        t_s: sp.iter().map(|p| p.t_s).collect(),
+        pos_mm: sp.iter().map(|p| p.pos_mm).collect(),
+    };
+    sim_harness::check_trajectory(&curve, &traj, &cfg).unwrap()
+}
+
+fn bits(sp: &Setpoint) -> [u64; 6] {
+    [
+        sp.t_s.to_bits(),
+        sp.s_mm.to_bits(),
+        sp.feed_mm_s.to_bits(),
+        sp.pos_mm[0].to_bits(),
+        sp.pos_mm[1].to_bits(),
+        sp.pos_mm[2].to_bits(),
+    ]
+}
+
+/// Runs `f` on a thread with room for the windows on its stack.
+fn big_stack(f: impl FnOnce() + Send + 'static) {
+    std::thread::Builder::new()
+        .stack_size(256 << 20)
+        .spawn(f)
+        .unwrap()
+        .join()
+        .unwrap();
+}
+
+#[test]
+fn a_link_that_keeps_up_streams_the_table_run_bit_for_bit() {
+    big_stack(link_that_keeps_up);
+}
+
+fn link_that_keeps_up() {
+    let p = planned("butterfly");
+    let table = Table::parse(&p.bytes).unwrap();
+    let run: StreamRun = run_stream::<CAP, NQ, NP>(&table, &p.chunks, &link(20e6, vec![])).unwrap();
+    assert_eq!(run.starvations, 0);
+    let mut ip = Interpolator::new(table, T).unwrap();
+    let mut n = 0;
+    while !ip.is_done() {
+        let a = ip.tick().unwrap();
+        assert_eq!(bits(&a), bits(&run.setpoints[n]), "setpoint {n}");
+        n += 1;
+    }
+    assert_eq!(n, run.setpoints.len());
+    println!(
+        "first motion {:.1} ms, ring peak {} B, window peak {} pieces",
+        run.first_motion_s * 1e3,
+        run.ring_peak_bytes,
+        run.window_peak_pieces
+    );
+}
+
+#[test]
+fn a_stalled_link_stops_inside_the_chunks_held_and_resumes_within_the_limits() {
+    big_stack(stalled_link);
+}
+
+fn stalled_link() {
+    let p = planned("butterfly");
+    let table = Table::parse(&p.bytes).unwrap();
+    let whole = table.predicted_time_s();
+    // 230,400 baud: the stream (~80 kB) takes longer than the motion;
+    // stalls at 1.0 s (for 1.5 s) and at 4.0 s (for 0.2 s).
+    let run =
+        run_stream::<CAP, NQ, NP>(&table, &p.chunks, &link(230_400.0, vec![(1.0, 1.5), (4.0, 0.2)])).unwrap();
+    assert!(run.starvations >= 1, "the stall starved nothing");
+    for &(reach, end) in &run.starved_reach_mm {
+        assert!(
+            reach <= end,
+            "motion reached {reach} mm past the rows held ({end} mm)"
+        );
+    }
+    let last = run.setpoints.last().unwrap();
+    assert_eq!(last.s_mm, table.path_length_mm());
+    let steps = run.setpoints.windows(2).map(|w| {
+        let d = (0..3)
+            .map(|a| (w[1].pos_mm[a] - w[0].pos_mm[a]).powi(2))
+            .sum::<f64>();
+        d.sqrt()
+    });
+    let most = steps.fold(0.0, f64::max);
+    assert!(
+        most <= table.limits().vbar * T * (1.0 + TOL),
+        "a step of {most} mm"
+    );
+    let rep = check(&table, &run.setpoints);
+    print!("{}", rep.text());
+    assert!(rep.ok, "{}", rep.text());
+    println!(
+        "{} starvations, {} ticks starved; machining {:.3} s against {whole:.3} s unstarved; reach/end {:?}",
+        run.starvations, run.starved_ticks, last.t_s, run.starved_reach_mm
+    );
+}
