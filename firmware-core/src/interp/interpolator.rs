@@ -3,11 +3,11 @@
 
 use crate::feed_override::queue::{span_of, Now, Overrides};
 use crate::feed_override::{Accepted, OverrideError, OverrideProfile};
-use crate::interp::cursor::{q_state_at, PCur, QCur, QState, Views};
+use crate::interp::cursor::{PCur, QCur, QState, Views};
 use crate::interp::end_segments::{SegConsts, SegRun};
 use crate::interp::hold_run::HoldRun;
 use crate::interp::level_run::LevelRun;
-use crate::interp::rows::{PlanRows, Rows};
+use crate::interp::rows::{q_state_at, PlanRows, Rows};
 use crate::interp::setpoint::{Fault, InterpError, Setpoint};
 use crate::limits::{EndSegments, Limits};
 use crate::log;
