@@ -259,3 +259,249 @@ pub fn run_stream<const CAP: usize, const NQ: usize, const NP: usize>(
     }
     Err(StreamRunError::TooLong(limit))
 }
+
+/// How `feedsim stream` plans and streams a curve.
+#[derive(Clone, Debug, PartialEq)]
+pub struct StreamOptions {
+    /// Link payload rate, baud (8N1: baud/10 bytes/s).
+    pub baud: f64,
+    /// One-way latency, s.
+    pub latency_s: f64,
+    /// The firmware's chunk ring, bytes: 4096, 8192, … 1,048,576 (a power of two).
+    pub ring_bytes: usize,
+    /// Chunk length, mm (chunks are also halved until four fit the ring).
+    pub chunk_mm: f64,
+    /// Plan in windows of this much path, committing that much (mm).
+    pub windows: Option<(f64, f64)>,
+    /// Link stalls (start, duration), s.
+    pub stalls: Vec<(f64, f64)>,
+    /// Servo period, s.
+    pub period_s: f64,
+    /// The checker's tolerance on every ratio.
+    pub tol: f64,
+}
+
+impl Default for StreamOptions {
+    fn default() -> Self {
+        StreamOptions {
+            baud: 2_000_000.0,
+            latency_s: 0.005,
+            ring_bytes: 16384,
+            chunk_mm: 8.0,
+            windows: None,
+            stalls: vec![],
+            period_s: 250e-6,
+            tol: 0.01,
+        }
+    }
+}
+
+/// The window of the simulated firmware: q spans, pieces (a host's; an
+/// MCU holds far fewer).
+pub const SIM_WINDOW_Q: usize = 2048;
+/// Pieces of the simulated firmware's window.
+pub const SIM_WINDOW_P: usize = 4096;
+
+/// What `feedsim stream` measured (`--json`).
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct StreamReport {
+    /// Schema of this object.
+    pub schema_version: u32,
+    /// Path length, mm.
+    pub length_mm: f64,
+    /// Planning wall time (the whole plan, before the first chunk), s.
+    pub plan_s: f64,
+    /// Windows planned (0: the whole path at once).
+    pub windows: usize,
+    /// Wall time of the hold-point search (the firmware's dry run), s.
+    pub hold_points_s: f64,
+    /// Planning, the hold points and the link until the motion starts, ms.
+    pub first_motion_ms: f64,
+    /// Machining time over planning time.
+    pub plan_realtime_factor: f64,
+    /// Chunks sent.
+    pub chunks: usize,
+    /// Framed bytes per mm of path.
+    pub bytes_per_mm: f64,
+    /// Link rate, baud.
+    pub link_baud: f64,
+    /// One-way latency, ms.
+    pub latency_ms: f64,
+    /// The ring's capacity, bytes.
+    pub ring_bytes: usize,
+    /// Most bytes in the ring at once.
+    pub ring_peak_bytes: usize,
+    /// The window's capacity in pieces, and the most held at once.
+    pub window_pieces: usize,
+    /// Most pieces held at once.
+    pub window_peak_pieces: usize,
+    /// Longest s_b − s_c of a chunk, mm (the rows a starvation hold needs).
+    pub hold_lead_max_mm: f64,
+    /// Holds pressed for want of chunks.
+    pub starvations: u64,
+    /// Ticks stopping or held for want of chunks.
+    pub starved_ticks: u64,
+    /// Time of the last setpoint, s.
+    pub machining_time_s: f64,
+    /// The plan's own time ∫ds/√q, s.
+    pub planned_time_s: f64,
+    /// Largest ratio to each limit on the setpoints (50 ticks at rest padding).
+    pub ratios: StreamRatios,
+    /// Every ratio within 1 + tol, contour and end points within tolerance.
+    pub check_ok: bool,
+}
+
+/// Largest ratios to the limits on the streamed setpoints.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct StreamRatios {
+    /// Axis velocity.
+    pub vel: f64,
+    /// Axis acceleration.
+    pub acc: f64,
+    /// Axis jerk.
+    pub jerk: f64,
+    /// Path velocity.
+    pub feed: f64,
+    /// Path acceleration.
+    pub tacc: f64,
+    /// Path jerk.
+    pub tjerk: f64,
+}
+
+/// Why `feedsim stream` failed.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum StreamError {
+    /// The ring size is not one the simulation has.
+    #[error("--ring-bytes {0}: use a power of two from 4096 to 1048576")]
+    RingBytes(usize),
+    /// Link rate, latency, chunk length or period unusable.
+    #[error("{0}")]
+    Option(String),
+    /// Planning failed.
+    #[error(transparent)]
+    Plan(#[from] planner_host::PlanError),
+    /// The table did not parse (cannot happen for the planner's own).
+    #[error("table: {0}")]
+    Table(String),
+    /// Cutting into chunks failed.
+    #[error(transparent)]
+    Chunks(#[from] planner_host::stream::ChunkTableError),
+    /// The hold-point search failed.
+    #[error(transparent)]
+    HoldPoints(#[from] planner_host::stream_hold::HoldPointError),
+    /// The run failed.
+    #[error(transparent)]
+    Run(#[from] StreamRunError),
+    /// The checker could not check the setpoints.
+    #[error("check: {0}")]
+    Check(String),
+}
+
+/// Plan `curve`, cut the plan into chunks, find their hold points, stream
+/// them through the simulated link into the firmware and check the
+/// setpoints (see the module docs).
+pub fn stream_curve(curve: &planner_host::Nurbs, o: &StreamOptions) -> Result<StreamReport, StreamError> {
+    use planner_host::plan::{plan_curve, PlanConfig, WindowConfig};
+    use planner_host::stream::{chunk_table, ChunkOptions};
+    use planner_host::stream_hold::{set_hold_points, HoldSearch};
+    if !(o.baud > 0.0 && o.latency_s >= 0.0 && o.chunk_mm > 0.0 && o.period_s > 0.0) {
+        return Err(StreamError::Option(format!(
+            "link {} baud, latency {} s, chunk {} mm, period {} s: all must be positive",
+            o.baud, o.latency_s, o.chunk_mm, o.period_s
+        )));
+    }
+    if !o.ring_bytes.is_power_of_two() || !(4096..=1 << 20).contains(&o.ring_bytes) {
+        return Err(StreamError::RingBytes(o.ring_bytes));
+    }
+    let mut cfg = PlanConfig {
+        servo_period_s: o.period_s,
+        ..PlanConfig::default()
+    };
+    if let Some((window_mm, commit_mm)) = o.windows {
+        cfg.windows = Some(WindowConfig { window_mm, commit_mm });
+    }
+    let t0 = std::time::Instant::now();
+    let out = plan_curve(curve, &cfg)?;
+    let plan_s = t0.elapsed().as_secs_f64();
+    let table = Table::parse(&out.table_bytes).map_err(|e| StreamError::Table(e.to_string()))?;
+    let opts = ChunkOptions {
+        chunk_mm: o.chunk_mm,
+        u_form: true,
+        max_chunk_bytes: Some(o.ring_bytes / 4),
+        ..ChunkOptions::default()
+    };
+    let mut chunks = chunk_table(&table, &opts)?;
+    let t1 = std::time::Instant::now();
+    let how = HoldSearch {
+        period_s: o.period_s,
+        ..HoldSearch::default()
+    };
+    let hp = set_hold_points::<SIM_WINDOW_Q, SIM_WINDOW_P>(&table, &mut chunks, &how)?;
+    let hold_points_s = t1.elapsed().as_secs_f64();
+    let link = StreamLink {
+        bytes_per_s: o.baud / 10.0,
+        latency_s: o.latency_s,
+        stalls: o.stalls.clone(),
+        period_s: o.period_s,
+    };
+    const Q: usize = SIM_WINDOW_Q;
+    const P: usize = SIM_WINDOW_P;
+    let run = match o.ring_bytes {
+        4096 => run_stream::<4096, Q, P>(&table, &chunks, &link),
+        8192 => run_stream::<8192, Q, P>(&table, &chunks, &link),
+        16384 => run_stream::<16384, Q, P>(&table, &chunks, &link),
+        32768 => run_stream::<32768, Q, P>(&table, &chunks, &link),
+        65536 => run_stream::<65536, Q, P>(&table, &chunks, &link),
+        131072 => run_stream::<131072, Q, P>(&table, &chunks, &link),
+        262144 => run_stream::<262144, Q, P>(&table, &chunks, &link),
+        524288 => run_stream::<524288, Q, P>(&table, &chunks, &link),
+        _ => run_stream::<1048576, Q, P>(&table, &chunks, &link),
+    }?;
+    let geometry = crate::CurveGeometry::from_table(&table).map_err(|e| StreamError::Table(e.to_string()))?;
+    let check = crate::CheckConfig {
+        limits: table.limits(),
+        pad_rest: 50,
+        tol: o.tol,
+        ..Default::default()
+    };
+    let traj = crate::Trajectory {
+        t_s: run.setpoints.iter().map(|p| p.t_s).collect(),
+        pos_mm: run.setpoints.iter().map(|p| p.pos_mm).collect(),
+    };
+    let rep = crate::check_trajectory(&geometry.curve, &traj, &check)
+        .map_err(|e| StreamError::Check(e.to_string()))?;
+    let machining_time_s = run.setpoints.last().map_or(0.0, |p| p.t_s);
+    let r = &rep.ratios;
+    Ok(StreamReport {
+        schema_version: 1,
+        length_mm: table.path_length_mm(),
+        plan_s,
+        windows: out.windows.as_ref().map_or(0, |w| w.windows),
+        hold_points_s,
+        first_motion_ms: (plan_s + hold_points_s + run.first_motion_s) * 1e3,
+        plan_realtime_factor: machining_time_s / plan_s,
+        chunks: run.chunks,
+        bytes_per_mm: run.framed_bytes as f64 / table.path_length_mm(),
+        link_baud: o.baud,
+        latency_ms: o.latency_s * 1e3,
+        ring_bytes: o.ring_bytes,
+        ring_peak_bytes: run.ring_peak_bytes,
+        window_pieces: SIM_WINDOW_P,
+        window_peak_pieces: run.window_peak_pieces,
+        hold_lead_max_mm: hp.lead_mm.iter().copied().fold(0.0, f64::max),
+        starvations: run.starvations,
+        starved_ticks: run.starved_ticks,
+        machining_time_s,
+        planned_time_s: table.predicted_time_s(),
+        ratios: StreamRatios {
+            vel: r.vel.ratio,
+            acc: r.acc.ratio,
+            jerk: r.jerk.ratio,
+            feed: r.feed.ratio,
+            tacc: r.tacc.ratio,
+            tjerk: r.tjerk.ratio,
+        },
+        check_ok: rep.ok,
+    })
+}

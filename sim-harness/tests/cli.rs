@@ -293,3 +293,49 @@ fn help_documents_exit_codes_and_completions_are_generated() {
         Some(2)
     );
 }
+
+#[test]
+fn stream_reports_the_streamed_run_as_json_and_refuses_bad_options() {
+    let out = feedsim()
+        .args([
+            "stream",
+            "star",
+            "--link",
+            "uart:921600",
+            "--stall",
+            "1.0:0.5",
+            "--json",
+        ])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    for key in [
+        "first_motion_ms",
+        "plan_realtime_factor",
+        "bytes_per_mm",
+        "ring_bytes",
+        "starved_ticks",
+        "machining_time_s",
+    ] {
+        assert!(v[key].as_f64().is_some_and(|x| x >= 0.0), "{key}: {v}");
+    }
+    for key in ["vel", "acc", "jerk", "feed", "tacc", "tjerk"] {
+        let r = v["ratios"][key].as_f64().unwrap();
+        assert!(r > 0.0 && r <= 1.01, "ratio {key} {r}");
+    }
+    assert_eq!(v["check_ok"], true);
+    // the machining time is the plan's, plus what the stall's hold cost
+    assert!(v["machining_time_s"].as_f64().unwrap() >= v["planned_time_s"].as_f64().unwrap() - 1e-3);
+    for (args, what) in [
+        (&["stream", "star", "--link", "tcp:9"][..], "uart:BAUD"),
+        (&["stream", "star", "--ring-bytes", "10000"][..], "power of two"),
+        (&["stream", "star", "--stall", "soon"][..], "START:DURATION"),
+        (&["stream", "nowhere.json"][..], "nowhere"),
+    ] {
+        let out = feedsim().args(args).output().unwrap();
+        assert_eq!(out.status.code(), Some(3), "{args:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(what), "{args:?}: {err}");
+    }
+}

@@ -9,6 +9,8 @@
 //! feedsim demo [--out DIR]
 //! feedsim report [CURVES...] [--densities 0.25,0.5,1,2] [--out DIR] [--formulations paper,default] [--qhat-bound B] [--objective O]
 //! feedsim override [SCENARIOS...] [--latency-ms 5] [--out DIR]
+//! feedsim stream CURVE [--link uart:BAUD] [--latency-ms 5] [--ring-bytes 16384] [--chunk-mm 8]
+//!                      [--window-mm W --commit-mm C] [--stall T:D]... [--tol 0.01] [--json]
 //! feedsim completions SHELL
 //! ```
 
@@ -189,6 +191,48 @@ enum Cmd {
         /// Servo period, microseconds.
         #[arg(long, default_value_t = 250.0)]
         period_us: f64,
+    },
+    /// Stream a plan to the firmware over a simulated serial link: plan the curve (whole, or in
+    /// windows), cut the plan into checked chunks, find each chunk's hold point (where the
+    /// firmware, lacking the next chunk, presses a feed hold that still stops inside the chunks it
+    /// holds) by the firmware's own dry run, send the chunks framed over a link of that rate and
+    /// latency with credits from the firmware's ring, and run the firmware's streamed tick on
+    /// them; check the setpoints against every limit (50 ticks at rest before and after). Exit 5
+    /// if a limit is exceeded.
+    #[command(after_help = EXIT_CODES)]
+    Stream {
+        /// The toolpath: a JSON file, or a built-in curve: butterfly, circle, fan, star, trident.
+        curve: String,
+        /// The link: uart:BAUD (8N1, BAUD/10 bytes/s).
+        #[arg(long, default_value = "uart:2000000")]
+        link: String,
+        /// One-way link latency, milliseconds.
+        #[arg(long, default_value_t = 5.0)]
+        latency_ms: f64,
+        /// The firmware's chunk ring, bytes (a power of two, 4096 ..= 1048576).
+        #[arg(long, default_value_t = 16384)]
+        ring_bytes: usize,
+        /// Chunk length, mm (a chunk longer than a quarter of the ring is halved).
+        #[arg(long, default_value_t = 8.0)]
+        chunk_mm: f64,
+        /// Plan in windows of this much path (mm), with --commit-mm.
+        #[arg(long, requires = "commit_mm")]
+        window_mm: Option<f64>,
+        /// Path each window commits, mm.
+        #[arg(long, requires = "window_mm")]
+        commit_mm: Option<f64>,
+        /// A link stall: START:DURATION in seconds from the start of sending (repeatable).
+        #[arg(long)]
+        stall: Vec<String>,
+        /// Servo period, microseconds.
+        #[arg(long, default_value_t = 250.0)]
+        period_us: f64,
+        /// A ratio fails above 1 + TOL.
+        #[arg(long, default_value_t = 0.01)]
+        tol: f64,
+        /// Print one JSON object instead of the text summary.
+        #[arg(long)]
+        json: bool,
     },
     /// Print a shell completion script (bash, zsh, fish, elvish, powershell) to stdout.
     #[command(after_help = EXIT_CODES)]
@@ -560,6 +604,88 @@ fn run(cli: Cli) -> Result<(), Failure> {
             check_verdict(&rep)
         }
         Cmd::Demo { out } => demo(&out),
+        Cmd::Stream {
+            curve,
+            link,
+            latency_ms,
+            ring_bytes,
+            chunk_mm,
+            window_mm,
+            commit_mm,
+            stall,
+            period_us,
+            tol,
+            json,
+        } => {
+            check_period(period_us)?;
+            let baud = link
+                .strip_prefix("uart:")
+                .and_then(|b| b.parse::<f64>().ok())
+                .filter(|b| b.is_finite() && *b > 0.0)
+                .ok_or_else(|| {
+                    Failure::input(format!("--link {link}: expected uart:BAUD, e.g. uart:115200"))
+                })?;
+            let stalls = stall
+                .iter()
+                .map(|s| {
+                    let (a, d) = s.split_once(':')?;
+                    let (a, d) = (a.parse::<f64>().ok()?, d.parse::<f64>().ok()?);
+                    (a >= 0.0 && d > 0.0).then_some((a, d))
+                })
+                .collect::<Option<Vec<_>>>()
+                .ok_or_else(|| Failure::input("--stall: expected START:DURATION in seconds, e.g. 1.0:0.5"))?;
+            let nurbs = load_curve(&curve)?;
+            let opts = sim_harness::stream::StreamOptions {
+                baud,
+                latency_s: latency_ms * 1e-3,
+                ring_bytes,
+                chunk_mm,
+                windows: window_mm.zip(commit_mm),
+                stalls,
+                period_s: period_us * 1e-6,
+                tol,
+            };
+            use sim_harness::stream::StreamError as E;
+            let rep = sim_harness::stream::stream_curve(&nurbs, &opts).map_err(|e| match e {
+                E::Plan(p) => plan_failure(p),
+                e @ (E::RingBytes(_) | E::Option(_)) => Failure::input(e),
+                e => Failure::from(e.to_string()),
+            })?;
+            if json {
+                outln!("{}", serde_json::to_string(&rep)?);
+            } else {
+                let r = &rep.ratios;
+                outln!(
+                    "{}: {:.2} mm streamed in {} chunks, {:.1} bytes/mm framed, over uart:{} with {} ms latency",
+                    curve, rep.length_mm, rep.chunks, rep.bytes_per_mm, rep.link_baud, rep.latency_ms
+                );
+                outln!(
+                    "  planning {:.3} s ({} windows), hold points {:.3} s, first motion after {:.1} ms; machining {:.3} s ({:.0}x the planning time), the plan's own {:.3} s",
+                    rep.plan_s, rep.windows, rep.hold_points_s, rep.first_motion_ms, rep.machining_time_s, rep.plan_realtime_factor, rep.planned_time_s
+                );
+                outln!(
+                    "  ring {} B (peak {} B), window {} pieces (peak {}), longest hold lead {:.1} mm; {} starvation holds, {} ticks starved",
+                    rep.ring_bytes, rep.ring_peak_bytes, rep.window_pieces, rep.window_peak_pieces, rep.hold_lead_max_mm, rep.starvations, rep.starved_ticks
+                );
+                outln!(
+                    "  ratios: vel {:.4} acc {:.4} jerk {:.4} feed {:.4} tacc {:.4} tjerk {:.4}: {}",
+                    r.vel,
+                    r.acc,
+                    r.jerk,
+                    r.feed,
+                    r.tacc,
+                    r.tjerk,
+                    if rep.check_ok { "ok" } else { "over the limits" }
+                );
+            }
+            if rep.check_ok {
+                Ok(())
+            } else {
+                Err(Failure::limit(
+                    "a streamed setpoint exceeds a limit (see the ratios)",
+                ))
+            }
+        }
         Cmd::Override {
             scenarios,
             out,
