@@ -22,36 +22,15 @@ use crate::interp::end_segments::SegConsts;
 use crate::interp::interpolator::{Interpolator, Phase, PlanHead};
 use crate::interp::level_run::LevelRun;
 use crate::interp::setpoint::InterpError;
-use crate::limits::{EndSegments, Limits};
+use crate::limits::EndSegments;
 use crate::math::source::{LeF32, LeF64};
 use crate::servo_forms::fixed::to_fx;
 use crate::stream::chunk::Chunk;
+use crate::stream::head::StreamHead;
 use crate::stream::window::{PlanWindow, WindowError};
 
 #[cfg(doc)]
 use crate::interp::setpoint::Fault;
-
-/// What a streamed plan tells the interpolator besides its chunks.
-#[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct StreamHead {
-    /// Path length L, mm.
-    pub length_mm: f64,
-    /// Kinematic limits.
-    pub limits: Limits,
-    /// The start segment (its stop part is ignored: the stop comes with
-    /// the last chunk, [`Interpolator::set_stop`]); `None`: the plan has no
-    /// end segments.
-    pub ends: Option<EndSegments>,
-    /// Position (mm) and u at s = 0.
-    pub first_pos_mm: [f64; 3],
-    /// u at s = 0.
-    pub first_u: f64,
-    /// Position (mm) at s = L.
-    pub last_pos_mm: [f64; 3],
-    /// u at s = L.
-    pub last_u: f64,
-}
 
 /// How the stream keeps up with the motion ([`Interpolator::keep_fed`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -11,6 +11,8 @@
 //! | 0x02 | ACK  | u32 seq accepted, u32 free bytes (ring credit), |
 //! |      |      | u32 CRC-32 of kind and both fields              |
 //! | 0x03 | NAK  | u32 seq expected, u32 CRC-32 of kind and field  |
+//! | 0x04 | HEAD | the plan's head (`crate::stream::head`, 228     |
+//! |      |      | bytes, its own CRC), before the plan's chunks   |
 //! +------+------+-------------------------------------------------+
 //! ```
 //!
@@ -35,6 +37,8 @@ pub const KIND_DATA: u8 = 0x01;
 pub const KIND_ACK: u8 = 0x02;
 /// Frame kind: negative acknowledgement.
 pub const KIND_NAK: u8 = 0x03;
+/// Frame kind: a plan's head.
+pub const KIND_HEAD: u8 = 0x04;
 /// The frame delimiter.
 pub const DELIMITER: u8 = 0x00;
 /// Bytes of a decoded ACK frame: kind, seq, free, CRC.
@@ -62,6 +66,9 @@ pub enum Frame<'a> {
         /// Credit: bytes of chunk the receiver takes now.
         free: u32,
     },
+    /// A plan's head (length and CRC checked by
+    /// [`crate::stream::StreamHead::parse`]).
+    Head(&'a [u8]),
     /// The receiver dropped a frame; resend from `expected`.
     Nak {
         /// Seq the receiver waits for.
@@ -156,6 +163,16 @@ pub fn encode_ack(seq: u32, free: u32, out: &mut [u8]) -> Result<usize, FrameEnc
     body[..8].copy_from_slice(&raw[1..]);
     body[8..].copy_from_slice(&crc32(&raw).to_le_bytes());
     encode_frame(KIND_ACK, &body, out)
+}
+
+/// A HEAD frame for `head` of plan `plan_id` ([`crate::stream::head`]).
+pub fn encode_head(
+    head: &crate::stream::head::StreamHead,
+    plan_id: u32,
+    stop_known: bool,
+    out: &mut [u8],
+) -> Result<usize, FrameEncodeError> {
+    encode_frame(KIND_HEAD, &head.encode(plan_id, stop_known, KIND_HEAD), out)
 }
 
 /// A NAK frame.
@@ -287,6 +304,7 @@ pub fn parse_frame(raw: &[u8]) -> Result<Frame<'_>, FrameError> {
         KIND_NAK => Ok(Frame::Nak {
             expected: le_u32(raw, 1),
         }),
+        KIND_HEAD => Ok(Frame::Head(body)),
         kind => Err(FrameError::UnknownKind { kind }),
     }
 }

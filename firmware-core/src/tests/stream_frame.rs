@@ -26,6 +26,7 @@ fn decode_all<const N: usize>(stream: &[u8]) -> Vec<Result<Vec<u8>, FrameError>>
                     [vec![2], seq.to_le_bytes().to_vec(), free.to_le_bytes().to_vec()].concat()
                 }
                 Frame::Nak { expected } => [vec![3], expected.to_le_bytes().to_vec()].concat(),
+                Frame::Head(b) => [&[4][..], b].concat(),
             }));
         }
     }
@@ -159,4 +160,51 @@ fn an_oversized_frame_is_reported_and_the_next_one_decodes() {
     assert_eq!(got, vec![Err(FrameError::Oversize), Ok(vec![1, 1, 2, 3])]);
     // a block cut short by a delimiter
     assert_eq!(decode_all::<64>(&[0x05, 1, 2, 0x00]), vec![Err(FrameError::Cobs)]);
+}
+
+#[test]
+fn a_head_frame_round_trips_and_any_damage_is_refused() {
+    use crate::limits::{EndSegments, Limits};
+    use crate::stream::frame::{encode_head, KIND_HEAD};
+    use crate::stream::head::{HeadError, StreamHead, HEAD_LEN};
+    let head = StreamHead {
+        length_mm: 382.86,
+        limits: Limits {
+            vbar: 166.67,
+            abar: 1500.0,
+            jbar: 16000.0,
+            v: [166.67; 3],
+            a: [1500.0; 3],
+            j: [16000.0; 3],
+        },
+        ends: Some(EndSegments {
+            s_start: 0.1,
+            jerk_start: 9000.0,
+            t_start: 0.04,
+            s_stop: 382.7,
+            jerk_stop: 8000.0,
+            t_stop: 0.05,
+        }),
+        first_pos_mm: [1.0, -2.0, 0.0],
+        first_u: 0.0,
+        last_pos_mm: [3.0, 4.0, 0.5],
+        last_u: 1.0,
+    };
+    let mut buf = [0u8; 512];
+    let n = encode_head(&head, 7, true, &mut buf).unwrap();
+    let frames = decode_all::<512>(&buf[..n]);
+    let raw = frames[0].as_ref().unwrap();
+    assert_eq!(raw[0], KIND_HEAD);
+    let (back, plan, stop_known) = StreamHead::parse(&raw[1..], KIND_HEAD).unwrap();
+    assert_eq!((back, plan, stop_known), (head, 7, true));
+    // every single-bit flip of the body is refused
+    for byte in 0..HEAD_LEN {
+        let mut bad = raw[1..].to_vec();
+        bad[byte] ^= 0x10;
+        assert!(StreamHead::parse(&bad, KIND_HEAD).is_err(), "flip in byte {byte}");
+    }
+    assert_eq!(
+        StreamHead::parse(&raw[2..], KIND_HEAD),
+        Err(HeadError::Length { len: HEAD_LEN - 1 })
+    );
 }
