@@ -21,13 +21,14 @@ use crate::feed_override::queue::Overrides;
 use crate::interp::end_segments::SegConsts;
 use crate::interp::interpolator::{Interpolator, Phase, PlanHead};
 use crate::interp::level_run::LevelRun;
+use crate::interp::rows::PlanRows;
 use crate::interp::setpoint::InterpError;
 use crate::limits::EndSegments;
 use crate::math::source::{LeF32, LeF64};
 use crate::servo_forms::fixed::to_fx;
 use crate::stream::chunk::Chunk;
 use crate::stream::head::StreamHead;
-use crate::stream::window::{PlanWindow, WindowError};
+use crate::stream::window::{PlanWindow, WindowError, WindowOf};
 
 #[cfg(doc)]
 use crate::interp::setpoint::Fault;
@@ -59,16 +60,15 @@ pub enum StopError {
     TooLate,
 }
 
-impl<'a, const Q: usize, const W: usize, const NQ: usize, const NP: usize>
-    Interpolator<'a, Q, W, PlanWindow<NQ, NP>>
+impl<'a, const Q: usize, const W: usize, const NQ: usize, const NP: usize, B> Interpolator<'a, Q, W, B>
+where
+    B: PlanRows<'a> + WindowOf<Window = PlanWindow<NQ, NP>>,
 {
     /// An interpolator at the start of a streamed plan, whose `window`
-    /// holds its first chunk at least, ticking every `period_s` seconds.
-    pub fn streamed(
-        head: &StreamHead,
-        window: PlanWindow<NQ, NP>,
-        period_s: f64,
-    ) -> Result<Self, InterpError> {
+    /// holds its first chunk at least, ticking every `period_s` seconds
+    /// (`window` by value, or a `&mut` to one kept elsewhere — a static on
+    /// an MCU, where moving a large window through the stack would not fit).
+    pub fn streamed(head: &StreamHead, window: B, period_s: f64) -> Result<Self, InterpError> {
         let length_mm = head.length_mm;
         if !(length_mm.is_finite() && length_mm > 0.0) {
             return Err(InterpError::Inconsistent);
@@ -97,13 +97,13 @@ impl<'a, const Q: usize, const W: usize, const NQ: usize, const NP: usize>
 
     /// The rows held.
     pub fn window(&self) -> &PlanWindow<NQ, NP> {
-        &self.views
+        self.views.window_ref()
     }
 
     /// Append a chunk's rows ([`PlanWindow::push`]); not for the tick
     /// context. A plan without end segments ends at L with the last chunk.
     pub fn push_chunk(&mut self, chunk: &Chunk<'_>) -> Result<(), WindowError> {
-        self.views.push(chunk)?;
+        self.views.window_mut().push(chunk)?;
         if chunk.info().is_last() && self.ends.is_none() {
             self.stop_at = self.len_fx;
         }
@@ -117,12 +117,12 @@ impl<'a, const Q: usize, const W: usize, const NQ: usize, const NP: usize>
     /// such a hold once it is. A hold pressed by the operator is left
     /// alone: [`Interpolator::resume`] releases it.
     pub fn keep_fed(&mut self) -> Result<Feeding, HoldError> {
-        let w = &self.views;
+        let w = self.views.window_ref();
         if let Some(end) = w.starved {
             if w.held_end() == end {
                 return Ok(Feeding::Starved);
             }
-            self.views.starved = None;
+            self.views.window_mut().starved = None;
             self.resume()?;
             return Ok(Feeding::Resumed);
         }
@@ -130,7 +130,7 @@ impl<'a, const Q: usize, const W: usize, const NQ: usize, const NP: usize>
         if running && self.s >= w.hold_point() && !matches!(self.phase, Phase::Done) {
             let end = w.held_end();
             self.hold()?;
-            self.views.starved = Some(end);
+            self.views.window_mut().starved = Some(end);
             return Ok(Feeding::Starving);
         }
         Ok(Feeding::Fed)
@@ -139,12 +139,13 @@ impl<'a, const Q: usize, const W: usize, const NQ: usize, const NP: usize>
     /// The window cut back to the chunks ending at `s_end` (Q40 mm,
     /// [`PlanWindow::truncate`]): for a host's dry run of a starved stream.
     pub fn truncate_window(&mut self, s_end: i64) -> bool {
-        self.views.truncate(s_end)
+        self.views.window_mut().truncate(s_end)
     }
 
     /// Free the rows behind the tick's q span and piece.
     pub fn release_passed(&mut self) {
-        self.views.release_before(self.qc.idx, self.pc.idx);
+        let (q, p) = (self.qc.idx, self.pc.idx);
+        self.views.window_mut().release_before(q, p);
     }
 
     /// The plan's stop segment (its start part is ignored): needed before

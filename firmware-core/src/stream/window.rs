@@ -459,7 +459,74 @@ impl<const NQ: usize, const NP: usize> PlanWindow<NQ, NP> {
     }
 }
 
+/// A plan window, held by value or by `&mut` (the streamed interpolator
+/// takes either, [`crate::Interpolator::streamed`]).
+pub trait WindowOf {
+    /// The window.
+    type Window;
+    /// The window, shared.
+    fn window_ref(&self) -> &Self::Window;
+    /// The window, to push to and free.
+    fn window_mut(&mut self) -> &mut Self::Window;
+}
+
+impl<const NQ: usize, const NP: usize> WindowOf for PlanWindow<NQ, NP> {
+    type Window = Self;
+    fn window_ref(&self) -> &Self {
+        self
+    }
+    fn window_mut(&mut self) -> &mut Self {
+        self
+    }
+}
+
+impl<const NQ: usize, const NP: usize> WindowOf for &mut PlanWindow<NQ, NP> {
+    type Window = PlanWindow<NQ, NP>;
+    fn window_ref(&self) -> &PlanWindow<NQ, NP> {
+        self
+    }
+    fn window_mut(&mut self) -> &mut PlanWindow<NQ, NP> {
+        self
+    }
+}
+
 impl<'a, const NQ: usize, const NP: usize> PlanRows<'a> for PlanWindow<NQ, NP> {}
+impl<'a, const NQ: usize, const NP: usize> PlanRows<'a> for &mut PlanWindow<NQ, NP> {}
+
+impl<'a, const NQ: usize, const NP: usize> Rows<'a> for &mut PlanWindow<NQ, NP> {
+    #[inline(always)]
+    fn q_last(&self) -> usize {
+        self.q_last
+    }
+    #[inline(always)]
+    fn p_last(&self) -> usize {
+        self.p_last
+    }
+    #[inline(always)]
+    fn q_knot(&self, i: usize) -> Option<f64> {
+        Rows::q_knot(&**self, i)
+    }
+    #[inline(always)]
+    fn piece_break(&self, idx: usize) -> Option<f64> {
+        Rows::piece_break(&**self, idx)
+    }
+    #[inline(always)]
+    fn fill_q(&self, qc: &mut QCur, idx: usize, start: i64) -> Option<()> {
+        Rows::fill_q(&**self, qc, idx, start)
+    }
+    #[inline(always)]
+    fn fill_piece(&self, pc: &mut PCur, idx: usize, start: i64) -> Option<()> {
+        Rows::fill_piece(&**self, pc, idx, start)
+    }
+    #[inline(always)]
+    fn coeffs(&self, pc: &PCur) -> Option<&[u8; POS_BYTES]> {
+        Rows::coeffs(&**self, pc)
+    }
+    #[inline(always)]
+    fn piece_derivs(&self, idx: usize, s: i64) -> Option<[[f32; 3]; 3]> {
+        Rows::piece_derivs(&**self, idx, s)
+    }
+}
 
 impl<'a, const NQ: usize, const NP: usize> Rows<'a> for PlanWindow<NQ, NP> {
     fn q_last(&self) -> usize {

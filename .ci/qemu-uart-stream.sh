@@ -1,0 +1,46 @@
+#!/usr/bin/env bash
+# A streamed run over a real serial byte stream: the firmware (firmware-core/mcu, bin
+# stream-run: no table in flash, a 16 KiB chunk ring, a plan window of 64 q spans and 128
+# pieces) on a Cortex-M4F under QEMU (mps2-an386) receives the plan's chunks over its UART0
+# from a host process (planner-host example stream_send, through QEMU's `-chardev pipe`), with
+# the credits of its ACKs taken 50 ms late each way, and runs the whole path; its setpoint
+# digest must equal the host's streamed run's. Prints both runs' figures: ticks, chunks, bytes,
+# the ring's and the window's peak use, the stack's high-water mark, flash and RAM.
+#
+#   bash .ci/qemu-uart-stream.sh CURVE.json|NAME [CHUNK_MM]
+#
+# (the example must be built: cargo build --release -p planner-host --example stream_send)
+set -euo pipefail
+curve=$1
+chunk_mm=${2:-8}
+root=$(cd "$(dirname "$0")/.." && pwd)
+mcu=$root/firmware-core/mcu
+(cd "$mcu" && cargo build --release -q --bin stream-run 2>/dev/null)
+elf=$mcu/target/thumbv7em-none-eabihf/release/stream-run
+d=$(mktemp -d)
+trap 'rm -rf "$d"' EXIT
+mkfifo "$d/link.in" "$d/link.out"
+"$root/target/release/examples/stream_send" "$curve" --pipe "$d/link" --chunk-mm "$chunk_mm" \
+  --latency-ms 50 --digest >"$d/host.txt" 2>&1 &
+host_pid=$!
+set +e
+timeout -k 5 "${TIMEOUT:-900}" qemu-system-arm -cpu cortex-m4 -machine mps2-an386 -nographic -monitor none \
+  -chardev pipe,id=link,path="$d/link" -serial chardev:link \
+  -semihosting-config enable=on,target=native -kernel "$elf" >"$d/mcu.txt" 2>&1
+rc=$?
+wait "$host_pid"
+host_rc=$?
+set -e
+sed 's/^/  host /' "$d/host.txt"
+sed 's/^/  qemu /' "$d/mcu.txt"
+read -r text data bss _ < <(arm-none-eabi-size "$elf" | tail -1) || true
+echo "  stream-run image: flash (text) ${text:-?} bytes, static RAM (data + bss) $(( ${data:-0} + ${bss:-0} )) bytes of 131072"
+host_digest=$(sed -n 's/^.*digest: fnv1a64-pos-le=\([0-9a-f]*\)$/\1/p' "$d/host.txt")
+mcu_digest=$(sed -n 's/^digest: fnv1a64-pos-le=\([0-9a-f]*\)$/\1/p' "$d/mcu.txt")
+echo "$(basename "$curve") over the UART in $chunk_mm mm chunks: host ${host_digest:-none}, QEMU Cortex-M4 ${mcu_digest:-none}"
+if [ "$rc" -ne 0 ] || [ "$host_rc" -ne 0 ]; then
+  echo "QEMU exit $rc, host exit $host_rc" >&2; exit 1
+fi
+if [ -z "$host_digest" ] || [ "$host_digest" != "$mcu_digest" ]; then
+  echo "the streamed runs differ" >&2; exit 1
+fi

@@ -1,0 +1,230 @@
+//! A streamed plan run on a Cortex-M4F under QEMU, its chunks received over
+//! the board's UART from a host process (`planner-host` example
+//! `stream_send`): no table in flash, a 16 KiB chunk ring and a plan window
+//! of a few hundred rows in 128 KiB of RAM, whatever the plan's length.
+//!
+//! UART0 of the mps2-an386 board (ARM CMSDK APB UART at 0x4000_4000,
+//! polled): HEAD, DATA, ACK and NAK frames (`firmware_core::stream::frame`).
+//! At start the firmware sends an ACK with seq `u32::MAX` and its ring's
+//! free bytes (the host's first credit); every chunk accepted into the ring
+//! is acknowledged with the ring's free bytes then, every chunk moved on into
+//! the plan window with the free bytes after it left the ring; a refused
+//! chunk gets a NAK naming the seq expected (a duplicate, an ACK again).
+//!
+//! The run: each pass of the loop takes the bytes that arrived, moves chunks
+//! from the ring into the window as it has room, frees the rows passed and
+//! ticks once, unless the rows held end less than [`GATE_TICKS`] ticks at full
+//! feed ahead and the
+//! plan's last chunk is not in: then it waits for bytes (QEMU's virtual
+//! time: a wait shows in no setpoint; the real board must hold instead,
+//! `Interpolator::keep_fed`). The setpoints' digest (`Fnv1a64::setpoint`)
+//! then equals the host's streamed run's, and the whole table's.
+//! Prints ticks, chunks, the peak ring and window use, the stack's
+//! high-water mark and the digest; exit 0 when the path ran to its end.
+#![no_std]
+#![no_main]
+
+use cortex_m_rt::entry;
+use cortex_m_semihosting::hprintln;
+use firmware_core::interp::Interpolator;
+use firmware_core::stream::frame::{encode_ack, encode_nak, KIND_HEAD};
+use firmware_core::stream::{ChunkRing, Frame, FrameDecoder, PlanWindow, StreamError, StreamHead};
+use firmware_mcu::{exit, stack_high_water, stack_paint, Fnv1a64};
+
+/// Servo period, s.
+const PERIOD_S: f64 = 250e-6;
+/// Chunk ring, bytes.
+const RING_CAP: usize = 16 * 1024;
+/// Frame decoder buffer, bytes (a DATA frame: a chunk of up to a quarter
+/// of the ring, and its kind).
+const FRAME_CAP: usize = RING_CAP / 4 + 64;
+/// Plan window: q spans, pieces.
+const NQ: usize = 64;
+const NP: usize = 128;
+/// Tick only with at least this many ticks at full feed of the plan held
+/// ahead (or its last chunk in): a tick moves at most v̄T.
+const GATE_TICKS: f64 = 2.0;
+
+/// The CMSDK APB UART (ARM DDI 0479C), polled.
+struct Uart {
+    base: usize,
+}
+
+impl Uart {
+    const DATA: usize = 0x00;
+    const STATE: usize = 0x04;
+    const CTRL: usize = 0x08;
+    const BAUDDIV: usize = 0x10;
+    const TX_FULL: u32 = 1;
+    const RX_FULL: u32 = 2;
+
+    fn new(base: usize) -> Self {
+        let u = Uart { base };
+        // (QEMU refuses a divider under 16)
+        u.write(Self::BAUDDIV, 16);
+        u.write(Self::CTRL, 0b11);
+        u
+    }
+    fn read(&self, off: usize) -> u32 {
+        // SAFETY: a CMSDK UART register of the board's memory map.
+        unsafe { core::ptr::read_volatile((self.base + off) as *const u32) }
+    }
+    fn write(&self, off: usize, v: u32) {
+        // SAFETY: as above.
+        unsafe { core::ptr::write_volatile((self.base + off) as *mut u32, v) }
+    }
+    fn rx(&self) -> Option<u8> {
+        (self.read(Self::STATE) & Self::RX_FULL != 0).then(|| self.read(Self::DATA) as u8)
+    }
+    fn tx(&self, bytes: &[u8]) {
+        for &b in bytes {
+            while self.read(Self::STATE) & Self::TX_FULL != 0 {}
+            self.write(Self::DATA, u32::from(b));
+        }
+    }
+}
+
+fn ack(uart: &Uart, seq: u32, free: usize) {
+    let mut buf = [0u8; 32];
+    if let Ok(n) = encode_ack(seq, free as u32, &mut buf) {
+        uart.tx(&buf[..n]);
+    }
+}
+
+type Window = PlanWindow<NQ, NP>;
+type Streamed = Interpolator<'static, 0, 0, &'static mut Window>;
+
+#[entry]
+fn main() -> ! {
+    stack_paint();
+    let uart = Uart::new(0x4000_4000);
+    let mut dec: FrameDecoder<FRAME_CAP> = FrameDecoder::new();
+    let mut ring: ChunkRing<RING_CAP> = ChunkRing::new();
+    let mut head: Option<(StreamHead, bool)> = None;
+    // (the window in a static: moved through the stack it would not fit)
+    let Some(window) = cortex_m::singleton!(: Window = Window::new()) else {
+        exit(false)
+    };
+    let mut window: Option<&'static mut Window> = Some(window);
+    let mut ip: Option<Streamed> = None;
+    let mut digest = Fnv1a64::new();
+    let (mut chunks, mut refused, mut frames_bad, mut waits) = (0u32, 0u32, 0u32, 0u64);
+    let (mut ring_peak, mut window_peak) = (0usize, 0usize);
+    let mut last_seq = u32::MAX;
+    let mut gate = i64::MAX;
+    hprintln!(
+        "stream-run: ring {} B, window {} q spans and {} pieces, waiting on UART0",
+        RING_CAP,
+        NQ,
+        NP
+    );
+    ack(&uart, u32::MAX, ring.free());
+    loop {
+        // the bytes that arrived
+        while let Some(b) = uart.rx() {
+            let Some(res) = dec.feed(b) else { continue };
+            match res {
+                Ok(Frame::Head(body)) => match StreamHead::parse(body, KIND_HEAD) {
+                    Ok((h, _plan, stop_known)) => {
+                        gate = (GATE_TICKS * h.limits.vbar * PERIOD_S * (1u64 << 40) as f64) as i64;
+                        head = Some((h, stop_known))
+                    }
+                    Err(_) => frames_bad += 1,
+                },
+                Ok(Frame::Data(bytes)) => match ring.push(bytes) {
+                    Ok(ok) => {
+                        last_seq = ok.seq;
+                        ring_peak = ring_peak.max(RING_CAP - ring.free());
+                        ack(&uart, ok.seq, ok.free);
+                    }
+                    Err(StreamError::Duplicate { .. }) => ack(&uart, last_seq, ring.free()),
+                    Err(_) => {
+                        refused += 1;
+                        let mut buf = [0u8; 32];
+                        if let Ok(n) = encode_nak(last_seq.wrapping_add(1), &mut buf) {
+                            uart.tx(&buf[..n]);
+                        }
+                    }
+                },
+                _ => frames_bad += 1,
+            }
+        }
+        // ring → window
+        let mut moved = false;
+        while let Some(c) = ring.get(0) {
+            let s_b = c.info().s_b;
+            let r = match (ip.as_mut(), window.as_mut()) {
+                (Some(ip), _) if ip.window().fits(&c) => ip.push_chunk(&c).map(|_| true),
+                (None, Some(w)) if w.fits(&c) => w.push(&c).map(|_| true),
+                _ => Ok(false),
+            };
+            match r {
+                Ok(true) => {}
+                Ok(false) => break,
+                Err(_) => {
+                    hprintln!("chunk refused by the plan window");
+                    exit(false)
+                }
+            }
+            ring.release_through(s_b);
+            chunks += 1;
+            moved = true;
+        }
+        if moved {
+            ack(&uart, last_seq, ring.free());
+        }
+        if ip.is_none() {
+            let Some((h, stop_known)) = head else { continue };
+            if !window.as_ref().is_some_and(|w| w.ready()) {
+                continue;
+            }
+            let Some(w) = window.take() else { exit(false) };
+            match Streamed::streamed(&h, w, PERIOD_S) {
+                Ok(mut s) => {
+                    if let (true, Some(e)) = (stop_known, h.ends) {
+                        if s.set_stop(&e).is_err() {
+                            exit(false)
+                        }
+                    }
+                    ip = Some(s);
+                }
+                Err(_) => {
+                    hprintln!("plan head refused");
+                    exit(false)
+                }
+            }
+        }
+        let Some(ipr) = ip.as_mut() else { continue };
+        ipr.release_passed();
+        let w = ipr.window();
+        window_peak = window_peak.max(w.held().1);
+        let s_fx = (ipr.s_mm() * (1u64 << 40) as f64) as i64;
+        if !w.has_last() && w.held_end().saturating_sub(s_fx) < gate {
+            waits += 1;
+            continue;
+        }
+        match ipr.tick() {
+            Ok(sp) => digest.setpoint(&sp),
+            Err(_) => {
+                hprintln!("fault at tick {}", ipr.ticks());
+                exit(false)
+            }
+        }
+        if ipr.is_done() {
+            break;
+        }
+    }
+    let ticks = ip.as_ref().map_or(0, |i| i.ticks());
+    hprintln!(
+        "ticks {}, chunks {}, refused {}, bad frames {}, waits {}",
+        ticks,
+        chunks,
+        refused,
+        frames_bad,
+        waits
+    );
+    hprintln!("ring peak {} B, window peak {} pieces", ring_peak, window_peak);
+    hprintln!("stack high water {} B", stack_high_water());
+    hprintln!("digest: fnv1a64-pos-le={:016x}", digest.finish());
+    exit(true)
+}

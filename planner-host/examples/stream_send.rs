@@ -1,0 +1,260 @@
+//! The host side of a streamed run over a serial byte stream: plans a curve,
+//! cuts the plan into chunks and sends them framed (HEAD, then DATA) to a
+//! firmware over a pipe pair — QEMU's `-chardev pipe` (`PATH.in` is what the
+//! firmware's UART receives, `PATH.out` what it sends) — within the credits
+//! its ACKs grant (the ring's free bytes, less what was sent since), resending
+//! from a NAK's seq. The ACKs are taken `--latency-ms` after they arrive and
+//! the frames leave as late, so the credits are as old as over a link with
+//! that one-way latency.
+//!
+//! `STREAM_SEND_DEBUG=1` prints every ACK as it is taken.
+//!
+//! `--digest` prints the host's own streamed run's digest first (the same
+//! chunks through `PlanWindow` and the streamed interpolator, FNV-1a over
+//! the setpoints' positions, as the firmware prints it): `.ci/qemu-uart-stream.sh`
+//! compares the two.
+//!
+//! ```text
+//! cargo run --release -p planner-host --example stream_send -- CURVE --pipe PATH
+//!     [--chunk-mm 8] [--ring-bytes 16384] [--latency-ms 50] [--digest]
+//! ```
+
+use std::collections::VecDeque;
+use std::io::{Read, Write};
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
+
+use firmware_core::digest::Fnv1a64;
+use firmware_core::interp::Interpolator;
+use firmware_core::stream::frame::{encode_data, encode_head, encoded_max_len};
+use firmware_core::stream::{Chunk, Frame, FrameDecoder, PlanWindow};
+use firmware_core::Table;
+use planner_host::plan::{plan_curve, PlanConfig};
+use planner_host::stream::{chunk_table, ChunkOptions};
+use planner_host::stream_hold::stream_head;
+
+/// The host's window for its own run (any size that holds a chunk or two
+/// gives the same setpoints).
+const NQ: usize = 64;
+const NP: usize = 128;
+
+struct Args {
+    curve: String,
+    pipe: String,
+    chunk_mm: f64,
+    ring_bytes: usize,
+    latency: Duration,
+    digest: bool,
+}
+
+fn args() -> Result<Args, String> {
+    let mut a = Args {
+        curve: String::new(),
+        pipe: String::new(),
+        chunk_mm: 8.0,
+        ring_bytes: 16384,
+        latency: Duration::from_millis(50),
+        digest: false,
+    };
+    let mut it = std::env::args().skip(1);
+    while let Some(x) = it.next() {
+        let mut val = |name: &str| it.next().ok_or(format!("{name} needs a value"));
+        match x.as_str() {
+            "--pipe" => a.pipe = val("--pipe")?,
+            "--chunk-mm" => {
+                a.chunk_mm = val("--chunk-mm")?
+                    .parse()
+                    .map_err(|e| format!("--chunk-mm: {e}"))?
+            }
+            "--ring-bytes" => {
+                a.ring_bytes = val("--ring-bytes")?
+                    .parse()
+                    .map_err(|e| format!("--ring-bytes: {e}"))?
+            }
+            "--latency-ms" => {
+                let ms: f64 = val("--latency-ms")?
+                    .parse()
+                    .map_err(|e| format!("--latency-ms: {e}"))?;
+                a.latency = Duration::from_secs_f64(ms.max(0.0) * 1e-3);
+            }
+            "--digest" => a.digest = true,
+            _ if a.curve.is_empty() => a.curve = x,
+            _ => return Err(format!("unexpected argument {x}")),
+        }
+    }
+    if a.curve.is_empty() || a.pipe.is_empty() {
+        return Err("usage: stream_send CURVE --pipe PATH [--chunk-mm 8] [--ring-bytes 16384] [--latency-ms 50] [--digest]".into());
+    }
+    Ok(a)
+}
+
+/// The host's streamed run: the digest of its setpoints and the ticks.
+fn host_digest(table: &Table, chunks: &[Vec<u8>]) -> Result<(u64, u64), String> {
+    let head = stream_head(table).ok_or("no stream head")?;
+    let mut window = PlanWindow::<NQ, NP>::new();
+    let mut next = 0;
+    while next < chunks.len() {
+        let c = Chunk::parse(&chunks[next]).map_err(|e| e.to_string())?;
+        if !window.fits(&c) {
+            break;
+        }
+        window.push(&c).map_err(|e| e.to_string())?;
+        next += 1;
+    }
+    let mut ip: Interpolator<'static, 0, 0, PlanWindow<NQ, NP>> =
+        Interpolator::streamed(&head, window, 250e-6).map_err(|e| format!("{e:?}"))?;
+    if let Some(e) = table.ends() {
+        ip.set_stop(&e).map_err(|e| format!("{e:?}"))?;
+    }
+    let mut d = Fnv1a64::new();
+    while !ip.is_done() {
+        ip.release_passed();
+        while next < chunks.len() {
+            let c = Chunk::parse(&chunks[next]).map_err(|e| e.to_string())?;
+            if !ip.window().fits(&c) {
+                break;
+            }
+            ip.push_chunk(&c).map_err(|e| e.to_string())?;
+            next += 1;
+        }
+        d.setpoint(&ip.tick().map_err(|f| format!("{f:?}"))?);
+    }
+    Ok((d.finish(), ip.ticks()))
+}
+
+fn main() {
+    if let Err(e) = run() {
+        eprintln!("stream_send: {e}");
+        std::process::exit(1);
+    }
+}
+
+fn run() -> Result<(), String> {
+    let a = args()?;
+    let curve = planner_host::cli::load_curve(std::path::Path::new(&a.curve)).map_err(|e| e.to_string())?;
+    let out = plan_curve(&curve, &PlanConfig::default()).map_err(|e| e.to_string())?;
+    let table = Table::parse(&out.table_bytes).map_err(|e| e.to_string())?;
+    let opts = ChunkOptions {
+        chunk_mm: a.chunk_mm,
+        u_form: true,
+        max_chunk_bytes: Some(a.ring_bytes / 4),
+        ..ChunkOptions::default()
+    };
+    let chunks = chunk_table(&table, &opts).map_err(|e| e.to_string())?;
+    let framed: usize = chunks.iter().map(|c| encoded_max_len(c.len() + 1)).sum();
+    println!(
+        "{}: L {:.2} mm, table {} bytes, {} chunks, {} bytes framed ({:.1} B/mm)",
+        a.curve,
+        table.path_length_mm(),
+        out.table_bytes.len(),
+        chunks.len(),
+        framed,
+        framed as f64 / table.path_length_mm()
+    );
+    if a.digest {
+        let (d, ticks) = host_digest(&table, &chunks)?;
+        println!("host streamed run: {ticks} ticks, digest: fnv1a64-pos-le={d:016x}");
+    }
+    let head = stream_head(&table).ok_or("no stream head")?;
+    let mut tx = std::fs::OpenOptions::new()
+        .write(true)
+        .open(format!("{}.in", a.pipe))
+        .map_err(|e| format!("{}.in: {e}", a.pipe))?;
+    let mut rx =
+        std::fs::File::open(format!("{}.out", a.pipe)).map_err(|e| format!("{}.out: {e}", a.pipe))?;
+    // The firmware's ACKs and NAKs, decoded on a thread, each stamped when it came.
+    let (up_tx, up) = mpsc::channel::<(Instant, Up)>();
+    std::thread::spawn(move || {
+        let mut dec: FrameDecoder<64> = FrameDecoder::new();
+        let mut buf = [0u8; 256];
+        while let Ok(n) = rx.read(&mut buf) {
+            if n == 0 {
+                return;
+            }
+            for &b in &buf[..n] {
+                let msg = match dec.feed(b) {
+                    Some(Ok(Frame::Ack { seq, free })) => Up::Ack { seq, free },
+                    Some(Ok(Frame::Nak { expected })) => Up::Nak { expected },
+                    _ => continue,
+                };
+                if up_tx.send((Instant::now(), msg)).is_err() {
+                    return;
+                }
+            }
+        }
+    });
+    // ACKs are taken a round trip (2 × the one-way latency) after they came.
+    let rtt = 2 * a.latency;
+    let mut waiting: VecDeque<(Instant, Up)> = VecDeque::new();
+    let mut frame = vec![0u8; encoded_max_len(a.ring_bytes + 1)];
+    let n = chunks.len();
+    let (mut next, mut acked, mut free) = (0usize, None::<usize>, None::<usize>);
+    let (mut sent_frames, mut sent_bytes, mut resends) = (0usize, 0usize, 0usize);
+    let started = Instant::now();
+    let mut quiet_since = Instant::now();
+    while !matches!(acked, Some(k) if k + 1 >= n) {
+        while let Ok(m) = up.try_recv() {
+            waiting.push_back(m);
+        }
+        let now = Instant::now();
+        while waiting
+            .front()
+            .is_some_and(|(at, _)| now.duration_since(*at) >= rtt)
+        {
+            let Some((_, m)) = waiting.pop_front() else { break };
+            quiet_since = now;
+            match m {
+                Up::Ack { seq, free: f } => {
+                    if std::env::var_os("STREAM_SEND_DEBUG").is_some() {
+                        eprintln!("ack {seq} free {f} (next {next})");
+                    }
+                    if free.is_none() {
+                        // the firmware's hello: send the head first
+                        let k = encode_head(&head, 1, true, &mut frame).map_err(|e| format!("{e:?}"))?;
+                        tx.write_all(&frame[..k]).map_err(|e| e.to_string())?;
+                    }
+                    free = Some(f as usize);
+                    if seq != u32::MAX {
+                        acked = Some(seq as usize);
+                    }
+                }
+                Up::Nak { expected } => {
+                    resends += next.saturating_sub(expected as usize);
+                    next = next.min(expected as usize);
+                    acked = (expected as usize).checked_sub(1);
+                }
+            }
+        }
+        let pending: usize = chunks[acked.map_or(0, |k| k + 1)..next]
+            .iter()
+            .map(Vec::len)
+            .sum();
+        match free {
+            Some(f) if next < n && f.saturating_sub(pending) >= chunks[next].len() => {
+                let k = encode_data(&chunks[next], &mut frame).map_err(|e| format!("{e:?}"))?;
+                tx.write_all(&frame[..k]).map_err(|e| e.to_string())?;
+                sent_frames += 1;
+                sent_bytes += k;
+                next += 1;
+            }
+            _ => std::thread::sleep(Duration::from_micros(200)),
+        }
+        if quiet_since.elapsed() > Duration::from_secs(120) {
+            return Err(format!(
+                "no word from the firmware for 120 s ({next} of {n} chunks sent)"
+            ));
+        }
+    }
+    println!(
+        "sent {sent_frames} DATA frames ({sent_bytes} bytes, {resends} resent) in {:.2} s with {} ms one-way latency",
+        started.elapsed().as_secs_f64(),
+        a.latency.as_millis()
+    );
+    Ok(())
+}
+
+/// What the firmware sends up.
+enum Up {
+    Ack { seq: u32, free: u32 },
+    Nak { expected: u32 },
+}
