@@ -39,6 +39,26 @@ pub struct StreamLink {
     pub stalls: Vec<(f64, f64)>,
     /// Servo period, s.
     pub period_s: f64,
+    /// Damage the link does to the frames it carries.
+    pub faults: LinkFaults,
+}
+
+/// Damage to the DATA frames on the link, by transmission number (the
+/// n-th frame sent, retransmissions counted; 0: never), and a host restart.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub struct LinkFaults {
+    /// Every n-th frame arrives with one byte flipped (its CRC fails).
+    pub corrupt_every: usize,
+    /// Every n-th frame is lost.
+    pub drop_every: usize,
+    /// Every n-th frame arrives twice.
+    pub duplicate_every: usize,
+    /// Every n-th frame arrives after the one sent after it.
+    pub reorder_every: usize,
+    /// The host restarts at this time (s): it forgets what it sent and what
+    /// was acknowledged and sends from the first chunk again; the firmware's
+    /// ACKs of the duplicates tell it where the ring is.
+    pub host_restart_s: Option<f64>,
 }
 
 /// What a streamed run measured.
@@ -64,6 +84,22 @@ pub struct StreamRun {
     /// The largest s reached while each starvation hold was on, and the end
     /// of the rows held then (mm): the motion never passes the rows.
     pub starved_reach_mm: Vec<(f64, f64)>,
+    /// DATA frames sent, retransmissions included.
+    pub transmissions: usize,
+    /// Frames the ring refused as damaged (bad CRC, malformed) or without
+    /// room: a NAK each.
+    pub refused_crc: usize,
+    /// Duplicates refused.
+    pub refused_duplicate: usize,
+    /// Out of order refused (a NAK each).
+    pub refused_order: usize,
+}
+
+/// A frame on its way up (firmware → host).
+#[derive(Clone, Copy, Debug)]
+enum Up {
+    Ack { seq: u32, free: usize },
+    Nak { expected: u32 },
 }
 
 /// Why a streamed run stopped.
@@ -113,17 +149,25 @@ pub fn run_stream<const CAP: usize, const NQ: usize, const NP: usize>(
     let framed: Vec<usize> = chunks.iter().map(|c| encoded_max_len(c.len()) + 1).collect();
     let n = chunks.len();
     let mut ring: Box<ChunkRing<CAP, 64>> = Box::default();
-    // host: chunks sent (arrival time, index), FIFO; the link busy until
-    // `link_free_at`; the ring space reports (seen by the host at, free)
-    let mut sent: Vec<(f64, usize)> = Vec::with_capacity(n);
-    let mut arrived = 0usize;
+    // host: the next chunk to send, the last acknowledged, the ring's free
+    // bytes as last reported, when the firmware last spoke; the link busy
+    // until `link_free_at`; frames down (arrival time, chunk, corrupted)
+    // and up (seen by the host at, message)
+    let (mut next, mut acked, mut free) = (0usize, None::<usize>, CAP);
+    let mut last_word = 0.0f64;
     let mut link_free_at = 0.0f64;
-    let mut reports: std::collections::VecDeque<(f64, usize)> = [(0.0, CAP)].into();
-    let mut counted = 0usize; // sent chunks a report had seen arrive
-                              // firmware
+    let mut down: Vec<(f64, usize, bool)> = Vec::new();
+    let mut up: std::collections::VecDeque<(f64, Up)> = std::collections::VecDeque::new();
+    let mut restarted = false;
+    let f = link.faults;
+    let every = |n: usize, k: usize| n > 0 && k % n == 0;
+    // a resend after this long without a word while chunks are unacknowledged
+    let timeout = 4.0 * link.latency_s + 0.02;
+    // firmware
     let mut ip: Option<Interpolator<'static, 0, 0, PlanWindow<NQ, NP>>> = None;
     let mut window = PlanWindow::<NQ, NP>::new();
     let mut pushed = 0usize;
+    let mut last_seq = u32::MAX;
     let mut run = StreamRun {
         setpoints: vec![],
         first_motion_s: f64::NAN,
@@ -134,6 +178,10 @@ pub fn run_stream<const CAP: usize, const NQ: usize, const NP: usize>(
         chunks: n,
         framed_bytes: framed.iter().sum(),
         starved_reach_mm: vec![],
+        transmissions: 0,
+        refused_crc: 0,
+        refused_duplicate: 0,
+        refused_order: 0,
     };
     let mut stop_set = false;
     let mut ring_bytes = 0usize;
@@ -144,20 +192,40 @@ pub fn run_stream<const CAP: usize, const NQ: usize, const NP: usize>(
     let limit = 50_000_000u64;
     for k in 0..limit {
         let t = k as f64 * link.period_s;
-        // host: the latest report it has seen, and what it had not counted
-        while reports.len() > 1 && reports[1].0 <= t {
-            reports.pop_front();
+        // host: a restart forgets everything
+        if let Some(at) = f.host_restart_s {
+            if !restarted && t >= at {
+                restarted = true;
+                (next, acked, free) = (0, None, CAP);
+                up.clear();
+            }
         }
-        let (seen, free) = reports[0];
-        let generated = seen - link.latency_s;
-        while counted < sent.len() && sent[counted].0 <= generated {
-            counted += 1;
+        // host: what came up
+        while up.front().is_some_and(|&(at, _)| at <= t) {
+            let Some((_, m)) = up.pop_front() else { break };
+            last_word = t;
+            match m {
+                Up::Ack { seq, free: fr } => {
+                    free = fr;
+                    if seq != u32::MAX {
+                        let s = seq as usize;
+                        acked = Some(acked.map_or(s, |a| a.max(s)));
+                        next = next.max(s + 1);
+                    }
+                }
+                Up::Nak { expected } => next = next.min(expected as usize),
+            }
         }
-        let pending: usize = sent[counted..].iter().map(|&(_, i)| chunks[i].len()).sum();
-        let next = sent.len();
+        let first_unacked = acked.map_or(0, |a| a + 1);
+        if next > first_unacked && t - last_word > timeout {
+            next = first_unacked;
+            last_word = t;
+        }
+        let pending: usize = chunks[first_unacked.min(next)..next].iter().map(Vec::len).sum();
         if next < n && link_free_at <= t && !stalled(t) && free.saturating_sub(pending) >= chunks[next].len()
         {
-            let mut end = t + framed[next] as f64 / link.bytes_per_s;
+            let dur = framed[next] as f64 / link.bytes_per_s;
+            let mut end = t + dur;
             // a stall starting during the frame holds it up
             for &(a, d) in &link.stalls {
                 if a >= t && a < end {
@@ -165,19 +233,60 @@ pub fn run_stream<const CAP: usize, const NQ: usize, const NP: usize>(
                 }
             }
             link_free_at = end;
-            sent.push((end + link.latency_s, next));
+            run.transmissions += 1;
+            let tx = run.transmissions;
+            let arrive = end + link.latency_s;
+            if !every(f.drop_every, tx) {
+                let late = if every(f.reorder_every, tx) {
+                    3.0 * dur + 2.0 * link.period_s
+                } else {
+                    0.0
+                };
+                down.push((arrive + late, next, every(f.corrupt_every, tx)));
+                if every(f.duplicate_every, tx) {
+                    down.push((arrive + dur, next, false));
+                }
+            }
+            next += 1;
         }
-        // firmware: arrivals into the ring
+        // firmware: arrivals into the ring, in the order they arrive
         let mut changed = false;
-        while arrived < sent.len() && sent[arrived].0 <= t {
-            let i = sent[arrived].1;
-            ring.push(&chunks[i]).map_err(|e| StreamRunError::Ring {
-                index: i,
-                message: e.to_string(),
-            })?;
-            ring_bytes += chunks[i].len();
-            arrived += 1;
-            changed = true;
+        down.sort_by(|a, b| a.0.total_cmp(&b.0));
+        while down.first().is_some_and(|&(at, _, _)| at <= t) {
+            let (_, i, corrupt) = down.remove(0);
+            let mut bytes = chunks[i].clone();
+            if corrupt {
+                let mid = bytes.len() / 2;
+                bytes[mid] ^= 0x5a;
+            }
+            let reply = match ring.push(&bytes) {
+                Ok(ok) => {
+                    last_seq = ok.seq;
+                    ring_bytes += bytes.len();
+                    changed = true;
+                    Up::Ack {
+                        seq: ok.seq,
+                        free: ok.free,
+                    }
+                }
+                Err(firmware_core::stream::StreamError::Duplicate { .. }) => {
+                    run.refused_duplicate += 1;
+                    Up::Ack {
+                        seq: last_seq,
+                        free: ring.free(),
+                    }
+                }
+                Err(e) => {
+                    match e {
+                        firmware_core::stream::StreamError::OutOfOrder { .. } => run.refused_order += 1,
+                        _ => run.refused_crc += 1,
+                    }
+                    Up::Nak {
+                        expected: ring.expected_seq().unwrap_or(0),
+                    }
+                }
+            };
+            up.push_back((t + link.latency_s, reply));
         }
         run.ring_peak_bytes = run.ring_peak_bytes.max(ring_bytes);
         // ring → window, as it has room
@@ -214,7 +323,13 @@ pub fn run_stream<const CAP: usize, const NQ: usize, const NP: usize>(
             }
         }
         if changed {
-            reports.push_back((t + link.latency_s, ring.free()));
+            up.push_back((
+                t + link.latency_s,
+                Up::Ack {
+                    seq: last_seq,
+                    free: ring.free(),
+                },
+            ));
         }
         let Some(ipr) = ip.as_mut() else { continue };
         if pushed == n && !stop_set {
@@ -444,6 +559,7 @@ pub fn stream_curve(curve: &planner_host::Nurbs, o: &StreamOptions) -> Result<St
         latency_s: o.latency_s,
         stalls: o.stalls.clone(),
         period_s: o.period_s,
+        faults: LinkFaults::default(),
     };
     const Q: usize = SIM_WINDOW_Q;
     const P: usize = SIM_WINDOW_P;

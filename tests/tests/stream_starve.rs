@@ -56,6 +56,7 @@ fn link(baud: f64, stalls: Vec<(f64, f64)>) -> StreamLink {
         latency_s: 0.005,
         stalls,
         period_s: T,
+        faults: Default::default(),
     }
 }
 

@@ -126,8 +126,10 @@ where
             self.resume()?;
             return Ok(Feeding::Resumed);
         }
-        let running = self.hold_state() == HoldState::Running;
-        if running && self.s >= w.hold_point() && !matches!(self.phase, Phase::Done) {
+        // (running, or resuming from an earlier hold: the motion must not
+        // pass the hold point either way)
+        let moving = matches!(self.hold_state(), HoldState::Running | HoldState::Resuming);
+        if moving && self.s >= w.hold_point() && !matches!(self.phase, Phase::Done) {
             let end = w.held_end();
             self.hold()?;
             self.views.window_mut().starved = Some(end);
