@@ -160,7 +160,7 @@ pub fn run_stream<const CAP: usize, const NQ: usize, const NP: usize>(
     let mut up: std::collections::VecDeque<(f64, Up)> = std::collections::VecDeque::new();
     let mut restarted = false;
     let f = link.faults;
-    let every = |n: usize, k: usize| n > 0 && k % n == 0;
+    let every = |n: usize, k: usize| n > 0 && k.is_multiple_of(n);
     // a resend after this long without a word while chunks are unacknowledged
     let timeout = 4.0 * link.latency_s + 0.02;
     // firmware
