@@ -7,7 +7,8 @@
 //! test in `tests/tests/fuzz_corpus.rs` includes this same file with
 //! `#[path]`.
 
-use firmware_core::stream::{Chunk, ChunkRing, Frame, FrameDecoder};
+use firmware_core::stream::frame::KIND_HEAD;
+use firmware_core::stream::{Chunk, ChunkRing, Frame, FrameDecoder, PlanWindow, StreamHead};
 
 /// Ring capacity of the check, bytes (the design's first candidate; it fills and wraps on the seeds).
 pub const RING_CAP: usize = 32 * 1024;
@@ -25,16 +26,24 @@ pub struct StreamReport {
     pub accepted: usize,
     /// Chunks the ring refused.
     pub refused: usize,
+    /// HEAD frames that parsed.
+    pub heads: usize,
+    /// Chunks the plan window took.
+    pub windowed: usize,
 }
 
 /// Feed `data` to a frame decoder byte by byte; push every DATA frame into
 /// a ring and release chunks as a tick would; panic if an invariant
 /// breaks: a held chunk that does not parse, decoded counts that disagree
 /// with its header, held chunks that do not tile [held_start, held_end] in
-/// order, or an accepted push the ring does not then hold.
+/// order, or an accepted push the ring does not then hold. HEAD frames are
+/// parsed (one that parses re-encodes to the same bytes); the ring's
+/// oldest chunk goes on into a plan window when it fits (taken whole, or
+/// refused with nothing changed).
 pub fn check_stream(data: &[u8]) -> StreamReport {
     let mut dec: FrameDecoder<FRAME_CAP> = FrameDecoder::new();
     let mut ring: ChunkRing<RING_CAP, 8> = ChunkRing::new();
+    let mut window: PlanWindow<32, 128> = PlanWindow::new();
     let mut r = StreamReport::default();
     for &b in data {
         let Some(res) = dec.feed(b) else { continue };
@@ -43,6 +52,13 @@ pub fn check_stream(data: &[u8]) -> StreamReport {
             continue;
         };
         r.frames += 1;
+        if let Frame::Head(body) = frame {
+            if let Ok((head, plan, stop_known)) = StreamHead::parse(body, KIND_HEAD) {
+                r.heads += 1;
+                assert_eq!(&head.encode(plan, stop_known, KIND_HEAD)[..], body);
+            }
+            continue;
+        }
         let Frame::Data(bytes) = frame else { continue };
         let before = ring.len();
         match ring.push(bytes) {
@@ -70,6 +86,23 @@ pub fn check_stream(data: &[u8]) -> StreamReport {
             assert_eq!(c.pieces().count(), usize::from(i.n_p));
         }
         assert_eq!(end, ring.held_end());
+        // the oldest chunk on into the plan window, if it fits: taken whole or
+        // refused with nothing changed
+        if let Some(c) = ring.get(0) {
+            if window.fits(&c) {
+                let (held, end) = (window.held(), window.held_end());
+                match window.push(&c) {
+                    Ok(()) => {
+                        r.windowed += 1;
+                        assert_eq!(window.held_end(), c.info().s_b);
+                    }
+                    Err(_) => assert_eq!((window.held(), window.held_end()), (held, end)),
+                }
+            }
+            if window.free().1 < 16 {
+                window.clear();
+            }
+        }
         // a tick that passed the oldest chunk once the ring is half full
         if ring.free() < RING_CAP / 2 {
             if let Some(c) = ring.get(0) {
