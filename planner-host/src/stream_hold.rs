@@ -113,6 +113,9 @@ pub struct HoldPoints {
     pub s_c_mm: Vec<f64>,
     /// Hold tests run.
     pub tests: usize,
+    /// Per chunk, the wall time from the search's start until its s_c was
+    /// known, s: a host streaming as it searches may send chunk i then.
+    pub known_after_s: Vec<f64>,
 }
 
 fn parse(index: usize, b: &[u8]) -> Result<Chunk<'_>, HoldPointError> {
@@ -146,6 +149,8 @@ pub fn hold_points<const NQ: usize, const NP: usize>(
     let mut stop_set = false;
     let (mut i, mut last_ok, mut next_test) = (0usize, None::<f64>, 0.0f64);
     let mut tests = 0;
+    let started = std::time::Instant::now();
+    let mut known = vec![f64::NAN; n];
     while !ip.is_done() && i + 1 < n {
         ip.release_passed();
         while next < n {
@@ -183,6 +188,7 @@ pub fn hold_points<const NQ: usize, const NP: usize>(
             // (no hold from the start stops inside chunk i: the motion must
             // not start on it alone)
             s_c[i] = last_ok.unwrap_or(NOT_ALONE_MM);
+            known[i] = started.elapsed().as_secs_f64();
             i += 1;
         }
     }
@@ -206,6 +212,16 @@ pub fn hold_points<const NQ: usize, const NP: usize>(
         lead_mm,
         s_c_mm: s_c,
         tests,
+        known_after_s: known
+            .iter()
+            .map(|&k| {
+                if k.is_nan() {
+                    started.elapsed().as_secs_f64()
+                } else {
+                    k
+                }
+            })
+            .collect(),
     })
 }
 

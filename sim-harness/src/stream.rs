@@ -41,6 +41,9 @@ pub struct StreamLink {
     pub period_s: f64,
     /// Damage the link does to the frames it carries.
     pub faults: LinkFaults,
+    /// Per chunk, the earliest time the host may send it, s (its hold point
+    /// is known then); empty: all at once.
+    pub ready_s: Vec<f64>,
 }
 
 /// Damage to the DATA frames on the link, by transmission number (the
@@ -430,7 +433,8 @@ pub struct StreamReport {
     pub windows: usize,
     /// Wall time of the hold-point search (the firmware's dry run), s.
     pub hold_points_s: f64,
-    /// Planning, the hold points and the link until the motion starts, ms.
+    /// Planning, then the link until the motion starts (the host sends
+    /// each chunk as soon as its hold point is known), ms.
     pub first_motion_ms: f64,
     /// Machining time over planning time.
     pub plan_realtime_factor: f64,
@@ -560,6 +564,8 @@ pub fn stream_curve(curve: &planner_host::Nurbs, o: &StreamOptions) -> Result<St
         stalls: o.stalls.clone(),
         period_s: o.period_s,
         faults: LinkFaults::default(),
+        // the host streams as its hold-point search goes
+        ready_s: hp.known_after_s.clone(),
     };
     const Q: usize = SIM_WINDOW_Q;
     const P: usize = SIM_WINDOW_P;
@@ -595,7 +601,7 @@ pub fn stream_curve(curve: &planner_host::Nurbs, o: &StreamOptions) -> Result<St
         plan_s,
         windows: out.windows.as_ref().map_or(0, |w| w.windows),
         hold_points_s,
-        first_motion_ms: (plan_s + hold_points_s + run.first_motion_s) * 1e3,
+        first_motion_ms: (plan_s + run.first_motion_s) * 1e3,
         plan_realtime_factor: machining_time_s / plan_s,
         chunks: run.chunks,
         bytes_per_mm: run.framed_bytes as f64 / table.path_length_mm(),

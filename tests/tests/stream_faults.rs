@@ -43,6 +43,7 @@ fn run(table: &Table, chunks: &[Vec<u8>], faults: LinkFaults) -> StreamRun {
         stalls: vec![],
         period_s: T,
         faults,
+        ready_s: vec![],
     };
     run_stream::<CAP, NQ, NP>(table, chunks, &link).unwrap()
 }

@@ -57,6 +57,7 @@ fn link(baud: f64, stalls: Vec<(f64, f64)>) -> StreamLink {
         stalls,
         period_s: T,
         faults: Default::default(),
+        ready_s: vec![],
     }
 }
 
