@@ -4,13 +4,13 @@
 //! table; the window never holds more than a stretch of the plan; a chunk
 //! that does not continue the rows held is refused with nothing changed.
 
-use firmware_core::interp::{Interpolator, StreamHead};
-use firmware_core::math::source::Point4Array;
+use firmware_core::interp::Interpolator;
 use firmware_core::stream::{Chunk, PlanWindow, WindowError};
-use firmware_core::{F64Array, Setpoint, Table};
+use firmware_core::{Setpoint, Table};
 use planner_host::builtin;
 use planner_host::plan::{plan_curve, PlanConfig};
 use planner_host::stream::{chunk_table, ChunkOptions};
+use planner_host::stream_hold::stream_head;
 
 const T: f64 = 250e-6;
 /// Window rows: q spans, pieces.
@@ -18,22 +18,6 @@ const NQ: usize = 64;
 const NP: usize = 192;
 
 type Streamed = Interpolator<'static, 0, 0, PlanWindow<NQ, NP>>;
-
-fn head(table: &Table) -> StreamHead {
-    let p = table.nurbs_degree() as usize;
-    let (knots, pts) = (table.nurbs_knots(), table.nurbs_points());
-    let [x0, y0, z0, _] = pts.get(0).unwrap();
-    let [x1, y1, z1, _] = pts.get(pts.len() - 1).unwrap();
-    StreamHead {
-        length_mm: table.path_length_mm(),
-        limits: table.limits(),
-        ends: table.ends(),
-        first_pos_mm: [x0, y0, z0],
-        first_u: knots.get(p).unwrap(),
-        last_pos_mm: [x1, y1, z1],
-        last_u: knots.last().unwrap(),
-    }
-}
 
 fn bits(sp: &Setpoint) -> [u64; 7] {
     [
@@ -54,7 +38,7 @@ fn run_streamed(table: &Table, chunks: &[Vec<u8>]) -> (Vec<Setpoint>, usize) {
     let mut window = PlanWindow::<NQ, NP>::new();
     let first = Chunk::parse(&chunks[0]).unwrap();
     window.push(&first).unwrap();
-    let mut ip: Streamed = Interpolator::streamed(&head(table), window, T).unwrap();
+    let mut ip: Streamed = Interpolator::streamed(&stream_head(table).unwrap(), window, T).unwrap();
     let mut next = 1;
     let mut most = 0;
     let mut out = Vec::new();

@@ -465,26 +465,9 @@ pub struct StreamReport {
     /// The plan's own time ∫ds/√q, s.
     pub planned_time_s: f64,
     /// Largest ratio to each limit on the setpoints (50 ticks at rest padding).
-    pub ratios: StreamRatios,
+    pub ratios: planner_host::Ratios,
     /// Every ratio within 1 + tol, contour and end points within tolerance.
     pub check_ok: bool,
-}
-
-/// Largest ratios to the limits on the streamed setpoints.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
-pub struct StreamRatios {
-    /// Axis velocity.
-    pub vel: f64,
-    /// Axis acceleration.
-    pub acc: f64,
-    /// Axis jerk.
-    pub jerk: f64,
-    /// Path velocity.
-    pub feed: f64,
-    /// Path acceleration.
-    pub tacc: f64,
-    /// Path jerk.
-    pub tjerk: f64,
 }
 
 /// Why `feedsim stream` failed.
@@ -616,7 +599,7 @@ pub fn stream_curve(curve: &planner_host::Nurbs, o: &StreamOptions) -> Result<St
         starved_ticks: run.starved_ticks,
         machining_time_s,
         planned_time_s: table.predicted_time_s(),
-        ratios: StreamRatios {
+        ratios: planner_host::Ratios {
             vel: r.vel.ratio,
             acc: r.acc.ratio,
             jerk: r.jerk.ratio,

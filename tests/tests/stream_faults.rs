@@ -6,7 +6,8 @@
 //! run's, bit for bit, and every limit holds on the setpoints (the project's
 //! checker, 50 ticks at rest before and after).
 
-use firmware_core::{Setpoint, Table};
+use e2e_tests::streamed::{big_stack, bits, check};
+use firmware_core::Table;
 use planner_host::plan::{plan_curve, PlanConfig};
 use planner_host::stream::{chunk_table, ChunkOptions};
 use planner_host::stream_hold::{set_hold_points, HoldSearch};
@@ -16,25 +17,6 @@ const T: f64 = 250e-6;
 const CAP: usize = 64 * 1024;
 const NQ: usize = 512;
 const NP: usize = 2048;
-
-fn big_stack(f: impl FnOnce() + Send + 'static) {
-    std::thread::Builder::new()
-        .stack_size(256 << 20)
-        .spawn(f)
-        .unwrap()
-        .join()
-        .unwrap();
-}
-
-fn bits(sp: &Setpoint) -> [u64; 5] {
-    [
-        sp.t_s.to_bits(),
-        sp.s_mm.to_bits(),
-        sp.pos_mm[0].to_bits(),
-        sp.pos_mm[1].to_bits(),
-        sp.pos_mm[2].to_bits(),
-    ]
-}
 
 fn run(table: &Table, chunks: &[Vec<u8>], faults: LinkFaults) -> StreamRun {
     let link = StreamLink {
@@ -109,7 +91,6 @@ fn damaged_lost_repeated_and_reordered_chunks_and_a_host_restart_lose_nothing() 
                 },
             ),
         ];
-        let curve_geom = sim_harness::CurveGeometry::from_table(&table).unwrap().curve;
         for (what, faults) in cases {
             let r = run(&table, &chunks, faults);
             let refused = r.refused_crc + r.refused_duplicate + r.refused_order;
@@ -131,17 +112,7 @@ fn damaged_lost_repeated_and_reordered_chunks_and_a_host_restart_lose_nothing() 
             for (k, (a, b)) in clean.setpoints.iter().zip(&r.setpoints).enumerate() {
                 assert_eq!(bits(a), bits(b), "{what}: setpoint {k}");
             }
-            let traj = sim_harness::Trajectory {
-                t_s: r.setpoints.iter().map(|p| p.t_s).collect(),
-                pos_mm: r.setpoints.iter().map(|p| p.pos_mm).collect(),
-            };
-            let cfg = sim_harness::CheckConfig {
-                limits: table.limits(),
-                pad_rest: 50,
-                tol: 0.01,
-                ..Default::default()
-            };
-            let rep = sim_harness::check_trajectory(&curve_geom, &traj, &cfg).unwrap();
+            let rep = check(&table, &r.setpoints, 0.01);
             assert!(rep.ok, "{what}: {}", rep.text());
         }
     });

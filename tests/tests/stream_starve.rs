@@ -6,7 +6,8 @@
 //! project's checker, 50 ticks at rest before and after), and resumes when
 //! the chunks come again, finishing the path.
 
-use firmware_core::{Interpolator, Setpoint, Table};
+use e2e_tests::streamed::{big_stack, bits, check};
+use firmware_core::{Interpolator, Table};
 use planner_host::plan::{plan_curve, PlanConfig};
 use planner_host::stream::{chunk_table, ChunkOptions};
 use planner_host::stream_hold::{set_hold_points, HoldSearch};
@@ -59,42 +60,6 @@ fn link(baud: f64, stalls: Vec<(f64, f64)>) -> StreamLink {
         faults: Default::default(),
         ready_s: vec![],
     }
-}
-
-fn check(table: &Table, sp: &[Setpoint]) -> sim_harness::CheckReport {
-    let curve = sim_harness::CurveGeometry::from_table(table).unwrap().curve;
-    let cfg = sim_harness::CheckConfig {
-        limits: table.limits(),
-        pad_rest: 50,
-        tol: TOL,
-        ..Default::default()
-    };
-    let traj = sim_harness::Trajectory {
-        t_s: sp.iter().map(|p| p.t_s).collect(),
-        pos_mm: sp.iter().map(|p| p.pos_mm).collect(),
-    };
-    sim_harness::check_trajectory(&curve, &traj, &cfg).unwrap()
-}
-
-fn bits(sp: &Setpoint) -> [u64; 6] {
-    [
-        sp.t_s.to_bits(),
-        sp.s_mm.to_bits(),
-        sp.feed_mm_s.to_bits(),
-        sp.pos_mm[0].to_bits(),
-        sp.pos_mm[1].to_bits(),
-        sp.pos_mm[2].to_bits(),
-    ]
-}
-
-/// Runs `f` on a thread with room for the windows on its stack.
-fn big_stack(f: impl FnOnce() + Send + 'static) {
-    std::thread::Builder::new()
-        .stack_size(256 << 20)
-        .spawn(f)
-        .unwrap()
-        .join()
-        .unwrap();
 }
 
 #[test]
@@ -156,7 +121,7 @@ fn stalled_link() {
         most <= table.limits().vbar * T * (1.0 + TOL),
         "a step of {most} mm"
     );
-    let rep = check(&table, &run.setpoints);
+    let rep = check(&table, &run.setpoints, TOL);
     print!("{}", rep.text());
     assert!(rep.ok, "{}", rep.text());
     println!(
