@@ -6,7 +6,7 @@
 
 use firmware_core::interp::Interpolator;
 use firmware_core::stream::{Chunk, PlanWindow, WindowError};
-use firmware_core::{Setpoint, Table};
+use firmware_core::{F64Array, Setpoint, Table};
 use planner_host::builtin;
 use planner_host::plan::{plan_curve, PlanConfig};
 use planner_host::stream::{chunk_table, ChunkOptions};
