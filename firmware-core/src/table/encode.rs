@@ -325,7 +325,7 @@ pub fn encode(parts: &TableParts, out: &mut [u8]) -> Result<usize, EncodeError> 
                 let per = piece_f32_len(encode_degree(parts));
                 let mut i = 0usize;
                 let mut res = Ok(());
-                all_pieces(&fit_input(parts), |_, sa, _, piece| {
+                all_pieces(&fit_input(parts), |sa, _, piece| {
                     if let (Some(pd), Ok(())) = (piece, res) {
                         res = wr_f64s(buf, off_b.saturating_add(i.saturating_mul(8)), [sa])
                             .and_then(|_| {
