@@ -260,7 +260,7 @@ impl<'a> ArcRef<'a> {
     fn find(&self, s: f64) -> usize {
         let (mut lo, mut hi) = (self.g.j0, self.g.j1.saturating_sub(1));
         while lo < hi {
-            let mid = lo + (hi - lo + 1) / 2;
+            let mid = lo + (hi - lo).div_ceil(2);
             if self.input.su_breaks.get(mid).is_some_and(|&b| b <= s) {
                 lo = mid;
             } else {
@@ -349,7 +349,11 @@ const U_COEFFS: usize = 6;
 /// centre in Q40, 2^e ≥ half the length), coefficients rounded to Q40 mm.
 /// u form: the quintic through u(s) at six Chebyshev–Lobatto points in
 /// τ′ = (s − s_start)/len, its constant term u_a, the others / w in f32.
-pub fn piece_local(arc: &mut ArcRef, (s_start, s_end): (f64, f64)) -> Option<PieceData> {
+/// Where the fit is within `tol` mm, b₁ … b₇ are then rounded to the
+/// coarsest grid of 2^g Q40 units (g ≤ [`COEFF_GRID_MAX`]) that keeps it
+/// within `tol`: their low bits carry nothing the tolerance needs, and a
+/// chunk leaves them out.
+pub fn piece_local(arc: &mut ArcRef, tol: f64, (s_start, s_end): (f64, f64)) -> Option<PieceData> {
     let (k0, k1) = arc.knots;
     let w = k1 - k0;
     let len = s_end - s_start;
@@ -388,29 +392,7 @@ pub fn piece_local(arc: &mut ArcRef, (s_start, s_end): (f64, f64)) -> Option<Pie
     }
     let e = newton_to_power(&tu, &mut du);
     let u_a = e[0][0];
-    let mut words = [0u64; PIECE_F64_LEN];
-    words[0] = u_a.to_bits();
-    words[1] = c_fx as u64;
-    let mut bytes = [0u8; POS_BYTES];
-    let mut constant = 0u32;
-    for a in 0..3 {
-        let mut moves = false;
-        for (k, ck) in cp.iter().enumerate() {
-            let b = libm::round(ck[a] * FX_ONE);
-            if !(b.abs() < 9.0e18) {
-                return None;
-            }
-            let v = b as i64;
-            moves |= k > 0 && v != 0;
-            words[3 + a * POS_COEFFS + k] = v as u64;
-            let at = 8 * (a * POS_COEFFS + k);
-            bytes[at..at + 8].copy_from_slice(&v.to_le_bytes());
-        }
-        if !moves {
-            constant |= 1 << a;
-        }
-    }
-    words[2] = (TAU_SHIFT_BASE - ex) as u64 | u64::from(constant) << 8;
+    let shift = (TAU_SHIFT_BASE - ex) as u32;
     let mut f32s = [0.0f32; PIECE_F32_MAX];
     for (o, ek) in f32s.iter_mut().zip(e.iter().skip(1)) {
         *o = (ek[0] / w) as f32;
@@ -420,24 +402,89 @@ pub fn piece_local(arc: &mut ArcRef, (s_start, s_end): (f64, f64)) -> Option<Pie
     let mut head = [0.0f32; crate::servo_forms::piece::PIECE_HEAD_LEN];
     head.copy_from_slice(f32s.get(..crate::servo_forms::piece::PIECE_HEAD_LEN)?);
     let pu = PieceU::from_array(head);
-    let (mut fit_err, mut u_err) = (0.0f64, 0.0f64);
-    for j in 0..FIT_CHECKS {
+    // the reference at the check points, once for every rounding below
+    let mut refs = [([0.0f64; 3], 0i64); FIT_CHECKS];
+    let mut u_err = 0.0f64;
+    for (j, slot) in refs.iter_mut().enumerate() {
         let s = s_start + len * j as f64 / (FIT_CHECKS - 1) as f64;
         let (r, u) = arc.point(s)?;
-        let t = piece_tau(to_fx(s), c_fx, (TAU_SHIFT_BASE - ex) as u32)?;
-        let p = pos_eval(&bytes, t, constant);
-        for (pa, ra) in p.iter().zip(r.iter()) {
-            fit_err = fit_err.max((fx_to_f64(*pa) - ra).abs());
-        }
+        *slot = (r, piece_tau(to_fx(s), c_fx, shift)?);
         let u32v = u_a + f64::from(pu.delta((s - s_start) as f32) * pu.width);
         u_err = u_err.max(libm::fabs(u32v - u) * arc.speed(u));
+    }
+    let (mut bytes, mut constant) = round_coeffs(&cp, 0)?;
+    let fit_err = pos_err(&bytes, constant, &refs);
+    // b₁ … b₇ on the coarsest grid 2^g Q40 units that keeps the fit within
+    // `tol` (a chunk sends them in units of 2^g, `crate::stream`)
+    if fit_err <= tol {
+        for g in (1..=COEFF_GRID_MAX).rev() {
+            let Some((b, m)) = round_coeffs(&cp, g) else {
+                continue;
+            };
+            if pos_err(&b, m, &refs) <= tol {
+                (bytes, constant) = (b, m);
+                break;
+            }
+        }
+    }
+    let mut words = [0u64; PIECE_F64_LEN];
+    words[0] = u_a.to_bits();
+    words[1] = c_fx as u64;
+    words[2] = u64::from(shift) | u64::from(constant) << 8;
+    for (wd, b) in words.iter_mut().skip(3).zip(bytes.chunks_exact(8)) {
+        let mut x = [0u8; 8];
+        x.copy_from_slice(b);
+        *wd = u64::from_le_bytes(x);
     }
     Some(PieceData {
         s_start,
         words,
         f32s,
-        fit_err,
+        fit_err: pos_err(&bytes, constant, &refs),
         u_err,
+    })
+}
+
+/// The coarsest grid of b₁ … b₇ the fit tries: 2^12 Q40 units.
+pub const COEFF_GRID_MAX: u32 = 12;
+
+/// The position coefficients rounded to Q40 mm (b₁ … b₇ to multiples of
+/// 2^g units), as the tick's bytes, and the constant-axis mask; `None` out
+/// of range.
+fn round_coeffs(cp: &[[f64; 3]; POS_COEFFS], g: u32) -> Option<([u8; POS_BYTES], u32)> {
+    let mut bytes = [0u8; POS_BYTES];
+    let mut constant = 0u32;
+    let unit = f64::from(1u32 << g.min(30));
+    for a in 0..3 {
+        let mut moves = false;
+        for (k, ck) in cp.iter().enumerate() {
+            let b = if k == 0 {
+                libm::round(ck[a] * FX_ONE)
+            } else {
+                libm::round(ck[a] * FX_ONE / unit) * unit
+            };
+            if !(b.abs() < 9.0e18) {
+                return None;
+            }
+            let v = b as i64;
+            moves |= k > 0 && v != 0;
+            let at = 8 * (a * POS_COEFFS + k);
+            bytes.get_mut(at..at + 8)?.copy_from_slice(&v.to_le_bytes());
+        }
+        if !moves {
+            constant |= 1 << a;
+        }
+    }
+    Some((bytes, constant))
+}
+
+/// Largest distance of the tick's positions from the reference points.
+fn pos_err(bytes: &[u8; POS_BYTES], constant: u32, refs: &[([f64; 3], i64)]) -> f64 {
+    refs.iter().fold(0.0f64, |m, (r, t)| {
+        let p = pos_eval(bytes, *t, constant);
+        p.iter()
+            .zip(r.iter())
+            .fold(m, |m, (pa, ra)| m.max((fx_to_f64(*pa) - ra).abs()))
     })
 }
 
@@ -527,7 +574,7 @@ fn fit_piece<F: FnMut(f64, f64, Option<&PieceData>)>(
     depth: u32,
     f: &mut F,
 ) {
-    let piece = piece_local(arc, (sa, sb));
+    let piece = piece_local(arc, tol, (sa, sb));
     let grid = break_grid(0.5 * (sa + sb));
     let mid = if grid > sa && grid < sb {
         grid

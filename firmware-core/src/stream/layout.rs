@@ -1,10 +1,10 @@
 //! Named sizes, offsets and flag bits of the chunk layout (format version
-//! 1; the tables in the [`crate::stream`] docs, as constants).
+//! 2; the tables in the [`crate::stream`] docs, as constants).
 
 /// Magic bytes at offset 0: "FC".
 pub const MAGIC: [u8; 2] = *b"FC";
 /// Chunk format version written and accepted.
-pub const VERSION: u8 = 1;
+pub const VERSION: u8 = 2;
 /// Bytes of the fixed header, before the payload.
 pub const HEADER_LEN: usize = 44;
 /// Bytes of the CRC-32 after the payload.

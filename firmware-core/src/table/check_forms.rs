@@ -125,7 +125,7 @@ pub(crate) fn forms<'a>(
         let u_map = |s: f64| -> Option<f64> {
             let (mut lo, mut hi) = (j.max(g0), g1 - 1);
             while lo < hi {
-                let mid = lo + (hi - lo + 1) / 2;
+                let mid = lo + (hi - lo).div_ceil(2);
                 if su_breaks.get(mid)? <= s {
                     lo = mid;
                 } else {
