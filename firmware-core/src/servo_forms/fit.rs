@@ -76,8 +76,12 @@ pub fn fit_tol_mm(scale: f64) -> f64 {
     FIT_TOL_MM.max(64.0 * f64::EPSILON * scale)
 }
 
-/// Most bisections of one piece.
-pub const MAX_SPLIT: u32 = 10;
+/// Most bisections of one piece: 16, from a piece of 0.1 s of feed down to
+/// 1/65,536 of it (a knot span whose weights differ 400-fold between
+/// neighbours, `tests/fixtures/hard/weights_far.json`, needs 12 near its
+/// curvature peak: the s → u map's short segments there used to start the
+/// pieces short).
+pub const MAX_SPLIT: u32 = 16;
 /// Points per piece at which the host measures the fit.
 pub const FIT_CHECKS: usize = 4 * POS_DEG + 1;
 

@@ -3,7 +3,9 @@
 
 /// Magic bytes at offset 0: "FC".
 pub const MAGIC: [u8; 2] = *b"FC";
-/// Chunk format version written and accepted.
+/// Chunk format version written and accepted (2: q knots predicted,
+/// piece ends on the 2⁻²⁰ mm grid, shift predicted, b₁ … b₇ on a grid of
+/// 2^g; version 1 sent breaks and knots as f64 bit deltas, b_k whole).
 pub const VERSION: u8 = 2;
 /// Bytes of the fixed header, before the payload.
 pub const HEADER_LEN: usize = 44;
