@@ -353,9 +353,9 @@ const U_COEFFS: usize = 6;
 /// centre in Q40, 2^e ≥ half the length), coefficients rounded to Q40 mm.
 /// u form: the quintic through u(s) at six Chebyshev–Lobatto points in
 /// τ′ = (s − s_start)/len, its constant term u_a, the others / w in f32.
-/// Where the fit is within `tol` mm, b₁ … b₇ are then rounded to the
-/// coarsest grid of 2^g Q40 units (g ≤ [`COEFF_GRID_MAX`]) that keeps it
-/// within `tol`: their low bits carry nothing the tolerance needs, and a
+/// Where the fit is within `tol` mm (and [`FIT_TOL_MM`]), b₁ … b₇ are then
+/// rounded to the coarsest grid of 2^g Q40 units (g ≤ [`COEFF_GRID_MAX`])
+/// that keeps it so: their low bits carry nothing the tolerance needs, and a
 /// chunk leaves them out.
 pub fn piece_local(arc: &mut ArcRef, tol: f64, (s_start, s_end): (f64, f64)) -> Option<PieceData> {
     let (k0, k1) = arc.knots;
@@ -419,13 +419,16 @@ pub fn piece_local(arc: &mut ArcRef, tol: f64, (s_start, s_end): (f64, f64)) -> 
     let (mut bytes, mut constant) = round_coeffs(&cp, 0)?;
     let fit_err = pos_err(&bytes, constant, &refs);
     // b₁ … b₇ on the coarsest grid 2^g Q40 units that keeps the fit within
-    // `tol` (a chunk sends them in units of 2^g, `crate::stream`)
-    if fit_err <= tol {
+    // `tol` and FIT_TOL_MM (a chunk sends them in units of 2^g,
+    // `crate::stream`; far from the origin `tol` is looser, but the parse
+    // check near a small coordinate is not)
+    let round_tol = tol.min(FIT_TOL_MM);
+    if fit_err <= round_tol {
         for g in (1..=COEFF_GRID_MAX).rev() {
             let Some((b, m)) = round_coeffs(&cp, g) else {
                 continue;
             };
-            if pos_err(&b, m, &refs) <= tol {
+            if pos_err(&b, m, &refs) <= round_tol {
                 (bytes, constant) = (b, m);
                 break;
             }
