@@ -43,9 +43,11 @@ pub const PIECE_TIME_S: f64 = 0.1;
 /// 1e-10 mm: a tenth of the parse check [`POS_TOL_MM`](crate::servo_forms::check::POS_TOL_MM)
 /// and 10⁴ below the 1 µm the certified and whole-program checks hold the
 /// setpoints to; the error is smooth inside a piece and the pieces meet
-/// within a few Q40 units (the fit interpolates the ends), so it adds no
-/// tick-to-tick noise (`tests/tests/noise.rs`). 2e-11 mm costs 19 % more
-/// pieces on the Butterfly (1.98 against 1.66 a mm).
+/// within twice it (the fit interpolates the ends, then b₁ … b₇ are
+/// rounded within it): the setpoints' jerk noise stays ≤ 31 mm/s³ on the
+/// Butterfly, Circle and Fan against the 160 `tests/tests/noise.rs` allows.
+/// 2e-11 mm costs 19 % more pieces on the Butterfly (1.98 against 1.66 a
+/// mm, `planner-host/examples/table_budget`).
 pub const FIT_TOL_MM: f64 = 1e-10;
 /// Bits below the point of the grid interior piece breaks lie on (2⁻²⁰ mm
 /// = 0.95 nm): a chunk sends such a piece's length as a small integer.
