@@ -16,6 +16,7 @@
 //! [`POS_TOL_MM`](crate::servo_forms::check::POS_TOL_MM), along it within
 //! [`POS_ALONG_TOL_MM`](crate::servo_forms::check::POS_ALONG_TOL_MM)).
 
+use crate::math::basis::MAX_DEGREE;
 use crate::path::nurbs::{NurbsSpan, NurbsView};
 use crate::path::qspline::QSpline;
 use crate::path::su_map::{horner, SuSegment};
@@ -131,6 +132,10 @@ const CUM: usize = 64;
 pub struct ArcRef<'a> {
     input: &'a FitInput<'a>,
     span: NurbsSpan,
+    /// The span's homogeneous A(u) in power form, for |r′(u)| in the
+    /// quadratures (the basis functions' recurrence at every node was
+    /// half the planning time).
+    poly: SpanPoly,
     g: Group,
     /// Knot span [U_i, U_{i+1}].
     knots: (f64, f64),
@@ -162,6 +167,92 @@ const GL_W: [f64; 8] = [
     0.027_152_459_411_754_095,
 ];
 
+/// A knot span's homogeneous A(u) = Σ N_j(u) Pʷ_j in power form in
+/// t = (u − c)/h (c the span's middle, h its half width): interpolated at
+/// the degree + 1 Chebyshev–Lobatto nodes, so exact up to rounding (A is a
+/// polynomial of the degree on the span).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct SpanPoly {
+    c: f64,
+    h: f64,
+    n: usize,
+    a: [[f64; 4]; MAX_DEGREE + 1],
+}
+
+impl SpanPoly {
+    fn new(span: &NurbsSpan, degree: usize, (k0, k1): (f64, f64)) -> Option<Self> {
+        let n = degree.checked_add(1)?;
+        if n > MAX_DEGREE + 1 || !(k1 > k0) {
+            return None;
+        }
+        let (c, h) = (0.5 * (k0 + k1), 0.5 * (k1 - k0));
+        let mut t = [0.0f64; MAX_DEGREE + 1];
+        let mut d = [[0.0f64; 4]; MAX_DEGREE + 1];
+        for i in 0..n {
+            let ti = if n == 1 {
+                0.0
+            } else {
+                libm::cos(core::f64::consts::PI * i as f64 / (n - 1) as f64)
+            };
+            *t.get_mut(i)? = ti;
+            *d.get_mut(i)? = span.homogeneous_point((c + h * ti).clamp(k0, k1))?;
+        }
+        // divided differences in place, then the Newton form to power form
+        for k in 1..n {
+            for i in (k..n).rev() {
+                let den = t.get(i)? - t.get(i - k)?;
+                let (hi, lo) = (*d.get(i)?, *d.get(i - 1)?);
+                let out = d.get_mut(i)?;
+                for (o, (x, y)) in out.iter_mut().zip(hi.iter().zip(lo.iter())) {
+                    *o = (x - y) / den;
+                }
+            }
+        }
+        let mut a = [[0.0f64; 4]; MAX_DEGREE + 1];
+        *a.get_mut(0)? = *d.get(n - 1)?;
+        let mut len = 1usize;
+        for k in (0..n - 1).rev() {
+            // a ← a·(t − t_k) + d_k
+            let tk = *t.get(k)?;
+            for j in (0..=len).rev() {
+                let prev = if j > 0 { *a.get(j - 1)? } else { [0.0; 4] };
+                let cur = if j < len { *a.get(j)? } else { [0.0; 4] };
+                let dk = if j == 0 { *d.get(k)? } else { [0.0; 4] };
+                let out = a.get_mut(j)?;
+                for m in 0..4 {
+                    out[m] = prev[m] - tk * cur[m] + dk[m];
+                }
+            }
+            len += 1;
+        }
+        Some(SpanPoly { c, h, n, a })
+    }
+
+    /// |r′(u)|, mm per unit u.
+    fn speed(&self, u: f64) -> f64 {
+        let t = (u - self.c) / self.h;
+        let mut v = [0.0f64; 4];
+        let mut dv = [0.0f64; 4];
+        for coeffs in self.a.iter().take(self.n).rev() {
+            for m in 0..4 {
+                dv[m] = dv[m] * t + v[m];
+                v[m] = v[m] * t + coeffs[m];
+            }
+        }
+        let w = v[3];
+        if !(w > 0.0) {
+            return 0.0;
+        }
+        let dw = dv[3];
+        let d = [
+            (dv[0] * w - v[0] * dw) / (w * w * self.h),
+            (dv[1] * w - v[1] * dw) / (w * w * self.h),
+            (dv[2] * w - v[2] * dw) / (w * w * self.h),
+        ];
+        norm3(d)
+    }
+}
+
 fn norm3(d: [f64; 3]) -> f64 {
     libm::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
 }
@@ -173,9 +264,11 @@ impl<'a> ArcRef<'a> {
         let span = curve.span(seg.span as usize)?;
         let k0 = *input.nurbs_knots.get(seg.span as usize)?;
         let k1 = *input.nurbs_knots.get((seg.span as usize).checked_add(1)?)?;
+        let poly = SpanPoly::new(&span, input.degree, (k0, k1))?;
         (k1 > k0 && g.s1 > g.s0).then_some(ArcRef {
             input,
             span,
+            poly,
             g,
             knots: (k0, k1),
             anchor: g.j0,
@@ -202,7 +295,7 @@ impl<'a> ArcRef<'a> {
     }
 
     fn speed(&self, u: f64) -> f64 {
-        self.span.point_and_derivative(u).map_or(0.0, |(_, d)| norm3(d))
+        self.poly.speed(u)
     }
 
     /// ∫ₐᵇ |r′(u)| du: 16-point Gauss–Legendre on up to 64 equal parts,
@@ -292,9 +385,16 @@ impl<'a> ArcRef<'a> {
         let u0 = self.u_map(k, s);
         let base = self.s_at_seg(k);
         let uk = self.u_start(k);
+        // s(u) − s at u₀ by the quadrature from the segment's start; at
+        // the Newton iterates by the short quadrature from u₀ on
+        let at_u0 = base + self.integral(uk, u0) - s;
         let mut u = u0;
         for _ in 0..2 {
-            let f = base + self.integral(uk, u) - s;
+            let f = if u == u0 {
+                at_u0
+            } else {
+                at_u0 + self.integral(u0, u)
+            };
             let v = self.speed(u);
             if !(v > 0.0 && f.is_finite()) {
                 return u0;
