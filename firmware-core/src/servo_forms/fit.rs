@@ -131,7 +131,6 @@ const CUM: usize = 64;
 /// forward.
 pub struct ArcRef<'a> {
     input: &'a FitInput<'a>,
-    span: NurbsSpan,
     /// The span's homogeneous A(u) in power form, for |r′(u)| in the
     /// quadratures (the basis functions' recurrence at every node was
     /// half the planning time).
@@ -210,8 +209,7 @@ impl SpanPoly {
         }
         let mut a = [[0.0f64; 4]; MAX_DEGREE + 1];
         *a.get_mut(0)? = *d.get(n - 1)?;
-        let mut len = 1usize;
-        for k in (0..n - 1).rev() {
+        for (len, k) in (1usize..).zip((0..n - 1).rev()) {
             // a ← a·(t − t_k) + d_k
             let tk = *t.get(k)?;
             for j in (0..=len).rev() {
@@ -223,9 +221,21 @@ impl SpanPoly {
                     out[m] = prev[m] - tk * cur[m] + dk[m];
                 }
             }
-            len += 1;
         }
         Some(SpanPoly { c, h, n, a })
+    }
+
+    /// r(u), mm.
+    fn point(&self, u: f64) -> Option<[f64; 3]> {
+        let t = (u - self.c) / self.h;
+        let mut v = [0.0f64; 4];
+        for coeffs in self.a.iter().take(self.n).rev() {
+            for m in 0..4 {
+                v[m] = v[m] * t + coeffs[m];
+            }
+        }
+        let w = v[3];
+        (w > 0.0).then(|| [v[0] / w, v[1] / w, v[2] / w])
     }
 
     /// |r′(u)|, mm per unit u.
@@ -267,7 +277,6 @@ impl<'a> ArcRef<'a> {
         let poly = SpanPoly::new(&span, input.degree, (k0, k1))?;
         (k1 > k0 && g.s1 > g.s0).then_some(ArcRef {
             input,
-            span,
             poly,
             g,
             knots: (k0, k1),
@@ -410,7 +419,7 @@ impl<'a> ArcRef<'a> {
     /// r at exact arc length s, and u there.
     pub fn point(&mut self, s: f64) -> Option<([f64; 3], f64)> {
         let u = self.u_of_s(s);
-        Some((self.span.point(u)?, u))
+        Some((self.poly.point(u)?, u))
     }
 }
 
@@ -714,6 +723,42 @@ pub(crate) fn all_pieces<F: FnMut(f64, f64, Option<&PieceData>)>(input: &FitInpu
             fit_piece(&mut arc, tol, (sa, sb), 0, &mut f);
         });
     });
+}
+
+/// The pieces of the knot-span groups `lo .. hi` (in group order, as
+/// [`all_pieces`] gives them): for a host that fits the groups on several
+/// cores.
+pub(crate) fn pieces_of_groups<F: FnMut(f64, f64, Option<&PieceData>)>(
+    input: &FitInput,
+    (lo, hi): (usize, usize),
+    mut f: F,
+) {
+    let q = QSpline::new(input.q_knots, input.q_ctrl);
+    let tol = fit_tol_mm(input.scale);
+    let mut k = 0usize;
+    groups(input, |g| {
+        let here = k;
+        k = k.saturating_add(1);
+        if here < lo || here >= hi {
+            return;
+        }
+        let Some(mut arc) = ArcRef::new(input, g) else {
+            f(g.s0, g.s1, None);
+            return;
+        };
+        group_pieces(g, q.as_ref(), |sa, sb| {
+            let j = arc.find(sa);
+            arc.advance(j);
+            fit_piece(&mut arc, tol, (sa, sb), 0, &mut f);
+        });
+    });
+}
+
+/// Knot-span groups ([`groups`]).
+pub(crate) fn n_groups(input: &FitInput) -> usize {
+    let mut n = 0usize;
+    groups(input, |_| n = n.saturating_add(1));
+    n
 }
 
 /// All pieces.
