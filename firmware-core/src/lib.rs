@@ -45,7 +45,7 @@
 //! - [`output`]: [`SetpointSink`], the trait setpoints leave through; with
 //!   the `embedded-hal` feature, `output::hal`: an SPI frame sink and a
 //!   sync-strobe sink on embedded-hal 1.0 traits (examples).
-//! - [`stream`]: the plan in chunks (format version 1) for streaming:
+//! - [`stream`]: the plan in chunks (format version 2) for streaming:
 //!   [`stream::Chunk`] decodes to the tick's q-span and piece forms,
 //!   [`stream::ChunkRing`] holds received chunks, [`stream::frame`] the
 //!   COBS link framing (not yet read by the tick).

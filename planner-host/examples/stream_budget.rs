@@ -1,6 +1,6 @@
 //! The size of the streamed plan: each curve planned with
 //! `PlanConfig::default()`, its table cut into chunks (chunk format
-//! version 1, `firmware_core::stream`) by `planner_host::stream`, decoded
+//! version 2, `firmware_core::stream`) by `planner_host::stream`, decoded
 //! again and compared with the table word for word, and its bytes per mm
 //! of path printed, with and without the f32 u form, chunks alone and in
 //! DATA frames on the link (COBS and delimiter).
@@ -46,8 +46,8 @@ fn main() {
         curves = builtin::NAMES.iter().map(|s| s.to_string()).collect();
     }
     println!("chunks of {chunk_mm} mm; B/mm of path: chunks, framed on the link, of the chunks the q parts and the pieces\n");
-    println!("| curve | L mm | chunks | table | u form: chunks | framed | q | pieces | no u form: chunks | framed | q | pieces |");
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("| curve | L mm | pieces (/mm) | chunks | table | u form: chunks | framed | q | pieces | no u form: chunks | framed | q | pieces |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     for (k, arg) in curves.iter().enumerate() {
         let curve = cli::load_curve(Path::new(arg)).unwrap_or_else(|e| panic!("{arg}: {e}"));
         let out = plan_curve(&curve, &PlanConfig::default()).unwrap_or_else(|e| panic!("{arg}: {e}"));
@@ -96,9 +96,11 @@ fn main() {
                 }
             }
         }
+        let n_pieces = rows.breaks.len().saturating_sub(1);
         println!(
-            "| {} | {len:.2} | {n_chunks} | {:.1} | {} | {} |",
+            "| {} | {len:.2} | {n_pieces} ({:.3}) | {n_chunks} | {:.1} | {} | {} |",
             out.curve,
+            n_pieces as f64 / len,
             out.table_bytes.len() as f64 / len,
             cells[0],
             cells[1]

@@ -1,5 +1,5 @@
 //! A planned table as a stream of chunks (`firmware_core::stream`, chunk
-//! format version 1): [`chunk_table`] cuts a parsed [`Table`] into chunks
+//! format version 2): [`chunk_table`] cuts a parsed [`Table`] into chunks
 //! of about [`ChunkOptions::chunk_mm`] each, losslessly — decoding them
 //! ([`decode_chunks`]) gives the table's own q spans (sections 10 and 15)
 //! and pieces (sections 11, 12 and 13), word for word. [`StreamSize`]

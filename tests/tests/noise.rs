@@ -219,6 +219,7 @@ fn plateau_table(curve: &Nurbs, feed: f64) -> (Vec<u8>, f64) {
         q_ctrl: &q_ctrl,
         ends: None,
         levels: &[],
+        pieces: None,
     };
     let mut bytes = vec![0u8; table::encoded_len(&parts)];
     let w = table::encode(&parts, &mut bytes).unwrap();

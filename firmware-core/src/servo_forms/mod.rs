@@ -27,20 +27,27 @@
 //!   T²(s̈/2 + T s⃛/6 + T² s⁗/24) in f32 (≤ ~3e-4 mm, so their f32 rounding
 //!   is ≤ 2e-11 mm), converted to Q40 ([`f32_to_fx`](crate::servo_forms::fixed::f32_to_fx)).
 //! - **position** per *piece* (0.1 s of planned travel, 0.1–16 mm, inside
-//!   one s → u segment, then bisected as needed): r(u(s)) as one degree-[`POS_DEG`](crate::servo_forms::piece::POS_DEG)
+//!   one NURBS knot span, interior breaks on the 2⁻²⁰ mm grid, then
+//!   bisected as needed): r(s) as one degree-[`POS_DEG`](crate::servo_forms::piece::POS_DEG)
 //!   polynomial per axis in τ = (s − c)/2^e ∈ [−1, 1] (c the piece's centre
 //!   in Q40, 2^e ≥ half its length), i64 Q40 mm coefficients, fitted on the
 //!   host at the Chebyshev–Lobatto points of the piece against the f64
-//!   reference (the table's s → u quintic and the f64 NURBS) and bisected
+//!   reference (the f64 NURBS at the exact arc length s: the table's s → u
+//!   map polished by Newton steps on ∫|r′|, [`ArcRef`](crate::servo_forms::fit::ArcRef)) and bisected
 //!   (up to [`MAX_SPLIT`](crate::servo_forms::fit::MAX_SPLIT) times) until the fixed-point polynomial is within
-//!   [`FIT_TOL_MM`](crate::servo_forms::fit::FIT_TOL_MM) = 2e-11 mm of it at [`FIT_CHECKS`](crate::servo_forms::fit::FIT_CHECKS) points ([`piece_local`](crate::servo_forms::fit::piece_local)).
+//!   [`FIT_TOL_MM`](crate::servo_forms::fit::FIT_TOL_MM) = 1e-10 mm of it at [`FIT_CHECKS`](crate::servo_forms::fit::FIT_CHECKS) points ([`piece_local`](crate::servo_forms::fit::piece_local)),
+//!   b₁ … b₇ then rounded to the coarsest grid of 2^g Q40 units that stays
+//!   within it (what a chunk need not send, [`crate::stream`]).
 //!   Horner in i64 with [`mul_tau`](crate::servo_forms::fixed::mul_tau): three signed 32 × 32 → 64 products a
 //!   step (τ in Q61 split into 31-bit halves), within 0–2 units (2⁻⁴⁰ mm) of
 //!   the exact floor. An axis whose b₁ … b₇ are all zero (z on a planar path)
 //!   is b₀ without the Horner steps. No homogeneous division, no u on the
 //!   position path.
-//! - **u** (reported only): u_a (Q40) + the f32 Δv quintic of the piece as
-//!   before.
+//! - **u** (reported only): u_a (Q40) + the f32 Δv quintic of the piece,
+//!   through u(s) at six points of the piece, bisected too where it is not
+//!   within [`u_fit_tol_mm`](crate::servo_forms::fit::u_fit_tol_mm) = 1e-9 mm + 1e-6 of the piece length
+//!   along the path (on the five built-in curves it never is: the position
+//!   decides every cut).
 //! - **outputs**: s, x, y, z, u from Q40 by an i64 → f64 conversion and an
 //!   exponent subtraction ([`fx_to_f64`](crate::servo_forms::fixed::fx_to_f64), exact below 8192 mm); t = k·T by
 //!   one integer product, correctly rounded ([`u128_to_f64_pow2`](crate::servo_forms::fixed::u128_to_f64_pow2)).
@@ -61,11 +68,16 @@
 //! | q (Q32 Horner) | ≤ 3 · 2⁻³² (mm/s)² | δv = δq/2v: ≤ 1e-13 mm on ds at 1 mm/s |
 //! | Taylor terms (f32) | ≤ 6e-8 · 3e-4 mm = 2e-11 mm (high accel.) | typically < 1e-12 mm |
 //! | position (Q40 Horner, 7 steps) | ≤ 14 units ≈ 1.3e-11 mm, typically ~1e-12 | — |
-//! | fit (host) | ≤ 2e-11 mm, smooth inside a piece | a step ≤ 4e-11 mm at a piece break |
+//! | fit (host) | ≤ 1e-10 mm, smooth inside a piece | a step ≤ 2e-10 mm at a piece break |
 //!
 //! Measured against a noise-free f64 reference (`tests/tests/noise.rs`: s(t)
 //! by the same Taylor step in f64 with exact √q, r(u(s)) in f64; Δ³ of the
-//! difference over T³), before (f32 fast path) → now:
+//! difference over T³), before (f32 fast path) → fixed point with pieces
+//! per s → u segment at 2e-11 mm (the table below). With the pieces per
+//! knot span at 1e-10 mm and b₁ … b₇ on their 2^g grid the same test reads
+//! FD jerk noise max 24.9 / 17.1 / 31.2 mm/s³ (Butterfly, Circle, Fan),
+//! rms 1.8 / 0.4 / 1.8: against r(u_map(s)), whose own difference from the
+//! exact arc length (≤ 2.1e-6 mm along the path) is in that figure.
 //!
 //! | curve | FD jerk noise max | rms | σ (rms/√20) | s-only noise max |
 //! |---|---|---|---|---|
@@ -80,7 +92,10 @@
 //! rational-quadratic quarter circle R = 50 mm at 150 mm/s, noise 1.2 mm/s³
 //! with FD jerk 1,324 mm/s³ against the exact ≤ v³/R² = 1,350. The 10.8 m
 //! helix (`tests/tests/long_path.rs`): setpoints within 2.2e-11 mm of
-//! r(u(s)) over the whole path (f32 path: 8.8e-7 mm).
+//! r(u(s)) over the whole path with the pieces per s → u segment (f32 path:
+//! 8.8e-7 mm); with the pieces per knot span on the exact arc length,
+//! within 1.1e-9 mm of r at the planner's own arc length and 8.2e-7 mm of
+//! r(u_map(s)) (the map's error along the path, not off the path).
 //!
 //! Cost (Cortex-M4F, QEMU, `firmware-core/mcu/bench-insn.sh`, Butterfly):
 //! 1,272 mean / 1,643 max Thumb instructions a tick (f32 path with the end

@@ -1,10 +1,7 @@
-//! Pieces: the position r(u(s)) as a fixed-point polynomial per piece
+//! Pieces: the position r(s) as a fixed-point polynomial per piece
 //! (section 12) and the f32 s → u form that reports u (section 13), as the
 //! tick evaluates them.
 
-use crate::math::source::{F64Array, Point4Array};
-use crate::path::nurbs::NurbsView;
-use crate::path::su_map::{horner, SuSegment};
 use crate::servo_forms::fixed::{mul_tau, split_tau, FX_FRAC, TAU_FRAC};
 
 /// Degree of the per-piece position polynomial in τ.
@@ -24,17 +21,6 @@ pub const PIECE_F32_MAX: usize = PIECE_HEAD_LEN;
 /// f32 values per piece: [`PIECE_HEAD_LEN`] for every degree.
 pub fn piece_f32_len(_degree: usize) -> usize {
     PIECE_HEAD_LEN
-}
-
-/// The f64 reference r(u(s)) on segment `seg` over `[s0, s1]`.
-pub fn ref_point<K: F64Array, P: Point4Array>(
-    curve: &NurbsView<K, P>,
-    seg: &SuSegment,
-    (s0, s1): (f64, f64),
-    s: f64,
-) -> Option<[f64; 3]> {
-    let u = horner(&seg.coeffs, ((s - s0) / (s1 - s0)).clamp(0.0, 1.0));
-    curve.point_in_span(seg.span as usize, u)
 }
 
 /// Bytes of one piece's position coefficients (24 i64).

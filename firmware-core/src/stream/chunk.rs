@@ -3,7 +3,8 @@
 //! (sections 10 and 15 of a table) and [`PieceForm`] (sections 11, 12, 13).
 
 use crate::path::qspline::QSpline;
-use crate::servo_forms::fixed::{mul_tau, piece_tau, split_tau, to_fx};
+use crate::servo_forms::fit::BREAK_FRAC;
+use crate::servo_forms::fixed::{ceil_log2, mul_tau, piece_tau, split_tau, to_fx, TAU_SHIFT_BASE};
 use crate::servo_forms::piece::{piece_shift_mask, PIECE_F64_LEN, PIECE_HEAD_LEN, POS_COEFFS, POS_DEG};
 use crate::servo_forms::q_span::{q_fixed, q_local, Q_FX_LEN, Q_LOCAL_LEN};
 use crate::stream::error::{ChunkError, Malformed};
@@ -166,13 +167,12 @@ impl<'a> Chunk<'a> {
             return Err(Malformed::Reserved.into());
         }
         info.knots_at = HEADER_LEN + r.at;
-        let mut prev = 0u64;
-        let mut prev_val = f64::NEG_INFINITY;
+        let (mut prev_val, mut prev2) = (f64::NEG_INFINITY, 0.0f64);
         // U_{i₀} is the knot sent third, U_{i₁+1} the (n_q + 3)-th
         let (first_at, end_at) = (2, usize::from(info.n_q) + 2);
         let (mut q_start, mut q_end) = (0i64, 0i64);
         for j in 0..usize::from(info.n_q) + Q_EXTRA_KNOTS {
-            let bits = prev.wrapping_add(r.zvar()? as u64);
+            let bits = predict_knot(j, prev_val, prev2).wrapping_add(r.zvar()? as u64);
             let k = f64::from_bits(bits);
             if !k.is_finite() || !(k >= prev_val) {
                 return Err(Malformed::Knots.into());
@@ -183,7 +183,7 @@ impl<'a> Chunk<'a> {
             if j == end_at {
                 q_end = to_fx(k);
             }
-            prev = bits;
+            prev2 = prev_val;
             prev_val = k;
         }
         if q_start > info.s_a || q_end < info.s_b {
@@ -235,7 +235,9 @@ impl<'a> Chunk<'a> {
         let mut it = QSpans {
             knots: Reader::new(knots),
             ctrl: Reader::new(ctrl),
-            prev_bits: 0,
+            sent: 0,
+            prev: 0.0,
+            prev2: 0.0,
             k: [0.0; 8],
             c: [0.0; 4],
             span: self.info.first_span,
@@ -318,7 +320,10 @@ impl QSpanForm {
 pub struct QSpans<'a> {
     knots: Reader<'a>,
     ctrl: Reader<'a>,
-    prev_bits: u64,
+    /// Knots decoded so far, the last and the one before it.
+    sent: usize,
+    prev: f64,
+    prev2: f64,
     /// U_{i−3} … U_{i+4} (slots 0 and 7 unused by the derivation).
     k: [f64; 8],
     /// P_{i−3} … P_i.
@@ -331,8 +336,9 @@ pub struct QSpans<'a> {
 impl QSpans<'_> {
     fn next_knot(&mut self) -> f64 {
         let d = self.knots.zvar().unwrap_or(0);
-        self.prev_bits = self.prev_bits.wrapping_add(d as u64);
-        f64::from_bits(self.prev_bits)
+        let k = f64::from_bits(predict_knot(self.sent, self.prev, self.prev2).wrapping_add(d as u64));
+        (self.sent, self.prev2, self.prev) = (self.sent.saturating_add(1), self.prev, k);
+        k
     }
 }
 
@@ -531,6 +537,103 @@ pub(crate) fn predict_centre(start_fx: i64, end_fx: i64) -> i64 {
     start_fx.wrapping_add(end_fx.wrapping_sub(start_fx) / 2)
 }
 
+/// The knot after `prev` and `prev2` (`n` knots before it), predicted as
+/// the previous step repeated, `prev + (prev − prev2)`, as f64 bits; the
+/// previous knot for the second, 0 for the first (or when not finite).
+pub(crate) fn predict_knot(n: usize, prev: f64, prev2: f64) -> u64 {
+    match n {
+        0 => 0,
+        1 => prev.to_bits(),
+        _ => {
+            let p = prev + (prev - prev2);
+            if p.is_finite() {
+                p.to_bits()
+            } else {
+                prev.to_bits()
+            }
+        }
+    }
+}
+
+/// 2^[`BREAK_FRAC`] as f64.
+fn grid_scale() -> f64 {
+    f64::from(1u32 << BREAK_FRAC)
+}
+
+/// The piece end code (`var`): 2k for an end on the 2⁻²⁰ mm grid, k grid
+/// steps past the first grid point at or after `start`; 2d + 1 for any
+/// other end, d its f64 bits minus the start's. `None` if the end is not
+/// after the start.
+pub(crate) fn end_code(start: f64, end: f64) -> Option<u64> {
+    if !(end > start) {
+        return None;
+    }
+    let g = grid_scale();
+    let (a, b) = (libm::ceil(start * g), end * g);
+    if b == libm::floor(b) && b >= a && b - a < 4.5e15 {
+        return Some(((b - a) as u64) << 1);
+    }
+    let d = end.to_bits().checked_sub(start.to_bits())?;
+    (d < 1 << 63).then_some(d << 1 | 1)
+}
+
+/// The end a code of [`end_code`] stands for (any code gives a value;
+/// the caller checks it is finite and after `start`).
+pub(crate) fn end_of_code(start: f64, code: u64) -> f64 {
+    if code & 1 == 0 {
+        let g = grid_scale();
+        (libm::ceil(start * g) + (code >> 1) as f64) / g
+    } else {
+        f64::from_bits(start.to_bits().wrapping_add(code >> 1))
+    }
+}
+
+/// The shift a piece from `start` to `end` has when the fit made it: 21 − e,
+/// 2^e the first power of two ≥ half its length
+/// ([`crate::servo_forms::fit::piece_local`]).
+pub(crate) fn predict_shift(start: f64, end: f64) -> i64 {
+    i64::from(TAU_SHIFT_BASE - ceil_log2(0.5 * (end - start)).0)
+}
+
+/// Bits of the coefficient grid exponent g in the word 2 code.
+const GRID_BITS: u32 = 4;
+
+/// Word 2 as a chunk sends it (`var`), with the piece's coefficient grid
+/// g (< 16: the moving axes' b₁ … b₇ are multiples of 2^g, sent divided by
+/// it): g in bits 0–3, the constant-axis mask in bits 4–6, the shift minus
+/// [`predict_shift`] zig-zag above them.
+pub(crate) fn word2_code(w2: u64, pred_shift: i64, g: u32) -> Option<u64> {
+    let (shift, mask) = piece_shift_mask(w2)?;
+    let d = i64::from(shift).wrapping_sub(pred_shift);
+    let z = ((d << 1) ^ (d >> 63)) as u64;
+    (z < 1 << 56 && g < 1 << GRID_BITS).then_some((z << 3 | u64::from(mask)) << GRID_BITS | u64::from(g))
+}
+
+/// Word 2 and g from their code; `None` if the shift is out of 0 ..= 255.
+pub(crate) fn word2_of_code(code: u64, pred_shift: i64) -> Option<(u64, u32)> {
+    let g = (code & ((1 << GRID_BITS) - 1)) as u32;
+    let code = code >> GRID_BITS;
+    let z = code >> 3;
+    let d = (z >> 1) as i64 ^ -((z & 1) as i64);
+    let shift = pred_shift.checked_add(d)?;
+    (0..=255)
+        .contains(&shift)
+        .then_some((shift as u64 | (code & 7) << 8, g))
+}
+
+/// The coarsest grid 2^g (g < 16) b₁ … b₇ of the moving axes of `p` lie on.
+pub(crate) fn coeff_grid(p: &PieceForm) -> u32 {
+    let mut g = (1u32 << GRID_BITS) - 1;
+    for a in 0..3 {
+        if p.mask() & (1 << a) == 0 {
+            for b in p.coeffs(a).iter().skip(1) {
+                g = g.min(b.trailing_zeros());
+            }
+        }
+    }
+    g
+}
+
 #[derive(Clone, Debug)]
 struct PieceDecoder<'a> {
     r: Reader<'a>,
@@ -549,7 +652,7 @@ impl PieceDecoder<'_> {
         self.left -= 1;
         let r = &mut self.r;
         let start = self.start;
-        let end = f64::from_bits((start.to_bits() as i64).wrapping_add(r.zvar()?) as u64);
+        let end = end_of_code(start, r.var()?);
         if !end.is_finite() || !(end > start) {
             return Err(Malformed::Breaks);
         }
@@ -560,7 +663,7 @@ impl PieceDecoder<'_> {
             u: [0.0; PIECE_HEAD_LEN],
         };
         let centre = predict_centre(p.start_fx(), p.end_fx()).wrapping_add(r.zvar()?);
-        let w2 = r.var()?;
+        let (w2, g) = word2_of_code(r.var()?, predict_shift(start, end)).ok_or(Malformed::PieceWord)?;
         if piece_shift_mask(w2).is_none() {
             return Err(Malformed::PieceWord);
         }
@@ -574,11 +677,11 @@ impl PieceDecoder<'_> {
                 continue;
             }
             for k in (4..POS_COEFFS).rev() {
-                p.set(a, k, r.zvar()?);
+                p.set(a, k, r.zvar()?.wrapping_shl(g));
             }
             for m in (1..4).rev() {
-                let v = r.zvar()?.wrapping_add(predict_bm(&p, prev, a, m));
-                p.set(a, m, v);
+                let v = r.zvar()?.wrapping_add(predict_bm(&p, prev, a, m) >> g);
+                p.set(a, m, v.wrapping_shl(g));
             }
             let v = r.zvar()?.wrapping_add(predict_b0(&p, prev, a));
             p.set(a, 0, v);

@@ -4,8 +4,11 @@
 
 use crate::servo_forms::fixed::to_fx;
 use crate::servo_forms::piece::{PIECE_F64_LEN, PIECE_HEAD_LEN, POS_COEFFS};
-use crate::stream::chunk::{predict_b0, predict_bm, predict_centre, Chunk, PieceForm};
-use crate::stream::error::{ChunkEncodeError, ChunkError};
+use crate::stream::chunk::{
+    coeff_grid, end_code, predict_b0, predict_bm, predict_centre, predict_knot, predict_shift, word2_code,
+    Chunk, PieceForm,
+};
+use crate::stream::error::{ChunkEncodeError, ChunkError, Malformed};
 use crate::stream::layout::{
     field, flags, q_flags, COMMIT_FRAC, CRC_LEN, HEADER_LEN, MAGIC, Q_EXTRA_CTRL, Q_EXTRA_KNOTS, VERSION,
 };
@@ -84,11 +87,12 @@ pub fn encode_chunk(head: &ChunkHead, stretch: &Stretch, out: &mut [u8]) -> Resu
         0
     };
     w.u8(qf).ok_or_else(|| full(&w))?;
-    let mut prev = 0u64;
-    for k in stretch.q_knots {
-        let bits = k.to_bits();
-        w.zvar(bits.wrapping_sub(prev) as i64).ok_or_else(|| full(&w))?;
-        prev = bits;
+    let (mut prev, mut prev2) = (0.0f64, 0.0f64);
+    for (j, k) in stretch.q_knots.iter().enumerate() {
+        let pred = predict_knot(j, prev, prev2);
+        w.zvar(k.to_bits().wrapping_sub(pred) as i64)
+            .ok_or_else(|| full(&w))?;
+        (prev2, prev) = (prev, *k);
     }
     for c in stretch.q_ctrl {
         w.bytes(&c.to_le_bytes()).ok_or_else(|| full(&w))?;
@@ -115,11 +119,14 @@ pub fn encode_chunk(head: &ChunkHead, stretch: &Stretch, out: &mut [u8]) -> Resu
             p.u = *u;
         }
         let prev = prev_piece.as_ref();
-        w.zvar((end.to_bits() as i64).wrapping_sub(start.to_bits() as i64))
+        w.var(end_code(start, end).ok_or(ChunkEncodeError::Invalid(Malformed::Breaks.into()))?)
             .ok_or_else(|| full(&w))?;
         w.zvar(p.centre().wrapping_sub(predict_centre(p.start_fx(), p.end_fx())))
             .ok_or_else(|| full(&w))?;
-        w.var(p.words[2] as u64).ok_or_else(|| full(&w))?;
+        let g = coeff_grid(&p);
+        let w2 = word2_code(p.words[2] as u64, predict_shift(start, end), g)
+            .ok_or(ChunkEncodeError::Invalid(Malformed::PieceWord.into()))?;
+        w.var(w2).ok_or_else(|| full(&w))?;
         for a in 0..3 {
             let b = p.coeffs(a);
             if p.mask() & (1 << a) != 0 {
@@ -131,14 +138,11 @@ pub fn encode_chunk(head: &ChunkHead, stretch: &Stretch, out: &mut [u8]) -> Resu
                 continue;
             }
             for k in (4..POS_COEFFS).rev() {
-                w.zvar(b.get(k).copied().unwrap_or(0)).ok_or_else(|| full(&w))?;
+                w.zvar(b.get(k).copied().unwrap_or(0) >> g)
+                    .ok_or_else(|| full(&w))?;
             }
             for m in (1..4).rev() {
-                let v = b
-                    .get(m)
-                    .copied()
-                    .unwrap_or(0)
-                    .wrapping_sub(predict_bm(&p, prev, a, m));
+                let v = (b.get(m).copied().unwrap_or(0) >> g).wrapping_sub(predict_bm(&p, prev, a, m) >> g);
                 w.zvar(v).ok_or_else(|| full(&w))?;
             }
             w.zvar(b[0].wrapping_sub(predict_b0(&p, prev, a)))

@@ -1,10 +1,12 @@
 //! Named sizes, offsets and flag bits of the chunk layout (format version
-//! 1; the tables in the [`crate::stream`] docs, as constants).
+//! 2; the tables in the [`crate::stream`] docs, as constants).
 
 /// Magic bytes at offset 0: "FC".
 pub const MAGIC: [u8; 2] = *b"FC";
-/// Chunk format version written and accepted.
-pub const VERSION: u8 = 1;
+/// Chunk format version written and accepted (2: q knots predicted,
+/// piece ends on the 2⁻²⁰ mm grid, shift predicted, b₁ … b₇ on a grid of
+/// 2^g; version 1 sent breaks and knots as f64 bit deltas, b_k whole).
+pub const VERSION: u8 = 2;
 /// Bytes of the fixed header, before the payload.
 pub const HEADER_LEN: usize = 44;
 /// Bytes of the CRC-32 after the payload.

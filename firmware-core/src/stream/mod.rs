@@ -1,4 +1,4 @@
-//! Streaming the plan: chunks (format version 1), the MCU's bounded
+//! Streaming the plan: chunks (format version 2), the MCU's bounded
 //! [`ChunkRing`] and the link framing ([`frame`]), as proposed in
 //! `docs/streaming-design.md`. This is the data layer: the tick does not
 //! read chunks yet.
@@ -15,7 +15,7 @@
 //! every byte before a chunk is used: any input gives a chunk or a typed
 //! error, never a panic.
 //!
-//! # Byte layout (chunk format version 1)
+//! # Byte layout (chunk format version 2)
 //!
 //! Little-endian. `var` = unsigned LEB128 (≤ 10 bytes), `zvar` = zig-zag
 //! LEB128 (postcard's integer encoding). Header, 44 bytes:
@@ -25,7 +25,7 @@
 //! | offset | size | field                                               |
 //! +--------+------+-----------------------------------------------------+
 //! |      0 |    2 | magic "FC"                                          |
-//! |      2 |    1 | version u8 = 1 (`VERSION`)                          |
+//! |      2 |    1 | version u8 = 2 (`VERSION`)                          |
 //! |      3 |    1 | flags: bit 0 u form, bit 1 last, bit 2 first; rest 0|
 //! |      4 |    4 | seq u32, +1 per chunk, wrapping                     |
 //! |      8 |    4 | plan_id u32                                         |
@@ -51,7 +51,10 @@
 //! | var        | i₀ (≥ 3)                                                |
 //! | u8         | q flags: bit 0 i₁ is the spline's last span; rest 0     |
 //! | zvar × n_q+5 | knots U_{i₀−2} … U_{i₁+3}: f64 bit pattern minus the  |
-//! |            | previous knot's (the first minus 0); finite, non-decreasing |
+//! |            | predicted one's: 0 for the first, the previous knot for |
+//! |            | the second, then prev + (prev − prev₂) in f64 (the step |
+//! |            | repeated; prev if that is not finite); finite,          |
+//! |            | non-decreasing                                          |
 //! | f64 × n_q+3 | control points P_{i₀−3} … P_{i₁}, finite               |
 //! +------------+---------------------------------------------------------+
 //! ```
@@ -70,17 +73,23 @@
 //! +--------------+-------------------------------------------------------+
 //! | type         | field                                                 |
 //! +--------------+-------------------------------------------------------+
-//! | zvar         | end break: f64 bits minus the start's (end > start;   |
-//! |              | the last piece's end has `to_fx` = s_b)               |
+//! | var          | end break: 2k for an end on the 2⁻²⁰ mm grid, k grid  |
+//! |              | steps past ⌈start · 2²⁰⌉; 2d + 1 for any other end, d |
+//! |              | its f64 bits minus the start's (end > start; the last |
+//! |              | piece's end has `to_fx` = s_b)                        |
 //! | zvar         | centre − (a + (b − a)/2), a, b the breaks in Q40      |
-//! | var          | word 2: shift (bits 0–7), constant-axis mask (8–10)   |
+//! | var          | g (bits 0–3), constant-axis mask (bits 4–6), then the |
+//! |              | shift minus 21 − e zig-zag (2^e the first power of two|
+//! |              | ≥ (end − start)/2, f64): word 2 = shift | mask << 8;    |
+//! |              | b₁ … b₇ of the moving axes are multiples of 2^g and   |
+//! |              | sent divided by it                                    |
 //! | per axis x, y, z:                                                    |
 //! |  constant: zvar | b₀ − prev's b₀ (b₁ … b₇ are 0)                     |
-//! |  moving:   zvar × 4 | b₇, b₆, b₅, b₄                                  |
-//! |            zvar × 3 | b₃, b₂, b₁, each minus its prediction: prev's     |
-//! |              | m-th τ-derivative at its end, rescaled to this        |
-//! |              | piece's τ, minus this piece's without b₀ … b_m, / m!  |
-//! |              | (integer, the tick's `mul_tau`)                       |
+//! |  moving:   zvar × 4 | b₇, b₆, b₅, b₄, each >> g                       |
+//! |            zvar × 3 | b₃, b₂, b₁: (b_m >> g) − (prediction >> g), the   |
+//! |              | prediction prev's m-th τ-derivative at its end,       |
+//! |              | rescaled to this piece's τ, minus this piece's without|
+//! |              | b₀ … b_m, / m! (integer, the tick's `mul_tau`)        |
 //! |            zvar | b₀ minus prev's end value minus this piece's Horner |
 //! |              | without b₀ at its start (exact: the join is continuous)|
 //! | with u form: zvar | u_a: f64 bits minus prev's                       |
@@ -89,6 +98,12 @@
 //! |              f32 | 1/len                                             |
 //! +--------------+-------------------------------------------------------+
 //! ```
+//!
+//! (`>>` is the arithmetic shift, floor division by 2^g.) The planner's
+//! pieces make these small: each fitted per NURBS knot span with interior
+//! breaks on the 2⁻²⁰ mm grid and b₁ … b₇ rounded to the coarsest 2^g its
+//! fit tolerance allows ([`crate::servo_forms`]); any table's pieces
+//! encode, only longer.
 //!
 //! Predictions without a previous piece, or with a τ out of range, are 0.
 //! Without the u form, word 0 and the seven f32 decode as zeros.

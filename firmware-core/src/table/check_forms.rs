@@ -1,9 +1,9 @@
 //! Check stage 6: the derived forms (sections 10–13, 15) against the f64
-//! data, and the pieces tiling the s → u segments.
+//! data, and the pieces tiling the knot spans of the s → u map.
 
 use crate::math::source::{F64Array, LeF32, LeF64};
 use crate::path::qspline::QSpline;
-use crate::path::su_map::SegmentArray;
+use crate::path::su_map::{horner, SegmentArray};
 use crate::servo_forms::check::{check_piece, check_q, check_q_fx, POS_TOL_MM};
 use crate::servo_forms::piece::{piece_f32_len, PieceU, PIECE_F64_LEN, PIECE_HEAD_LEN};
 use crate::servo_forms::q_span::{QLocal, Q_FX_LEN, Q_LOCAL_LEN};
@@ -76,9 +76,11 @@ pub(crate) fn forms<'a>(
         piece_f64.len(),
     )?;
     expect_count(Section::PieceF32, np.saturating_mul(per), piece_f32.len())?;
-    // Pieces tile the segments: start at 0, end at L, each inside one
-    // segment, every segment break a piece break.
+    // Pieces tile the knot spans: start at 0, end at L, each inside the
+    // segments of one knot span (a group), every group's end a piece break.
     let mut j = 0usize;
+    // the group of segment j: [g0, g1)
+    let (mut g0, mut g1) = (0usize, 0usize);
     for i in 0..np {
         let bad = mismatch(Section::PieceF32, i);
         let (sa, sb) = (
@@ -88,13 +90,20 @@ pub(crate) fn forms<'a>(
         while j + 1 < m && sa >= su_breaks.get(j + 1).ok_or(bad)? {
             j += 1;
         }
-        let (s0, s1) = (su_breaks.get(j).ok_or(bad)?, su_breaks.get(j + 1).ok_or(bad)?);
+        let seg = segs.get(j).ok_or(bad)?;
+        if j >= g1 {
+            g0 = j;
+            g1 = j + 1;
+            while g1 < m && segs.get(g1).ok_or(bad)?.span == seg.span {
+                g1 += 1;
+            }
+        }
+        let (s0, s1) = (su_breaks.get(j).ok_or(bad)?, su_breaks.get(g1).ok_or(bad)?);
         let first_ok = i != 0 || sa == 0.0;
-        let last_ok = i + 1 != np || sb == s1 && j + 1 == m;
+        let last_ok = i + 1 != np || sb == s1 && g1 == m;
         if !(sb > sa && sa >= s0 && sb <= s1 && first_ok && last_ok) {
             return Err(mismatch(Section::PieceBreaks, i));
         }
-        let seg = segs.get(j).ok_or(bad)?;
         let fb = i.checked_mul(8 * PIECE_F64_LEN).ok_or(bad)?;
         let words = piece_f64.as_bytes().get(fb..fb + 8 * PIECE_F64_LEN).ok_or(bad)?;
         if !f64::from_bits(u64::from_le_bytes(
@@ -112,12 +121,31 @@ pub(crate) fn forms<'a>(
             .get_array::<PIECE_HEAD_LEN>(base)
             .map(PieceU::from_array)
             .ok_or(bad)?;
-        if !check_piece(curve, &seg, (s0, s1), (sa, sb), words, &head, POS_TOL_MM) {
+        // u(s) of the map on the group (segments j … g1 − 1 hold the piece)
+        let u_map = |s: f64| -> Option<f64> {
+            let (mut lo, mut hi) = (j.max(g0), g1 - 1);
+            while lo < hi {
+                let mid = lo + (hi - lo).div_ceil(2);
+                if su_breaks.get(mid)? <= s {
+                    lo = mid;
+                } else {
+                    hi = mid - 1;
+                }
+            }
+            let (b0, b1, sg) = (su_breaks.get(lo)?, su_breaks.get(lo + 1)?, segs.get(lo)?);
+            Some(horner(&sg.coeffs, ((s - b0) / (b1 - b0)).clamp(0.0, 1.0)))
+        };
+        if !check_piece(
+            curve,
+            seg.span as usize,
+            u_map,
+            (sa, sb),
+            words,
+            &head,
+            POS_TOL_MM,
+        ) {
             return Err(bad);
         }
-    }
-    if j + 1 != m {
-        return Err(mismatch(Section::PieceBreaks, np));
     }
     Ok(FormSections {
         q_local,

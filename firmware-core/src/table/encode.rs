@@ -5,7 +5,7 @@
 use crate::limits::END_LEN;
 use crate::math::basis::MAX_DEGREE;
 use crate::path::qspline::QSpline;
-use crate::servo_forms::fit::{all_pieces, n_pieces, point_scale, FitInput};
+use crate::servo_forms::fit::{all_pieces, n_groups, n_pieces, pieces_of_groups, point_scale, FitInput};
 use crate::servo_forms::piece::{piece_f32_len, PIECE_F64_LEN};
 use crate::servo_forms::q_span::{q_fixed, q_local, Q_FX_LEN, Q_LOCAL_LEN};
 use crate::table::crc::CRC;
@@ -13,6 +13,7 @@ use crate::table::error::EncodeError;
 use crate::table::layout::{
     entry_field, header_field, CRC_LEN, DIR_ENTRY_LEN, HEADER_LEN, MAGIC, Q_ORDER, VERSION,
 };
+use crate::table::parts::FittedPiece;
 use crate::table::parts::TableParts;
 use crate::table::section::{Section, N_BASE, N_KNOWN};
 use crate::table::view::Table;
@@ -43,7 +44,10 @@ fn pad8(n: usize) -> usize {
 fn section_sizes(parts: &TableParts) -> [(Section, usize, usize); N_KNOWN] {
     let m = parts.su_segments.len();
     // fitting the pieces is the costly part of encoding: count them once
-    let np = n_pieces(&fit_input(parts));
+    let np = match parts.pieces {
+        Some(p) => p.len(),
+        None => n_pieces(&fit_input(parts)),
+    };
     let sz = |s: Section, count: usize| (s, count, count.saturating_mul(s.element_len()));
     [
         sz(Section::Limits, 12),
@@ -101,6 +105,24 @@ pub(crate) fn q_spans(parts: &TableParts) -> usize {
 }
 
 /// The path data the pieces are fitted to.
+/// The knot-span groups the pieces are fitted in: [`fit_pieces`] takes a
+/// range of them.
+pub fn piece_groups(parts: &TableParts) -> usize {
+    n_groups(&fit_input(parts))
+}
+
+/// The pieces of groups `lo .. hi` of [`piece_groups`], in order, as
+/// [`encode`] fits them: concatenated over a partition of `0 .. piece_groups`
+/// they are [`TableParts::pieces`].
+pub fn fit_pieces(parts: &TableParts, (lo, hi): (usize, usize), mut f: impl FnMut(FittedPiece)) {
+    pieces_of_groups(&fit_input(parts), (lo, hi), |sa, _, piece| {
+        f(FittedPiece {
+            start: sa,
+            data: piece.copied(),
+        })
+    });
+}
+
 fn fit_input<'a>(parts: &TableParts<'a>) -> FitInput<'a> {
     FitInput {
         degree: encode_degree(parts),
@@ -325,7 +347,7 @@ pub fn encode(parts: &TableParts, out: &mut [u8]) -> Result<usize, EncodeError> 
                 let per = piece_f32_len(encode_degree(parts));
                 let mut i = 0usize;
                 let mut res = Ok(());
-                all_pieces(&fit_input(parts), |_, sa, _, piece| {
+                let mut put = |sa: f64, piece: Option<&crate::servo_forms::fit::PieceData>| {
                     if let (Some(pd), Ok(())) = (piece, res) {
                         res = wr_f64s(buf, off_b.saturating_add(i.saturating_mul(8)), [sa])
                             .and_then(|_| {
@@ -343,7 +365,11 @@ pub fn encode(parts: &TableParts, out: &mut [u8]) -> Result<usize, EncodeError> 
                             });
                     }
                     i = i.saturating_add(1);
-                });
+                };
+                match parts.pieces {
+                    Some(p) => p.iter().for_each(|fp| put(fp.start, fp.data.as_ref())),
+                    None => all_pieces(&fit_input(parts), |sa, _, piece| put(sa, piece)),
+                }
                 res?;
                 if let Some(&l) = parts.su_breaks.last() {
                     wr_f64s(buf, off_b.saturating_add(i.saturating_mul(8)), [l])?;

@@ -3,6 +3,7 @@
 
 use crate::limits::{EndSegments, Limits};
 use crate::path::su_map::SuSegment;
+use crate::servo_forms::fit::PieceData;
 
 /// Everything the host writes; borrowed, so encoding needs no allocation.
 #[derive(Clone, Copy, Debug)]
@@ -32,6 +33,20 @@ pub struct TableParts<'a> {
     /// Feedrate-override levels (sections 16–19), sorted by α; empty: no
     /// level sections (the table is byte-identical to one without them).
     pub levels: &'a [LevelParts<'a>],
+    /// The position pieces, fitted already ([`crate::table::fit_pieces`],
+    /// e.g. on several cores); `None`: [`crate::table::encode`] fits them
+    /// (the costly part of encoding, once to count and once to write).
+    pub pieces: Option<&'a [FittedPiece]>,
+}
+
+/// One fitted piece: its start s (mm) and its forms (`None`: it could not
+/// be formed, and encoding fails at the table's check).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FittedPiece {
+    /// Start, mm.
+    pub start: f64,
+    /// Section 12's words and section 13's f32s.
+    pub data: Option<PieceData>,
 }
 
 /// One override level as the host writes it: a whole plan on the base q

@@ -59,6 +59,7 @@ impl Owned {
             q_ctrl: &self.q_ctrl,
             ends: self.ends,
             levels: &[],
+            pieces: None,
         }
     }
     pub(super) fn encode(&self) -> Result<Vec<u8>, EncodeError> {
@@ -318,6 +319,7 @@ pub(super) fn encode_levels(o: &Owned, levels: &[OwnedLevel]) -> Result<Vec<u8>,
         .collect();
     let parts = TableParts {
         levels: &lp,
+        pieces: None,
         ..o.parts()
     };
     let mut out = vec![0u8; encoded_len(&parts)];

@@ -55,25 +55,42 @@ fn local_forms_are_checked_against_the_f64_data() {
             b[..8].copy_from_slice(&x.wrapping_add(n).to_le_bytes());
         }
     };
-    // piece 0: position b_0.x off by 1e-8 mm (the tolerance is 1e-9 mm)
+    // piece 0: position b_0.y off by 1e-8 mm, across the path (the
+    // tolerance is 1e-9 mm)
     assert_eq!(
-        corrupt(12, 24, &add(11_000)),
+        corrupt(12, 24 + 64, &add(11_000)),
         TableError::FastMismatch {
             section: Section::PieceF32,
             index: 0
         }
     );
-    // piece 0: b_1.x off by 1e-8 mm at τ = 1
+    // piece 0: b_0.x off by 1e-8 mm is along the line: within
+    // POS_ALONG_TOL_MM (the s → u map's own accuracy), accepted; 2.2e-4 mm not
+    {
+        let mut b = bytes.clone();
+        let off = section_offset(&b, 12) + 24;
+        add(11_000)(&mut b[off..]);
+        fix_crc(&mut b);
+        assert!(Table::parse(&b).is_ok());
+    }
     assert_eq!(
-        corrupt(12, 32, &add(11_000)),
+        corrupt(12, 24, &add(242_000_000)),
         TableError::FastMismatch {
             section: Section::PieceF32,
             index: 0
         }
     );
-    // piece 0: its centre moved by 1e-6 mm
+    // piece 0: b_1.x off by 2.7e-4 mm at τ = 1
     assert_eq!(
-        corrupt(12, 8, &add(1_100_000)),
+        corrupt(12, 32, &add(300_000_000)),
+        TableError::FastMismatch {
+            section: Section::PieceF32,
+            index: 0
+        }
+    );
+    // piece 0: its centre moved by 1e-3 mm
+    assert_eq!(
+        corrupt(12, 8, &add(1_100_000_000)),
         TableError::FastMismatch {
             section: Section::PieceF32,
             index: 0
@@ -109,7 +126,7 @@ fn local_forms_are_checked_against_the_f64_data() {
         let x = f64::from_le_bytes(b[..8].try_into().unwrap());
         b[..8].copy_from_slice(&(x + 1e-4).to_le_bytes());
     };
-    // a piece break moved: no longer the segments' tiling
+    // a piece break moved: no longer the knot spans' tiling
     let last_break = 8 * pieces;
     assert_eq!(
         corrupt(11, last_break, &shift),

@@ -128,7 +128,7 @@ pub(super) fn reseal(b: &mut [u8]) {
 pub(super) fn hand_chunk(payload: &[u8], n_q: u16, n_p: u16) -> Vec<u8> {
     let mut b = vec![0u8; CHUNK_HEADER_LEN];
     b[..2].copy_from_slice(b"FC");
-    b[field::VERSION] = 1;
+    b[field::VERSION] = crate::stream::layout::VERSION;
     b[field::S_B..field::S_B + 8].copy_from_slice(&(1i64 << 40).to_le_bytes());
     b[field::N_Q..field::N_Q + 2].copy_from_slice(&n_q.to_le_bytes());
     b[field::N_P..field::N_P + 2].copy_from_slice(&n_p.to_le_bytes());

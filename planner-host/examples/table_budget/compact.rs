@@ -34,7 +34,8 @@ const TAU_FRAC: u32 = 61;
 const POS_DEG: usize = 7;
 const POS_COEFFS: usize = POS_DEG + 1;
 const PIECE_WORDS: usize = 27;
-/// The table's fit tolerance, mm (`servo_forms::fit::FIT_TOL_MM`).
+/// The prototype's default fit tolerance, mm (the table's
+/// `servo_forms::fit::FIT_TOL_MM` when it was written; now 1e-10).
 pub const FIT_TOL_MM: f64 = 2e-11;
 /// Most bisections of one piece (`MAX_SPLIT`).
 const MAX_SPLIT: u32 = 10;

@@ -24,7 +24,9 @@
 //! comparison), each encoded, decoded and compared, in bytes per mm with
 //! the q spans and the chunk framing;
 //! `--fit-tol MM` the same with another fit tolerance for the re-fitted
-//! pieces (default the table's 2e-11 mm).
+//! pieces (default 2e-11 mm, the table's tolerance when the prototype was
+//! written; the table's pieces are now fitted this way at 1e-10 mm,
+//! `firmware_core` `servo_forms::fit`).
 
 mod compact;
 

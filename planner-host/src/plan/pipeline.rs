@@ -22,6 +22,9 @@ use crate::plan::output::PlanOutput;
 use crate::plan::su_fit::{SetpointBudget, SuMap};
 use crate::sampling;
 
+/// Ranges of knot-span groups the pieces are fitted in (on rayon).
+const PIECE_RANGES: usize = 16;
+
 /// Plan a toolpath: both LPs of §2.1 on the sampling of `cfg`, then the table.
 pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanError> {
     plan_curve_with_progress(curve, cfg, &|_, _| {})
@@ -196,6 +199,28 @@ pub fn plan_curve_with_progress(
         q_ctrl: &ctrl,
         ends,
         levels: &level_parts,
+        pieces: None,
+    };
+    // The pieces fitted once, on both cores, in fixed ranges of knot-span
+    // groups (the result does not depend on the thread count).
+    let groups = table::piece_groups(&parts);
+    let step = groups.div_ceil(PIECE_RANGES).max(1);
+    let ranges: Vec<(usize, usize)> = (0..groups)
+        .step_by(step)
+        .map(|lo| (lo, (lo + step).min(groups)))
+        .collect();
+    let pieces: Vec<table::FittedPiece> = ranges
+        .par_iter()
+        .map(|&r| {
+            let mut v = Vec::new();
+            table::fit_pieces(&parts, r, |p| v.push(p));
+            v
+        })
+        .collect::<Vec<_>>()
+        .concat();
+    let parts = TableParts {
+        pieces: Some(&pieces),
+        ..parts
     };
     let mut bytes = vec![0u8; table::encoded_len(&parts)];
     let written = table::encode(&parts, &mut bytes).map_err(PlanError::Table)?;
