@@ -17,6 +17,7 @@
 //! [`POS_ALONG_TOL_MM`](crate::servo_forms::check::POS_ALONG_TOL_MM)).
 
 use crate::math::basis::MAX_DEGREE;
+use crate::math::quadrature::{GL16_W, GL16_X};
 use crate::path::nurbs::{NurbsSpan, NurbsView};
 use crate::path::qspline::QSpline;
 use crate::path::su_map::{horner, SuSegment};
@@ -143,28 +144,6 @@ pub struct ArcRef<'a> {
     cum: [f64; CUM],
     filled: usize,
 }
-
-/// 16-point Gauss–Legendre nodes (positive half, on [−1, 1]) and weights.
-const GL_X: [f64; 8] = [
-    0.095_012_509_837_637_44,
-    0.281_603_550_779_258_9,
-    0.458_016_777_657_227_4,
-    0.617_876_244_402_643_7,
-    0.755_404_408_355_003,
-    0.865_631_202_387_831_8,
-    0.944_575_023_073_232_6,
-    0.989_400_934_991_649_9,
-];
-const GL_W: [f64; 8] = [
-    0.189_450_610_455_068_5,
-    0.182_603_415_044_923_6,
-    0.169_156_519_395_002_5,
-    0.149_595_988_816_576_7,
-    0.124_628_971_255_533_9,
-    0.095_158_511_682_492_78,
-    0.062_253_523_938_647_89,
-    0.027_152_459_411_754_095,
-];
 
 /// A knot span's homogeneous A(u) = Σ N_j(u) Pʷ_j in power form in
 /// t = (u − c)/h (c the span's middle, h its half width): interpolated at
@@ -317,7 +296,7 @@ impl<'a> ArcRef<'a> {
         for p in 0..n {
             let c = a + h * (p as f64 + 0.5);
             let mut part = 0.0;
-            for (&x, &wt) in GL_X.iter().zip(GL_W.iter()) {
+            for (&x, &wt) in GL16_X.iter().zip(GL16_W.iter()) {
                 part += wt * (self.speed(c - 0.5 * h * x) + self.speed(c + 0.5 * h * x));
             }
             sum += 0.5 * h * part;
