@@ -213,7 +213,7 @@ impl<const NQ: usize, const NP: usize> PlanWindow<NQ, NP> {
 
     /// q span rows and piece rows free.
     pub fn free(&self) -> (usize, usize) {
-        (NQ - self.q_n, NP - self.p_n)
+        (NQ.saturating_sub(self.q_n), NP.saturating_sub(self.p_n))
     }
 
     /// q span rows and piece rows held.
@@ -259,7 +259,7 @@ impl<const NQ: usize, const NP: usize> PlanWindow<NQ, NP> {
         let info = chunk.info();
         let repeat = usize::from(self.q_n > 0 && info.first_span.wrapping_add(1) == self.next_span);
         let nq = usize::from(info.n_q).saturating_sub(repeat);
-        nq <= NQ - self.q_n && usize::from(info.n_p) <= NP - self.p_n
+        nq <= NQ.saturating_sub(self.q_n) && usize::from(info.n_p) <= NP.saturating_sub(self.p_n)
     }
 
     /// Append `chunk`'s rows (checked by [`Chunk::parse`]), or refuse it
@@ -325,8 +325,7 @@ impl<const NQ: usize, const NP: usize> PlanWindow<NQ, NP> {
                 continue;
             }
             let idx = q_at + nq;
-            let slot = idx % NQ;
-            let Some(row) = self.q.get_mut(slot) else {
+            let Some(row) = idx.checked_rem(NQ).and_then(|slot| self.q.get_mut(slot)) else {
                 return Err(WindowError::Undecodable);
             };
             *row = Self::q_row(idx, &form);
@@ -339,8 +338,7 @@ impl<const NQ: usize, const NP: usize> PlanWindow<NQ, NP> {
                 return Err(WindowError::Undecodable);
             }
             let idx = p_at + np;
-            let slot = idx % NP;
-            let Some(row) = self.p.get_mut(slot) else {
+            let Some(row) = idx.checked_rem(NP).and_then(|slot| self.p.get_mut(slot)) else {
                 return Err(WindowError::Undecodable);
             };
             *row = Self::p_row(idx, &form);
@@ -447,7 +445,7 @@ impl<const NQ: usize, const NP: usize> PlanWindow<NQ, NP> {
         if idx.wrapping_sub(self.q_lo) >= self.q_n {
             return None;
         }
-        self.q.get(idx % NQ)
+        self.q.get(idx.checked_rem(NQ)?)
     }
 
     #[inline(always)]
@@ -455,7 +453,7 @@ impl<const NQ: usize, const NP: usize> PlanWindow<NQ, NP> {
         if idx.wrapping_sub(self.p_lo) >= self.p_n {
             return None;
         }
-        self.p.get(idx % NP)
+        self.p.get(idx.checked_rem(NP)?)
     }
 }
 
@@ -576,7 +574,7 @@ impl<'a, const NQ: usize, const NP: usize> Rows<'a> for PlanWindow<NQ, NP> {
         pc.shift = shift;
         pc.constant = constant;
         // (the row's slot: the coefficients are read from there)
-        pc.pos_at = idx % NP;
+        pc.pos_at = idx.checked_rem(NP)?;
         Some(())
     }
 
