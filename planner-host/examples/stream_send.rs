@@ -25,13 +25,12 @@ use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 use firmware_core::digest::Fnv1a64;
-use firmware_core::interp::Interpolator;
 use firmware_core::stream::frame::{encode_data, encode_head, encoded_max_len};
-use firmware_core::stream::{Chunk, Frame, FrameDecoder, PlanWindow};
+use firmware_core::stream::{Frame, FrameDecoder};
 use firmware_core::Table;
 use planner_host::plan::{plan_curve, PlanConfig};
 use planner_host::stream::{chunk_table, ChunkOptions};
-use planner_host::stream_hold::stream_head;
+use planner_host::stream_hold::{stream_head, StreamedRun};
 
 /// The host's window for its own run (any size that holds a chunk or two
 /// gives the same setpoints).
@@ -90,36 +89,12 @@ fn args() -> Result<Args, String> {
 
 /// The host's streamed run: the digest of its setpoints and the ticks.
 fn host_digest(table: &Table, chunks: &[Vec<u8>]) -> Result<(u64, u64), String> {
-    let head = stream_head(table).ok_or("no stream head")?;
-    let mut window = PlanWindow::<NQ, NP>::new();
-    let mut next = 0;
-    while next < chunks.len() {
-        let c = Chunk::parse(&chunks[next]).map_err(|e| e.to_string())?;
-        if !window.fits(&c) {
-            break;
-        }
-        window.push(&c).map_err(|e| e.to_string())?;
-        next += 1;
-    }
-    let mut ip: Interpolator<'static, 0, 0, PlanWindow<NQ, NP>> =
-        Interpolator::streamed(&head, window, 250e-6).map_err(|e| format!("{e:?}"))?;
-    if let Some(e) = table.ends() {
-        ip.set_stop(&e).map_err(|e| format!("{e:?}"))?;
-    }
+    let mut run = StreamedRun::<NQ, NP>::start(table, chunks, 250e-6).map_err(|e| e.to_string())?;
     let mut d = Fnv1a64::new();
-    while !ip.is_done() {
-        ip.release_passed();
-        while next < chunks.len() {
-            let c = Chunk::parse(&chunks[next]).map_err(|e| e.to_string())?;
-            if !ip.window().fits(&c) {
-                break;
-            }
-            ip.push_chunk(&c).map_err(|e| e.to_string())?;
-            next += 1;
-        }
-        d.setpoint(&ip.tick().map_err(|f| format!("{f:?}"))?);
+    while !run.ip.is_done() {
+        d.setpoint(&run.step().map_err(|e| e.to_string())?);
     }
-    Ok((d.finish(), ip.ticks()))
+    Ok((d.finish(), run.ip.ticks()))
 }
 
 fn main() {

@@ -21,7 +21,7 @@
 use firmware_core::interp::{Interpolator, StreamHead};
 use firmware_core::math::source::Point4Array;
 use firmware_core::stream::{commit_q20, set_commit, Chunk, ChunkError, PlanWindow, WindowError};
-use firmware_core::{F64Array, HoldState, InterpError, Table};
+use firmware_core::{EndSegments, F64Array, HoldState, InterpError, Setpoint, Table};
 
 /// The firmware's view of a table's plan besides its rows.
 pub fn stream_head(table: &Table) -> Option<StreamHead> {
@@ -45,6 +45,73 @@ pub fn stream_head(table: &Table) -> Option<StreamHead> {
 /// chunk it holds has a hold point ahead of it,
 /// [`PlanWindow::ready`]).
 pub const NOT_ALONE_MM: f64 = -1.0;
+
+/// The firmware's streamed interpolator as the host runs it, with every
+/// chunk at hand: between ticks the rows passed are freed and the next
+/// chunks pushed into the window as they fit, the plan's stop segment with
+/// the last ([`StreamedRun::step`]). Ticks are those of the whole table.
+pub struct StreamedRun<'c, const NQ: usize, const NP: usize> {
+    /// The interpolator (the window is its rows).
+    pub ip: Interpolator<'static, 0, 0, PlanWindow<NQ, NP>>,
+    chunks: &'c [Vec<u8>],
+    ends: Option<EndSegments>,
+    next: usize,
+}
+
+impl<'c, const NQ: usize, const NP: usize> StreamedRun<'c, NQ, NP> {
+    /// At the start of `table`'s plan cut into `chunks`, the first chunks
+    /// that fit pushed.
+    pub fn start(table: &Table, chunks: &'c [Vec<u8>], period_s: f64) -> Result<Self, HoldPointError> {
+        let head = stream_head(table).ok_or(HoldPointError::Head)?;
+        let mut window = PlanWindow::<NQ, NP>::new();
+        let first = chunks.first().ok_or(HoldPointError::Head)?;
+        window
+            .push(&parse(0, first)?)
+            .map_err(|error| HoldPointError::Window { index: 0, error })?;
+        let ip = Interpolator::streamed(&head, window, period_s).map_err(HoldPointError::Interp)?;
+        let mut run = StreamedRun {
+            ip,
+            chunks,
+            ends: table.ends(),
+            next: 1,
+        };
+        run.feed()?;
+        Ok(run)
+    }
+
+    /// Free the rows passed, push the chunks that fit; with the last, the
+    /// stop segment.
+    pub fn feed(&mut self) -> Result<(), HoldPointError> {
+        self.ip.release_passed();
+        while let Some(bytes) = self.chunks.get(self.next) {
+            let c = parse(self.next, bytes)?;
+            if !self.ip.window().fits(&c) {
+                break;
+            }
+            self.ip.push_chunk(&c).map_err(|error| HoldPointError::Window {
+                index: self.next,
+                error,
+            })?;
+            self.next += 1;
+            if self.next == self.chunks.len() {
+                if let Some(e) = self.ends {
+                    // (refused only past s₂: the chunks are in long before)
+                    let _ = self.ip.set_stop(&e);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// [`StreamedRun::feed`], then one tick.
+    pub fn step(&mut self) -> Result<Setpoint, HoldPointError> {
+        self.feed()?;
+        self.ip.tick().map_err(|f| HoldPointError::Fault {
+            tick: self.ip.ticks(),
+            fault: format!("{f:?}"),
+        })
+    }
+}
 
 /// Why the hold points could not be found.
 #[derive(Debug, thiserror::Error, PartialEq)]
@@ -131,48 +198,20 @@ pub fn hold_points<const NQ: usize, const NP: usize>(
     how: &HoldSearch,
 ) -> Result<HoldPoints, HoldPointError> {
     let n = chunks.len();
-    let head = stream_head(table).ok_or(HoldPointError::Head)?;
     let ends: Vec<i64> = chunks
         .iter()
         .enumerate()
         .map(|(i, c)| parse(i, c).map(|c| c.info().s_b))
         .collect::<Result<_, _>>()?;
-    let mut window = PlanWindow::<NQ, NP>::new();
-    window
-        .push(&parse(0, &chunks[0])?)
-        .map_err(|error| HoldPointError::Window { index: 0, error })?;
-    let mut ip: Interpolator<'static, 0, 0, PlanWindow<NQ, NP>> =
-        Interpolator::streamed(&head, window, how.period_s).map_err(HoldPointError::Interp)?;
+    let mut run = StreamedRun::<NQ, NP>::start(table, chunks, how.period_s)?;
     let fx = |x: i64| x as f64 / (1u64 << 40) as f64;
     let mut s_c = vec![f64::NAN; n];
-    let mut next = 1;
-    let mut stop_set = false;
     let (mut i, mut last_ok, mut next_test) = (0usize, None::<f64>, 0.0f64);
     let mut tests = 0;
     let started = std::time::Instant::now();
     let mut known = vec![f64::NAN; n];
-    while !ip.is_done() && i + 1 < n {
-        ip.release_passed();
-        while next < n {
-            let c = parse(next, &chunks[next])?;
-            if !ip.window().fits(&c) {
-                break;
-            }
-            ip.push_chunk(&c)
-                .map_err(|error| HoldPointError::Window { index: next, error })?;
-            next += 1;
-        }
-        if next == n && !stop_set {
-            if let Some(e) = table.ends() {
-                // (refused only past s₂: the chunks are in long before)
-                let _ = ip.set_stop(&e);
-            }
-            stop_set = true;
-        }
-        let sp = ip.tick().map_err(|f| HoldPointError::Fault {
-            tick: ip.ticks(),
-            fault: format!("{f:?}"),
-        })?;
+    while !run.ip.is_done() && i + 1 < n {
+        let sp = run.step()?;
         if sp.s_mm < next_test {
             continue;
         }
@@ -181,7 +220,7 @@ pub fn hold_points<const NQ: usize, const NP: usize>(
         // last success is chunk i's s_c and the same tick is tried on i + 1.
         while i + 1 < n {
             tests += 1;
-            if stops_before(&ip, ends[i], how.margin_mm) {
+            if stops_before(&run.ip, ends[i], how.margin_mm) {
                 last_ok = Some(sp.s_mm);
                 break;
             }

@@ -10,14 +10,12 @@ use firmware_core::{F64Array, Setpoint, Table};
 use planner_host::builtin;
 use planner_host::plan::{plan_curve, PlanConfig};
 use planner_host::stream::{chunk_table, ChunkOptions};
-use planner_host::stream_hold::stream_head;
+use planner_host::stream_hold::StreamedRun;
 
 const T: f64 = 250e-6;
 /// Window rows: q spans, pieces.
 const NQ: usize = 64;
 const NP: usize = 192;
-
-type Streamed = Interpolator<'static, 0, 0, PlanWindow<NQ, NP>>;
 
 fn bits(sp: &Setpoint) -> [u64; 7] {
     [
@@ -35,32 +33,13 @@ fn bits(sp: &Setpoint) -> [u64; 7] {
 /// rows freed as the tick passes them; returns the setpoints and the most
 /// piece rows held at once.
 fn run_streamed(table: &Table, chunks: &[Vec<u8>]) -> (Vec<Setpoint>, usize) {
-    let mut window = PlanWindow::<NQ, NP>::new();
-    let first = Chunk::parse(&chunks[0]).unwrap();
-    window.push(&first).unwrap();
-    let mut ip: Streamed = Interpolator::streamed(&stream_head(table).unwrap(), window, T).unwrap();
-    let mut next = 1;
+    let mut run = StreamedRun::<NQ, NP>::start(table, chunks, T).unwrap();
     let mut most = 0;
     let mut out = Vec::new();
-    let mut stop_set = false;
-    while !ip.is_done() {
-        ip.release_passed();
-        while next < chunks.len() {
-            let c = Chunk::parse(&chunks[next]).unwrap();
-            if !ip.window().fits(&c) {
-                break;
-            }
-            ip.push_chunk(&c).unwrap();
-            next += 1;
-        }
-        if next == chunks.len() && !stop_set {
-            if let Some(e) = table.ends() {
-                ip.set_stop(&e).unwrap();
-            }
-            stop_set = true;
-        }
-        most = most.max(ip.window().held().1);
-        out.push(ip.tick().unwrap());
+    while !run.ip.is_done() {
+        run.feed().unwrap();
+        most = most.max(run.ip.window().held().1);
+        out.push(run.ip.tick().unwrap());
     }
     (out, most)
 }
