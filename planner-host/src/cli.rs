@@ -46,7 +46,9 @@ pub fn plan_exit_code(e: &PlanError) -> u8 {
         PlanError::Curve(_) | PlanError::Limits(_) | PlanError::Corner { .. } | PlanError::FeedProfile(_) => {
             EXIT_INPUT
         }
-        PlanError::TooFewPoints { .. } | PlanError::OverrideLevel { .. } => EXIT_USAGE,
+        PlanError::TooFewPoints { .. } | PlanError::OverrideLevel { .. } | PlanError::Committing => {
+            EXIT_USAGE
+        }
         PlanError::Io { .. } | PlanError::Table(_) => EXIT_IO,
         PlanError::Level { source, .. } => plan_exit_code(source),
         _ => EXIT_INFEASIBLE,

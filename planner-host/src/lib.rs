@@ -47,6 +47,7 @@ pub mod program;
 pub mod sampling;
 pub mod stream;
 pub mod stream_hold;
+pub mod stream_pipeline;
 
 pub use feed_override::{OverrideContext, OverrideOutcome};
 pub use geometry::{builtin, ArcLength, CurveError, Nurbs};

@@ -158,68 +158,150 @@ pub fn chunk_table(table: &Table, opts: &ChunkOptions) -> Result<Vec<Vec<u8>>, C
 
 /// Cut a table's rows into chunks.
 pub fn chunk_rows(rows: &TableRows, opts: &ChunkOptions) -> Result<Vec<Vec<u8>>, ChunkTableError> {
-    if opts.chunk_mm.is_nan() || opts.chunk_mm <= 0.0 {
-        return Err(ChunkTableError::ChunkLength(opts.chunk_mm));
-    }
+    let mut cutter = ChunkCutter::new(opts)?;
     let p = rows.words.len();
     if p == 0 || rows.q_ctrl.len() < 4 {
         return Err(ChunkTableError::Empty);
     }
-    let mut cuts = vec![];
-    let mut j0 = 0;
-    while j0 < p {
-        let mut j1 = j0 + 1;
-        while j1 < p && j1 - j0 < usize::from(u16::MAX) && rows.breaks[j1] < rows.breaks[j0] + opts.chunk_mm {
-            j1 += 1;
+    cutter.cut(rows, true)
+}
+
+/// Cuts rows into chunks as they become final ([`chunk_rows`] at once):
+/// each [`ChunkCutter::cut`] takes the rows known so far and returns the
+/// chunks that no row still to come can change. A chunk ends at the first
+/// piece break at least [`ChunkOptions::chunk_mm`] from its start, so it is
+/// final once a break that far is known; fed the rows of a growing plan the
+/// cutter writes the same chunks, byte for byte, as [`chunk_rows`] on the
+/// finished rows.
+#[derive(Clone, Debug)]
+pub struct ChunkCutter {
+    opts: ChunkOptions,
+    /// The next chunk's first piece.
+    j0: usize,
+    /// Chunks written.
+    index: usize,
+    /// The last chunk was written.
+    done: bool,
+    buf: Vec<u8>,
+}
+
+impl ChunkCutter {
+    /// A cutter at the start of a plan.
+    pub fn new(opts: &ChunkOptions) -> Result<Self, ChunkTableError> {
+        if opts.chunk_mm.is_nan() || opts.chunk_mm <= 0.0 {
+            return Err(ChunkTableError::ChunkLength(opts.chunk_mm));
         }
-        cuts.push((j0, j1));
-        j0 = j1;
+        Ok(ChunkCutter {
+            opts: *opts,
+            j0: 0,
+            index: 0,
+            done: false,
+            buf: Vec::new(),
+        })
     }
-    let mut buf = vec![];
-    let mut encode = |rows: &TableRows, (j0, j1): (usize, usize), head: ChunkHead, index: usize| {
-        let stretch = rows.stretch(j0, j1, opts.u_form).ok_or(ChunkTableError::Empty)?;
+
+    /// Chunks written so far.
+    pub fn chunks(&self) -> usize {
+        self.index
+    }
+
+    /// The chunks of `rows` that are final: `rows` holds the pieces known
+    /// (its breaks one more, the last the end of the last piece) and the
+    /// q control points final over them; `all`: every piece of the plan
+    /// (the rest is cut, its last chunk flagged last).
+    pub fn cut(&mut self, rows: &TableRows, all: bool) -> Result<Vec<Vec<u8>>, ChunkTableError> {
+        let p = rows.words.len();
+        let mut out = vec![];
+        if self.done {
+            return Ok(out);
+        }
+        let mut cuts = vec![];
+        let mut j0 = self.j0;
+        while j0 < p {
+            let mut j1 = j0 + 1;
+            while j1 < p
+                && j1 - j0 < usize::from(u16::MAX)
+                && rows.breaks[j1] < rows.breaks[j0] + self.opts.chunk_mm
+            {
+                j1 += 1;
+            }
+            // (a cut that reached the last piece known is final only if its
+            // end is as far as a chunk goes, or nothing follows)
+            let ended = j1 < p
+                || j1 - j0 >= usize::from(u16::MAX)
+                || rows
+                    .breaks
+                    .get(j1)
+                    .is_some_and(|&b| b >= rows.breaks[j0] + self.opts.chunk_mm);
+            if !(ended || all) {
+                break;
+            }
+            cuts.push((j0, j1));
+            j0 = j1;
+        }
+        self.j0 = j0;
+        // halve stretches over the byte bound (the header's size does not depend on its fields)
+        if let Some(max) = self.opts.max_chunk_bytes {
+            let mut fitted = Vec::with_capacity(cuts.len());
+            let mut todo: Vec<(usize, usize)> = cuts.into_iter().rev().collect();
+            while let Some((j0, j1)) = todo.pop() {
+                let head = ChunkHead {
+                    seq: 0,
+                    plan_id: 0,
+                    commit: 0,
+                    first: false,
+                    last: false,
+                };
+                if j1 - j0 > 1
+                    && self
+                        .encode(rows, (j0, j1), head, self.index + fitted.len())?
+                        .len()
+                        > max
+                {
+                    let mid = j0 + (j1 - j0) / 2;
+                    todo.push((mid, j1));
+                    todo.push((j0, mid));
+                } else {
+                    fitted.push((j0, j1));
+                }
+            }
+            cuts = fitted;
+        }
+        let n = cuts.len();
+        for (k, &jj) in cuts.iter().enumerate() {
+            let index = self.index;
+            let last = all && k + 1 == n;
+            let head = ChunkHead {
+                seq: self.opts.first_seq.wrapping_add(index as u32),
+                plan_id: self.opts.plan_id,
+                commit: 0,
+                first: index == 0,
+                last,
+            };
+            out.push(self.encode(rows, jj, head, index)?);
+            self.index += 1;
+            self.done = last;
+        }
+        Ok(out)
+    }
+
+    fn encode(
+        &mut self,
+        rows: &TableRows,
+        (j0, j1): (usize, usize),
+        head: ChunkHead,
+        index: usize,
+    ) -> Result<Vec<u8>, ChunkTableError> {
+        let stretch = rows
+            .stretch(j0, j1, self.opts.u_form)
+            .ok_or(ChunkTableError::Empty)?;
         // a generous bound: every value at its widest encoding
         let bound = 64 + 10 * (stretch.q_knots.len() + stretch.q_ctrl.len()) + 320 * stretch.words.len();
-        buf.resize(bound, 0);
-        let len = encode_chunk(&head, &stretch, &mut buf)
+        self.buf.resize(bound, 0);
+        let len = encode_chunk(&head, &stretch, &mut self.buf)
             .map_err(|error| ChunkTableError::Encode { index, error })?;
-        Ok::<Vec<u8>, ChunkTableError>(buf[..len].to_vec())
-    };
-    // halve stretches over the byte bound (the header's size does not depend on its fields)
-    if let Some(max) = opts.max_chunk_bytes {
-        let mut fitted = Vec::with_capacity(cuts.len());
-        let mut todo: Vec<(usize, usize)> = cuts.into_iter().rev().collect();
-        while let Some((j0, j1)) = todo.pop() {
-            let head = ChunkHead {
-                seq: 0,
-                plan_id: 0,
-                commit: 0,
-                first: false,
-                last: false,
-            };
-            if j1 - j0 > 1 && encode(rows, (j0, j1), head, fitted.len())?.len() > max {
-                let mid = j0 + (j1 - j0) / 2;
-                todo.push((mid, j1));
-                todo.push((j0, mid));
-            } else {
-                fitted.push((j0, j1));
-            }
-        }
-        cuts = fitted;
+        Ok(self.buf[..len].to_vec())
     }
-    let n = cuts.len();
-    let mut out = Vec::with_capacity(n);
-    for (index, &jj) in cuts.iter().enumerate() {
-        let head = ChunkHead {
-            seq: opts.first_seq.wrapping_add(index as u32),
-            plan_id: opts.plan_id,
-            commit: 0,
-            first: index == 0,
-            last: index + 1 == n,
-        };
-        out.push(encode(rows, jj, head, index)?);
-    }
-    Ok(out)
 }
 
 /// What a stream of chunks decodes to.

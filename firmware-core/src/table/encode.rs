@@ -5,7 +5,9 @@
 use crate::limits::END_LEN;
 use crate::math::basis::MAX_DEGREE;
 use crate::path::qspline::QSpline;
-use crate::servo_forms::fit::{all_pieces, n_groups, n_pieces, pieces_of_groups, point_scale, FitInput};
+use crate::servo_forms::fit::{
+    all_pieces, groups, n_groups, n_pieces, pieces_of_groups, point_scale, FitInput,
+};
 use crate::servo_forms::piece::{piece_f32_len, PIECE_F64_LEN};
 use crate::servo_forms::q_span::{q_fixed, q_local, Q_FX_LEN, Q_LOCAL_LEN};
 use crate::table::crc::CRC;
@@ -109,6 +111,13 @@ pub(crate) fn q_spans(parts: &TableParts) -> usize {
 /// range of them.
 pub fn piece_groups(parts: &TableParts) -> usize {
     n_groups(&fit_input(parts))
+}
+
+/// Each knot-span group of [`piece_groups`] in order, as `f(s0, s1)` (mm):
+/// its pieces depend on q only on `[s0, s1)`, so a host planning q window
+/// by window can fit a group as soon as q is final up to `s1`.
+pub fn piece_group_bounds(parts: &TableParts, mut f: impl FnMut(f64, f64)) {
+    groups(&fit_input(parts), |g| f(g.s0, g.s1));
 }
 
 /// The pieces of groups `lo .. hi` of [`piece_groups`], in order, as

@@ -138,7 +138,7 @@ pub(crate) mod view;
 pub use self::check_header::peek_total_len;
 pub use self::crc::{crc32, reseal};
 pub use self::encode::{encode, encoded_len};
-pub use self::encode::{fit_pieces, piece_groups};
+pub use self::encode::{fit_pieces, piece_group_bounds, piece_groups};
 pub use self::error::{EncodeError, LevelFault, TableError};
 pub use self::level::Level;
 pub use self::parts::{FittedPiece, LevelParts, TableParts};

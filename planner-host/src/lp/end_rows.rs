@@ -388,6 +388,14 @@ impl EndRows {
         }
     }
 
+    /// The start segment on `ctrl` as [`EndRows::segments`] gives it (the
+    /// same values), before the stop's control points are known: the stop
+    /// fields repeat the start's join and are not the plan's.
+    pub fn start_segment(&self, ctrl: &[f64]) -> Option<EndSegments> {
+        let q1 = self.start.basis.apply(0, ctrl);
+        (q1 > 0.0).then(|| EndSegments::from_q(self.start.s, q1, self.stop.s, q1, self.length))
+    }
+
     /// The segments for the plan `ctrl` (after [`EndRows::enforce`]); `None`
     /// if q vanishes at a join.
     pub fn segments(&self, ctrl: &[f64]) -> Option<EndSegments> {

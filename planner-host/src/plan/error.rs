@@ -91,6 +91,10 @@ pub enum PlanError {
         /// The LP's failure.
         source: LpError,
     },
+    /// Planning with commits asked for without windows or without the
+    /// certified formulation.
+    #[error("committing as the plan goes needs windows (--window-mm) and the certified formulation")]
+    Committing,
     /// The feed profile is not a valid step function.
     #[error("feed profile: {0}")]
     FeedProfile(#[from] FeedProfileError),

@@ -132,6 +132,8 @@ pub(crate) struct LpStage<'a> {
     pub(crate) steps: usize,
     /// Steps finished so far.
     pub(crate) done: std::sync::atomic::AtomicUsize,
+    /// Told each stretch of q a window commits ([`crate::plan::Commit`]).
+    pub(crate) commits: Option<&'a crate::plan::CommitSink<'a>>,
 }
 
 /// A plan from [`LpStage::solve`].

@@ -32,5 +32,5 @@ pub use atomic_write::{write_atomic, write_file_atomic};
 pub use config::{Formulation, PlanConfig, WindowConfig};
 pub use error::PlanError;
 pub use output::{LevelPlan, PlanOutput, WindowStats};
-pub use pipeline::{plan_curve, plan_curve_with_progress};
+pub use pipeline::{plan_curve, plan_curve_committing, plan_curve_with_progress, Commit, CommitSink};
 pub use stall::StallAt;

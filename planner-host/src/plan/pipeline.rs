@@ -30,6 +30,52 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
     plan_curve_with_progress(curve, cfg, &|_, _| {})
 }
 
+/// A stretch of q that windowed planning has committed: from now on
+/// a_0 … a_through are those of the finished plan, so q is final on
+/// s < U_{through+1}, and with it everything the table derives there (the
+/// q spans' forms, the pieces whose knot-span group ends by then).
+#[derive(Clone, Copy, Debug)]
+pub struct Commit<'a> {
+    /// The knot vector of q (17), the whole path's.
+    pub knots: &'a [f64],
+    /// Control points of q, one per basis function; past `through` not yet
+    /// the plan's.
+    pub ctrl: &'a [f64],
+    /// The last final control point.
+    pub through: usize,
+    /// The last commit: every control point is final.
+    pub last: bool,
+    /// The end segments (jerk-limited ends): the start's from the first
+    /// commit on, the stop's fields only with the last (before, they
+    /// repeat the start's join).
+    pub ends: Option<firmware_core::EndSegments>,
+    /// The s → u map's breaks (the table's section 5).
+    pub su_breaks: &'a [f64],
+    /// The s → u map's segments (sections 6 and 7).
+    pub su_segments: &'a [firmware_core::SuSegment],
+}
+
+/// Told each [`Commit`], in order, on the planning thread.
+pub type CommitSink<'a> = dyn Fn(&Commit) + Sync + 'a;
+
+/// [`plan_curve`] window by window (`cfg.windows` must be set, with the
+/// certified formulation), telling `on_commit` each stretch of q as its
+/// window commits it, so that a host can cut the plan into chunks and send
+/// them while the rest is planned. The s → u map is fitted before the first
+/// window (it is in every commit). A plan whose windows fail is not
+/// retried on a finer sampling, as [`plan_curve`] does: what was committed
+/// may already have left.
+pub fn plan_curve_committing(
+    curve: &Nurbs,
+    cfg: &PlanConfig,
+    on_commit: &CommitSink<'_>,
+) -> Result<PlanOutput, PlanError> {
+    if cfg.windows.is_none() || cfg.formulation != Formulation::Certified {
+        return Err(PlanError::Committing);
+    }
+    plan_curve_inner(curve, cfg, &|_, _| {}, Some(on_commit))
+}
+
 /// [`plan_curve`], calling `progress(done, total)` after the base plan and
 /// after each override level (`total` = 1 + the number of levels), from
 /// whichever thread finished the step.
@@ -37,6 +83,15 @@ pub fn plan_curve_with_progress(
     curve: &Nurbs,
     cfg: &PlanConfig,
     progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<PlanOutput, PlanError> {
+    plan_curve_inner(curve, cfg, progress, None)
+}
+
+fn plan_curve_inner(
+    curve: &Nurbs,
+    cfg: &PlanConfig,
+    progress: &(dyn Fn(usize, usize) + Sync),
+    on_commit: Option<&CommitSink<'_>>,
 ) -> Result<PlanOutput, PlanError> {
     let t0 = Instant::now();
     curve.validate()?;
@@ -84,6 +139,27 @@ pub fn plan_curve_with_progress(
         }
     };
     dbg_t("refine");
+    // the s → u map (it does not depend on q): before the windows when they
+    // commit as they go (each commit carries it), else beside the LPs
+    let fit_su = || {
+        let su = SuMap::fit_within(curve, &arc, cfg.su_tol_mm, Some(&budget));
+        dbg_t("s-u map");
+        su
+    };
+    let su_first = match on_commit {
+        Some(_) => Some(fit_su()?),
+        None => None,
+    };
+    let sink = |c: &Commit| {
+        if let (Some(f), Some(su)) = (on_commit, su_first.as_ref()) {
+            f(&Commit {
+                su_breaks: &su.breaks,
+                su_segments: &su.segments,
+                ..*c
+            })
+        }
+    };
+    let sink: Option<&CommitSink<'_>> = on_commit.map(|_| &sink as &CommitSink<'_>);
     // The plan on the sampling asked for; if it fails (a stall, or no LP of
     // the sequence held every limit), once more on every span bisected.
     let plan_q = || -> Result<_, PlanError> {
@@ -105,7 +181,10 @@ pub fn plan_curve_with_progress(
                     basis: BasisRow::at(&knots, s)?,
                 })
             };
-            let stage = lp_stage(curve, &arc, &knots, cfg, progress, steps, 0);
+            let stage = LpStage {
+                commits: sink,
+                ..lp_stage(curve, &arc, &knots, cfg, progress, steps, 0)
+            };
             let mut geometry_time_s = t0.elapsed().as_secs_f64();
             let solved = match (&cfg.windows, cfg.formulation) {
                 // window by window: each window evaluates its own check points
@@ -138,7 +217,9 @@ pub fn plan_curve_with_progress(
                     break (knots, base, geometry_time_s);
                 }
                 Err(PlanError::Stall { .. } | PlanError::Lp(_))
-                    if cfg.formulation == Formulation::Certified && bisections < KNOT_RETRIES =>
+                    if cfg.formulation == Formulation::Certified
+                        && bisections < KNOT_RETRIES
+                        && on_commit.is_none() =>
                 {
                     retry_samples = bisect_all(&retry_samples);
                     bisections += 1;
@@ -148,16 +229,15 @@ pub fn plan_curve_with_progress(
         };
         Ok((knots, base, geometry_time_s, bisections, window_stats))
     };
-    // the s → u map (it does not depend on q) beside the LPs
-    let (su, planned) = rayon::join(
-        || {
-            let su = SuMap::fit_within(curve, &arc, cfg.su_tol_mm, Some(&budget));
-            dbg_t("s-u map");
-            su
-        },
-        plan_q,
-    );
-    let su = su?;
+    let su_beside;
+    let (su, planned) = match &su_first {
+        Some(su) => (su, plan_q()),
+        None => {
+            let (su, planned) = rayon::join(fit_su, plan_q);
+            su_beside = su?;
+            (&su_beside, planned)
+        }
+    };
     let (knots, base, geometry_time_s, bisections, window_stats) = planned?;
     dbg_t("LPs");
     // the levels on the knots the base plan held on, the base counted as done
@@ -275,6 +355,7 @@ fn lp_stage<'a>(
         progress,
         steps,
         done: std::sync::atomic::AtomicUsize::new(done),
+        commits: None,
     }
 }
 

@@ -116,6 +116,33 @@ impl LpStage<'_> {
         out
     }
 
+    /// Tell the commit sink, if any, that a_0 … a_through of `ctrl` are
+    /// final (`last`: all of them).
+    fn tell_commit(
+        &self,
+        end_rows: Option<&crate::lp::end_rows::EndRows>,
+        ctrl: &[f64],
+        through: usize,
+        last: bool,
+    ) {
+        let Some(sink) = self.commits else { return };
+        sink(&crate::plan::Commit {
+            knots: self.knots,
+            ctrl,
+            through,
+            last,
+            ends: end_rows.and_then(|e| {
+                if last {
+                    e.segments(ctrl)
+                } else {
+                    e.start_segment(ctrl)
+                }
+            }),
+            su_breaks: &[],
+            su_segments: &[],
+        });
+    }
+
     /// Plan with `limits` window by window (see the module docs).
     pub(crate) fn solve_windowed(
         &self,
@@ -309,6 +336,7 @@ impl LpStage<'_> {
             stats.max_window_s = stats.max_window_s.max(dt);
             if last {
                 committed[i_l + 1..].copy_from_slice(&plan.ctrl[i_l + 1..]);
+                self.tell_commit(end_rows.as_ref(), &committed, n - 1, true);
                 all_pts.extend(pts.into_iter().map(|p| (p, true)));
                 stats.windows += 1;
                 if stats.windows == 1 {
@@ -318,6 +346,7 @@ impl LpStage<'_> {
                 break;
             }
             committed[i_l + 1..=i_c].copy_from_slice(&plan.ctrl[i_l + 1..=i_c]);
+            self.tell_commit(end_rows.as_ref(), &committed, i_c, false);
             let s_commit = knots[i_c + 1];
             carried = pts
                 .iter()
