@@ -92,7 +92,7 @@ fn host_digest(table: &Table, chunks: &[Vec<u8>]) -> Result<(u64, u64), String> 
     let mut run = StreamedRun::<NQ, NP>::start(table, chunks, 250e-6).map_err(|e| e.to_string())?;
     let mut d = Fnv1a64::new();
     while !run.ip.is_done() {
-        d.setpoint(&run.step().map_err(|e| e.to_string())?);
+        d.setpoint(&run.step(chunks).map_err(|e| e.to_string())?);
     }
     Ok((d.finish(), run.ip.ticks()))
 }

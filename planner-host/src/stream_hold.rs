@@ -46,44 +46,64 @@ pub fn stream_head(table: &Table) -> Option<StreamHead> {
 /// [`PlanWindow::ready`]).
 pub const NOT_ALONE_MM: f64 = -1.0;
 
-/// The firmware's streamed interpolator as the host runs it, with every
-/// chunk at hand: between ticks the rows passed are freed and the next
-/// chunks pushed into the window as they fit, the plan's stop segment with
-/// the last ([`StreamedRun::step`]). Ticks are those of the whole table.
-pub struct StreamedRun<'c, const NQ: usize, const NP: usize> {
+/// The firmware's streamed interpolator as the host runs it: between
+/// ticks the rows passed are freed and the next chunks of those at hand
+/// pushed into the window as they fit, the plan's stop segment with the
+/// last ([`StreamedRun::step`]). Ticks are those of the whole table.
+pub struct StreamedRun<const NQ: usize, const NP: usize> {
     /// The interpolator (the window is its rows).
     pub ip: Interpolator<'static, 0, 0, PlanWindow<NQ, NP>>,
-    chunks: &'c [Vec<u8>],
     ends: Option<EndSegments>,
     next: usize,
 }
 
-impl<'c, const NQ: usize, const NP: usize> StreamedRun<'c, NQ, NP> {
+impl<const NQ: usize, const NP: usize> StreamedRun<NQ, NP> {
     /// At the start of `table`'s plan cut into `chunks`, the first chunks
     /// that fit pushed.
-    pub fn start(table: &Table, chunks: &'c [Vec<u8>], period_s: f64) -> Result<Self, HoldPointError> {
+    pub fn start(table: &Table, chunks: &[Vec<u8>], period_s: f64) -> Result<Self, HoldPointError> {
         let head = stream_head(table).ok_or(HoldPointError::Head)?;
+        Self::start_with(&head, table.ends(), chunks, period_s)
+    }
+
+    /// At the start of the plan of `head`, whose end segments are `ends`
+    /// (the stop's fields needed only once the last chunk is at hand,
+    /// [`StreamedRun::set_ends`]), the first of `chunks` that fit pushed.
+    pub fn start_with(
+        head: &StreamHead,
+        ends: Option<EndSegments>,
+        chunks: &[Vec<u8>],
+        period_s: f64,
+    ) -> Result<Self, HoldPointError> {
         let mut window = PlanWindow::<NQ, NP>::new();
         let first = chunks.first().ok_or(HoldPointError::Head)?;
         window
             .push(&parse(0, first)?)
             .map_err(|error| HoldPointError::Window { index: 0, error })?;
-        let ip = Interpolator::streamed(&head, window, period_s).map_err(HoldPointError::Interp)?;
-        let mut run = StreamedRun {
-            ip,
-            chunks,
-            ends: table.ends(),
-            next: 1,
-        };
-        run.feed()?;
+        let ip = Interpolator::streamed(head, window, period_s).map_err(HoldPointError::Interp)?;
+        let mut run = StreamedRun { ip, ends, next: 1 };
+        if first_is_last(first) {
+            run.stop();
+        }
+        run.feed(chunks)?;
         Ok(run)
     }
 
-    /// Free the rows passed, push the chunks that fit; with the last, the
-    /// stop segment.
-    pub fn feed(&mut self) -> Result<(), HoldPointError> {
+    /// The plan's end segments, the stop's fields final (before the last
+    /// chunk is pushed).
+    pub fn set_ends(&mut self, ends: Option<EndSegments>) {
+        self.ends = ends;
+    }
+
+    /// Free the rows passed, push the chunks of `chunks` (the plan's, from
+    /// its first) that fit; with the last, the stop segment.
+    pub fn feed(&mut self, chunks: &[Vec<u8>]) -> Result<(), HoldPointError> {
         self.ip.release_passed();
-        while let Some(bytes) = self.chunks.get(self.next) {
+        self.push(chunks)
+    }
+
+    /// Push the chunks of `chunks` that fit, without freeing rows.
+    fn push(&mut self, chunks: &[Vec<u8>]) -> Result<(), HoldPointError> {
+        while let Some(bytes) = chunks.get(self.next) {
             let c = parse(self.next, bytes)?;
             if !self.ip.window().fits(&c) {
                 break;
@@ -93,24 +113,32 @@ impl<'c, const NQ: usize, const NP: usize> StreamedRun<'c, NQ, NP> {
                 error,
             })?;
             self.next += 1;
-            if self.next == self.chunks.len() {
-                if let Some(e) = self.ends {
-                    // (refused only past s₂: the chunks are in long before)
-                    let _ = self.ip.set_stop(&e);
-                }
+            if c.info().is_last() {
+                self.stop();
             }
         }
         Ok(())
     }
 
+    fn stop(&mut self) {
+        if let Some(e) = self.ends {
+            // (refused only past s₂: the chunks are in long before)
+            let _ = self.ip.set_stop(&e);
+        }
+    }
+
     /// [`StreamedRun::feed`], then one tick.
-    pub fn step(&mut self) -> Result<Setpoint, HoldPointError> {
-        self.feed()?;
+    pub fn step(&mut self, chunks: &[Vec<u8>]) -> Result<Setpoint, HoldPointError> {
+        self.feed(chunks)?;
         self.ip.tick().map_err(|f| HoldPointError::Fault {
             tick: self.ip.ticks(),
             fault: format!("{f:?}"),
         })
     }
+}
+
+fn first_is_last(bytes: &[u8]) -> bool {
+    Chunk::parse(bytes).is_ok_and(|c| c.info().is_last())
 }
 
 /// Why the hold points could not be found.
@@ -197,71 +225,189 @@ pub fn hold_points<const NQ: usize, const NP: usize>(
     chunks: &[Vec<u8>],
     how: &HoldSearch,
 ) -> Result<HoldPoints, HoldPointError> {
-    let n = chunks.len();
-    let ends: Vec<i64> = chunks
-        .iter()
-        .enumerate()
-        .map(|(i, c)| parse(i, c).map(|c| c.info().s_b))
-        .collect::<Result<_, _>>()?;
-    let mut run = StreamedRun::<NQ, NP>::start(table, chunks, how.period_s)?;
-    let fx = |x: i64| x as f64 / (1u64 << 40) as f64;
-    let mut s_c = vec![f64::NAN; n];
-    let (mut i, mut last_ok, mut next_test) = (0usize, None::<f64>, 0.0f64);
-    let mut tests = 0;
-    let started = std::time::Instant::now();
-    let mut known = vec![f64::NAN; n];
-    while !run.ip.is_done() && i + 1 < n {
-        let sp = run.step()?;
-        if sp.s_mm < next_test {
-            continue;
-        }
-        next_test = sp.s_mm + how.step_mm;
-        // The chunks this test may rely on: up to chunk i; on failure the
-        // last success is chunk i's s_c and the same tick is tried on i + 1.
-        while i + 1 < n {
-            tests += 1;
-            if stops_before(&run.ip, ends[i], how.margin_mm) {
-                last_ok = Some(sp.s_mm);
-                break;
-            }
-            // (no hold from the start stops inside chunk i: the motion must
-            // not start on it alone)
-            s_c[i] = last_ok.unwrap_or(NOT_ALONE_MM);
-            known[i] = started.elapsed().as_secs_f64();
-            i += 1;
+    let head = stream_head(table).ok_or(HoldPointError::Head)?;
+    let mut search = HoldPointSearch::<NQ, NP>::new(&head, table.ends(), *how, std::time::Instant::now());
+    search.advance(chunks)?;
+    search.finish()
+}
+
+/// The arc length the dry run keeps between its motion and the end of the
+/// chunks at hand while more are to come, mm (a tick moves well under
+/// 0.1 mm).
+const RUN_BEHIND_MM: f64 = 1.0;
+
+/// [`hold_points`] as the chunks come: [`HoldPointSearch::advance`] takes
+/// the chunks at hand (the plan's, from its first; the last flagged last)
+/// and runs the dry run as far as they allow, so a host can send each
+/// chunk as soon as its hold point is known while later ones are still
+/// being planned. Fed every chunk at once it finds what [`hold_points`]
+/// finds (it is the same search).
+pub struct HoldPointSearch<const NQ: usize, const NP: usize> {
+    head: StreamHead,
+    ends: Option<EndSegments>,
+    how: HoldSearch,
+    started: std::time::Instant,
+    /// (boxed: a host-sized window is megabytes)
+    run: Option<Box<StreamedRun<NQ, NP>>>,
+    /// Per chunk known: its end (Q40) and whether it is the last.
+    chunk_end: Vec<i64>,
+    chunk_last: Vec<bool>,
+    s_c: Vec<f64>,
+    known: Vec<f64>,
+    i: usize,
+    last_ok: Option<f64>,
+    next_test: f64,
+    tests: usize,
+    /// A test is due at the current tick, at this s.
+    testing: Option<f64>,
+}
+
+impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
+    /// A search on the plan of `head` with end segments `ends` (the stop's
+    /// fields final by the last chunk: [`HoldPointSearch::set_ends`]); the
+    /// times it reports are from `started`.
+    pub fn new(
+        head: &StreamHead,
+        ends: Option<EndSegments>,
+        how: HoldSearch,
+        started: std::time::Instant,
+    ) -> Self {
+        HoldPointSearch {
+            head: *head,
+            ends,
+            how,
+            started,
+            run: None,
+            chunk_end: vec![],
+            chunk_last: vec![],
+            s_c: vec![],
+            known: vec![],
+            i: 0,
+            last_ok: None,
+            next_test: 0.0,
+            tests: 0,
+            testing: None,
         }
     }
-    // Chunks the run did not reach a failing test for (the end came first)
-    // keep the last success; the last chunk has no hold point.
-    for (k, v) in s_c.iter_mut().enumerate() {
-        if v.is_nan() {
-            *v = if k + 1 == n {
-                fx(ends[k])
-            } else {
-                last_ok.unwrap_or(0.0)
-            };
+
+    /// The plan's end segments, the stop's fields final.
+    pub fn set_ends(&mut self, ends: Option<EndSegments>) {
+        self.ends = ends;
+        if let Some(r) = self.run.as_mut() {
+            r.set_ends(ends);
         }
     }
-    let lead_mm = s_c
-        .iter()
-        .zip(&ends)
-        .map(|(c, &e)| (fx(e) - c).max(0.0))
-        .collect();
-    Ok(HoldPoints {
-        lead_mm,
-        s_c_mm: s_c,
-        tests,
-        known_after_s: known
-            .iter()
-            .map(|&k| {
-                if k.is_nan() {
-                    started.elapsed().as_secs_f64()
-                } else {
-                    k
+
+    /// Chunks whose hold point is known (from the first, in order).
+    pub fn known(&self) -> usize {
+        self.s_c.iter().take_while(|v| !v.is_nan()).count()
+    }
+
+    /// The hold point found for chunk `i` (mm; [`NOT_ALONE_MM`] where no
+    /// hold stops inside it), and when it was known (s from the start).
+    pub fn hold_point(&self, i: usize) -> Option<(f64, f64)> {
+        let c = *self.s_c.get(i)?;
+        (!c.is_nan()).then(|| (c, self.known[i]))
+    }
+
+    /// Run the search as far as `chunks` (the plan's chunks at hand, from
+    /// its first) allow.
+    pub fn advance(&mut self, chunks: &[Vec<u8>]) -> Result<(), HoldPointError> {
+        for (k, bytes) in chunks.iter().enumerate().skip(self.chunk_end.len()) {
+            let c = parse(k, bytes)?;
+            self.chunk_end.push(c.info().s_b);
+            self.chunk_last.push(c.info().is_last());
+            self.s_c.push(f64::NAN);
+            self.known.push(f64::NAN);
+        }
+        if chunks.is_empty() {
+            return Ok(());
+        }
+        let all = self.chunk_last.last().copied().unwrap_or(false);
+        if self.run.is_none() {
+            self.run = Some(Box::new(StreamedRun::start_with(
+                &self.head,
+                self.ends,
+                chunks,
+                self.how.period_s,
+            )?));
+        }
+        let Some(run) = self.run.as_mut() else {
+            return Ok(());
+        };
+        let fx = |x: i64| x as f64 / (1u64 << 40) as f64;
+        loop {
+            if let Some(s) = self.testing {
+                // (the chunks that came since the tick, into the window the
+                // tests cut back: as if they had been there at it)
+                run.push(chunks)?;
+                // The chunks this test may rely on: up to chunk i; on failure
+                // the last success is chunk i's s_c and the same tick is tried
+                // on i + 1.
+                while !self.chunk_last.get(self.i).copied().unwrap_or(false) {
+                    let Some(&end) = self.chunk_end.get(self.i) else {
+                        // (chunk i is yet to come)
+                        return Ok(());
+                    };
+                    self.tests += 1;
+                    if stops_before(&run.ip, end, self.how.margin_mm) {
+                        self.last_ok = Some(s);
+                        break;
+                    }
+                    // (no hold from the start stops inside chunk i: the motion
+                    // must not start on it alone)
+                    self.s_c[self.i] = self.last_ok.unwrap_or(NOT_ALONE_MM);
+                    self.known[self.i] = self.started.elapsed().as_secs_f64();
+                    self.i += 1;
                 }
-            })
-            .collect(),
-    })
+                self.testing = None;
+            }
+            if run.ip.is_done() || self.chunk_last.get(self.i).copied().unwrap_or(false) {
+                return Ok(());
+            }
+            run.feed(chunks)?;
+            if !all && fx(run.ip.window().held_end()) - run.ip.s_mm() < RUN_BEHIND_MM {
+                return Ok(());
+            }
+            let sp = run.step(chunks)?;
+            if sp.s_mm >= self.next_test {
+                self.next_test = sp.s_mm + self.how.step_mm;
+                self.testing = Some(sp.s_mm);
+            }
+        }
+    }
+
+    /// The hold points, once [`HoldPointSearch::advance`] has had every
+    /// chunk: chunks the dry run did not reach a failing test for (the end
+    /// came first) keep the last success; the last chunk has none (its s_c
+    /// is its end).
+    pub fn finish(mut self) -> Result<HoldPoints, HoldPointError> {
+        let fx = |x: i64| x as f64 / (1u64 << 40) as f64;
+        let n = self.chunk_end.len();
+        let now = self.started.elapsed().as_secs_f64();
+        for k in 0..n {
+            if self.s_c[k].is_nan() {
+                self.s_c[k] = if k + 1 == n {
+                    fx(self.chunk_end[k])
+                } else {
+                    self.last_ok.unwrap_or(0.0)
+                };
+                self.known[k] = now;
+            }
+        }
+        let lead_mm = self
+            .s_c
+            .iter()
+            .zip(&self.chunk_end)
+            .map(|(c, &e)| (fx(e) - c).max(0.0))
+            .collect();
+        Ok(HoldPoints {
+            lead_mm,
+            s_c_mm: self.s_c,
+            tests: self.tests,
+            known_after_s: self.known,
+        })
+    }
 }
 
 /// A copy of `ip` cut back to the chunks ending at `s_end` (Q40; those it

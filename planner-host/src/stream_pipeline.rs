@@ -14,12 +14,18 @@
 //! control points of its knot spans alone — final once a window has
 //! committed them.
 
+use std::sync::{mpsc, Mutex};
+use std::time::Instant;
+
+use firmware_core::interp::StreamHead;
+use firmware_core::stream::{commit_q20, set_commit};
 use firmware_core::table::{fit_pieces, piece_group_bounds, FittedPiece, TableParts};
 use firmware_core::{EndSegments, SuSegment};
 
 use crate::geometry::curve::Nurbs;
-use crate::plan::Commit;
+use crate::plan::{plan_curve_committing, Commit, PlanConfig, PlanError, PlanOutput};
 use crate::stream::{ChunkCutter, ChunkOptions, ChunkTableError, TableRows};
+use crate::stream_hold::{HoldPointError, HoldPointSearch, HoldPoints, HoldSearch};
 
 /// What the chunks of a plan need besides q: the path and its s → u map.
 #[derive(Clone, Debug)]
@@ -150,6 +156,184 @@ impl ChunkPipeline {
     pub fn chunks(&self) -> usize {
         self.cutter.chunks()
     }
+
+    /// The stream head of the plan of `c` (a commit of this pipeline's
+    /// plan) with `limits`: as `crate::stream_hold::stream_head` reads it
+    /// from the finished table, the stop's fields as `c` tells them.
+    pub fn head(&self, c: &Commit, limits: firmware_core::Limits) -> Option<StreamHead> {
+        let p = self.path.degree as usize;
+        let [x0, y0, z0, _] = *self.path.points.first()?;
+        let [x1, y1, z1, _] = *self.path.points.last()?;
+        Some(StreamHead {
+            length_mm: c.length_mm,
+            limits,
+            ends: c.ends,
+            first_pos_mm: [x0, y0, z0],
+            first_u: *self.path.knots.get(p)?,
+            last_pos_mm: [x1, y1, z1],
+            last_u: *self.path.knots.last()?,
+        })
+    }
+}
+
+/// A plan streamed as it was planned ([`plan_and_stream`]).
+#[derive(Debug)]
+pub struct PlannedStream {
+    /// The finished plan (its table, for reference and checks).
+    pub plan: PlanOutput,
+    /// The chunks, hold points written.
+    pub chunks: Vec<Vec<u8>>,
+    /// Their hold points.
+    pub hold: HoldPoints,
+    /// Per chunk, when it could leave: cut and its hold point known, s from
+    /// the start of planning.
+    pub ready_s: Vec<f64>,
+    /// Wall time of the planning (the windows and the table), s.
+    pub plan_s: f64,
+    /// Wall time until the last hold point was known, s from the start.
+    pub done_s: f64,
+}
+
+/// Why [`plan_and_stream`] failed.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum PipelineError {
+    /// Planning failed.
+    #[error(transparent)]
+    Plan(#[from] PlanError),
+    /// Cutting into chunks failed.
+    #[error(transparent)]
+    Chunks(#[from] ChunkTableError),
+    /// The hold-point search failed.
+    #[error(transparent)]
+    HoldPoints(#[from] HoldPointError),
+    /// The plan has no stream head (no control points).
+    #[error("the plan has no start or end point")]
+    Head,
+    /// The hold-point thread could not start or panicked.
+    #[error("the hold-point search thread failed")]
+    Thread,
+}
+
+/// Stack of the hold-point search's thread: the firmware's window is
+/// inside the interpolator it runs and copies (a host-sized window is
+/// megabytes).
+const SEARCH_STACK_BYTES: usize = 256 << 20;
+
+/// Plan `curve` window by window and, as each window commits, cut the
+/// chunks that became final and find their hold points (for a firmware
+/// window of `NQ` q spans and `NP` pieces) on a second thread, as a host
+/// streaming to a running machine would: chunk i can leave at
+/// `ready_s[i]`, long before the plan is finished. The chunks equal
+/// [`crate::stream::chunk_table`]'s of the finished table, hold points
+/// included.
+pub fn plan_and_stream<const NQ: usize, const NP: usize>(
+    curve: &Nurbs,
+    cfg: &PlanConfig,
+    opts: &ChunkOptions,
+    how: &HoldSearch,
+) -> Result<PlannedStream, PipelineError> {
+    let t0 = Instant::now();
+    let pipe: Mutex<Option<ChunkPipeline>> = Mutex::new(None);
+    let failed: Mutex<Option<PipelineError>> = Mutex::new(None);
+    // to the hold-point thread: the head (once), new chunks, the final ends
+    enum Msg {
+        Head(StreamHead),
+        Chunks(Vec<Vec<u8>>),
+        Ends(Option<EndSegments>),
+    }
+    let (tx, rx) = mpsc::channel::<Msg>();
+    let limits = cfg.limits;
+    let (plan, searched) = std::thread::scope(|scope| {
+        // (the window and the dry run's copies of it live on this stack)
+        let searcher = std::thread::Builder::new()
+            .stack_size(SEARCH_STACK_BYTES)
+            .spawn_scoped(
+                scope,
+                move || -> Result<(Vec<Vec<u8>>, HoldPoints, f64), PipelineError> {
+                    let mut chunks: Vec<Vec<u8>> = vec![];
+                    let mut search: Option<HoldPointSearch<NQ, NP>> = None;
+                    for m in rx {
+                        match m {
+                            Msg::Head(h) => search = Some(HoldPointSearch::new(&h, h.ends, *how, t0)),
+                            Msg::Ends(e) => {
+                                if let Some(s) = search.as_mut() {
+                                    s.set_ends(e);
+                                }
+                            }
+                            Msg::Chunks(c) => chunks.extend(c),
+                        }
+                        if let Some(s) = search.as_mut() {
+                            s.advance(&chunks)?;
+                        }
+                    }
+                    let hp = search.ok_or(PipelineError::Head)?.finish()?;
+                    Ok((chunks, hp, t0.elapsed().as_secs_f64()))
+                },
+            );
+        let tx = Mutex::new(tx);
+        let sink = |c: &Commit| {
+            let mut fail = failed.lock().unwrap_or_else(|e| e.into_inner());
+            if fail.is_some() {
+                return;
+            }
+            let mut p = pipe.lock().unwrap_or_else(|e| e.into_inner());
+            let tx = tx.lock().unwrap_or_else(|e| e.into_inner());
+            if p.is_none() {
+                match ChunkPipeline::new(curve, c, opts) {
+                    Ok(new) => {
+                        let Some(h) = new.head(c, limits) else {
+                            *fail = Some(PipelineError::Head);
+                            return;
+                        };
+                        let _ = tx.send(Msg::Head(h));
+                        *p = Some(new);
+                    }
+                    Err(e) => {
+                        *fail = Some(e.into());
+                        return;
+                    }
+                }
+            }
+            let Some(p) = p.as_mut() else { return };
+            if c.last {
+                let _ = tx.send(Msg::Ends(c.ends));
+            }
+            match p.commit(c) {
+                Ok(new) if !new.is_empty() => {
+                    let _ = tx.send(Msg::Chunks(new));
+                }
+                Ok(_) => {}
+                Err(e) => *fail = Some(e.into()),
+            }
+        };
+        let plan = plan_curve_committing(curve, cfg, &sink);
+        // (the sender goes: the search ends with the chunks it has)
+        drop(tx);
+        let searched = match searcher {
+            Ok(h) => h.join().map_err(|_| ()),
+            Err(_) => Err(()),
+        };
+        (plan, searched)
+    });
+    let plan_s = plan.as_ref().map_or(0.0, |p| p.total_time_s);
+    let plan = plan?;
+    if let Some(e) = failed.into_inner().unwrap_or_else(|e| e.into_inner()) {
+        return Err(e);
+    }
+    let (mut chunks, hold, done_s) = searched.map_err(|_| PipelineError::Thread)??;
+    for (index, (c, &lead)) in chunks.iter_mut().zip(&hold.lead_mm).enumerate() {
+        set_commit(c, commit_q20(lead)).map_err(|error| HoldPointError::Chunk { index, error })?;
+    }
+    let ready_s = hold.known_after_s.clone();
+    Ok(PlannedStream {
+        plan,
+        chunks,
+        hold,
+        ready_s,
+        plan_s,
+        done_s,
+    })
 }
 
 /// Table parts for the piece fit: only the path, the s → u map and q are read.

@@ -71,3 +71,60 @@ fn committing_needs_windows() {
     let e = plan_curve_committing(&curve, &PlanConfig::default(), &|_: &Commit| {}).unwrap_err();
     assert!(matches!(e, planner_host::PlanError::Committing), "{e}");
 }
+
+#[test]
+fn hold_points_found_as_chunks_come_equal_those_found_at_once() {
+    // (the firmware's window lives on the stack)
+    std::thread::Builder::new()
+        .stack_size(256 << 20)
+        .spawn(hold_points_alike)
+        .unwrap()
+        .join()
+        .unwrap();
+}
+
+fn hold_points_alike() {
+    use planner_host::stream_hold::{hold_points, HoldSearch};
+    use planner_host::stream_pipeline::plan_and_stream;
+    let curve = planner_host::builtin::butterfly().unwrap();
+    let cfg = PlanConfig {
+        windows: Some(WindowConfig::default()),
+        ..PlanConfig::default()
+    };
+    let opts = ChunkOptions {
+        chunk_mm: 32.0,
+        max_chunk_bytes: Some(4096),
+        ..ChunkOptions::default()
+    };
+    let st = plan_and_stream::<512, 1024>(&curve, &cfg, &opts, &HoldSearch::default()).unwrap();
+    let table = Table::parse(&st.plan.table_bytes).unwrap();
+    let reference = chunk_table(&table, &opts).unwrap();
+    let at_once = hold_points::<512, 1024>(&table, &reference, &HoldSearch::default()).unwrap();
+    // fed one chunk at a time, the same search
+    let head = planner_host::stream_hold::stream_head(&table).unwrap();
+    let mut one = planner_host::stream_hold::HoldPointSearch::<512, 1024>::new(
+        &head,
+        table.ends(),
+        HoldSearch::default(),
+        std::time::Instant::now(),
+    );
+    for k in 1..=reference.len() {
+        one.advance(&reference[..k]).unwrap();
+    }
+    let one = one.finish().unwrap();
+    assert_eq!(one.s_c_mm, at_once.s_c_mm);
+    // the pipeline's chunks are the table's, hold points written
+    let mut written = reference.clone();
+    planner_host::stream_hold::set_hold_points::<512, 1024>(&table, &mut written, &HoldSearch::default())
+        .unwrap();
+    assert_eq!(st.chunks, written);
+    // each may leave once its hold point is known, in order
+    assert!(st.ready_s.windows(2).all(|w| w[0] <= w[1]));
+    eprintln!(
+        "first chunk ready after {:.1} ms, planning {:.1} ms",
+        st.ready_s[0] * 1e3,
+        st.plan_s * 1e3
+    );
+    assert_eq!(st.hold.s_c_mm, at_once.s_c_mm);
+    assert_eq!(st.hold.tests, at_once.tests);
+}

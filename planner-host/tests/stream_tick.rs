@@ -37,7 +37,7 @@ fn run_streamed(table: &Table, chunks: &[Vec<u8>]) -> (Vec<Setpoint>, usize) {
     let mut most = 0;
     let mut out = Vec::new();
     while !run.ip.is_done() {
-        run.feed().unwrap();
+        run.feed(chunks).unwrap();
         most = most.max(run.ip.window().held().1);
         out.push(run.ip.tick().unwrap());
     }

@@ -225,7 +225,12 @@ pub fn run_stream<const CAP: usize, const NQ: usize, const NP: usize>(
             last_word = t;
         }
         let pending: usize = chunks[first_unacked.min(next)..next].iter().map(Vec::len).sum();
-        if next < n && link_free_at <= t && !stalled(t) && free.saturating_sub(pending) >= chunks[next].len()
+        let ready = !link.ready_s.get(next).is_some_and(|&r| r > t);
+        if next < n
+            && ready
+            && link_free_at <= t
+            && !stalled(t)
+            && free.saturating_sub(pending) >= chunks[next].len()
         {
             let dur = framed[next] as f64 / link.bytes_per_s;
             let mut end = t + dur;
@@ -427,14 +432,17 @@ pub struct StreamReport {
     pub schema_version: u32,
     /// Path length, mm.
     pub length_mm: f64,
-    /// Planning wall time (the whole plan, before the first chunk), s.
+    /// Planning wall time, s (windows: while the first chunks are already
+    /// streaming).
     pub plan_s: f64,
     /// Windows planned (0: the whole path at once).
     pub windows: usize,
-    /// Wall time of the hold-point search (the firmware's dry run), s.
+    /// Wall time of the hold-point search (the firmware's dry run), s
+    /// (windows: from the start of planning until the last was known).
     pub hold_points_s: f64,
-    /// Planning, then the link until the motion starts (the host sends
-    /// each chunk as soon as its hold point is known), ms.
+    /// From the start of planning until the motion starts, ms: the host
+    /// sends each chunk as soon as it is cut and its hold point known
+    /// (windows: while later windows are planned), the link carries it.
     pub first_motion_ms: f64,
     /// Machining time over planning time.
     pub plan_realtime_factor: f64,
@@ -492,6 +500,9 @@ pub enum StreamError {
     /// The hold-point search failed.
     #[error(transparent)]
     HoldPoints(#[from] planner_host::stream_hold::HoldPointError),
+    /// Planning while streaming failed.
+    #[error(transparent)]
+    Pipeline(#[from] planner_host::stream_pipeline::PipelineError),
     /// The run failed.
     #[error(transparent)]
     Run(#[from] StreamRunError),
@@ -507,6 +518,7 @@ pub fn stream_curve(curve: &planner_host::Nurbs, o: &StreamOptions) -> Result<St
     use planner_host::plan::{plan_curve, PlanConfig, WindowConfig};
     use planner_host::stream::{chunk_table, ChunkOptions};
     use planner_host::stream_hold::{set_hold_points, HoldSearch};
+    use planner_host::stream_pipeline::plan_and_stream;
     if !(o.baud > 0.0 && o.latency_s >= 0.0 && o.chunk_mm > 0.0 && o.period_s > 0.0) {
         return Err(StreamError::Option(format!(
             "link {} baud, latency {} s, chunk {} mm, period {} s: all must be positive",
@@ -523,32 +535,44 @@ pub fn stream_curve(curve: &planner_host::Nurbs, o: &StreamOptions) -> Result<St
     if let Some((window_mm, commit_mm)) = o.windows {
         cfg.windows = Some(WindowConfig { window_mm, commit_mm });
     }
-    let t0 = std::time::Instant::now();
-    let out = plan_curve(curve, &cfg)?;
-    let plan_s = t0.elapsed().as_secs_f64();
-    let table = Table::parse(&out.table_bytes).map_err(|e| StreamError::Table(e.to_string()))?;
     let opts = ChunkOptions {
         chunk_mm: o.chunk_mm,
         u_form: true,
         max_chunk_bytes: Some(o.ring_bytes / 4),
         ..ChunkOptions::default()
     };
-    let mut chunks = chunk_table(&table, &opts)?;
-    let t1 = std::time::Instant::now();
     let how = HoldSearch {
         period_s: o.period_s,
         ..HoldSearch::default()
     };
-    let hp = set_hold_points::<SIM_WINDOW_Q, SIM_WINDOW_P>(&table, &mut chunks, &how)?;
-    let hold_points_s = t1.elapsed().as_secs_f64();
+    // Windows: chunks cut and hold points found as each window commits, the
+    // host sending each as soon as it is ready (times from the start of
+    // planning). The whole path: planned first, then cut and searched.
+    let (out, chunks, hp, plan_s, hold_points_s, ready_s) = if cfg.windows.is_some() {
+        let st = plan_and_stream::<SIM_WINDOW_Q, SIM_WINDOW_P>(curve, &cfg, &opts, &how)?;
+        let ready = st.ready_s.clone();
+        (st.plan, st.chunks, st.hold, st.plan_s, st.done_s, ready)
+    } else {
+        let t0 = std::time::Instant::now();
+        let out = plan_curve(curve, &cfg)?;
+        let plan_s = t0.elapsed().as_secs_f64();
+        let table = Table::parse(&out.table_bytes).map_err(|e| StreamError::Table(e.to_string()))?;
+        let mut chunks = chunk_table(&table, &opts)?;
+        let t1 = std::time::Instant::now();
+        let hp = set_hold_points::<SIM_WINDOW_Q, SIM_WINDOW_P>(&table, &mut chunks, &how)?;
+        let hold_points_s = t1.elapsed().as_secs_f64();
+        // the host streams as its hold-point search goes, once planned
+        let ready = hp.known_after_s.iter().map(|k| plan_s + k).collect();
+        (out, chunks, hp, plan_s, hold_points_s, ready)
+    };
+    let table = Table::parse(&out.table_bytes).map_err(|e| StreamError::Table(e.to_string()))?;
     let link = StreamLink {
         bytes_per_s: o.baud / 10.0,
         latency_s: o.latency_s,
         stalls: o.stalls.clone(),
         period_s: o.period_s,
         faults: LinkFaults::default(),
-        // the host streams as its hold-point search goes
-        ready_s: hp.known_after_s.clone(),
+        ready_s,
     };
     const Q: usize = SIM_WINDOW_Q;
     const P: usize = SIM_WINDOW_P;
@@ -584,7 +608,7 @@ pub fn stream_curve(curve: &planner_host::Nurbs, o: &StreamOptions) -> Result<St
         plan_s,
         windows: out.windows.as_ref().map_or(0, |w| w.windows),
         hold_points_s,
-        first_motion_ms: (plan_s + run.first_motion_s) * 1e3,
+        first_motion_ms: run.first_motion_s * 1e3,
         plan_realtime_factor: machining_time_s / plan_s,
         chunks: run.chunks,
         bytes_per_mm: run.framed_bytes as f64 / table.path_length_mm(),

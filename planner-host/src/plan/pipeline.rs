@@ -36,6 +36,8 @@ pub fn plan_curve(curve: &Nurbs, cfg: &PlanConfig) -> Result<PlanOutput, PlanErr
 /// q spans' forms, the pieces whose knot-span group ends by then).
 #[derive(Clone, Copy, Debug)]
 pub struct Commit<'a> {
+    /// The path's length L, mm.
+    pub length_mm: f64,
     /// The knot vector of q (17), the whole path's.
     pub knots: &'a [f64],
     /// Control points of q, one per basis function; past `through` not yet

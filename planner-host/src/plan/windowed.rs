@@ -127,6 +127,7 @@ impl LpStage<'_> {
     ) {
         let Some(sink) = self.commits else { return };
         sink(&crate::plan::Commit {
+            length_mm: self.length,
             knots: self.knots,
             ctrl,
             through,

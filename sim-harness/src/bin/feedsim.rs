@@ -647,7 +647,9 @@ fn run(cli: Cli) -> Result<(), Failure> {
             };
             use sim_harness::stream::StreamError as E;
             let rep = sim_harness::stream::stream_curve(&nurbs, &opts).map_err(|e| match e {
-                E::Plan(p) => plan_failure(p),
+                E::Plan(p) | E::Pipeline(planner_host::stream_pipeline::PipelineError::Plan(p)) => {
+                    plan_failure(p)
+                }
                 e @ (E::RingBytes(_) | E::Option(_)) => Failure::input(e),
                 e => Failure::from(e.to_string()),
             })?;
