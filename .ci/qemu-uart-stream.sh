@@ -7,12 +7,17 @@
 # digest must equal the host's streamed run's. Prints both runs' figures: ticks, chunks, bytes,
 # the ring's and the window's peak use, the stack's high-water mark, flash and RAM.
 #
-#   bash .ci/qemu-uart-stream.sh CURVE.json|NAME [CHUNK_MM]
+#   bash .ci/qemu-uart-stream.sh CURVE.json|NAME [CHUNK_MM] [WINDOW_MM:COMMIT_MM]
+#
+# With WINDOW_MM:COMMIT_MM the host plans in windows and sends each chunk as soon as it is
+# final, while the rest is planned (the head first without its stop segment, which follows).
 #
 # (the example must be built: cargo build --release -p planner-host --example stream_send)
 set -euo pipefail
 curve=$1
 chunk_mm=${2:-8}
+windows=()
+if [ -n "${3:-}" ]; then windows=(--windows "$3"); fi
 root=$(cd "$(dirname "$0")/.." && pwd)
 mcu=$root/firmware-core/mcu
 (cd "$mcu" && cargo build --release -q --bin stream-run 2>/dev/null)
@@ -21,7 +26,7 @@ d=$(mktemp -d)
 trap 'rm -rf "$d"' EXIT
 mkfifo "$d/link.in" "$d/link.out"
 "$root/target/release/examples/stream_send" "$curve" --pipe "$d/link" --chunk-mm "$chunk_mm" \
-  --latency-ms 50 --digest >"$d/host.txt" 2>&1 &
+  --latency-ms 50 --digest "${windows[@]}" >"$d/host.txt" 2>&1 &
 host_pid=$!
 set +e
 timeout -k 5 "${TIMEOUT:-900}" qemu-system-arm -cpu cortex-m4 -machine mps2-an386 -nographic -monitor none \
@@ -37,7 +42,7 @@ read -r text data bss _ < <(arm-none-eabi-size "$elf" | tail -1) || true
 echo "  stream-run image: flash (text) ${text:-?} bytes, static RAM (data + bss) $(( ${data:-0} + ${bss:-0} )) bytes of 131072"
 host_digest=$(sed -n 's/^.*digest: fnv1a64-pos-le=\([0-9a-f]*\)$/\1/p' "$d/host.txt")
 mcu_digest=$(sed -n 's/^digest: fnv1a64-pos-le=\([0-9a-f]*\)$/\1/p' "$d/mcu.txt")
-echo "$(basename "$curve") over the UART in $chunk_mm mm chunks: host ${host_digest:-none}, QEMU Cortex-M4 ${mcu_digest:-none}"
+echo "$(basename "$curve") over the UART in $chunk_mm mm chunks${3:+, planned in windows $3 while sending}: host ${host_digest:-none}, QEMU Cortex-M4 ${mcu_digest:-none}"
 if [ "$rc" -ne 0 ] || [ "$host_rc" -ne 0 ]; then
   echo "QEMU exit $rc, host exit $host_rc" >&2; exit 1
 fi

@@ -9,14 +9,21 @@
 //!
 //! `STREAM_SEND_DEBUG=1` prints every ACK as it is taken.
 //!
-//! `--digest` prints the host's own streamed run's digest first (the same
+//! `--windows W:C` plans the curve in windows of W mm committing C mm and
+//! sends while it plans: the head (its stop segment not yet known) once the
+//! first window has committed, each chunk as soon as it is final, and the
+//! head again with the stop segment when the last window has it (the
+//! firmware waits for it before the last rows). Without it the whole path
+//! is planned first.
+//!
+//! `--digest` prints the host's own streamed run's digest at the end (the same
 //! chunks through `PlanWindow` and the streamed interpolator, FNV-1a over
 //! the setpoints' positions, as the firmware prints it): `.ci/qemu-uart-stream.sh`
 //! compares the two.
 //!
 //! ```text
 //! cargo run --release -p planner-host --example stream_send -- CURVE --pipe PATH
-//!     [--chunk-mm 8] [--ring-bytes 16384] [--latency-ms 50] [--digest]
+//!     [--chunk-mm 8] [--ring-bytes 16384] [--latency-ms 50] [--windows W:C] [--digest]
 //! ```
 
 use std::collections::VecDeque;
@@ -26,11 +33,13 @@ use std::time::{Duration, Instant};
 
 use firmware_core::digest::Fnv1a64;
 use firmware_core::stream::frame::{encode_data, encode_head, encoded_max_len};
-use firmware_core::stream::{Frame, FrameDecoder};
+use firmware_core::stream::{Frame, FrameDecoder, StreamHead};
 use firmware_core::Table;
-use planner_host::plan::{plan_curve, PlanConfig};
+use planner_host::plan::{plan_curve, plan_curve_committing, Commit, PlanConfig, PlanOutput, WindowConfig};
 use planner_host::stream::{chunk_table, ChunkOptions};
 use planner_host::stream_hold::{stream_head, StreamedRun};
+use planner_host::stream_pipeline::ChunkPipeline;
+use std::sync::Mutex;
 
 /// The host's window for its own run (any size that holds a chunk or two
 /// gives the same setpoints).
@@ -44,6 +53,8 @@ struct Args {
     ring_bytes: usize,
     latency: Duration,
     digest: bool,
+    /// Plan in windows (window, commit mm) and send while planning.
+    windows: Option<(f64, f64)>,
 }
 
 fn args() -> Result<Args, String> {
@@ -54,6 +65,7 @@ fn args() -> Result<Args, String> {
         ring_bytes: 16384,
         latency: Duration::from_millis(50),
         digest: false,
+        windows: None,
     };
     let mut it = std::env::args().skip(1);
     while let Some(x) = it.next() {
@@ -77,12 +89,20 @@ fn args() -> Result<Args, String> {
                 a.latency = Duration::from_secs_f64(ms.max(0.0) * 1e-3);
             }
             "--digest" => a.digest = true,
+            "--windows" => {
+                let v = val("--windows")?;
+                let (w, c) = v.split_once(':').ok_or("--windows WINDOW_MM:COMMIT_MM")?;
+                a.windows = Some((
+                    w.parse().map_err(|e| format!("--windows: {e}"))?,
+                    c.parse().map_err(|e| format!("--windows: {e}"))?,
+                ));
+            }
             _ if a.curve.is_empty() => a.curve = x,
             _ => return Err(format!("unexpected argument {x}")),
         }
     }
     if a.curve.is_empty() || a.pipe.is_empty() {
-        return Err("usage: stream_send CURVE --pipe PATH [--chunk-mm 8] [--ring-bytes 16384] [--latency-ms 50] [--digest]".into());
+        return Err("usage: stream_send CURVE --pipe PATH [--chunk-mm 8] [--ring-bytes 16384] [--latency-ms 50] [--windows W:C] [--digest]".into());
     }
     Ok(a)
 }
@@ -104,33 +124,98 @@ fn main() {
     }
 }
 
+/// What the planning side hands the sender, in order.
+enum Planned {
+    /// The stream head; whether its stop segment is known.
+    Head(StreamHead, bool),
+    /// The head again, its stop segment known.
+    Stop(StreamHead),
+    /// Chunks that became final.
+    Chunks(Vec<Vec<u8>>),
+    /// The plan is finished.
+    Done(Result<PlanOutput, String>),
+}
+
+/// Plan `curve` whole and hand everything over at once.
+fn plan_whole(
+    curve: &planner_host::Nurbs,
+    opts: &ChunkOptions,
+    to: &mpsc::Sender<Planned>,
+) -> Result<(), String> {
+    let out = plan_curve(curve, &PlanConfig::default()).map_err(|e| e.to_string())?;
+    let table = Table::parse(&out.table_bytes).map_err(|e| e.to_string())?;
+    let chunks = chunk_table(&table, opts).map_err(|e| e.to_string())?;
+    let head = stream_head(&table).ok_or("no stream head")?;
+    let _ = to.send(Planned::Head(head, true));
+    let _ = to.send(Planned::Chunks(chunks));
+    let _ = to.send(Planned::Done(Ok(out)));
+    Ok(())
+}
+
+/// Plan `curve` window by window, handing over the head after the first
+/// commit, each chunk as it becomes final and the stop with the last.
+fn plan_windows(
+    curve: &planner_host::Nurbs,
+    (window_mm, commit_mm): (f64, f64),
+    opts: &ChunkOptions,
+    to: &mpsc::Sender<Planned>,
+) {
+    let cfg = PlanConfig {
+        windows: Some(WindowConfig { window_mm, commit_mm }),
+        ..PlanConfig::default()
+    };
+    let pipe: Mutex<Option<ChunkPipeline>> = Mutex::new(None);
+    let to_m = Mutex::new(to.clone());
+    let sink = |c: &Commit| {
+        let mut p = pipe.lock().unwrap_or_else(|e| e.into_inner());
+        let to = to_m.lock().unwrap_or_else(|e| e.into_inner());
+        if p.is_none() {
+            let Ok(new) = ChunkPipeline::new(curve, c, opts) else {
+                return;
+            };
+            if let Some(h) = new.head(c, cfg.limits) {
+                let _ = to.send(Planned::Head(h, false));
+            }
+            *p = Some(new);
+        }
+        let Some(p) = p.as_mut() else { return };
+        if c.last {
+            if let Some(h) = p.head(c, cfg.limits) {
+                let _ = to.send(Planned::Stop(h));
+            }
+        }
+        if let Ok(new) = p.commit(c) {
+            if !new.is_empty() {
+                let _ = to.send(Planned::Chunks(new));
+            }
+        }
+    };
+    let r = plan_curve_committing(curve, &cfg, &sink).map_err(|e| e.to_string());
+    let _ = to.send(Planned::Done(r));
+}
+
 fn run() -> Result<(), String> {
     let a = args()?;
     let curve = planner_host::cli::load_curve(std::path::Path::new(&a.curve)).map_err(|e| e.to_string())?;
-    let out = plan_curve(&curve, &PlanConfig::default()).map_err(|e| e.to_string())?;
-    let table = Table::parse(&out.table_bytes).map_err(|e| e.to_string())?;
     let opts = ChunkOptions {
         chunk_mm: a.chunk_mm,
         u_form: true,
         max_chunk_bytes: Some(a.ring_bytes / 4),
         ..ChunkOptions::default()
     };
-    let chunks = chunk_table(&table, &opts).map_err(|e| e.to_string())?;
-    let framed: usize = chunks.iter().map(|c| encoded_max_len(c.len() + 1)).sum();
-    println!(
-        "{}: L {:.2} mm, table {} bytes, {} chunks, {} bytes framed ({:.1} B/mm)",
-        a.curve,
-        table.path_length_mm(),
-        out.table_bytes.len(),
-        chunks.len(),
-        framed,
-        framed as f64 / table.path_length_mm()
-    );
-    if a.digest {
-        let (d, ticks) = host_digest(&table, &chunks)?;
-        println!("host streamed run: {ticks} ticks, digest: fnv1a64-pos-le={d:016x}");
+    let started = Instant::now();
+    let (plan_tx, planned) = mpsc::channel::<Planned>();
+    {
+        let (curve, windows) = (curve.clone(), a.windows);
+        std::thread::spawn(move || match windows {
+            Some(w) => plan_windows(&curve, w, &opts, &plan_tx),
+            None => {
+                if let Err(e) = plan_whole(&curve, &opts, &plan_tx) {
+                    let _ = plan_tx.send(Planned::Done(Err(e)));
+                }
+            }
+        });
     }
-    let head = stream_head(&table).ok_or("no stream head")?;
     let mut tx = std::fs::OpenOptions::new()
         .write(true)
         .open(format!("{}.in", a.pipe))
@@ -162,12 +247,45 @@ fn run() -> Result<(), String> {
     let rtt = 2 * a.latency;
     let mut waiting: VecDeque<(Instant, Up)> = VecDeque::new();
     let mut frame = vec![0u8; encoded_max_len(a.ring_bytes + 1)];
-    let n = chunks.len();
     let (mut next, mut acked, mut free) = (0usize, None::<usize>, None::<usize>);
     let (mut sent_frames, mut sent_bytes, mut resends) = (0usize, 0usize, 0usize);
-    let started = Instant::now();
     let mut quiet_since = Instant::now();
-    while !matches!(acked, Some(k) if k + 1 >= n) {
+    // what planning handed over so far
+    let mut chunks: Vec<Vec<u8>> = Vec::new();
+    let (mut head, mut head_sent, mut stop) = (None::<(StreamHead, bool)>, false, None::<StreamHead>);
+    let mut plan: Option<PlanOutput> = None;
+    let mut first_chunk_s = None::<f64>;
+    let mut all_cut = false;
+    while !(all_cut && matches!(acked, Some(k) if k + 1 >= chunks.len())) {
+        while let Ok(p) = planned.try_recv() {
+            match p {
+                Planned::Head(h, known) => head = Some((h, known)),
+                Planned::Stop(h) => stop = Some(h),
+                Planned::Chunks(c) => {
+                    first_chunk_s.get_or_insert(started.elapsed().as_secs_f64());
+                    all_cut |= c.last().is_some_and(|b| {
+                        firmware_core::stream::Chunk::parse(b).is_ok_and(|c| c.info().is_last())
+                    });
+                    chunks.extend(c);
+                }
+                Planned::Done(r) => plan = Some(r?),
+            }
+        }
+        // the head once the firmware has spoken, then the stop when known
+        // (before any chunk handed over after it)
+        if let (false, Some(_), Some((h, known))) = (head_sent, free, head) {
+            let k = encode_head(&h, 1, known, &mut frame).map_err(|e| format!("{e:?}"))?;
+            tx.write_all(&frame[..k]).map_err(|e| e.to_string())?;
+            head_sent = true;
+            if known {
+                stop = None;
+            }
+        }
+        if let (true, Some(h)) = (head_sent, stop.take()) {
+            let k = encode_head(&h, 1, true, &mut frame).map_err(|e| format!("{e:?}"))?;
+            tx.write_all(&frame[..k]).map_err(|e| e.to_string())?;
+        }
+        let n = chunks.len();
         while let Ok(m) = up.try_recv() {
             waiting.push_back(m);
         }
@@ -182,11 +300,6 @@ fn run() -> Result<(), String> {
                 Up::Ack { seq, free: f } => {
                     if std::env::var_os("STREAM_SEND_DEBUG").is_some() {
                         eprintln!("ack {seq} free {f} (next {next})");
-                    }
-                    if free.is_none() {
-                        // the firmware's hello: send the head first
-                        let k = encode_head(&head, 1, true, &mut frame).map_err(|e| format!("{e:?}"))?;
-                        tx.write_all(&frame[..k]).map_err(|e| e.to_string())?;
                     }
                     free = Some(f as usize);
                     if seq != u32::MAX {
@@ -205,7 +318,7 @@ fn run() -> Result<(), String> {
             .map(Vec::len)
             .sum();
         match free {
-            Some(f) if next < n && f.saturating_sub(pending) >= chunks[next].len() => {
+            Some(f) if head_sent && next < n && f.saturating_sub(pending) >= chunks[next].len() => {
                 let k = encode_data(&chunks[next], &mut frame).map_err(|e| format!("{e:?}"))?;
                 tx.write_all(&frame[..k]).map_err(|e| e.to_string())?;
                 sent_frames += 1;
@@ -221,10 +334,41 @@ fn run() -> Result<(), String> {
         }
     }
     println!(
-        "sent {sent_frames} DATA frames ({sent_bytes} bytes, {resends} resent) in {:.2} s with {} ms one-way latency",
+        "sent {sent_frames} DATA frames ({sent_bytes} bytes, {resends} resent) in {:.2} s with {} ms one-way latency, the first chunk ready after {:.1} ms",
         started.elapsed().as_secs_f64(),
-        a.latency.as_millis()
+        a.latency.as_millis(),
+        first_chunk_s.unwrap_or(f64::NAN) * 1e3
     );
+    // the plan is finished by the time its last chunk is acknowledged
+    while plan.is_none() {
+        match planned.recv() {
+            Ok(Planned::Done(r)) => plan = Some(r?),
+            Ok(_) => {}
+            Err(_) => return Err("planning ended without a plan".into()),
+        }
+    }
+    let out = plan.ok_or("no plan")?;
+    let table = Table::parse(&out.table_bytes).map_err(|e| e.to_string())?;
+    let framed: usize = chunks.iter().map(|c| encoded_max_len(c.len() + 1)).sum();
+    println!(
+        "{}: L {:.2} mm, table {} bytes, {} chunks, {} bytes framed ({:.1} B/mm), planned in {:.2} s{}",
+        a.curve,
+        table.path_length_mm(),
+        out.table_bytes.len(),
+        chunks.len(),
+        framed,
+        framed as f64 / table.path_length_mm(),
+        out.total_time_s,
+        if a.windows.is_some() {
+            " while sending"
+        } else {
+            " before sending"
+        }
+    );
+    if a.digest {
+        let (d, ticks) = host_digest(&table, &chunks)?;
+        println!("host streamed run: {ticks} ticks, digest: fnv1a64-pos-le={d:016x}");
+    }
     Ok(())
 }
 

@@ -125,10 +125,22 @@ fn main() -> ! {
             let Some(res) = dec.feed(b) else { continue };
             match res {
                 Ok(Frame::Head(body)) => match StreamHead::parse(body, KIND_HEAD) {
-                    Ok((h, _plan, stop_known)) => {
+                    // the head again, its stop now known (a host planning as
+                    // it sends knows the stop only with its last window)
+                    Ok((h, _plan, true)) if head.is_some_and(|(_, known)| !known) => {
+                        if let (Some(ipr), Some(e)) = (ip.as_mut(), h.ends) {
+                            if ipr.set_stop(&e).is_err() {
+                                hprintln!("stop segment refused");
+                                exit(false)
+                            }
+                        }
+                        head = Some((h, true));
+                    }
+                    Ok((h, _plan, stop_known)) if head.is_none() => {
                         gate = (GATE_TICKS * h.limits.vbar * PERIOD_S * (1u64 << 40) as f64) as i64;
                         head = Some((h, stop_known))
                     }
+                    Ok(_) => {}
                     Err(_) => frames_bad += 1,
                 },
                 Ok(Frame::Data(bytes)) => match ring.push(bytes) {
@@ -199,7 +211,10 @@ fn main() -> ! {
         let w = ipr.window();
         window_peak = window_peak.max(w.held().1);
         let s_fx = (ipr.s_mm() * (1u64 << 40) as f64) as i64;
-        if !w.has_last() && w.held_end().saturating_sub(s_fx) < gate {
+        // (near the end of the rows held, wait for more; and for the stop
+        // segment before the last rows)
+        let stop_known = head.is_some_and(|(_, known)| known);
+        if !(w.has_last() && stop_known) && w.held_end().saturating_sub(s_fx) < gate {
             waits += 1;
             continue;
         }
