@@ -133,7 +133,7 @@ enum Planned {
     /// Chunks that became final.
     Chunks(Vec<Vec<u8>>),
     /// The plan is finished.
-    Done(Result<PlanOutput, String>),
+    Done(Box<Result<PlanOutput, String>>),
 }
 
 /// Plan `curve` whole and hand everything over at once.
@@ -148,7 +148,7 @@ fn plan_whole(
     let head = stream_head(&table).ok_or("no stream head")?;
     let _ = to.send(Planned::Head(head, true));
     let _ = to.send(Planned::Chunks(chunks));
-    let _ = to.send(Planned::Done(Ok(out)));
+    let _ = to.send(Planned::Done(Box::new(Ok(out))));
     Ok(())
 }
 
@@ -191,7 +191,7 @@ fn plan_windows(
         }
     };
     let r = plan_curve_committing(curve, &cfg, &sink).map_err(|e| e.to_string());
-    let _ = to.send(Planned::Done(r));
+    let _ = to.send(Planned::Done(Box::new(r)));
 }
 
 fn run() -> Result<(), String> {
@@ -211,7 +211,7 @@ fn run() -> Result<(), String> {
             Some(w) => plan_windows(&curve, w, &opts, &plan_tx),
             None => {
                 if let Err(e) = plan_whole(&curve, &opts, &plan_tx) {
-                    let _ = plan_tx.send(Planned::Done(Err(e)));
+                    let _ = plan_tx.send(Planned::Done(Box::new(Err(e))));
                 }
             }
         });
@@ -268,7 +268,7 @@ fn run() -> Result<(), String> {
                     });
                     chunks.extend(c);
                 }
-                Planned::Done(r) => plan = Some(r?),
+                Planned::Done(r) => plan = Some((*r)?),
             }
         }
         // the head once the firmware has spoken, then the stop when known
@@ -342,7 +342,7 @@ fn run() -> Result<(), String> {
     // the plan is finished by the time its last chunk is acknowledged
     while plan.is_none() {
         match planned.recv() {
-            Ok(Planned::Done(r)) => plan = Some(r?),
+            Ok(Planned::Done(r)) => plan = Some((*r)?),
             Ok(_) => {}
             Err(_) => return Err("planning ended without a plan".into()),
         }
