@@ -167,6 +167,9 @@ pub enum HoldPointError {
     /// The streamed interpolator could not start.
     #[error("the streamed interpolator refused the plan: {0:?}")]
     Interp(InterpError),
+    /// The search's thread could not start or panicked.
+    #[error("the hold-point search's thread failed")]
+    Thread,
     /// The reference run faulted.
     #[error("the streamed run faulted at tick {tick}: {fault}")]
     Fault {
@@ -226,9 +229,32 @@ pub fn hold_points<const NQ: usize, const NP: usize>(
     how: &HoldSearch,
 ) -> Result<HoldPoints, HoldPointError> {
     let head = stream_head(table).ok_or(HoldPointError::Head)?;
-    let mut search = HoldPointSearch::<NQ, NP>::new(&head, table.ends(), *how, std::time::Instant::now());
-    search.advance(chunks)?;
-    search.finish()
+    let ends = table.ends();
+    // (on a thread of its own: the window and the dry run's copies of it
+    // live on its stack)
+    on_big_stack(|| {
+        let mut search = HoldPointSearch::<NQ, NP>::new(&head, ends, *how, std::time::Instant::now());
+        search.advance(chunks)?;
+        search.finish()
+    })
+    .unwrap_or(Err(HoldPointError::Thread))
+}
+
+/// Stack of a thread that runs the firmware's streamed interpolator with a
+/// host-sized window (megabytes, copied by the dry run's tests).
+pub const BIG_STACK_BYTES: usize = 256 << 20;
+
+/// `f` on a scoped thread with a [`BIG_STACK_BYTES`] stack; `None` if the
+/// thread could not start or panicked.
+pub fn on_big_stack<T: Send>(f: impl FnOnce() -> T + Send) -> Option<T> {
+    std::thread::scope(|scope| {
+        std::thread::Builder::new()
+            .stack_size(BIG_STACK_BYTES)
+            .spawn_scoped(scope, f)
+            .ok()?
+            .join()
+            .ok()
+    })
 }
 
 /// The arc length the dry run keeps between its motion and the end of the

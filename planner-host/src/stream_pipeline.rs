@@ -215,11 +215,6 @@ pub enum PipelineError {
     Thread,
 }
 
-/// Stack of the hold-point search's thread: the firmware's window is
-/// inside the interpolator it runs and copies (a host-sized window is
-/// megabytes).
-const SEARCH_STACK_BYTES: usize = 256 << 20;
-
 /// Plan `curve` window by window and, as each window commits, cut the
 /// chunks that became final and find their hold points (for a firmware
 /// window of `NQ` q spans and `NP` pieces) on a second thread, as a host
@@ -247,7 +242,7 @@ pub fn plan_and_stream<const NQ: usize, const NP: usize>(
     let (plan, searched) = std::thread::scope(|scope| {
         // (the window and the dry run's copies of it live on this stack)
         let searcher = std::thread::Builder::new()
-            .stack_size(SEARCH_STACK_BYTES)
+            .stack_size(crate::stream_hold::BIG_STACK_BYTES)
             .spawn_scoped(
                 scope,
                 move || -> Result<(Vec<Vec<u8>>, HoldPoints, f64), PipelineError> {

@@ -574,19 +574,16 @@ pub fn stream_curve(curve: &planner_host::Nurbs, o: &StreamOptions) -> Result<St
         faults: LinkFaults::default(),
         ready_s,
     };
-    const Q: usize = SIM_WINDOW_Q;
-    const P: usize = SIM_WINDOW_P;
-    let run = match o.ring_bytes {
-        4096 => run_stream::<4096, Q, P>(&table, &chunks, &link),
-        8192 => run_stream::<8192, Q, P>(&table, &chunks, &link),
-        16384 => run_stream::<16384, Q, P>(&table, &chunks, &link),
-        32768 => run_stream::<32768, Q, P>(&table, &chunks, &link),
-        65536 => run_stream::<65536, Q, P>(&table, &chunks, &link),
-        131072 => run_stream::<131072, Q, P>(&table, &chunks, &link),
-        262144 => run_stream::<262144, Q, P>(&table, &chunks, &link),
-        524288 => run_stream::<524288, Q, P>(&table, &chunks, &link),
-        _ => run_stream::<1048576, Q, P>(&table, &chunks, &link),
-    }?;
+    // (on a thread of its own: the firmware's ring and a host-sized window
+    // live on its stack, several megabytes)
+    let run = std::thread::scope(|scope| {
+        std::thread::Builder::new()
+            .stack_size(RUN_STACK_BYTES)
+            .spawn_scoped(scope, || run_sized(&table, &chunks, &link, o.ring_bytes))
+            .map_err(|e| StreamError::Option(format!("cannot start the run's thread: {e}")))?
+            .join()
+            .map_err(|_| StreamError::Option("the run's thread panicked".into()))?
+    })?;
     let geometry = crate::CurveGeometry::from_table(&table).map_err(|e| StreamError::Table(e.to_string()))?;
     let check = crate::CheckConfig {
         limits: table.limits(),
@@ -633,4 +630,30 @@ pub fn stream_curve(curve: &planner_host::Nurbs, o: &StreamOptions) -> Result<St
         },
         check_ok: rep.ok,
     })
+}
+
+/// Stack of the streamed run's thread.
+const RUN_STACK_BYTES: usize = 512 << 20;
+
+/// [`run_stream`] with a ring of `ring_bytes` (a power of two, 4096 ..= 1 MiB)
+/// and the simulation's window.
+fn run_sized(
+    table: &Table,
+    chunks: &[Vec<u8>],
+    link: &StreamLink,
+    ring_bytes: usize,
+) -> Result<StreamRun, StreamError> {
+    const Q: usize = SIM_WINDOW_Q;
+    const P: usize = SIM_WINDOW_P;
+    Ok(match ring_bytes {
+        4096 => run_stream::<4096, Q, P>(table, chunks, link),
+        8192 => run_stream::<8192, Q, P>(table, chunks, link),
+        16384 => run_stream::<16384, Q, P>(table, chunks, link),
+        32768 => run_stream::<32768, Q, P>(table, chunks, link),
+        65536 => run_stream::<65536, Q, P>(table, chunks, link),
+        131072 => run_stream::<131072, Q, P>(table, chunks, link),
+        262144 => run_stream::<262144, Q, P>(table, chunks, link),
+        524288 => run_stream::<524288, Q, P>(table, chunks, link),
+        _ => run_stream::<1048576, Q, P>(table, chunks, link),
+    }?)
 }
