@@ -10,10 +10,12 @@
 //! own stopping distance, `docs/override-design.md`). So the host finds s_c
 //! by running the firmware's code: the streamed interpolator it would run,
 //! fed as the firmware feeds it ([`Interpolator::keep_fed`] aside), and, every
-//! `step_mm` of the way, a copy of it cut back to the chunks up to chunk i
-//! ([`PlanWindow::truncate`]) with the hold pressed, ticked to rest. The
-//! latest such test that stopped at least `margin_mm` before chunk i's end
-//! is its s_c. Host and firmware tick bit for bit alike, so the firmware,
+//! `coarse_mm` of the way, a copy of it cut back to the chunks up to chunk i
+//! ([`PlanWindow::truncate`]) with the hold pressed, ticked to rest; at the
+//! first test that fails the run goes back to the last that passed (a copy
+//! kept) and tests every `step_mm` from there. The latest test before the
+//! first failure that stopped at least `margin_mm` before chunk i's end is
+//! its s_c. Host and firmware tick bit for bit alike, so the firmware,
 //! pressing at the first tick at or past s_c, repeats the test's stop (after
 //! an earlier hold and resume its ticks fall elsewhere: the tests' step and
 //! the margin are the slack).
@@ -50,6 +52,7 @@ pub const NOT_ALONE_MM: f64 = -1.0;
 /// ticks the rows passed are freed and the next chunks of those at hand
 /// pushed into the window as they fit, the plan's stop segment with the
 /// last ([`StreamedRun::step`]). Ticks are those of the whole table.
+#[derive(Clone)]
 pub struct StreamedRun<const NQ: usize, const NP: usize> {
     /// The interpolator (the window is its rows).
     pub ip: Interpolator<'static, 0, 0, PlanWindow<NQ, NP>>,
@@ -185,8 +188,14 @@ pub enum HoldPointError {
 pub struct HoldSearch {
     /// Tick period, s.
     pub period_s: f64,
-    /// A test every this much arc length, mm.
+    /// A test every this much arc length, mm, where the result turns.
     pub step_mm: f64,
+    /// A test every this much arc length, mm, while the tests pass; after
+    /// the first failure the dry run goes back to the last success and
+    /// tests every `step_mm` from there (a test ticks a whole hold, so the
+    /// coarse steps are most of the saving; equal to `step_mm`: every test
+    /// at the fine step).
+    pub coarse_mm: f64,
     /// The hold must come to rest at least this far before the chunk's end, mm.
     pub margin_mm: f64,
 }
@@ -196,6 +205,7 @@ impl Default for HoldSearch {
         HoldSearch {
             period_s: 250e-6,
             step_mm: 0.25,
+            coarse_mm: 2.0,
             margin_mm: 0.05,
         }
     }
@@ -286,6 +296,10 @@ pub struct HoldPointSearch<const NQ: usize, const NP: usize> {
     tests: usize,
     /// A test is due at the current tick, at this s.
     testing: Option<f64>,
+    /// The dry run at the last coarse test that passed, and its s.
+    snapshot: Option<(Box<StreamedRun<NQ, NP>>, f64)>,
+    /// Replaying the last coarse step at the fine step, up to this s.
+    fine_until: Option<f64>,
 }
 
 impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
@@ -313,6 +327,8 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
             next_test: 0.0,
             tests: 0,
             testing: None,
+            snapshot: None,
+            fine_until: None,
         }
     }
 
@@ -370,6 +386,8 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                 // The chunks this test may rely on: up to chunk i; on failure
                 // the last success is chunk i's s_c and the same tick is tried
                 // on i + 1.
+                let mut step = self.how.coarse_mm.max(self.how.step_mm);
+                let mut replay = false;
                 while !self.chunk_last.get(self.i).copied().unwrap_or(false) {
                     let Some(&end) = self.chunk_end.get(self.i) else {
                         // (chunk i is yet to come)
@@ -378,15 +396,37 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                     self.tests += 1;
                     if stops_before(&run.ip, end, self.how.margin_mm) {
                         self.last_ok = Some(s);
+                        match self.fine_until {
+                            Some(until) if s < until => step = self.how.step_mm,
+                            _ => {
+                                self.fine_until = None;
+                                self.snapshot = Some((run.clone(), s));
+                            }
+                        }
                         break;
+                    }
+                    // After coarse steps, back to the last success to find
+                    // the turn at the fine step.
+                    if self.fine_until.is_none() && self.how.coarse_mm > self.how.step_mm {
+                        if let Some((snap, s0)) = self.snapshot.take() {
+                            *run = snap;
+                            self.fine_until = Some(s);
+                            self.next_test = s0 + self.how.step_mm;
+                            replay = true;
+                            break;
+                        }
                     }
                     // (no hold from the start stops inside chunk i: the motion
                     // must not start on it alone)
                     self.s_c[self.i] = self.last_ok.unwrap_or(NOT_ALONE_MM);
                     self.known[self.i] = self.started.elapsed().as_secs_f64();
                     self.i += 1;
+                    (self.fine_until, self.snapshot) = (None, None);
                 }
                 self.testing = None;
+                if !replay {
+                    self.next_test = s + step;
+                }
             }
             if run.ip.is_done() || self.chunk_last.get(self.i).copied().unwrap_or(false) {
                 return Ok(());
@@ -397,7 +437,6 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
             }
             let sp = run.step(chunks)?;
             if sp.s_mm >= self.next_test {
-                self.next_test = sp.s_mm + self.how.step_mm;
                 self.testing = Some(sp.s_mm);
             }
         }
