@@ -5,9 +5,10 @@
 //! and pieces (sections 11, 12 and 13), word for word. [`StreamSize`]
 //! measures the stream in bytes per mm of path, framing included.
 //!
-//! The chunks carry the table's pieces as they are (the compact re-fitted
-//! pieces of `docs/streaming-design.md` are a later step), and commit 0
-//! (s_c = s_b: the hold distance is not computed yet).
+//! The chunks carry the table's pieces (fitted per knot span of the
+//! path) and commit 0 (s_c = s_b): `crate::stream_hold::set_hold_points`
+//! writes the hold points. [`ChunkCutter`] cuts the same chunks from rows
+//! that grow as a plan is planned (`crate::stream_pipeline`).
 
 use std::collections::BTreeMap;
 
