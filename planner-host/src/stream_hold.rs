@@ -300,6 +300,8 @@ pub struct HoldPointSearch<const NQ: usize, const NP: usize> {
     snapshot: Option<(Box<StreamedRun<NQ, NP>>, f64)>,
     /// Replaying the last coarse step at the fine step, up to this s.
     fine_until: Option<f64>,
+    /// Chunk i waits to enter the dry run's window.
+    entering: bool,
 }
 
 impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
@@ -329,6 +331,7 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
             testing: None,
             snapshot: None,
             fine_until: None,
+            entering: false,
         }
     }
 
@@ -389,12 +392,22 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                 let mut step = self.how.coarse_mm.max(self.how.step_mm);
                 let mut replay = false;
                 while !self.chunk_last.get(self.i).copied().unwrap_or(false) {
-                    let Some(&end) = self.chunk_end.get(self.i) else {
-                        // (chunk i is yet to come)
+                    // (chunk i and the next are yet to come: the test needs
+                    // the next's size)
+                    let (Some(&end), Some(next)) = (self.chunk_end.get(self.i), chunks.get(self.i + 1))
+                    else {
                         return Ok(());
                     };
+                    if run.ip.window().held_end() < end {
+                        // Chunk i is not in the window yet (it is full): the
+                        // firmware cannot hold it as its last either; test it
+                        // once it is in.
+                        self.entering = true;
+                        break;
+                    }
+                    self.entering = false;
                     self.tests += 1;
-                    if stops_before(&run.ip, end, self.how.margin_mm) {
+                    if stops_before(&run.ip, end, &parse(self.i + 1, next)?, self.how.margin_mm) {
                         self.last_ok = Some(s);
                         match self.fine_until {
                             Some(until) if s < until => step = self.how.step_mm,
@@ -436,7 +449,12 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                 return Ok(());
             }
             let sp = run.step(chunks)?;
-            if sp.s_mm >= self.next_test {
+            let entered = self.entering
+                && self
+                    .chunk_end
+                    .get(self.i)
+                    .is_some_and(|&e| run.ip.window().held_end() >= e);
+            if sp.s_mm >= self.next_test || entered {
                 self.testing = Some(sp.s_mm);
             }
         }
@@ -477,10 +495,12 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
 
 /// A copy of `ip` cut back to the chunks ending at `s_end` (Q40; those it
 /// holds, if fewer), the hold pressed: does it come to rest, without a
-/// fault, at least `margin_mm` before the end of the rows it holds?
+/// fault, at least `margin_mm` before the end of the rows it holds, with
+/// room then for the chunk `next`?
 fn stops_before<const NQ: usize, const NP: usize>(
     ip: &Interpolator<'static, 0, 0, PlanWindow<NQ, NP>>,
     s_end: i64,
+    next: &Chunk<'_>,
     margin_mm: f64,
 ) -> bool {
     let mut t = ip.clone();
@@ -499,7 +519,10 @@ fn stops_before<const NQ: usize, const NP: usize>(
             Err(_) => return false,
         }
         if t.hold_state() == HoldState::Held {
-            return true;
+            // and at rest, with the rows passed freed, the next chunk fits:
+            // else a firmware starved here would wait for it forever
+            t.release_passed();
+            return t.window().fits(next);
         }
         if t.is_done() {
             return false;

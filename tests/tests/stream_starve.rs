@@ -14,9 +14,8 @@ use planner_host::stream_hold::{set_hold_points, HoldSearch};
 use sim_harness::stream::{run_stream, StreamLink, StreamRun};
 
 const T: f64 = 250e-6;
-/// Ring bytes, window q spans and pieces (the feed hold from the plan's
-/// start needs ~200 mm of the Butterfly's rows ahead: its whole 1,763
-/// pieces fit).
+/// Ring bytes, window q spans and pieces of a host-sized window (the
+/// Butterfly's whole plan fits).
 const CAP: usize = 64 * 1024;
 const NQ: usize = 1024;
 const NP: usize = 2048;
@@ -29,6 +28,12 @@ struct Planned {
 }
 
 fn planned(name: &str) -> Planned {
+    planned_for::<NQ, NP>(name)
+}
+
+/// The plan of `name` in 8 mm chunks, hold points for a firmware window of
+/// `Q` q spans and `P` pieces.
+fn planned_for<const Q: usize, const P: usize>(name: &str) -> Planned {
     let curve = planner_host::builtin::by_name(name).unwrap().unwrap();
     let out = plan_curve(&curve, &PlanConfig::default()).unwrap();
     let table = Table::parse(&out.table_bytes).unwrap();
@@ -38,7 +43,7 @@ fn planned(name: &str) -> Planned {
         ..ChunkOptions::default()
     };
     let mut chunks = chunk_table(&table, &opts).unwrap();
-    let hp = set_hold_points::<NQ, NP>(&table, &mut chunks, &HoldSearch::default()).unwrap();
+    let hp = set_hold_points::<Q, P>(&table, &mut chunks, &HoldSearch::default()).unwrap();
     let lead = hp.lead_mm.iter().copied().fold(0.0, f64::max);
     println!(
         "{name}: {} chunks, {} hold tests, longest lead s_b − s_c {lead:.1} mm",
@@ -94,13 +99,28 @@ fn a_stalled_link_stops_inside_the_chunks_held_and_resumes_within_the_limits() {
 }
 
 fn stalled_link() {
-    let p = planned("butterfly");
+    stalled_link_into::<CAP, NQ, NP>();
+}
+
+/// The same through an MCU-sized window: 128 q spans and 256 pieces (about
+/// 80 KB of decoded rows, twice the QEMU build's `stream-run`, whose 64 and
+/// 128 hold too little of the Butterfly for a hold from its start to stop
+/// inside them) and a 16 KiB ring. The hold points found for that window
+/// keep every starvation stop inside its rows, with room after it for the
+/// next chunk.
+#[test]
+fn a_stalled_link_stops_inside_an_mcu_sized_window() {
+    big_stack(stalled_link_into::<{ 16 * 1024 }, 128, 256>);
+}
+
+fn stalled_link_into<const C: usize, const Q: usize, const P: usize>() {
+    let p = planned_for::<Q, P>("butterfly");
     let table = Table::parse(&p.bytes).unwrap();
     let whole = table.predicted_time_s();
     // 230,400 baud: the stream (~80 kB) takes longer than the motion;
     // stalls at 1.0 s (for 1.5 s) and at 4.0 s (for 0.2 s).
     let run =
-        run_stream::<CAP, NQ, NP>(&table, &p.chunks, &link(230_400.0, vec![(1.0, 1.5), (4.0, 0.2)])).unwrap();
+        run_stream::<C, Q, P>(&table, &p.chunks, &link(230_400.0, vec![(1.0, 1.5), (4.0, 0.2)])).unwrap();
     assert!(run.starvations >= 1, "the stall starved nothing");
     for &(reach, end) in &run.starved_reach_mm {
         assert!(

@@ -242,7 +242,9 @@ impl<'a, const Q: usize, const W: usize, R: PlanRows<'a>> Interpolator<'a, Q, W,
                     let pi = c.pc.idx.wrapping_add(count_below(
                         |i| v_.piece_break(i),
                         c.pc.idx.wrapping_add(1),
-                        v_.p_last(),
+                        // (the pieces held: while the plan's last is not,
+                        // its index is unknown)
+                        v_.p_held(),
                         at,
                     ));
                     (sw.sk, sw.pi) = (sk, pi);
@@ -257,7 +259,7 @@ impl<'a, const Q: usize, const W: usize, R: PlanRows<'a>> Interpolator<'a, Q, W,
                         i.wrapping_add(count_below(
                             |i| v_.q_knot(i),
                             i.wrapping_add(4),
-                            v_.q_last().wrapping_add(3),
+                            v_.q_held().wrapping_add(3),
                             at,
                         ))
                     } else {

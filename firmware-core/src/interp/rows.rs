@@ -41,6 +41,17 @@ pub trait Rows<'a> {
     fn q_last(&self) -> usize;
     /// Index of the plan's last piece, or `usize::MAX` while unknown.
     fn p_last(&self) -> usize;
+    /// Index of the last q span held (the plan's last when known): where a
+    /// search over the spans ahead ends.
+    #[inline(always)]
+    fn q_held(&self) -> usize {
+        self.q_last()
+    }
+    /// Index of the last piece held (the plan's last when known).
+    #[inline(always)]
+    fn p_held(&self) -> usize {
+        self.p_last()
+    }
     /// Knot `i` of q (global index, knot span `i` starts there), mm.
     fn q_knot(&self, i: usize) -> Option<f64>;
     /// Start of piece `idx` (and, at `idx` = the count, the path's end), mm.

@@ -497,6 +497,14 @@ impl<'a, const NQ: usize, const NP: usize> Rows<'a> for &mut PlanWindow<NQ, NP> 
         self.q_last
     }
     #[inline(always)]
+    fn q_held(&self) -> usize {
+        Rows::q_held(&**self)
+    }
+    #[inline(always)]
+    fn p_held(&self) -> usize {
+        Rows::p_held(&**self)
+    }
+    #[inline(always)]
     fn p_last(&self) -> usize {
         self.p_last
     }
@@ -529,6 +537,20 @@ impl<'a, const NQ: usize, const NP: usize> Rows<'a> for &mut PlanWindow<NQ, NP> 
 impl<'a, const NQ: usize, const NP: usize> Rows<'a> for PlanWindow<NQ, NP> {
     fn q_last(&self) -> usize {
         self.q_last
+    }
+
+    fn q_held(&self) -> usize {
+        if self.q_last != usize::MAX {
+            return self.q_last;
+        }
+        (self.q_lo + self.q_n).saturating_sub(1)
+    }
+
+    fn p_held(&self) -> usize {
+        if self.p_last != usize::MAX {
+            return self.p_last;
+        }
+        (self.p_lo + self.p_n).saturating_sub(1)
     }
 
     fn p_last(&self) -> usize {
