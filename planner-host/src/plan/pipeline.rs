@@ -60,6 +60,26 @@ pub struct Commit<'a> {
 /// Told each [`Commit`], in order, on the planning thread.
 pub type CommitSink<'a> = dyn Fn(&Commit) + Sync + 'a;
 
+/// The s → u map's slot while the windows plan, and its signal.
+type SuSlot = (
+    std::sync::Mutex<Option<Result<SuMap, PlanError>>>,
+    std::sync::Condvar,
+);
+
+/// On drop, fills the slot if it is still empty (with an error) and wakes
+/// whoever waits on it.
+struct Fill<'a>(&'a SuSlot);
+
+impl Drop for Fill<'_> {
+    fn drop(&mut self) {
+        let mut g = self.0 .0.lock().unwrap_or_else(|e| e.into_inner());
+        if g.is_none() {
+            *g = Some(Err(PlanError::Committing));
+        }
+        self.0 .1.notify_all();
+    }
+}
+
 /// [`plan_curve`] window by window (`cfg.windows` must be set, with the
 /// certified formulation), telling `on_commit` each stretch of q as its
 /// window commits it, so that a host can cut the plan into chunks and send
@@ -141,19 +161,22 @@ fn plan_curve_inner(
         }
     };
     dbg_t("refine");
-    // the s → u map (it does not depend on q): before the windows when they
-    // commit as they go (each commit carries it), else beside the LPs
+    // the s → u map (it does not depend on q) beside the LPs; when windows
+    // commit as they go, each commit carries it: the first waits for it
     let fit_su = || {
         let su = SuMap::fit_within(curve, &arc, cfg.su_tol_mm, Some(&budget));
         dbg_t("s-u map");
         su
     };
-    let su_first = match on_commit {
-        Some(_) => Some(fit_su()?),
-        None => None,
-    };
+    let su_slot: SuSlot = Default::default();
     let sink = |c: &Commit| {
-        if let (Some(f), Some(su)) = (on_commit, su_first.as_ref()) {
+        let Some(f) = on_commit else { return };
+        let mut slot = su_slot.0.lock().unwrap_or_else(|e| e.into_inner());
+        while slot.is_none() {
+            slot = su_slot.1.wait(slot).unwrap_or_else(|e| e.into_inner());
+        }
+        // (a failed fit fails the plan after the windows)
+        if let Some(Ok(su)) = slot.as_ref() {
             f(&Commit {
                 su_breaks: &su.breaks,
                 su_segments: &su.segments,
@@ -231,15 +254,33 @@ fn plan_curve_inner(
         };
         Ok((knots, base, geometry_time_s, bisections, window_stats))
     };
-    let su_beside;
-    let (su, planned) = match &su_first {
-        Some(su) => (su, plan_q()),
+    let (su, planned) = match on_commit {
+        // (the map on a thread of its own, not rayon's: the planning thread
+        // waits for it in the sink, whatever the pool's size)
+        Some(_) => std::thread::scope(|scope| {
+            scope.spawn(|| {
+                // (filled even if the fit panics: the sink must not wait forever)
+                let fill = Fill(&su_slot);
+                let su = fit_su();
+                *fill.0 .0.lock().unwrap_or_else(|e| e.into_inner()) = Some(su.map_err(PlanError::from));
+            });
+            let planned = plan_q();
+            (None, planned)
+        }),
         None => {
             let (su, planned) = rayon::join(fit_su, plan_q);
-            su_beside = su?;
-            (&su_beside, planned)
+            (Some(su), planned)
         }
     };
+    let su = match su {
+        Some(su) => su?,
+        None => su_slot
+            .0
+            .into_inner()
+            .unwrap_or_else(|e| e.into_inner())
+            .ok_or(PlanError::Committing)??,
+    };
+    let su = &su;
     let (knots, base, geometry_time_s, bisections, window_stats) = planned?;
     dbg_t("LPs");
     // the levels on the knots the base plan held on, the base counted as done
