@@ -139,6 +139,14 @@ pub enum StreamRunError {
     /// The motion did not end in time.
     #[error("no end after {0} ticks")]
     TooLong(u64),
+    /// The window is full and no chunk in it has a hold point ahead of the
+    /// start: no hold from the start stops inside the rows it can hold, so
+    /// the motion never starts.
+    #[error("the plan window is full after {chunks} chunks and none lets the motion start: it holds too little of the path for a stop from the start (a larger --window-rows)")]
+    WindowTooSmall {
+        /// Chunks in the window.
+        chunks: usize,
+    },
 }
 
 /// Stream `chunks` (the plan of `table`, hold points set) through `link`
@@ -339,7 +347,15 @@ pub fn run_stream<const CAP: usize, const NQ: usize, const NP: usize>(
                 },
             ));
         }
-        let Some(ipr) = ip.as_mut() else { continue };
+        let Some(ipr) = ip.as_mut() else {
+            // (a full window that is not ready never will be)
+            if let Some(c) = ring.get(0) {
+                if !window.fits(&c) && !window.ready() {
+                    return Err(StreamRunError::WindowTooSmall { chunks: pushed });
+                }
+            }
+            continue;
+        };
         if pushed == n && !stop_set {
             if let Some(e) = table.ends() {
                 ipr.set_stop(&e).map_err(|e| StreamRunError::Fault {
@@ -402,7 +418,16 @@ pub struct StreamOptions {
     pub period_s: f64,
     /// The checker's tolerance on every ratio.
     pub tol: f64,
+    /// The firmware's plan window: q spans and pieces, one of
+    /// [`WINDOW_SIZES`].
+    pub window_rows: (usize, usize),
 }
+
+/// The plan windows the simulation has (q spans, pieces): three MCU sizes
+/// (the QEMU build's 64 and 128 is about 40 KB of rows) and the host's
+/// (the default, [`SIM_WINDOW_Q`], [`SIM_WINDOW_P`]).
+pub const WINDOW_SIZES: [(usize, usize); 4] =
+    [(64, 128), (128, 256), (256, 512), (SIM_WINDOW_Q, SIM_WINDOW_P)];
 
 impl Default for StreamOptions {
     fn default() -> Self {
@@ -415,6 +440,7 @@ impl Default for StreamOptions {
             stalls: vec![],
             period_s: 250e-6,
             tol: 0.01,
+            window_rows: (SIM_WINDOW_Q, SIM_WINDOW_P),
         }
     }
 }
@@ -485,6 +511,9 @@ pub enum StreamError {
     /// The ring size is not one the simulation has.
     #[error("--ring-bytes {0}: use a power of two from 4096 to 1048576")]
     RingBytes(usize),
+    /// The window size is not one the simulation has.
+    #[error("--window-rows {0}:{1}: use 64:128, 128:256, 256:512 or 2048:4096")]
+    WindowRows(usize, usize),
     /// Link rate, latency, chunk length or period unusable.
     #[error("{0}")]
     Option(String),
@@ -515,6 +544,20 @@ pub enum StreamError {
 /// them through the simulated link into the firmware and check the
 /// setpoints (see the module docs).
 pub fn stream_curve(curve: &planner_host::Nurbs, o: &StreamOptions) -> Result<StreamReport, StreamError> {
+    match o.window_rows {
+        (64, 128) => stream_through::<64, 128>(curve, o),
+        (128, 256) => stream_through::<128, 256>(curve, o),
+        (256, 512) => stream_through::<256, 512>(curve, o),
+        (SIM_WINDOW_Q, SIM_WINDOW_P) => stream_through::<SIM_WINDOW_Q, SIM_WINDOW_P>(curve, o),
+        (q, p) => Err(StreamError::WindowRows(q, p)),
+    }
+}
+
+/// [`stream_curve`] through a firmware window of `Q` q spans and `P` pieces.
+fn stream_through<const Q: usize, const P: usize>(
+    curve: &planner_host::Nurbs,
+    o: &StreamOptions,
+) -> Result<StreamReport, StreamError> {
     use planner_host::plan::{plan_curve, PlanConfig, WindowConfig};
     use planner_host::stream::{chunk_table, ChunkOptions};
     use planner_host::stream_hold::{set_hold_points, HoldSearch};
@@ -549,7 +592,7 @@ pub fn stream_curve(curve: &planner_host::Nurbs, o: &StreamOptions) -> Result<St
     // host sending each as soon as it is ready (times from the start of
     // planning). The whole path: planned first, then cut and searched.
     let (out, chunks, hp, plan_s, hold_points_s, ready_s) = if cfg.windows.is_some() {
-        let st = plan_and_stream::<SIM_WINDOW_Q, SIM_WINDOW_P>(curve, &cfg, &opts, &how)?;
+        let st = plan_and_stream::<Q, P>(curve, &cfg, &opts, &how)?;
         let ready = st.ready_s.clone();
         (st.plan, st.chunks, st.hold, st.plan_s, st.done_s, ready)
     } else {
@@ -559,7 +602,7 @@ pub fn stream_curve(curve: &planner_host::Nurbs, o: &StreamOptions) -> Result<St
         let table = Table::parse(&out.table_bytes).map_err(|e| StreamError::Table(e.to_string()))?;
         let mut chunks = chunk_table(&table, &opts)?;
         let t1 = std::time::Instant::now();
-        let hp = set_hold_points::<SIM_WINDOW_Q, SIM_WINDOW_P>(&table, &mut chunks, &how)?;
+        let hp = set_hold_points::<Q, P>(&table, &mut chunks, &how)?;
         let hold_points_s = t1.elapsed().as_secs_f64();
         // the host streams as its hold-point search goes, once planned
         let ready = hp.known_after_s.iter().map(|k| plan_s + k).collect();
@@ -579,7 +622,7 @@ pub fn stream_curve(curve: &planner_host::Nurbs, o: &StreamOptions) -> Result<St
     let run = std::thread::scope(|scope| {
         std::thread::Builder::new()
             .stack_size(RUN_STACK_BYTES)
-            .spawn_scoped(scope, || run_sized(&table, &chunks, &link, o.ring_bytes))
+            .spawn_scoped(scope, || run_sized::<Q, P>(&table, &chunks, &link, o.ring_bytes))
             .map_err(|e| StreamError::Option(format!("cannot start the run's thread: {e}")))?
             .join()
             .map_err(|_| StreamError::Option("the run's thread panicked".into()))?
@@ -613,7 +656,7 @@ pub fn stream_curve(curve: &planner_host::Nurbs, o: &StreamOptions) -> Result<St
         latency_ms: o.latency_s * 1e3,
         ring_bytes: o.ring_bytes,
         ring_peak_bytes: run.ring_peak_bytes,
-        window_pieces: SIM_WINDOW_P,
+        window_pieces: P,
         window_peak_pieces: run.window_peak_pieces,
         hold_lead_max_mm: hp.lead_mm.iter().copied().fold(0.0, f64::max),
         starvations: run.starvations,
@@ -636,15 +679,13 @@ pub fn stream_curve(curve: &planner_host::Nurbs, o: &StreamOptions) -> Result<St
 const RUN_STACK_BYTES: usize = 512 << 20;
 
 /// [`run_stream`] with a ring of `ring_bytes` (a power of two, 4096 ..= 1 MiB)
-/// and the simulation's window.
-fn run_sized(
+/// and a window of `Q` q spans and `P` pieces.
+fn run_sized<const Q: usize, const P: usize>(
     table: &Table,
     chunks: &[Vec<u8>],
     link: &StreamLink,
     ring_bytes: usize,
 ) -> Result<StreamRun, StreamError> {
-    const Q: usize = SIM_WINDOW_Q;
-    const P: usize = SIM_WINDOW_P;
     Ok(match ring_bytes {
         4096 => run_stream::<4096, Q, P>(table, chunks, link),
         8192 => run_stream::<8192, Q, P>(table, chunks, link),

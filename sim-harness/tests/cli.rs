@@ -327,6 +327,40 @@ fn stream_in_windows_sends_while_planning_and_holds_every_limit() {
     assert!(v["machining_time_s"].as_f64().unwrap() >= v["planned_time_s"].as_f64().unwrap() - 1e-3);
 }
 
+/// Through an MCU-sized window (128 q spans, 256 pieces) with a stalled
+/// link: hold points found for that window, starvation stops inside it,
+/// every limit held; a window too small for a stop from the start is
+/// refused with exit code 2, not run forever.
+#[test]
+fn stream_through_an_mcu_sized_window_starves_safely_or_is_refused() {
+    let out = feedsim()
+        .args([
+            "stream",
+            "butterfly",
+            "--window-rows",
+            "128:256",
+            "--link",
+            "uart:230400",
+            "--stall",
+            "1.0:1.5",
+            "--json",
+        ])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["window_pieces"], 256);
+    assert!(v["window_peak_pieces"].as_u64().unwrap() <= 256);
+    assert!(v["starvations"].as_u64().unwrap() >= 1, "{v}");
+    assert_eq!(v["check_ok"], true, "{v}");
+    let out = feedsim()
+        .args(["stream", "butterfly", "--window-rows", "64:128"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--window-rows"));
+}
+
 #[test]
 fn stream_reports_the_streamed_run_as_json_and_refuses_bad_options() {
     let out = feedsim()
@@ -364,6 +398,8 @@ fn stream_reports_the_streamed_run_as_json_and_refuses_bad_options() {
         (&["stream", "star", "--link", "tcp:9"][..], "uart:BAUD"),
         (&["stream", "star", "--ring-bytes", "10000"][..], "power of two"),
         (&["stream", "star", "--stall", "soon"][..], "START:DURATION"),
+        (&["stream", "star", "--window-rows", "100:100"][..], "64:128"),
+        (&["stream", "star", "--window-rows", "many"][..], "Q:P"),
         (&["stream", "nowhere.json"][..], "nowhere"),
     ] {
         let out = feedsim().args(args).output().unwrap();

@@ -215,6 +215,11 @@ enum Cmd {
         /// Chunk length, mm (a chunk longer than a quarter of the ring is halved).
         #[arg(long, default_value_t = 8.0)]
         chunk_mm: f64,
+        /// The firmware's plan window, Q:P (q spans, pieces): 64:128 (the QEMU build's,
+        /// about 40 KB of rows), 128:256, 256:512 or 2048:4096 (a host's). The hold points
+        /// are found for it
+        #[arg(long, default_value = "2048:4096")]
+        window_rows: String,
         /// Plan in windows of this much path (mm), with --commit-mm.
         #[arg(long, requires = "commit_mm")]
         window_mm: Option<f64>,
@@ -610,6 +615,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
             latency_ms,
             ring_bytes,
             chunk_mm,
+            window_rows,
             window_mm,
             commit_mm,
             stall,
@@ -618,6 +624,12 @@ fn run(cli: Cli) -> Result<(), Failure> {
             json,
         } => {
             check_period(period_us)?;
+            let window_rows = window_rows
+                .split_once(':')
+                .and_then(|(q, p)| Some((q.parse::<usize>().ok()?, p.parse::<usize>().ok()?)))
+                .ok_or_else(|| {
+                    Failure::input(format!("--window-rows {window_rows}: expected Q:P, e.g. 128:256"))
+                })?;
             let baud = link
                 .strip_prefix("uart:")
                 .and_then(|b| b.parse::<f64>().ok())
@@ -642,6 +654,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
                 chunk_mm,
                 windows: window_mm.zip(commit_mm),
                 stalls,
+                window_rows,
                 period_s: period_us * 1e-6,
                 tol,
             };
@@ -650,7 +663,12 @@ fn run(cli: Cli) -> Result<(), Failure> {
                 E::Plan(p) | E::Pipeline(planner_host::stream_pipeline::PipelineError::Plan(p)) => {
                     plan_failure(p)
                 }
-                e @ (E::RingBytes(_) | E::Option(_)) => Failure::input(e),
+                e @ (E::RingBytes(_) | E::WindowRows(..) | E::Option(_)) => Failure::input(e),
+                // (an option that does not fit the plan)
+                e @ E::Run(sim_harness::stream::StreamRunError::WindowTooSmall { .. }) => Failure {
+                    code: planner_host::cli::EXIT_USAGE,
+                    message: e.to_string(),
+                },
                 e => Failure::from(e.to_string()),
             })?;
             if json {
