@@ -130,3 +130,82 @@ fn a_chunk_that_does_not_continue_the_window_is_refused_with_nothing_changed() {
     ));
     assert_eq!(small.held(), (0, 0));
 }
+
+/// A feed hold on streamed rows cut back short of the plan's end, as the
+/// hold-point search and a starved firmware press it: the hold's look-ahead
+/// finds the rows held (the plan's last row index is unknown to a window
+/// until its last chunk comes), so the stop comes to rest inside them, near
+/// where the same hold on the whole table rests. (With the look-ahead
+/// reading only the current piece, a stop pressed at 255 mm with rows to
+/// 355 mm ran to their end and faulted; on the table it rests at 283 mm.)
+#[test]
+fn a_hold_on_rows_cut_short_rests_inside_them() {
+    std::thread::Builder::new()
+        .stack_size(64 << 20)
+        .spawn(hold_inside)
+        .unwrap()
+        .join()
+        .unwrap();
+}
+
+fn hold_inside() {
+    const Q: usize = 1024;
+    const P: usize = 2048;
+    let curve = builtin::by_name("butterfly").unwrap().unwrap();
+    let out = plan_curve(&curve, &PlanConfig::default()).unwrap();
+    let table = Table::parse(&out.table_bytes).unwrap();
+    let opts = ChunkOptions {
+        chunk_mm: 32.0,
+        u_form: true,
+        ..ChunkOptions::default()
+    };
+    let chunks = chunk_table(&table, &opts).unwrap();
+    let ends: Vec<i64> = chunks
+        .iter()
+        .map(|c| Chunk::parse(c).unwrap().info().s_b)
+        .collect();
+    let fx = |x: i64| x as f64 / (1u64 << 40) as f64;
+    // rests on the table, pressed at the same ticks
+    let mut whole = Interpolator::new(table, T).unwrap();
+    let mut run = StreamedRun::<Q, P>::start(&table, &chunks, T).unwrap();
+    let mut tested = 0;
+    for press_mm in [60.0, 150.0, 255.0] {
+        while run.ip.s_mm() < press_mm {
+            let (a, b) = (whole.tick().unwrap(), run.step(&chunks).unwrap());
+            assert_eq!(bits(&a), bits(&b));
+        }
+        let rest = |mut ip: Interpolator<'_, 0, 0>| loop {
+            ip.tick().unwrap();
+            if ip.hold_state() == firmware_core::HoldState::Held {
+                return ip.s_mm();
+            }
+        };
+        let mut w = whole.clone();
+        w.hold().unwrap();
+        let on_table = rest(w);
+        // rows cut back to the first chunk end 60 mm or more past the rest
+        let cut = *ends.iter().find(|&&e| fx(e) >= on_table + 60.0).unwrap();
+        let mut t = run.ip.clone();
+        assert!(t.truncate_window(cut));
+        assert!(!t.window().has_last());
+        t.hold().unwrap();
+        let streamed = loop {
+            match t.tick() {
+                Ok(_) if t.hold_state() == firmware_core::HoldState::Held => break t.s_mm(),
+                Ok(_) => {}
+                Err(f) => panic!("pressed at {press_mm} mm with rows to {} mm: {f:?}", fx(cut)),
+            }
+        };
+        println!(
+            "pressed at {press_mm} mm: at rest at {streamed:.3} mm on rows to {:.1} mm, {on_table:.3} mm on the table",
+            fx(cut)
+        );
+        assert!(streamed < fx(cut), "{press_mm} mm: rest {streamed} past the rows");
+        assert!(
+            (streamed - on_table).abs() < 5.0,
+            "{press_mm} mm: rest {streamed} against {on_table}"
+        );
+        tested += 1;
+    }
+    assert_eq!(tested, 3);
+}
