@@ -209,3 +209,69 @@ fn hold_inside() {
     }
     assert_eq!(tested, 3);
 }
+
+/// A feed hold, a rest and a resume on streamed rows, the window refilled
+/// and freed between ticks as a firmware does (128 q spans, 256 pieces: a
+/// stretch, never the plan's end while the hold runs): every setpoint equals
+/// the same hold's over the whole table, bit for bit, to the path's end.
+#[test]
+fn a_hold_and_resume_on_streamed_rows_equal_the_tables_bit_for_bit() {
+    std::thread::Builder::new()
+        .stack_size(64 << 20)
+        .spawn(hold_alike)
+        .unwrap()
+        .join()
+        .unwrap();
+}
+
+fn hold_alike() {
+    use firmware_core::HoldState;
+    const Q: usize = 128;
+    const P: usize = 256;
+    let curve = builtin::by_name("butterfly").unwrap().unwrap();
+    let out = plan_curve(&curve, &PlanConfig::default()).unwrap();
+    let table = Table::parse(&out.table_bytes).unwrap();
+    let opts = ChunkOptions {
+        chunk_mm: 8.0,
+        u_form: true,
+        ..ChunkOptions::default()
+    };
+    let chunks = chunk_table(&table, &opts).unwrap();
+    for press_mm in [60.0, 150.0, 255.0] {
+        let mut whole = Interpolator::new(table, T).unwrap();
+        let mut run = StreamedRun::<Q, P>::start(&table, &chunks, T).unwrap();
+        let (mut k, mut held, mut pressed, mut resumed) = (0u64, 0u32, false, false);
+        while !whole.is_done() {
+            run.feed(&chunks).unwrap();
+            if !pressed && whole.s_mm() >= press_mm {
+                assert!(
+                    !run.ip.window().has_last(),
+                    "{press_mm} mm: the window holds the end"
+                );
+                whole.hold().unwrap();
+                run.ip.hold().unwrap();
+                pressed = true;
+            }
+            if pressed && !resumed && whole.hold_state() == HoldState::Held {
+                held += 1;
+                if held == 400 {
+                    whole.resume().unwrap();
+                    run.ip.resume().unwrap();
+                    resumed = true;
+                }
+            }
+            let (a, b) = (whole.tick().unwrap(), run.ip.tick().unwrap());
+            assert_eq!(
+                bits(&a),
+                bits(&b),
+                "pressed at {press_mm} mm: tick {k}: table {a:?}, streamed {b:?}"
+            );
+            k += 1;
+        }
+        assert!(
+            resumed && run.ip.is_done(),
+            "{press_mm} mm: held, resumed, at the end"
+        );
+        println!("pressed at {press_mm} mm: {k} setpoints equal, held 400 ticks, resumed");
+    }
+}

@@ -144,8 +144,14 @@ where
         self.views.window_mut().truncate(s_end)
     }
 
-    /// Free the rows behind the tick's q span and piece.
+    /// Free the rows behind the tick's q span and piece — not while a stop
+    /// is in progress: the stop reads rows the tick has passed (freeing
+    /// them made a streamed stop part from the table's by millimetres), and
+    /// it ends inside the rows held anyway.
     pub fn release_passed(&mut self) {
+        if self.hold_state() == HoldState::Stopping {
+            return;
+        }
         let (q, p) = (self.qc.idx, self.pc.idx);
         self.views.window_mut().release_before(q, p);
     }
