@@ -140,26 +140,15 @@ fn a_chunk_that_does_not_continue_the_window_is_refused_with_nothing_changed() {
 /// 355 mm ran to their end and faulted; on the table it rests at 283 mm.)
 #[test]
 fn a_hold_on_rows_cut_short_rests_inside_them() {
-    std::thread::Builder::new()
-        .stack_size(64 << 20)
-        .spawn(hold_inside)
-        .unwrap()
-        .join()
-        .unwrap();
+    // (the windows live on the stack)
+    planner_host::stream_hold::on_big_stack(hold_inside).expect("the test's thread");
 }
 
 fn hold_inside() {
     const Q: usize = 1024;
     const P: usize = 2048;
-    let curve = builtin::by_name("butterfly").unwrap().unwrap();
-    let out = plan_curve(&curve, &PlanConfig::default()).unwrap();
-    let table = Table::parse(&out.table_bytes).unwrap();
-    let opts = ChunkOptions {
-        chunk_mm: 32.0,
-        u_form: true,
-        ..ChunkOptions::default()
-    };
-    let chunks = chunk_table(&table, &opts).unwrap();
+    let (bytes, chunks) = butterfly_in_chunks(32.0);
+    let table = Table::parse(&bytes).unwrap();
     let ends: Vec<i64> = chunks
         .iter()
         .map(|c| Chunk::parse(c).unwrap().info().s_b)
@@ -216,27 +205,16 @@ fn hold_inside() {
 /// the same hold's over the whole table, bit for bit, to the path's end.
 #[test]
 fn a_hold_and_resume_on_streamed_rows_equal_the_tables_bit_for_bit() {
-    std::thread::Builder::new()
-        .stack_size(64 << 20)
-        .spawn(hold_alike)
-        .unwrap()
-        .join()
-        .unwrap();
+    // (the windows live on the stack)
+    planner_host::stream_hold::on_big_stack(hold_alike).expect("the test's thread");
 }
 
 fn hold_alike() {
     use firmware_core::HoldState;
     const Q: usize = 128;
     const P: usize = 256;
-    let curve = builtin::by_name("butterfly").unwrap().unwrap();
-    let out = plan_curve(&curve, &PlanConfig::default()).unwrap();
-    let table = Table::parse(&out.table_bytes).unwrap();
-    let opts = ChunkOptions {
-        chunk_mm: 8.0,
-        u_form: true,
-        ..ChunkOptions::default()
-    };
-    let chunks = chunk_table(&table, &opts).unwrap();
+    let (bytes, chunks) = butterfly_in_chunks(8.0);
+    let table = Table::parse(&bytes).unwrap();
     for press_mm in [60.0, 150.0, 255.0] {
         let mut whole = Interpolator::new(table, T).unwrap();
         let mut run = StreamedRun::<Q, P>::start(&table, &chunks, T).unwrap();
@@ -274,4 +252,18 @@ fn hold_alike() {
         );
         println!("pressed at {press_mm} mm: {k} setpoints equal, held 400 ticks, resumed");
     }
+}
+
+/// The Butterfly's table and its chunks of about `chunk_mm`.
+fn butterfly_in_chunks(chunk_mm: f64) -> (Vec<u8>, Vec<Vec<u8>>) {
+    let curve = builtin::by_name("butterfly").unwrap().unwrap();
+    let out = plan_curve(&curve, &PlanConfig::default()).unwrap();
+    let table = Table::parse(&out.table_bytes).unwrap();
+    let opts = ChunkOptions {
+        chunk_mm,
+        u_form: true,
+        ..ChunkOptions::default()
+    };
+    let chunks = chunk_table(&table, &opts).unwrap();
+    (out.table_bytes, chunks)
 }
