@@ -206,6 +206,18 @@ impl ChunkCutter {
         self.index
     }
 
+    /// Drop from `rows` the pieces already cut into chunks (the cutter then
+    /// counts from the first piece kept): a host cutting a plan as it grows
+    /// keeps only the pieces of the chunk in progress. The q knots and
+    /// control points stay (8 bytes each per control point).
+    pub fn forget_cut(&mut self, rows: &mut TableRows) {
+        let j0 = self.j0.min(rows.words.len());
+        rows.words.drain(..j0);
+        rows.u.drain(..j0.min(rows.u.len()));
+        rows.breaks.drain(..j0.min(rows.breaks.len()));
+        self.j0 -= j0;
+    }
+
     /// The chunks of `rows` that are final: `rows` holds the pieces known
     /// (its breaks one more, the last the end of the last piece) and the
     /// q control points final over them; `all`: every piece of the plan

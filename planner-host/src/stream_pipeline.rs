@@ -139,7 +139,10 @@ impl ChunkPipeline {
         if self.rows.words.is_empty() {
             return Ok(vec![]);
         }
-        self.cutter.cut(&self.rows, c.last)
+        let out = self.cutter.cut(&self.rows, c.last)?;
+        // (the pieces cut are not needed again)
+        self.cutter.forget_cut(&mut self.rows);
+        Ok(out)
     }
 
     /// The end segments as the last commit told them.
