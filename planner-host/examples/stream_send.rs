@@ -35,10 +35,10 @@ use firmware_core::digest::Fnv1a64;
 use firmware_core::stream::frame::{encode_data, encode_head, encoded_max_len};
 use firmware_core::stream::{Frame, FrameDecoder, StreamHead};
 use firmware_core::Table;
-use planner_host::plan::{plan_curve, plan_curve_committing, Commit, PlanConfig, PlanOutput, WindowConfig};
+use planner_host::plan::{plan_curve, PlanConfig, PlanOutput, WindowConfig};
 use planner_host::stream::{chunk_table, ChunkOptions};
 use planner_host::stream_hold::{stream_head, StreamedRun};
-use planner_host::stream_pipeline::ChunkPipeline;
+use planner_host::stream_pipeline::{plan_in_chunks, Planned as InChunks};
 use std::sync::Mutex;
 
 /// The host's window for its own run (any size that holds a chunk or two
@@ -153,7 +153,8 @@ fn plan_whole(
 }
 
 /// Plan `curve` window by window, handing over the head after the first
-/// commit, each chunk as it becomes final and the stop with the last.
+/// commit, each chunk as it becomes final and the stop with the last
+/// (`stream_pipeline::plan_in_chunks`).
 fn plan_windows(
     curve: &planner_host::Nurbs,
     (window_mm, commit_mm): (f64, f64),
@@ -164,33 +165,16 @@ fn plan_windows(
         windows: Some(WindowConfig { window_mm, commit_mm }),
         ..PlanConfig::default()
     };
-    let pipe: Mutex<Option<ChunkPipeline>> = Mutex::new(None);
     let to_m = Mutex::new(to.clone());
-    let sink = |c: &Commit| {
-        let mut p = pipe.lock().unwrap_or_else(|e| e.into_inner());
-        let to = to_m.lock().unwrap_or_else(|e| e.into_inner());
-        if p.is_none() {
-            let Ok(new) = ChunkPipeline::new(curve, c, opts) else {
-                return;
-            };
-            if let Some(h) = new.head(c, cfg.limits) {
-                let _ = to.send(Planned::Head(h, false));
-            }
-            *p = Some(new);
-        }
-        let Some(p) = p.as_mut() else { return };
-        if c.last {
-            if let Some(h) = p.head(c, cfg.limits) {
-                let _ = to.send(Planned::Stop(h));
-            }
-        }
-        if let Ok(new) = p.commit(c) {
-            if !new.is_empty() {
-                let _ = to.send(Planned::Chunks(new));
-            }
-        }
-    };
-    let r = plan_curve_committing(curve, &cfg, &sink).map_err(|e| e.to_string());
+    let r = plan_in_chunks(curve, &cfg, opts, &|m| {
+        let m = match m {
+            InChunks::Head(h) => Planned::Head(h, false),
+            InChunks::Chunks(c) => Planned::Chunks(c),
+            InChunks::Stop(h) => Planned::Stop(h),
+        };
+        let _ = to_m.lock().unwrap_or_else(|e| e.into_inner()).send(m);
+    })
+    .map_err(|e| e.to_string());
     let _ = to.send(Planned::Done(Box::new(r)));
 }
 

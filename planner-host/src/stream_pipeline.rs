@@ -218,6 +218,73 @@ pub enum PipelineError {
     Thread,
 }
 
+/// What planning in chunks hands a sender, in order.
+#[derive(Clone, Debug)]
+pub enum Planned {
+    /// The stream head, after the first commit (its stop segment not yet
+    /// the plan's).
+    Head(StreamHead),
+    /// Chunks that became final.
+    Chunks(Vec<Vec<u8>>),
+    /// The head again, its stop segment the plan's: with the last commit,
+    /// before its chunks.
+    Stop(StreamHead),
+}
+
+/// Plan `curve` window by window, telling `on` the head after the first
+/// commit, each chunk as soon as it is final and the stop before the last
+/// chunks ([`Planned`]), on the planning thread; the finished plan at the
+/// end.
+pub fn plan_in_chunks(
+    curve: &Nurbs,
+    cfg: &PlanConfig,
+    opts: &ChunkOptions,
+    on: &(dyn Fn(Planned) + Sync),
+) -> Result<PlanOutput, PipelineError> {
+    let pipe: Mutex<Option<ChunkPipeline>> = Mutex::new(None);
+    let failed: Mutex<Option<PipelineError>> = Mutex::new(None);
+    let sink = |c: &Commit| {
+        let mut fail = failed.lock().unwrap_or_else(|e| e.into_inner());
+        if fail.is_some() {
+            return;
+        }
+        let mut p = pipe.lock().unwrap_or_else(|e| e.into_inner());
+        if p.is_none() {
+            match ChunkPipeline::new(curve, c, opts) {
+                Ok(new) => {
+                    let Some(h) = new.head(c, cfg.limits) else {
+                        *fail = Some(PipelineError::Head);
+                        return;
+                    };
+                    on(Planned::Head(h));
+                    *p = Some(new);
+                }
+                Err(e) => {
+                    *fail = Some(e.into());
+                    return;
+                }
+            }
+        }
+        let Some(p) = p.as_mut() else { return };
+        if c.last {
+            match p.head(c, cfg.limits) {
+                Some(h) => on(Planned::Stop(h)),
+                None => *fail = Some(PipelineError::Head),
+            }
+        }
+        match p.commit(c) {
+            Ok(new) if !new.is_empty() => on(Planned::Chunks(new)),
+            Ok(_) => {}
+            Err(e) => *fail = Some(e.into()),
+        }
+    };
+    let plan = plan_curve_committing(curve, cfg, &sink)?;
+    if let Some(e) = failed.into_inner().unwrap_or_else(|e| e.into_inner()) {
+        return Err(e);
+    }
+    Ok(plan)
+}
+
 /// Plan `curve` window by window and, as each window commits, cut the
 /// chunks that became final and find their hold points (for a firmware
 /// window of `NQ` q spans and `NP` pieces) on a second thread, as a host
@@ -232,16 +299,7 @@ pub fn plan_and_stream<const NQ: usize, const NP: usize>(
     how: &HoldSearch,
 ) -> Result<PlannedStream, PipelineError> {
     let t0 = Instant::now();
-    let pipe: Mutex<Option<ChunkPipeline>> = Mutex::new(None);
-    let failed: Mutex<Option<PipelineError>> = Mutex::new(None);
-    // to the hold-point thread: the head (once), new chunks, the final ends
-    enum Msg {
-        Head(StreamHead),
-        Chunks(Vec<Vec<u8>>),
-        Ends(Option<EndSegments>),
-    }
-    let (tx, rx) = mpsc::channel::<Msg>();
-    let limits = cfg.limits;
+    let (tx, rx) = mpsc::channel::<Planned>();
     let (plan, searched) = std::thread::scope(|scope| {
         // (the window and the dry run's copies of it live on this stack)
         let searcher = std::thread::Builder::new()
@@ -253,13 +311,13 @@ pub fn plan_and_stream<const NQ: usize, const NP: usize>(
                     let mut search: Option<HoldPointSearch<NQ, NP>> = None;
                     for m in rx {
                         match m {
-                            Msg::Head(h) => search = Some(HoldPointSearch::new(&h, h.ends, *how, t0)),
-                            Msg::Ends(e) => {
+                            Planned::Head(h) => search = Some(HoldPointSearch::new(&h, h.ends, *how, t0)),
+                            Planned::Stop(h) => {
                                 if let Some(s) = search.as_mut() {
-                                    s.set_ends(e);
+                                    s.set_ends(h.ends);
                                 }
                             }
-                            Msg::Chunks(c) => chunks.extend(c),
+                            Planned::Chunks(c) => chunks.extend(c),
                         }
                         if let Some(s) = search.as_mut() {
                             s.advance(&chunks)?;
@@ -270,42 +328,9 @@ pub fn plan_and_stream<const NQ: usize, const NP: usize>(
                 },
             );
         let tx = Mutex::new(tx);
-        let sink = |c: &Commit| {
-            let mut fail = failed.lock().unwrap_or_else(|e| e.into_inner());
-            if fail.is_some() {
-                return;
-            }
-            let mut p = pipe.lock().unwrap_or_else(|e| e.into_inner());
-            let tx = tx.lock().unwrap_or_else(|e| e.into_inner());
-            if p.is_none() {
-                match ChunkPipeline::new(curve, c, opts) {
-                    Ok(new) => {
-                        let Some(h) = new.head(c, limits) else {
-                            *fail = Some(PipelineError::Head);
-                            return;
-                        };
-                        let _ = tx.send(Msg::Head(h));
-                        *p = Some(new);
-                    }
-                    Err(e) => {
-                        *fail = Some(e.into());
-                        return;
-                    }
-                }
-            }
-            let Some(p) = p.as_mut() else { return };
-            if c.last {
-                let _ = tx.send(Msg::Ends(c.ends));
-            }
-            match p.commit(c) {
-                Ok(new) if !new.is_empty() => {
-                    let _ = tx.send(Msg::Chunks(new));
-                }
-                Ok(_) => {}
-                Err(e) => *fail = Some(e.into()),
-            }
-        };
-        let plan = plan_curve_committing(curve, cfg, &sink);
+        let plan = plan_in_chunks(curve, cfg, opts, &|m| {
+            let _ = tx.lock().unwrap_or_else(|e| e.into_inner()).send(m);
+        });
         // (the sender goes: the search ends with the chunks it has)
         drop(tx);
         let searched = match searcher {
@@ -314,11 +339,8 @@ pub fn plan_and_stream<const NQ: usize, const NP: usize>(
         };
         (plan, searched)
     });
-    let plan_s = plan.as_ref().map_or(0.0, |p| p.total_time_s);
     let plan = plan?;
-    if let Some(e) = failed.into_inner().unwrap_or_else(|e| e.into_inner()) {
-        return Err(e);
-    }
+    let plan_s = plan.total_time_s;
     let (mut chunks, hold, done_s) = searched.map_err(|_| PipelineError::Thread)??;
     for (index, (c, &lead)) in chunks.iter_mut().zip(&hold.lead_mm).enumerate() {
         set_commit(c, commit_q20(lead)).map_err(|error| HoldPointError::Chunk { index, error })?;

@@ -619,14 +619,9 @@ fn stream_through<const Q: usize, const P: usize>(
     };
     // (on a thread of its own: the firmware's ring and a host-sized window
     // live on its stack, several megabytes)
-    let run = std::thread::scope(|scope| {
-        std::thread::Builder::new()
-            .stack_size(RUN_STACK_BYTES)
-            .spawn_scoped(scope, || run_sized::<Q, P>(&table, &chunks, &link, o.ring_bytes))
-            .map_err(|e| StreamError::Option(format!("cannot start the run's thread: {e}")))?
-            .join()
-            .map_err(|_| StreamError::Option("the run's thread panicked".into()))?
-    })?;
+    let run =
+        planner_host::stream_hold::on_big_stack(|| run_sized::<Q, P>(&table, &chunks, &link, o.ring_bytes))
+            .ok_or_else(|| StreamError::Option("the run's thread failed to start or panicked".into()))??;
     let geometry = crate::CurveGeometry::from_table(&table).map_err(|e| StreamError::Table(e.to_string()))?;
     let check = crate::CheckConfig {
         limits: table.limits(),
@@ -674,9 +669,6 @@ fn stream_through<const Q: usize, const P: usize>(
         check_ok: rep.ok,
     })
 }
-
-/// Stack of the streamed run's thread.
-const RUN_STACK_BYTES: usize = 512 << 20;
 
 /// [`run_stream`] with a ring of `ring_bytes` (a power of two, 4096 ..= 1 MiB)
 /// and a window of `Q` q spans and `P` pieces.

@@ -7,12 +7,7 @@ use firmware_core::{Setpoint, Table};
 /// Runs `f` on a thread with a 256 MiB stack: a streamed interpolator
 /// holds its plan window by value, and the host's windows are large.
 pub fn big_stack(f: impl FnOnce() + Send + 'static) {
-    std::thread::Builder::new()
-        .stack_size(256 << 20)
-        .spawn(f)
-        .expect("a test thread")
-        .join()
-        .expect("the test thread's result");
+    planner_host::stream_hold::on_big_stack(f).expect("the test thread's result");
 }
 
 /// A setpoint's time, s, feed and position as bit patterns (u is left out:

@@ -688,20 +688,8 @@ fn fit_piece<F: FnMut(f64, f64, Option<&PieceData>)>(
 }
 
 /// Every final piece of every knot span, in order: `f(sa, sb, piece)`.
-pub(crate) fn all_pieces<F: FnMut(f64, f64, Option<&PieceData>)>(input: &FitInput, mut f: F) {
-    let q = QSpline::new(input.q_knots, input.q_ctrl);
-    let tol = fit_tol_mm(input.scale);
-    groups(input, |g| {
-        let Some(mut arc) = ArcRef::new(input, g) else {
-            f(g.s0, g.s1, None);
-            return;
-        };
-        group_pieces(g, q.as_ref(), |sa, sb| {
-            let k = arc.find(sa);
-            arc.advance(k);
-            fit_piece(&mut arc, tol, (sa, sb), 0, &mut f);
-        });
-    });
+pub(crate) fn all_pieces<F: FnMut(f64, f64, Option<&PieceData>)>(input: &FitInput, f: F) {
+    pieces_of_groups(input, (0, usize::MAX), f);
 }
 
 /// The pieces of the knot-span groups `lo .. hi` (in group order, as
