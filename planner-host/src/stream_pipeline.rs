@@ -46,8 +46,9 @@ pub struct PathParts {
 pub struct ChunkPipeline {
     path: PathParts,
     rows: TableRows,
-    /// Each knot-span group's [s₀, s₁), mm.
-    groups: Vec<(f64, f64)>,
+    /// Each knot-span group's [s₀, s₁), mm, and its first s → u segment, as
+    /// far as the map has come.
+    groups: Vec<(f64, f64, usize)>,
     /// The next group to fit.
     next_group: usize,
     cutter: ChunkCutter,
@@ -55,6 +56,8 @@ pub struct ChunkPipeline {
     ends: Option<EndSegments>,
     /// The last commit came.
     finished: bool,
+    /// Control points of q taken so far (each commit copies only its own).
+    taken: usize,
 }
 
 impl ChunkPipeline {
@@ -77,20 +80,34 @@ impl ChunkPipeline {
             words: vec![],
             u: vec![],
         };
-        let mut groups = vec![];
-        {
-            let parts = table_parts(&path, &rows.q_knots, &rows.q_ctrl);
-            piece_group_bounds(&parts, |s0, s1| groups.push((s0, s1)));
-        }
-        Ok(ChunkPipeline {
+        let mut pipe = ChunkPipeline {
             path,
             rows,
-            groups,
+            groups: vec![],
             next_group: 0,
             cutter: ChunkCutter::new(opts)?,
             ends: None,
             finished: false,
-        })
+            taken: 0,
+        };
+        pipe.groups_from(0);
+        Ok(pipe)
+    }
+
+    /// The knot-span groups of the s → u segments from `j` on (the start
+    /// of a knot span of the toolpath: the map comes in whole spans).
+    fn groups_from(&mut self, j: usize) {
+        let path = &self.path;
+        let mut parts = table_parts(path, &self.rows.q_knots, &self.rows.q_ctrl);
+        parts.su_breaks = &path.su_breaks[j.min(path.su_breaks.len())..];
+        parts.su_segments = &path.su_segments[j.min(path.su_segments.len())..];
+        let breaks = &path.su_breaks;
+        let groups = &mut self.groups;
+        piece_group_bounds(&parts, |s0, s1| {
+            // (s₀ is a break of the map: its first segment starts there)
+            let j0 = j + breaks[j..].partition_point(|&b| b < s0);
+            groups.push((s0, s1, j0));
+        });
     }
 
     /// Take a commit: the chunks that became final (in order, none twice).
@@ -98,9 +115,19 @@ impl ChunkPipeline {
         if self.finished {
             return Ok(vec![]);
         }
+        // the s → u map as far as it has come
+        let j = self.path.su_segments.len();
+        if c.su_segments.len() > j && c.su_breaks.len() == c.su_segments.len() + 1 {
+            self.path.su_segments.extend_from_slice(&c.su_segments[j..]);
+            let jb = self.path.su_breaks.len();
+            self.path.su_breaks.extend_from_slice(&c.su_breaks[jb..]);
+            self.groups_from(j);
+        }
         let n = self.rows.q_ctrl.len().min(c.ctrl.len());
         let through = c.through.min(n.saturating_sub(1));
-        self.rows.q_ctrl[..=through].copy_from_slice(&c.ctrl[..=through]);
+        let from = self.taken.min(through + 1);
+        self.rows.q_ctrl[from..=through].copy_from_slice(&c.ctrl[from..=through]);
+        self.taken = self.taken.max(through + 1);
         if c.last {
             self.rows.q_ctrl[..n].copy_from_slice(&c.ctrl[..n]);
         }
@@ -113,14 +140,19 @@ impl ChunkPipeline {
         };
         let lo = self.next_group;
         let mut hi = lo;
-        while self.groups.get(hi).is_some_and(|&(_, s1)| s1 <= final_to) {
+        while self.groups.get(hi).is_some_and(|&(_, s1, _)| s1 <= final_to) {
             hi += 1;
         }
         if hi > lo {
             let mut fitted: Vec<FittedPiece> = Vec::new();
             {
-                let parts = table_parts(&self.path, &self.rows.q_knots, &self.rows.q_ctrl);
-                fit_pieces(&parts, (lo, hi), |p| fitted.push(p));
+                // the map from group lo's first segment on: the groups
+                // counted from there, not from the path's start
+                let j0 = self.groups[lo].2;
+                let mut parts = table_parts(&self.path, &self.rows.q_knots, &self.rows.q_ctrl);
+                parts.su_breaks = &self.path.su_breaks[j0..];
+                parts.su_segments = &self.path.su_segments[j0..];
+                fit_pieces(&parts, (0, hi - lo), |p| fitted.push(p));
             }
             // the breaks: every piece's start, then the end of the last
             self.rows.breaks.pop();

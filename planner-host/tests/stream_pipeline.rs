@@ -65,6 +65,88 @@ fn chunks_cut_as_windows_commit_equal_the_finished_tables() {
     }
 }
 
+/// A commit as the sink saw it, owned.
+struct Told {
+    ctrl: Vec<f64>,
+    through: usize,
+    last: bool,
+    ends: Option<firmware_core::EndSegments>,
+}
+
+/// The commits carry the s → u map as far as its thread has fitted it
+/// (whole knot spans of the toolpath, at least as far as q is final): fed
+/// the shortest such prefix at every commit, the pipeline cuts the chunks
+/// the finished table's map gives.
+#[test]
+fn chunks_cut_on_the_map_so_far_equal_the_finished_tables() {
+    let curve = planner_host::builtin::butterfly().unwrap();
+    let cfg = PlanConfig {
+        windows: Some(WindowConfig::default()),
+        ..PlanConfig::default()
+    };
+    let told: Mutex<(Vec<Told>, Vec<f64>)> = Mutex::new((vec![], vec![]));
+    let plan = plan_curve_committing(&curve, &cfg, &|c: &Commit| {
+        let mut t = told.lock().unwrap();
+        t.1 = c.knots.to_vec();
+        t.0.push(Told {
+            ctrl: c.ctrl.to_vec(),
+            through: c.through,
+            last: c.last,
+            ends: c.ends,
+        });
+    })
+    .unwrap();
+    let (told, q_knots) = told.into_inner().unwrap();
+    let table = Table::parse(&plan.table_bytes).unwrap();
+    use firmware_core::path::su_map::SegmentArray;
+    let breaks: Vec<f64> = table.su_breaks().iter().collect();
+    let segs = table.su_segments();
+    let segments: Vec<firmware_core::SuSegment> = (0..segs.len()).filter_map(|j| segs.get(j)).collect();
+    // the shortest prefix of whole spans reaching `need`
+    let prefix = |need: f64| -> usize {
+        (1..=segments.len())
+            .find(|&k| breaks[k] >= need && (k == segments.len() || segments[k].span != segments[k - 1].span))
+            .unwrap_or(segments.len())
+    };
+    let opts = ChunkOptions {
+        chunk_mm: 8.0,
+        max_chunk_bytes: Some(4096),
+        ..ChunkOptions::default()
+    };
+    let mut pipe: Option<ChunkPipeline> = None;
+    let mut chunks = vec![];
+    let mut partial = 0;
+    for t in &told {
+        let k = match t.last {
+            true => segments.len(),
+            false => prefix(q_knots[t.through + 1]),
+        };
+        partial += usize::from(k < segments.len());
+        let c = Commit {
+            length_mm: plan.path_length_mm,
+            knots: &q_knots,
+            ctrl: &t.ctrl,
+            through: t.through,
+            last: t.last,
+            ends: t.ends,
+            su_breaks: &breaks[..=k],
+            su_segments: &segments[..k],
+        };
+        let p = pipe.get_or_insert_with(|| ChunkPipeline::new(&curve, &c, &opts).unwrap());
+        chunks.extend(p.commit(&c).unwrap());
+    }
+    assert!(
+        partial + 1 >= told.len() && told.len() > 3,
+        "{partial} of {}",
+        told.len()
+    );
+    let reference = chunk_table(&table, &opts).unwrap();
+    assert_eq!(chunks.len(), reference.len());
+    for (i, (a, b)) in chunks.iter().zip(&reference).enumerate() {
+        assert_eq!(a, b, "chunk {i} differs");
+    }
+}
+
 #[test]
 fn committing_needs_windows() {
     let curve = planner_host::builtin::butterfly().unwrap();

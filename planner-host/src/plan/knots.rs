@@ -62,10 +62,17 @@ pub(crate) struct TurnInU<'a> {
 
 impl<'a> TurnInU<'a> {
     pub(crate) fn new(curve: &'a Nurbs, arc: &'a ArcLength) -> Self {
+        let floor = crate::geometry::arc_length::speed_floor(curve, arc.total());
+        Self::with_floor(curve, arc, floor)
+    }
+
+    /// With the speed floor given (it scans every control point: computed
+    /// once for the threads that each integrate a stretch).
+    pub(crate) fn with_floor(curve: &'a Nurbs, arc: &'a ArcLength, floor: f64) -> Self {
         TurnInU {
             curve,
             arc,
-            floor: crate::geometry::arc_length::speed_floor(curve, arc.total()),
+            floor,
             memo: std::cell::RefCell::new([(f64::NAN, f64::NAN); 4]),
         }
     }
@@ -120,29 +127,52 @@ pub fn with_feed_breaks(samples: &[f64], breaks: &[f64]) -> Vec<f64> {
 /// short, sharp bend between two close knots would otherwise lie inside one
 /// span of q, between its check points, and the plan would cross it unseen).
 fn merge_breaks(samples: &[f64], breaks: impl Iterator<Item = f64>) -> Vec<f64> {
-    let mut v = samples.to_vec();
-    let n = v.len();
-    if n < 2 {
-        return v;
+    if samples.len() < 2 {
+        return samples.to_vec();
     }
+    // The merged knots v are `out` followed by `rest[j..]`: the samples
+    // below each break move to `out` as the breaks come (they increase), so
+    // a break is inserted at the end of `out`, not into the middle of one
+    // long vector (which made 10⁵ breaks quadratic).
+    let mut rest = samples.to_vec();
+    let mut out: Vec<f64> = Vec::with_capacity(samples.len());
+    let mut j = 0;
     let mut last_break = f64::NAN;
     for b in breaks {
-        let i = v.partition_point(|&x| x < b);
-        if i == 0 || i >= v.len() {
+        while j < rest.len() && rest[j] < b {
+            out.push(rest[j]);
+            j += 1;
+        }
+        let len = out.len() + rest.len() - j;
+        let i = out.partition_point(|&x| x < b);
+        let get = |out: &[f64], k: usize| {
+            if k < out.len() {
+                out[k]
+            } else {
+                rest[j + k - out.len()]
+            }
+        };
+        if i == 0 || i >= len {
             continue;
         }
-        let (lo, hi) = (v[i - 1], v[i]);
+        let (lo, hi) = (get(&out, i - 1), get(&out, i));
         let tol = 0.05 * (hi - lo);
-        if hi - b <= tol && i < v.len() - 1 {
-            v[i] = b;
+        if hi - b <= tol && i < len - 1 {
+            if i < out.len() {
+                out[i] = b;
+            } else {
+                rest[j + i - out.len()] = b;
+            }
         } else if b - lo <= tol && i > 1 && lo != last_break {
-            v[i - 1] = b;
+            // (i − 1 < out.len(): every element before i is below b)
+            out[i - 1] = b;
         } else if b > lo && b < hi {
-            v.insert(i, b);
+            out.insert(i, b);
         }
         last_break = b;
     }
-    v
+    out.extend_from_slice(&rest[j..]);
+    out
 }
 
 /// Samples whose knot vector leaves room for the joins of the jerk-limited
@@ -197,6 +227,53 @@ mod merge_breaks_tests {
     fn a_break_far_from_every_sample_is_inserted() {
         let v = merge_breaks(&[0.0, 10.0, 20.0], [5.0].into_iter());
         assert_eq!(v, [0.0, 5.0, 10.0, 20.0]);
+    }
+
+    /// The merge by insertion into one vector, as it was first written
+    /// (quadratic in the breaks): the reference for the linear merge.
+    fn merge_by_insertion(samples: &[f64], breaks: &[f64]) -> Vec<f64> {
+        let mut v = samples.to_vec();
+        if v.len() < 2 {
+            return v;
+        }
+        let mut last_break = f64::NAN;
+        for &b in breaks {
+            let i = v.partition_point(|&x| x < b);
+            if i == 0 || i >= v.len() {
+                continue;
+            }
+            let (lo, hi) = (v[i - 1], v[i]);
+            let tol = 0.05 * (hi - lo);
+            if hi - b <= tol && i < v.len() - 1 {
+                v[i] = b;
+            } else if b - lo <= tol && i > 1 && lo != last_break {
+                v[i - 1] = b;
+            } else if b > lo && b < hi {
+                v.insert(i, b);
+            }
+            last_break = b;
+        }
+        v
+    }
+
+    proptest::proptest! {
+        /// The linear merge gives the knots the insertion gives, on samples
+        /// and breaks that fall close together, on each other and outside.
+        #[test]
+        fn the_linear_merge_equals_the_insertion(
+            gaps in proptest::collection::vec(1u32..40, 2..40),
+            raw in proptest::collection::vec(0u32..2000, 0..60),
+        ) {
+            let mut samples = vec![0.0];
+            for g in gaps {
+                samples.push(samples.last().unwrap() + g as f64);
+            }
+            let mut breaks: Vec<f64> = raw.iter().map(|&r| r as f64 * 0.25 - 10.0).collect();
+            breaks.sort_by(f64::total_cmp);
+            let want = merge_by_insertion(&samples, &breaks);
+            let got = merge_breaks(&samples, breaks.iter().copied());
+            proptest::prop_assert_eq!(got, want);
+        }
     }
 
     /// Two breaks closer than 5 % of the span after the first: the second

@@ -276,11 +276,30 @@ impl LpStage<'_> {
         a: f64,
         b: f64,
     ) -> Option<EvalPoint> {
+        self.peak_from(lp, ctrl, caps, a, b, 0)
+    }
+
+    /// [`LpStage::peak`] for an LP on the control points from `first` on
+    /// (a window's own columns): the point's basis counted from there.
+    pub(crate) fn peak_from(
+        &self,
+        lp: &FeedLp,
+        ctrl: &[f64],
+        caps: &[crate::lp::JumpCap],
+        a: f64,
+        b: f64,
+        first: usize,
+    ) -> Option<EvalPoint> {
         if b <= a {
             return None;
         }
+        let eval = |s: f64| {
+            let mut p = self.eval(s)?;
+            p.basis.first = p.basis.first.checked_sub(first)?;
+            Some(p)
+        };
         let f = |s: f64| -> (f64, Option<EvalPoint>) {
-            match self.eval(s) {
+            match eval(s) {
                 Some(p) => (trust_region::excess(lp, ctrl, &p, caps), Some(p)),
                 None => (0.0, None),
             }

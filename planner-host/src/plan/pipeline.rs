@@ -51,30 +51,43 @@ pub struct Commit<'a> {
     /// commit on, the stop's fields only with the last (before, they
     /// repeat the start's join).
     pub ends: Option<firmware_core::EndSegments>,
-    /// The s → u map's breaks (the table's section 5).
+    /// The s → u map's breaks (the table's section 5): the map fitted so
+    /// far, whole knot spans of the toolpath at least as far as q is final
+    /// (a prefix of the finished map, which the last commit carries).
     pub su_breaks: &'a [f64],
-    /// The s → u map's segments (sections 6 and 7).
+    /// The s → u map's segments (sections 6 and 7), as far as `su_breaks`.
     pub su_segments: &'a [firmware_core::SuSegment],
 }
 
 /// Told each [`Commit`], in order, on the planning thread.
 pub type CommitSink<'a> = dyn Fn(&Commit) + Sync + 'a;
 
-/// The s → u map's slot while the windows plan, and its signal.
-type SuSlot = (
-    std::sync::Mutex<Option<Result<SuMap, PlanError>>>,
-    std::sync::Condvar,
-);
+/// The s → u map as its thread fits it: the prefix fitted so far (whole
+/// knot spans of the toolpath, [`SuMap::fit_within_each`]), then the
+/// finished map or the fit's error.
+#[derive(Default)]
+struct SuProgress {
+    breaks: Vec<f64>,
+    segments: Vec<firmware_core::SuSegment>,
+    done: Option<Result<SuMap, PlanError>>,
+}
 
-/// On drop, fills the slot if it is still empty (with an error) and wakes
-/// whoever waits on it.
+/// The s → u map's slot while the windows plan, and its signal.
+type SuSlot = (std::sync::Mutex<SuProgress>, std::sync::Condvar);
+
+/// Segments the map's thread fits between two publications of its prefix
+/// (each wakes the commit sink if it waits: a system call).
+const SU_PUBLISH_SEGMENTS: usize = 64;
+
+/// On drop, finishes the slot if it is still unfinished (with an error) and
+/// wakes whoever waits on it.
 struct Fill<'a>(&'a SuSlot);
 
 impl Drop for Fill<'_> {
     fn drop(&mut self) {
         let mut g = self.0 .0.lock().unwrap_or_else(|e| e.into_inner());
-        if g.is_none() {
-            *g = Some(Err(PlanError::Committing));
+        if g.done.is_none() {
+            g.done = Some(Err(PlanError::Committing));
         }
         self.0 .1.notify_all();
     }
@@ -83,8 +96,9 @@ impl Drop for Fill<'_> {
 /// [`plan_curve`] window by window (`cfg.windows` must be set, with the
 /// certified formulation), telling `on_commit` each stretch of q as its
 /// window commits it, so that a host can cut the plan into chunks and send
-/// them while the rest is planned. The s → u map is fitted before the first
-/// window (it is in every commit). A plan whose windows fail is not
+/// them while the rest is planned. The s → u map is fitted on a thread
+/// beside the windows, span by span of the toolpath: each commit carries
+/// the map so far, and waits until it reaches as far as q is final. A plan whose windows fail is not
 /// retried on a finer sampling, as [`plan_curve`] does: what was committed
 /// may already have left.
 pub fn plan_curve_committing(
@@ -152,17 +166,38 @@ fn plan_curve_inner(
     let samples = match cfg.formulation {
         Formulation::Paper => samples,
         Formulation::Certified => {
-            let turn = TurnInU::new(curve, &arc);
             let mut samples = with_breaks(&samples, &arc);
             if let Some(f) = &cfg.feed_profile {
                 samples = with_feed_breaks(&samples, f.breaks());
             }
-            refine_turning(&samples, cfg.certified.max_turn_rad, |a, b| turn.turning(a, b))
+            // in stretches on both cores, each with its own memo of u(s):
+            // the stretches share their end samples, kept once
+            const STRETCH: usize = 4096;
+            let floor = TurnInU::new(curve, &arc).floor;
+            let ends: Vec<usize> = (0..samples.len().saturating_sub(1)).step_by(STRETCH).collect();
+            let parts: Vec<Vec<f64>> = ends
+                .par_iter()
+                .map(|&a| {
+                    let turn = TurnInU::with_floor(curve, &arc, floor);
+                    let b = (a + STRETCH).min(samples.len() - 1);
+                    refine_turning(&samples[a..=b], cfg.certified.max_turn_rad, |a, b| {
+                        turn.turning(a, b)
+                    })
+                })
+                .collect();
+            let mut refined = Vec::with_capacity(parts.iter().map(Vec::len).sum());
+            for (k, p) in parts.into_iter().enumerate() {
+                refined.extend_from_slice(&p[usize::from(k > 0)..]);
+            }
+            if refined.is_empty() {
+                refined = samples;
+            }
+            refined
         }
     };
     dbg_t("refine");
     // the s → u map (it does not depend on q) beside the LPs; when windows
-    // commit as they go, each commit carries it: the first waits for it
+    // commit as they go, each commit carries the map as far as q is final
     let fit_su = || {
         let su = SuMap::fit_within(curve, &arc, cfg.su_tol_mm, Some(&budget));
         dbg_t("s-u map");
@@ -171,17 +206,28 @@ fn plan_curve_inner(
     let su_slot: SuSlot = Default::default();
     let sink = |c: &Commit| {
         let Some(f) = on_commit else { return };
+        // q is final below U_{through+1}; all of it with the last commit
+        let need = match c.last {
+            true => f64::INFINITY,
+            false => c.knots.get(c.through + 1).copied().unwrap_or(f64::INFINITY),
+        };
         let mut slot = su_slot.0.lock().unwrap_or_else(|e| e.into_inner());
-        while slot.is_none() {
+        while slot.done.is_none() && !slot.breaks.last().is_some_and(|&b| b >= need) {
             slot = su_slot.1.wait(slot).unwrap_or_else(|e| e.into_inner());
         }
-        // (a failed fit fails the plan after the windows)
-        if let Some(Ok(su)) = slot.as_ref() {
-            f(&Commit {
+        match &slot.done {
+            Some(Ok(su)) => f(&Commit {
                 su_breaks: &su.breaks,
                 su_segments: &su.segments,
                 ..*c
-            })
+            }),
+            // (a failed fit fails the plan after the windows)
+            Some(Err(_)) => {}
+            None => f(&Commit {
+                su_breaks: &slot.breaks,
+                su_segments: &slot.segments,
+                ..*c
+            }),
         }
     };
     let sink: Option<&CommitSink<'_>> = on_commit.map(|_| &sink as &CommitSink<'_>);
@@ -261,8 +307,20 @@ fn plan_curve_inner(
             scope.spawn(|| {
                 // (filled even if the fit panics: the sink must not wait forever)
                 let fill = Fill(&su_slot);
-                let su = fit_su();
-                *fill.0 .0.lock().unwrap_or_else(|e| e.into_inner()) = Some(su.map_err(PlanError::from));
+                let mut publish = |m: &SuMap| {
+                    let mut g = su_slot.0.lock().unwrap_or_else(|e| e.into_inner());
+                    if m.segments.len() < g.segments.len() + SU_PUBLISH_SEGMENTS {
+                        return;
+                    }
+                    let (k, kb) = (g.segments.len(), g.breaks.len());
+                    g.segments.extend_from_slice(&m.segments[k..]);
+                    g.breaks.extend_from_slice(&m.breaks[kb..]);
+                    drop(g);
+                    su_slot.1.notify_all();
+                };
+                let su = SuMap::fit_within_each(curve, &arc, cfg.su_tol_mm, Some(&budget), &mut publish);
+                dbg_t("s-u map");
+                fill.0 .0.lock().unwrap_or_else(|e| e.into_inner()).done = Some(su.map_err(PlanError::from));
             });
             let planned = plan_q();
             (None, planned)
@@ -278,6 +336,7 @@ fn plan_curve_inner(
             .0
             .into_inner()
             .unwrap_or_else(|e| e.into_inner())
+            .done
             .ok_or(PlanError::Committing)??,
     };
     let su = &su;

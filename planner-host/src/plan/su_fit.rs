@@ -405,6 +405,21 @@ impl SuMap {
         tol_mm: f64,
         budget: Option<&SetpointBudget>,
     ) -> Result<SuMap, CurveError> {
+        Self::fit_within_each(curve, arc, tol_mm, budget, &mut |_| {})
+    }
+
+    /// [`SuMap::fit_within`], telling `each` the map fitted so far after
+    /// every knot span of the toolpath: each span's segments depend on that
+    /// span alone, so the map so far is a prefix of the finished map, and
+    /// whoever needs u(s) only up to some s (the chunks of a plan streamed
+    /// while it is planned) need not wait for the whole path.
+    pub fn fit_within_each(
+        curve: &Nurbs,
+        arc: &ArcLength,
+        tol_mm: f64,
+        budget: Option<&SetpointBudget>,
+        each: &mut dyn FnMut(&SuMap),
+    ) -> Result<SuMap, CurveError> {
         if !(tol_mm > 0.0 && tol_mm.is_finite()) {
             return Err(CurveError::Argument {
                 name: "tol_mm",
@@ -503,6 +518,7 @@ impl SuMap {
                     });
                 }
             }
+            each(&map);
         }
         // the last break is exactly L (it is the last span's s1 already)
         if let Some(last) = map.breaks.last_mut() {
