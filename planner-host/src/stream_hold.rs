@@ -433,6 +433,13 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                     // must not start on it alone)
                     self.s_c[self.i] = self.last_ok.unwrap_or(NOT_ALONE_MM);
                     self.known[self.i] = self.started.elapsed().as_secs_f64();
+                    if self.i < 3 && std::env::var_os("FEEDLP_TIME_DEBUG").is_some() {
+                        eprintln!(
+                            "  hold point of chunk {}: {:.1} ms",
+                            self.i,
+                            self.known[self.i] * 1e3
+                        );
+                    }
                     self.i += 1;
                     (self.fine_until, self.snapshot) = (None, None);
                 }

@@ -361,6 +361,15 @@ pub fn plan_and_stream<const NQ: usize, const NP: usize>(
             );
         let tx = Mutex::new(tx);
         let plan = plan_in_chunks(curve, cfg, opts, &|m| {
+            if std::env::var_os("FEEDLP_TIME_DEBUG").is_some() {
+                if let Planned::Chunks(c) = &m {
+                    eprintln!(
+                        "  {} chunks cut: {:.1} ms",
+                        c.len(),
+                        t0.elapsed().as_secs_f64() * 1e3
+                    );
+                }
+            }
             let _ = tx.lock().unwrap_or_else(|e| e.into_inner()).send(m);
         });
         // (the sender goes: the search ends with the chunks it has)

@@ -156,6 +156,21 @@ pub fn run_stream<const CAP: usize, const NQ: usize, const NP: usize>(
     chunks: &[Vec<u8>],
     link: &StreamLink,
 ) -> Result<StreamRun, StreamRunError> {
+    let mut setpoints = Vec::new();
+    let mut run = run_stream_each::<CAP, NQ, NP>(table, chunks, link, &mut |sp| setpoints.push(*sp))?;
+    run.setpoints = setpoints;
+    Ok(run)
+}
+
+/// [`run_stream`], each setpoint told to `each` as it is made instead of
+/// kept (`StreamRun::setpoints` stays empty): a run of an hour is 14
+/// million of them.
+pub fn run_stream_each<const CAP: usize, const NQ: usize, const NP: usize>(
+    table: &Table,
+    chunks: &[Vec<u8>],
+    link: &StreamLink,
+    each: &mut dyn FnMut(&Setpoint),
+) -> Result<StreamRun, StreamRunError> {
     let head = stream_head(table).ok_or(StreamRunError::Head)?;
     let framed: Vec<usize> = chunks.iter().map(|c| encoded_max_len(c.len()) + 1).collect();
     let n = chunks.len();
@@ -388,7 +403,7 @@ pub fn run_stream<const CAP: usize, const NQ: usize, const NP: usize>(
         if let Some((reach, _)) = starve.as_mut() {
             *reach = reach.max(sp.s_mm);
         }
-        run.setpoints.push(sp);
+        each(&sp);
         if ipr.is_done() {
             if let Some((reach, end)) = starve.take() {
                 run.starved_reach_mm.push((reach, fx(end)));
@@ -421,6 +436,13 @@ pub struct StreamOptions {
     /// The firmware's plan window: q spans and pieces, one of
     /// [`WINDOW_SIZES`].
     pub window_rows: (usize, usize),
+    /// Planning in windows: each chunk ready this many times later than
+    /// it was (a slower host).
+    pub host_slowdown: f64,
+    /// Planning in windows: the chunks' ready times, s, one a line: read
+    /// from this file if it exists (a run replayed with the same timing),
+    /// else written to it.
+    pub ready_times: Option<std::path::PathBuf>,
 }
 
 /// The plan windows the simulation has (q spans, pieces): three MCU sizes
@@ -441,6 +463,8 @@ impl Default for StreamOptions {
             period_s: 250e-6,
             tol: 0.01,
             window_rows: (SIM_WINDOW_Q, SIM_WINDOW_P),
+            host_slowdown: 1.0,
+            ready_times: None,
         }
     }
 }
@@ -593,7 +617,30 @@ fn stream_through<const Q: usize, const P: usize>(
     // planning). The whole path: planned first, then cut and searched.
     let (out, chunks, hp, plan_s, hold_points_s, ready_s) = if cfg.windows.is_some() {
         let st = plan_and_stream::<Q, P>(curve, &cfg, &opts, &how)?;
-        let ready = st.ready_s.clone();
+        let mut ready: Vec<f64> = st.ready_s.iter().map(|r| r * o.host_slowdown).collect();
+        match &o.ready_times {
+            Some(f) if f.exists() => {
+                let text = std::fs::read_to_string(f)
+                    .map_err(|e| StreamError::Option(format!("{}: {e}", f.display())))?;
+                ready = text
+                    .lines()
+                    .map(|l| l.trim().parse::<f64>().ok().filter(|r| r.is_finite()))
+                    .collect::<Option<Vec<f64>>>()
+                    .filter(|r| r.len() == st.chunks.len())
+                    .ok_or_else(|| {
+                        StreamError::Option(format!(
+                            "{}: expected {} ready times in seconds, one a line",
+                            f.display(),
+                            st.chunks.len()
+                        ))
+                    })?;
+            }
+            Some(f) => {
+                let text: String = ready.iter().map(|r| format!("{r}\n")).collect();
+                std::fs::write(f, text).map_err(|e| StreamError::Option(format!("{}: {e}", f.display())))?;
+            }
+            None => {}
+        }
         (st.plan, st.chunks, st.hold, st.plan_s, st.done_s, ready)
     } else {
         let t0 = std::time::Instant::now();
@@ -619,9 +666,20 @@ fn stream_through<const Q: usize, const P: usize>(
     };
     // (on a thread of its own: the firmware's ring and a host-sized window
     // live on its stack, several megabytes)
-    let run =
-        planner_host::stream_hold::on_big_stack(|| run_sized::<Q, P>(&table, &chunks, &link, o.ring_bytes))
-            .ok_or_else(|| StreamError::Option("the run's thread failed to start or panicked".into()))??;
+    // the setpoints' times and positions only, straight into the checker's
+    // trajectory (room for the plan's time and a second more)
+    let expect = ((table.predicted_time_s() + 1.0) / o.period_s).clamp(0.0, 1e9) as usize;
+    let mut traj = crate::Trajectory {
+        t_s: Vec::with_capacity(expect),
+        pos_mm: Vec::with_capacity(expect),
+    };
+    let run = planner_host::stream_hold::on_big_stack(|| {
+        run_sized::<Q, P>(&table, &chunks, &link, o.ring_bytes, &mut |sp: &Setpoint| {
+            traj.t_s.push(sp.t_s);
+            traj.pos_mm.push(sp.pos_mm);
+        })
+    })
+    .ok_or_else(|| StreamError::Option("the run's thread failed to start or panicked".into()))??;
     let geometry = crate::CurveGeometry::from_table(&table).map_err(|e| StreamError::Table(e.to_string()))?;
     let check = crate::CheckConfig {
         limits: table.limits(),
@@ -629,13 +687,9 @@ fn stream_through<const Q: usize, const P: usize>(
         tol: o.tol,
         ..Default::default()
     };
-    let traj = crate::Trajectory {
-        t_s: run.setpoints.iter().map(|p| p.t_s).collect(),
-        pos_mm: run.setpoints.iter().map(|p| p.pos_mm).collect(),
-    };
     let rep = crate::check_trajectory(&geometry.curve, &traj, &check)
         .map_err(|e| StreamError::Check(e.to_string()))?;
-    let machining_time_s = run.setpoints.last().map_or(0.0, |p| p.t_s);
+    let machining_time_s = traj.t_s.last().copied().unwrap_or(0.0);
     let r = &rep.ratios;
     Ok(StreamReport {
         schema_version: 1,
@@ -677,16 +731,17 @@ fn run_sized<const Q: usize, const P: usize>(
     chunks: &[Vec<u8>],
     link: &StreamLink,
     ring_bytes: usize,
+    each: &mut dyn FnMut(&Setpoint),
 ) -> Result<StreamRun, StreamError> {
     Ok(match ring_bytes {
-        4096 => run_stream::<4096, Q, P>(table, chunks, link),
-        8192 => run_stream::<8192, Q, P>(table, chunks, link),
-        16384 => run_stream::<16384, Q, P>(table, chunks, link),
-        32768 => run_stream::<32768, Q, P>(table, chunks, link),
-        65536 => run_stream::<65536, Q, P>(table, chunks, link),
-        131072 => run_stream::<131072, Q, P>(table, chunks, link),
-        262144 => run_stream::<262144, Q, P>(table, chunks, link),
-        524288 => run_stream::<524288, Q, P>(table, chunks, link),
-        _ => run_stream::<1048576, Q, P>(table, chunks, link),
+        4096 => run_stream_each::<4096, Q, P>(table, chunks, link, each),
+        8192 => run_stream_each::<8192, Q, P>(table, chunks, link, each),
+        16384 => run_stream_each::<16384, Q, P>(table, chunks, link, each),
+        32768 => run_stream_each::<32768, Q, P>(table, chunks, link, each),
+        65536 => run_stream_each::<65536, Q, P>(table, chunks, link, each),
+        131072 => run_stream_each::<131072, Q, P>(table, chunks, link, each),
+        262144 => run_stream_each::<262144, Q, P>(table, chunks, link, each),
+        524288 => run_stream_each::<524288, Q, P>(table, chunks, link, each),
+        _ => run_stream_each::<1048576, Q, P>(table, chunks, link, each),
     }?)
 }

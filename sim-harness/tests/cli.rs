@@ -327,6 +327,63 @@ fn stream_in_windows_sends_while_planning_and_holds_every_limit() {
     assert!(v["machining_time_s"].as_f64().unwrap() >= v["planned_time_s"].as_f64().unwrap() - 1e-3);
 }
 
+/// A slower host, its chunks ready three times later, and the same run
+/// replayed from the ready times it wrote: the same setpoints' outcome,
+/// starvation included; a bad factor or times file is refused.
+#[test]
+fn stream_on_a_slower_host_replays_with_its_ready_times() {
+    let dir = std::env::temp_dir().join(format!("feedsim-ready-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let times = dir.join("ready.txt");
+    let run = |extra: &[&str]| {
+        let out = feedsim()
+            .args([
+                "stream",
+                "star",
+                "--window-mm",
+                "40",
+                "--commit-mm",
+                "15",
+                "--chunk-mm",
+                "8",
+            ])
+            .args(extra)
+            .arg("--json")
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        serde_json::from_slice::<serde_json::Value>(&out.stdout).unwrap()
+    };
+    let t = times.to_str().unwrap();
+    let first = run(&["--host-slowdown", "3", "--ready-times", t]);
+    let lines = std::fs::read_to_string(&times).unwrap().lines().count();
+    assert_eq!(lines as u64, first["chunks"].as_u64().unwrap());
+    let again = run(&["--ready-times", t]);
+    for key in [
+        "first_motion_ms",
+        "starved_ticks",
+        "starvations",
+        "machining_time_s",
+    ] {
+        assert_eq!(first[key], again[key], "{key}");
+    }
+    assert_eq!(again["check_ok"], true);
+    std::fs::write(&times, "0.5\n").unwrap();
+    for (args, what) in [
+        (vec!["--ready-times", t], "ready times"),
+        (vec!["--host-slowdown", "0"], "--host-slowdown"),
+    ] {
+        let out = feedsim()
+            .args(["stream", "star", "--window-mm", "40", "--commit-mm", "15"])
+            .args(&args)
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(3), "{args:?}");
+        assert!(String::from_utf8_lossy(&out.stderr).contains(what), "{args:?}");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
 /// Through an MCU-sized window (128 q spans, 256 pieces) with a stalled
 /// link: hold points found for that window, starvation stops inside it,
 /// every limit held; a window too small for a stop from the start is

@@ -145,6 +145,10 @@ pub(crate) struct Solved {
     /// The final check points and whether each is forced (carries rows).
     pub(crate) pts: Vec<EvalPoint>,
     pub(crate) forced: Vec<bool>,
+    /// The final check points' s and whether each is forced, when `pts`
+    /// does not hold them all (windowed planning keeps only these: the
+    /// evaluated points of a long path take ~190 bytes each).
+    pub(crate) checks: Option<Vec<(f64, bool)>>,
     pub(crate) rounds: usize,
     pub(crate) ends: Option<EndSegments>,
     pub(crate) predicted_time_s: f64,
@@ -692,6 +696,7 @@ impl LpStage<'_> {
             check,
             pts,
             forced,
+            checks: None,
             rounds,
             ends,
             predicted_time_s,

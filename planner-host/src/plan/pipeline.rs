@@ -65,12 +65,30 @@ pub type CommitSink<'a> = dyn Fn(&Commit) + Sync + 'a;
 /// The s → u map as its thread fits it: the prefix fitted so far (whole
 /// knot spans of the toolpath, [`SuMap::fit_within_each`]), then the
 /// finished map or the fit's error.
-#[derive(Default)]
 struct SuProgress {
     breaks: Vec<f64>,
     segments: Vec<firmware_core::SuSegment>,
     done: Option<Result<SuMap, PlanError>>,
+    /// How far the map is wanted: the fit waits once it is past this
+    /// ([`SU_LEAD_MM`] beyond the last commit's reach), so that it does not
+    /// take the cores from the first window.
+    demand: f64,
 }
+
+impl Default for SuProgress {
+    fn default() -> Self {
+        SuProgress {
+            breaks: Vec::new(),
+            segments: Vec::new(),
+            done: None,
+            demand: SU_LEAD_MM,
+        }
+    }
+}
+
+/// How far ahead of the last commit's reach the s → u map is fitted, mm
+/// (about 5 ms of fitting).
+const SU_LEAD_MM: f64 = 1000.0;
 
 /// The s → u map's slot while the windows plan, and its signal.
 type SuSlot = (std::sync::Mutex<SuProgress>, std::sync::Condvar);
@@ -212,6 +230,10 @@ fn plan_curve_inner(
             false => c.knots.get(c.through + 1).copied().unwrap_or(f64::INFINITY),
         };
         let mut slot = su_slot.0.lock().unwrap_or_else(|e| e.into_inner());
+        if need + SU_LEAD_MM > slot.demand {
+            slot.demand = need + SU_LEAD_MM;
+            su_slot.1.notify_all();
+        }
         while slot.done.is_none() && !slot.breaks.last().is_some_and(|&b| b >= need) {
             slot = su_slot.1.wait(slot).unwrap_or_else(|e| e.into_inner());
         }
@@ -309,20 +331,27 @@ fn plan_curve_inner(
                 let fill = Fill(&su_slot);
                 let mut publish = |m: &SuMap| {
                     let mut g = su_slot.0.lock().unwrap_or_else(|e| e.into_inner());
-                    if m.segments.len() < g.segments.len() + SU_PUBLISH_SEGMENTS {
+                    let end = m.breaks.last().copied().unwrap_or(0.0);
+                    if m.segments.len() < g.segments.len() + SU_PUBLISH_SEGMENTS && end < g.demand {
                         return;
                     }
                     let (k, kb) = (g.segments.len(), g.breaks.len());
                     g.segments.extend_from_slice(&m.segments[k..]);
                     g.breaks.extend_from_slice(&m.breaks[kb..]);
-                    drop(g);
                     su_slot.1.notify_all();
+                    // far enough ahead: wait until a commit wants more
+                    while end >= g.demand {
+                        g = su_slot.1.wait(g).unwrap_or_else(|e| e.into_inner());
+                    }
                 };
                 let su = SuMap::fit_within_each(curve, &arc, cfg.su_tol_mm, Some(&budget), &mut publish);
                 dbg_t("s-u map");
                 fill.0 .0.lock().unwrap_or_else(|e| e.into_inner()).done = Some(su.map_err(PlanError::from));
             });
             let planned = plan_q();
+            // (the map's thread fits the rest, whatever became of the plan)
+            su_slot.0.lock().unwrap_or_else(|e| e.into_inner()).demand = f64::INFINITY;
+            su_slot.1.notify_all();
             (None, planned)
         }),
         None => {
@@ -353,11 +382,13 @@ fn plan_curve_inner(
         check,
         pts,
         forced,
+        checks,
         rounds,
         ends,
         predicted_time_s,
     } = base;
-    let check_points: Vec<(f64, bool)> = pts.iter().zip(&forced).map(|(p, &f)| (p.s, f)).collect();
+    let check_points: Vec<(f64, bool)> =
+        checks.unwrap_or_else(|| pts.iter().zip(&forced).map(|(p, &f)| (p.s, f)).collect());
 
     let homogeneous = curve.to_homogeneous_table();
     let level_parts: Vec<table::LevelParts> = levels

@@ -184,7 +184,8 @@ impl LpStage<'_> {
         let mut i_l = 0usize;
         let mut stats = WindowStats::default();
         let mut lps: Vec<LpStats> = Vec::new();
-        let mut all_pts: Vec<(EvalPoint, bool)> = Vec::new();
+        // the committed check points' s (all forced: every row is in every LP)
+        let mut all_pts: Vec<f64> = Vec::new();
         let mut rounds = 0;
         let t_all = Instant::now();
         loop {
@@ -404,7 +405,7 @@ impl LpStage<'_> {
             if last {
                 committed[i_l + 1..].copy_from_slice(&plan.ctrl[i_l + 1..]);
                 self.tell_commit(end_rows.as_ref(), &committed, n - 1, true);
-                all_pts.extend(pts.iter().map(|p| (shift(p, false), true)));
+                all_pts.extend(pts.iter().map(|p| p.s));
                 stats.windows += 1;
                 if stats.windows == 1 {
                     stats.first_window_s = dt;
@@ -421,11 +422,7 @@ impl LpStage<'_> {
                 .filter(|(p, &f)| f && p.s >= s_commit)
                 .map(|(p, _)| shift(p, false))
                 .collect();
-            all_pts.extend(
-                pts.iter()
-                    .filter(|p| p.s < s_commit)
-                    .map(|p| (shift(p, false), true)),
-            );
+            all_pts.extend(pts.iter().filter(|p| p.s < s_commit).map(|p| p.s));
             // the next window's first linearisation point: this plan up to
             // halfway between its commit and its end (before its braking),
             // q̂ beyond
@@ -441,9 +438,17 @@ impl LpStage<'_> {
             i_l = i_c;
         }
         stats.windows_s = t_all.elapsed().as_secs_f64();
-        all_pts.sort_by(|a, b| a.0.s.total_cmp(&b.0.s));
-        all_pts.dedup_by(|a, b| a.0.s == b.0.s);
-        let (pts, forced): (Vec<EvalPoint>, Vec<bool>) = all_pts.into_iter().unzip();
+        all_pts.sort_by(f64::total_cmp);
+        all_pts.dedup();
+        // the points themselves only for the override levels, which plan on
+        // them (evaluated again at their s, as an override window does)
+        let (pts, forced): (Vec<EvalPoint>, Vec<bool>) = match cfg.override_levels.is_empty() {
+            true => (Vec::new(), Vec::new()),
+            false => all_pts
+                .iter()
+                .filter_map(|&s| Some((self.eval(s)?, true)))
+                .unzip(),
+        };
         let ctrl = committed;
         let (ends, predicted_time_s) =
             self.ends_and_time(limits, profile.as_ref(), end_rows.as_ref(), &ctrl)?;
@@ -455,6 +460,7 @@ impl LpStage<'_> {
                 check: None,
                 pts,
                 forced,
+                checks: Some(all_pts.into_iter().map(|s| (s, true)).collect()),
                 rounds,
                 ends,
                 predicted_time_s,

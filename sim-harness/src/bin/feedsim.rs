@@ -229,6 +229,14 @@ enum Cmd {
         /// A link stall: START:DURATION in seconds from the start of sending (repeatable).
         #[arg(long)]
         stall: Vec<String>,
+        /// Planning in windows: a host this many times slower, each chunk ready this many
+        /// times later than it was here (a slower computer beside the machine).
+        #[arg(long, default_value_t = 1.0, requires = "window_mm")]
+        host_slowdown: f64,
+        /// Planning in windows: write each chunk's ready time (s, one a line) to FILE, or,
+        /// if FILE exists, read them from it (a run replayed with the same timing).
+        #[arg(long, requires = "window_mm")]
+        ready_times: Option<PathBuf>,
         /// Servo period, microseconds.
         #[arg(long, default_value_t = 250.0)]
         period_us: f64,
@@ -619,11 +627,18 @@ fn run(cli: Cli) -> Result<(), Failure> {
             window_mm,
             commit_mm,
             stall,
+            host_slowdown,
+            ready_times,
             period_us,
             tol,
             json,
         } => {
             check_period(period_us)?;
+            if !(host_slowdown.is_finite() && host_slowdown > 0.0) {
+                return Err(Failure::input(format!(
+                    "--host-slowdown {host_slowdown}: expected a factor > 0"
+                )));
+            }
             let window_rows = window_rows
                 .split_once(':')
                 .and_then(|(q, p)| Some((q.parse::<usize>().ok()?, p.parse::<usize>().ok()?)))
@@ -657,6 +672,8 @@ fn run(cli: Cli) -> Result<(), Failure> {
                 window_rows,
                 period_s: period_us * 1e-6,
                 tol,
+                host_slowdown,
+                ready_times,
             };
             use sim_harness::stream::StreamError as E;
             let rep = sim_harness::stream::stream_curve(&nurbs, &opts).map_err(|e| match e {
