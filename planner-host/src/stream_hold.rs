@@ -16,9 +16,12 @@
 //! kept) and tests every `step_mm` from there. The latest test before the
 //! first failure that stopped at least `margin_mm` before chunk i's end is
 //! its s_c. Host and firmware tick bit for bit alike, so the firmware,
-//! pressing at the first tick at or past s_c, repeats the test's stop (after
-//! an earlier hold and resume its ticks fall elsewhere: the tests' step and
-//! the margin are the slack).
+//! pressing at the first tick at or past s_c, repeats the test's stop. After
+//! an earlier hold and resume its ticks fall elsewhere and its state is a
+//! resume's, not the plan's; the tests' step and the margin were meant as the
+//! slack, and are not always enough: a stop that the plan ahead holds to a
+//! slow braking rate can end millimetres later from such a state
+//! (docs/streaming-design.md, "a starved stop can run past the rows").
 
 use firmware_core::interp::{Interpolator, StreamHead};
 use firmware_core::math::source::Point4Array;
