@@ -272,20 +272,9 @@ impl LpStage<'_> {
     /// bracket around the best of them, PEAK_EVALS evaluations in all. A
     /// narrow spike of the ratio lies between two re-evaluation points; the
     /// check point goes onto its peak, not onto a grid point beside it.
+    /// `first`: the LP's first control point (0, or a window's first
+    /// column): the point's basis is counted from there.
     pub(crate) fn peak(
-        &self,
-        lp: &FeedLp,
-        ctrl: &[f64],
-        caps: &[crate::lp::JumpCap],
-        a: f64,
-        b: f64,
-    ) -> Option<EvalPoint> {
-        self.peak_from(lp, ctrl, caps, a, b, 0)
-    }
-
-    /// [`LpStage::peak`] for an LP on the control points from `first` on
-    /// (a window's own columns): the point's basis counted from there.
-    pub(crate) fn peak_from(
         &self,
         lp: &FeedLp,
         ctrl: &[f64],
@@ -403,7 +392,7 @@ impl LpStage<'_> {
                 dense[i.saturating_sub(1)].s,
                 dense[(i + 1).min(dense.len() - 1)].s,
             );
-            if let Some(p) = self.peak(lp, ctrl, caps, a, b) {
+            if let Some(p) = self.peak(lp, ctrl, caps, a, b, 0) {
                 if trust_region::excess(lp, ctrl, &p, caps) > REFINE_TRIGGER {
                     out.push(p);
                 }
@@ -637,7 +626,7 @@ impl LpStage<'_> {
                             .iter()
                             .map(|&i| (at(i.saturating_sub(1)), at(i + 1)))
                             .chain(bad_near.iter().map(|&i| brackets[i]))
-                            .filter_map(|(a, b)| self.peak(&lp, &c.ctrl, &caps, a, b))
+                            .filter_map(|(a, b)| self.peak(&lp, &c.ctrl, &caps, a, b, 0))
                             .chain(hidden)
                             .collect();
                         round += 1;

@@ -353,14 +353,8 @@ impl LpStage<'_> {
                     .filter_map(|&i| {
                         // between its neighbours
                         let at = |k: usize| dense[k.min(dense.len() - 1)].s;
-                        let p = self.peak_from(
-                            &lp,
-                            &plan.ctrl,
-                            &win_caps,
-                            at(i.saturating_sub(1)),
-                            at(i + 1),
-                            c0,
-                        )?;
+                        let p =
+                            self.peak(&lp, &plan.ctrl, &win_caps, at(i.saturating_sub(1)), at(i + 1), c0)?;
                         (e[i] > REFINE_TRIGGER
                             || trust_region::excess(&lp, &plan.ctrl, &p, &win_caps) > REFINE_TRIGGER)
                             .then_some(p)
