@@ -11,17 +11,29 @@
 //! by running the firmware's code: the streamed interpolator it would run,
 //! fed as the firmware feeds it ([`Interpolator::keep_fed`] aside), and, every
 //! `coarse_mm` of the way, a copy of it cut back to the chunks up to chunk i
-//! ([`PlanWindow::truncate`]) with the hold pressed, ticked to rest; at the
-//! first test that fails the run goes back to the last that passed (a copy
-//! kept) and tests every `step_mm` from there. The latest test before the
-//! first failure that stopped at least `margin_mm` before chunk i's end is
-//! its s_c. Host and firmware tick bit for bit alike, so the firmware,
-//! pressing at the first tick at or past s_c, repeats the test's stop. After
-//! an earlier hold and resume its ticks fall elsewhere and its state is a
-//! resume's, not the plan's; the tests' step and the margin were meant as the
-//! slack, and are not always enough: a stop that the plan ahead holds to a
-//! slow braking rate can end millimetres later from such a state
-//! (docs/streaming-design.md, "a starved stop can run past the rows").
+//! ([`PlanWindow::truncate`]) with the hold pressed, ticked to rest. Where
+//! chunk i fails, the search looks back through the copies kept at the
+//! earlier coarse tests for the latest where it passes and tests every
+//! `step_mm` from there ([`HoldPointSearch`]). A test passes when the stop
+//! rests `margin_mm` and `margin_frac` of its length before chunk i's end;
+//! s_c is a passing test `backoff_mm` before the last one.
+//!
+//! Why each of these, measured on long meanders fed more slowly than they
+//! run (docs/streaming-design.md, "starved stops"):
+//! - **A chunk's own tests.** The stop's look-ahead reads every row held,
+//!   and with more rows ahead it can brake later: one chunk's hold point
+//!   does not hold for the next, though its rows reach further.
+//! - **The backoff.** The stop's length is not smooth in where it is
+//!   pressed; just before the tests turn it can jump by millimetres for a
+//!   press one tick later, and the firmware presses on its own tick.
+//! - **The margin's fraction.** After a hold and resume the firmware's λ
+//!   stays a little under 1 for seconds; from there a 105 mm stop measured
+//!   a few hundredths of a millimetre longer than the dry run's.
+//!
+//! None of this is a bound: it is what the measurements needed, with room.
+//! The firmware side keeps to the chunks found for: it takes no chunk whose
+//! hold point the moving motion has passed and resumes only towards a hold
+//! point ahead (`Interpolator::holds_back`, [`Interpolator::keep_fed`]).
 
 use firmware_core::interp::{Interpolator, StreamHead};
 use firmware_core::math::source::Point4Array;
@@ -201,6 +213,17 @@ pub struct HoldSearch {
     pub coarse_mm: f64,
     /// The hold must come to rest at least this far before the chunk's end, mm.
     pub margin_mm: f64,
+    /// And besides, this fraction of its own stopping distance: the
+    /// firmware presses from its own state, which after a hold and resume
+    /// is not the dry run's (its λ a little under 1 for seconds), and such
+    /// stops can end a little later.
+    pub margin_frac: f64,
+    /// s_c lies this far before the last test that passed, on a test that
+    /// passed, mm: where the tests turn from passing to failing the stop's
+    /// length can jump (by 7 mm for a press 0.04 mm later, measured), and
+    /// the firmware presses on its own tick, up to a tick's step past s_c,
+    /// from its own state.
+    pub backoff_mm: f64,
 }
 
 impl Default for HoldSearch {
@@ -210,6 +233,8 @@ impl Default for HoldSearch {
             step_mm: 0.25,
             coarse_mm: 2.0,
             margin_mm: 0.05,
+            margin_frac: 0.01,
+            backoff_mm: 1.0,
         }
     }
 }
@@ -293,19 +318,26 @@ pub struct HoldPointSearch<const NQ: usize, const NP: usize> {
     chunk_last: Vec<bool>,
     s_c: Vec<f64>,
     known: Vec<f64>,
+    /// The chunk whose hold point is sought.
     i: usize,
-    last_ok: Option<f64>,
+    /// The last hold point found (for chunks the end came before).
+    last_found: Option<f64>,
     next_test: f64,
     tests: usize,
     /// A test is due at the current tick, at this s.
     testing: Option<f64>,
-    /// The dry run at the last coarse test that passed, and its s.
-    snapshot: Option<(Box<StreamedRun<NQ, NP>>, f64)>,
-    /// Replaying the last coarse step at the fine step, up to this s.
-    fine_until: Option<f64>,
+    /// The dry run at its last coarse tests (oldest first, at most
+    /// [`HISTORY`]), and their s: where a chunk that fails is tested back
+    /// from.
+    history: std::collections::VecDeque<(Box<StreamedRun<NQ, NP>>, f64)>,
     /// Chunk i waits to enter the dry run's window.
     entering: bool,
 }
+
+/// Coarse tests the search keeps the dry run of, to look back from a
+/// failing one: a chunk's hold point is searched this many coarse steps
+/// back at most (else it has none: [`NOT_ALONE_MM`]).
+const HISTORY: usize = 24;
 
 impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
     /// A search on the plan of `head` with end segments `ends` (the stop's
@@ -328,12 +360,11 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
             s_c: vec![],
             known: vec![],
             i: 0,
-            last_ok: None,
+            last_found: None,
             next_test: 0.0,
             tests: 0,
             testing: None,
-            snapshot: None,
-            fine_until: None,
+            history: Default::default(),
             entering: false,
         }
     }
@@ -343,6 +374,9 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
         self.ends = ends;
         if let Some(r) = self.run.as_mut() {
             r.set_ends(ends);
+        }
+        for (h, _) in self.history.iter_mut() {
+            h.set_ends(ends);
         }
     }
 
@@ -360,6 +394,15 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
 
     /// Run the search as far as `chunks` (the plan's chunks at hand, from
     /// its first) allow.
+    ///
+    /// The dry run tests chunk i every `coarse_mm`. Where it fails, the
+    /// search looks back through the dry runs kept at the earlier coarse
+    /// tests for the latest at which chunk i passes, and tests every
+    /// `step_mm` from there to the next coarse test.
+    /// Each chunk's hold point comes from tests with that chunk as the
+    /// last one held: a stop's look-ahead reads every row held, so with
+    /// more rows it can run longer, and another chunk's hold point does
+    /// not carry over.
     pub fn advance(&mut self, chunks: &[Vec<u8>]) -> Result<(), HoldPointError> {
         for (k, bytes) in chunks.iter().enumerate().skip(self.chunk_end.len()) {
             let c = parse(k, bytes)?;
@@ -380,25 +423,31 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                 self.how.period_s,
             )?));
         }
-        let Some(run) = self.run.as_mut() else {
-            return Ok(());
-        };
         let fx = |x: i64| x as f64 / (1u64 << 40) as f64;
         loop {
             if let Some(s) = self.testing {
+                let Some(run) = self.run.as_mut() else {
+                    return Ok(());
+                };
                 // (the chunks that came since the tick, into the window the
                 // tests cut back: as if they had been there at it)
                 run.push(chunks)?;
-                // The chunks this test may rely on: up to chunk i; on failure
-                // the last success is chunk i's s_c and the same tick is tried
-                // on i + 1.
-                let mut step = self.how.coarse_mm.max(self.how.step_mm);
-                let mut replay = false;
+                if self.history.back().map(|h| h.1) != Some(s) {
+                    if self.history.len() == HISTORY {
+                        self.history.pop_front();
+                    }
+                    self.history.push_back((run.clone(), s));
+                }
+                // Chunk i at this tick; on failure its hold point from the
+                // tests before, and chunk i + 1 at this tick.
                 while !self.chunk_last.get(self.i).copied().unwrap_or(false) {
                     // (chunk i and the next are yet to come: the test needs
                     // the next's size)
                     let (Some(&end), Some(next)) = (self.chunk_end.get(self.i), chunks.get(self.i + 1))
                     else {
+                        return Ok(());
+                    };
+                    let Some(run) = self.run.as_ref() else {
                         return Ok(());
                     };
                     if run.ip.window().held_end() < end {
@@ -410,47 +459,17 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                     }
                     self.entering = false;
                     self.tests += 1;
-                    if stops_before(&run.ip, end, &parse(self.i + 1, next)?, self.how.margin_mm) {
-                        self.last_ok = Some(s);
-                        match self.fine_until {
-                            Some(until) if s < until => step = self.how.step_mm,
-                            _ => {
-                                self.fine_until = None;
-                                self.snapshot = Some((run.clone(), s));
-                            }
-                        }
+                    if stops_before(&run.ip, end, &parse(self.i + 1, next)?, &self.how) {
                         break;
                     }
-                    // After coarse steps, back to the last success to find
-                    // the turn at the fine step.
-                    if self.fine_until.is_none() && self.how.coarse_mm > self.how.step_mm {
-                        if let Some((snap, s0)) = self.snapshot.take() {
-                            *run = snap;
-                            self.fine_until = Some(s);
-                            self.next_test = s0 + self.how.step_mm;
-                            replay = true;
-                            break;
-                        }
-                    }
-                    // (no hold from the start stops inside chunk i: the motion
-                    // must not start on it alone)
-                    self.s_c[self.i] = self.last_ok.unwrap_or(NOT_ALONE_MM);
-                    self.known[self.i] = self.started.elapsed().as_secs_f64();
-                    if self.i < 3 && std::env::var_os("FEEDLP_TIME_DEBUG").is_some() {
-                        eprintln!(
-                            "  hold point of chunk {}: {:.1} ms",
-                            self.i,
-                            self.known[self.i] * 1e3
-                        );
-                    }
-                    self.i += 1;
-                    (self.fine_until, self.snapshot) = (None, None);
+                    self.resolve(chunks, end, &parse(self.i + 1, next)?)?;
                 }
                 self.testing = None;
-                if !replay {
-                    self.next_test = s + step;
-                }
+                self.next_test = s + self.how.coarse_mm.max(self.how.step_mm);
             }
+            let Some(run) = self.run.as_mut() else {
+                return Ok(());
+            };
             if run.ip.is_done() || self.chunk_last.get(self.i).copied().unwrap_or(false) {
                 return Ok(());
             }
@@ -470,6 +489,70 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
         }
     }
 
+    /// Chunk i, ending at `end` and followed by `next`, failed at the
+    /// latest coarse test: its hold point is the latest test before that
+    /// passes, looked for back through the kept dry runs and then every
+    /// `step_mm` from there, less `backoff_mm` (a test that passed, where
+    /// one lies that far back in the run of fine tests that passed).
+    fn resolve(&mut self, chunks: &[Vec<u8>], end: i64, next: &Chunk<'_>) -> Result<(), HoldPointError> {
+        let n = self.history.len();
+        let mut from = None;
+        for k in (0..n.saturating_sub(1)).rev() {
+            let mut t = self.history[k].0.clone();
+            t.push(chunks)?;
+            if t.ip.window().held_end() < end {
+                // (chunk i did not fit the window yet: nor the firmware's)
+                break;
+            }
+            self.tests += 1;
+            if stops_before(&t.ip, end, next, &self.how) {
+                from = Some((t, self.history[k].1, self.history[k + 1].1));
+                break;
+            }
+        }
+        let s_c = match from {
+            None => NOT_ALONE_MM,
+            Some((mut t, s0, until)) => {
+                let mut dense = vec![s0];
+                let mut next_fine = s0 + self.how.step_mm;
+                while !t.ip.is_done() {
+                    let sp = t.step(chunks)?;
+                    if sp.s_mm >= until {
+                        break;
+                    }
+                    if sp.s_mm >= next_fine {
+                        t.push(chunks)?;
+                        self.tests += 1;
+                        if !stops_before(&t.ip, end, next, &self.how) {
+                            break;
+                        }
+                        dense.push(sp.s_mm);
+                        next_fine = sp.s_mm + self.how.step_mm;
+                    }
+                }
+                let target = dense.last().copied().unwrap_or(s0) - self.how.backoff_mm;
+                dense
+                    .iter()
+                    .rev()
+                    .find(|&&t| t <= target)
+                    .copied()
+                    .unwrap_or(target)
+            }
+        };
+        self.s_c[self.i] = s_c;
+        self.last_found = Some(s_c);
+        self.known[self.i] = self.started.elapsed().as_secs_f64();
+        if self.i < 3 && std::env::var_os("FEEDLP_TIME_DEBUG").is_some() {
+            eprintln!(
+                "  hold point of chunk {}: {:.1} ms",
+                self.i,
+                self.known[self.i] * 1e3
+            );
+        }
+        self.i += 1;
+        Ok(())
+    }
+
     /// The hold points, once [`HoldPointSearch::advance`] has had every
     /// chunk: chunks the dry run did not reach a failing test for (the end
     /// came first) keep the last success; the last chunk has none (its s_c
@@ -483,7 +566,7 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                 self.s_c[k] = if k + 1 == n {
                     fx(self.chunk_end[k])
                 } else {
-                    self.last_ok.unwrap_or(0.0)
+                    self.last_found.unwrap_or(0.0)
                 };
                 self.known[k] = now;
             }
@@ -511,13 +594,15 @@ fn stops_before<const NQ: usize, const NP: usize>(
     ip: &Interpolator<'static, 0, 0, PlanWindow<NQ, NP>>,
     s_end: i64,
     next: &Chunk<'_>,
-    margin_mm: f64,
+    how: &HoldSearch,
 ) -> bool {
     let mut t = ip.clone();
     if t.window().held_end() > s_end && !t.truncate_window(s_end) {
         return false;
     }
-    let limit_mm = t.window().held_end() as f64 / (1u64 << 40) as f64 - margin_mm;
+    // rest ≤ end − margin − frac·(rest − press)
+    let end_mm = t.window().held_end() as f64 / (1u64 << 40) as f64;
+    let limit_mm = (end_mm - how.margin_mm + how.margin_frac * t.s_mm()) / (1.0 + how.margin_frac);
     if t.hold().is_err() {
         return false;
     }

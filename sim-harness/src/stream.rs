@@ -13,11 +13,15 @@
 //!   later. During a stall the link carries nothing.
 //! - **Firmware**, each tick: every arrived chunk is pushed into the ring
 //!   ([`ChunkRing::push`]: CRC, order, continuity), the ring's oldest chunks
-//!   move into the plan window as it has room ([`Interpolator::push_chunk`]),
-//!   the rows passed are freed, [`Interpolator::keep_fed`] presses a hold
-//!   when the motion reaches the last chunk's hold point without the next
-//!   one (and releases it when the chunk comes), then the tick. The ring's
-//!   free space goes back to the host one latency later.
+//!   move into the plan window as it has room ([`Interpolator::push_chunk`];
+//!   a chunk whose hold point the moving motion has passed waits for rest,
+//!   [`Interpolator::holds_back`]), the rows passed are freed,
+//!   [`Interpolator::keep_fed`] presses a hold when the motion reaches the
+//!   last chunk's hold point without the next one (and releases it once a
+//!   chunk whose hold point lies ahead comes), then the tick. The ring's
+//!   free space goes back to the host one latency later. Held with the
+//!   window full and its hold point behind, the run ends with
+//!   [`StreamRunError::WindowStuck`].
 //!
 //! Motion starts when the first chunk is in the window; the setpoints'
 //! times are the firmware's own clock from then on.
@@ -145,6 +149,17 @@ pub enum StreamRunError {
     #[error("the plan window is full after {chunks} chunks and none lets the motion start: it holds too little of the path for a stop from the start (a larger --window-rows)")]
     WindowTooSmall {
         /// Chunks in the window.
+        chunks: usize,
+    },
+    /// Held at rest for want of chunks, the window full and the hold point
+    /// of its last chunk behind the motion: the next chunk never fits, so
+    /// the motion never goes on (a stop from the last hold point rested
+    /// past the next one's).
+    #[error("held at {s_mm:.3} mm for want of chunks after {chunks}, with the plan window full and its last hold point behind: it holds too little of the path for this plan's stops (a larger --window-rows or a shorter --chunk-mm)")]
+    WindowStuck {
+        /// Where the motion rests, mm.
+        s_mm: f64,
+        /// Chunks pushed.
         chunks: usize,
     },
 }
@@ -324,7 +339,7 @@ pub fn run_stream_each<const CAP: usize, const NQ: usize, const NP: usize>(
         while let Some(c) = ring.get(0) {
             let info = *c.info();
             let fits = match &ip {
-                Some(ip) => ip.window().fits(&c),
+                Some(ip) => ip.window().fits(&c) && !ip.holds_back(&c),
                 None => window.fits(&c),
             };
             if !fits {
@@ -388,7 +403,19 @@ pub fn run_stream_each<const CAP: usize, const NQ: usize, const NP: usize>(
                 run.starved_ticks += 1;
                 starve = Some((ipr.s_mm(), ipr.window().held_end()));
             }
-            Ok(Feeding::Starved) => run.starved_ticks += 1,
+            Ok(Feeding::Starved) => {
+                run.starved_ticks += 1;
+                let w = ipr.window();
+                let stuck = ipr.hold_state() == firmware_core::HoldState::Held
+                    && fx(w.hold_point()) <= ipr.s_mm()
+                    && ring.get(0).is_some_and(|c| !w.fits(&c));
+                if stuck {
+                    return Err(StreamRunError::WindowStuck {
+                        s_mm: ipr.s_mm(),
+                        chunks: pushed,
+                    });
+                }
+            }
             Ok(Feeding::Resumed) => {
                 if let Some((reach, end)) = starve.take() {
                     run.starved_reach_mm.push((reach, fx(end)));

@@ -418,6 +418,50 @@ fn stream_through_an_mcu_sized_window_starves_safely_or_is_refused() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("--window-rows"));
 }
 
+/// A window that lets the motion start but holds too little of the path
+/// for the plan's stops: fed more slowly than it runs, the motion comes to
+/// rest with the window full and its last hold point behind, and the run
+/// ends with exit code 2 and where it rests, not waiting forever.
+#[test]
+fn stream_through_a_window_too_small_for_the_stops_is_refused_when_it_rests() {
+    let dir = std::env::temp_dir().join(format!("feedsim-stuck-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let times = dir.join("ready.txt");
+    let meander = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../planner-host/curves/long/meander-1m.json"
+    );
+    let args = [
+        "stream",
+        meander,
+        "--window-mm",
+        "120",
+        "--commit-mm",
+        "40",
+        "--window-rows",
+        "128:256",
+        "--json",
+    ];
+    let out = feedsim().args(args).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let n = v["chunks"].as_u64().unwrap();
+    let text: String = (0..n).map(|i| format!("{}\n", 0.05 + 0.3 * i as f64)).collect();
+    std::fs::write(&times, text).unwrap();
+    let out = feedsim()
+        .args(args)
+        .args(["--ready-times", times.to_str().unwrap()])
+        .output()
+        .unwrap();
+    std::fs::remove_dir_all(&dir).unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("holds too little of the path") && err.contains("held at"),
+        "{err}"
+    );
+}
+
 #[test]
 fn stream_reports_the_streamed_run_as_json_and_refuses_bad_options() {
     let out = feedsim()

@@ -149,3 +149,54 @@ fn stalled_link_into<const C: usize, const Q: usize, const P: usize>() {
         run.starvations, run.starved_ticks, last.t_s, run.starved_reach_mm
     );
 }
+
+/// A host that plans the 1.2 m meander (in 120 mm windows) more slowly
+/// than the machine runs it: chunk i ready 0.05 + 0.3·i s after the start,
+/// about five times the chunk's machining time, so the firmware starves at
+/// almost every chunk, pressing the hold from the plan's own motion, from a
+/// resume still under way, and from stops not yet at rest. Every stop comes
+/// to rest inside the rows held (a tick past them is a fault that ends the
+/// run), the path is finished, and every limit holds on the setpoints.
+/// The hold points found for one chunk used to be carried over to the
+/// next, whose rows let the stop's look-ahead brake later: this run ran
+/// past its rows 81 mm into the path.
+#[test]
+fn a_host_slower_than_the_machine_starves_every_chunk_and_never_runs_past_the_rows() {
+    big_stack(slower_host);
+}
+
+fn slower_host() {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../planner-host/curves/long/meander-1m.json"
+    );
+    let curve = planner_host::cli::load_curve(std::path::Path::new(path)).unwrap();
+    let dir = std::env::temp_dir().join(format!("stream-starve-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let times = dir.join("ready.txt");
+    let mut o = sim_harness::stream::StreamOptions {
+        windows: Some((120.0, 40.0)),
+        ..Default::default()
+    };
+    // (how many chunks: from a run that keeps up)
+    let n = sim_harness::stream::stream_curve(&curve, &o).unwrap().chunks;
+    let text: String = (0..n).map(|i| format!("{}\n", 0.05 + 0.3 * i as f64)).collect();
+    std::fs::write(&times, text).unwrap();
+    o.ready_times = Some(times.clone());
+    let rep = sim_harness::stream::stream_curve(&curve, &o);
+    std::fs::remove_dir_all(&dir).ok();
+    let rep = rep.unwrap();
+    println!(
+        "{n} chunks, {} starvations, {} ticks starved; machining {:.3} s (the plan's {:.3} s); ratios {:?}",
+        rep.starvations, rep.starved_ticks, rep.machining_time_s, rep.planned_time_s, rep.ratios
+    );
+    assert!(
+        rep.starvations as usize >= n / 3,
+        "only {} starvations",
+        rep.starvations
+    );
+    assert!(rep.check_ok, "{:?}", rep.ratios);
+    // (the last chunk is ready 0.05 + 0.3·(n − 1) s after the start: the
+    // path ends after it)
+    assert!(rep.first_motion_ms * 1e-3 + rep.machining_time_s > 0.05 + 0.3 * (n - 1) as f64);
+}

@@ -43,7 +43,8 @@ pub enum Feeding {
     /// The motion reached the hold point of the last chunk held without
     /// the next one: a feed hold was pressed now.
     Starving,
-    /// Stopping or at rest for want of chunks.
+    /// Stopping or at rest for want of chunks, or of one whose hold point
+    /// lies ahead of the motion.
     Starved,
     /// New chunks came while starved: the hold was released (resume).
     Resumed,
@@ -110,6 +111,19 @@ where
         Ok(())
     }
 
+    /// Whether `chunk` must wait before [`Interpolator::push_chunk`]: while
+    /// the motion is not at rest, a chunk (not the plan's last) whose hold
+    /// point lies behind it. Held as the last chunk, it would ask for a
+    /// hold pressed where none was found to stop inside it; and a stop in
+    /// progress was found for the rows it holds (its look-ahead reads every
+    /// row held: more rows can make it longer). At rest it is taken, and
+    /// the motion goes on once a chunk whose hold point is ahead is in
+    /// ([`Interpolator::keep_fed`]).
+    pub fn holds_back(&self, chunk: &Chunk<'_>) -> bool {
+        let info = chunk.info();
+        !info.is_last() && self.hold_state() != HoldState::Held && info.commit_point() <= self.s
+    }
+
     /// Call between ticks, after pushing what arrived: presses a feed hold
     /// when the motion has reached the hold point of the last chunk held
     /// (the chunk's s_c: a hold pressed there stops inside the rows held,
@@ -119,7 +133,10 @@ where
     pub fn keep_fed(&mut self) -> Result<Feeding, HoldError> {
         let w = self.views.window_ref();
         if let Some(end) = w.starved {
-            if w.held_end() == end {
+            // (resumed only once the rows held let the motion go on: a
+            // chunk whose hold point is behind the motion would press the
+            // hold again at once, from a state no hold point was found for)
+            if w.held_end() == end || self.s >= w.hold_point() {
                 return Ok(Feeding::Starved);
             }
             self.views.window_mut().starved = None;

@@ -682,7 +682,10 @@ fn run(cli: Cli) -> Result<(), Failure> {
                 }
                 e @ (E::RingBytes(_) | E::WindowRows(..) | E::Option(_)) => Failure::input(e),
                 // (an option that does not fit the plan)
-                e @ E::Run(sim_harness::stream::StreamRunError::WindowTooSmall { .. }) => Failure {
+                e @ E::Run(
+                    sim_harness::stream::StreamRunError::WindowTooSmall { .. }
+                    | sim_harness::stream::StreamRunError::WindowStuck { .. },
+                ) => Failure {
                     code: planner_host::cli::EXIT_USAGE,
                     message: e.to_string(),
                 },

@@ -1,0 +1,114 @@
+//! Feeding a streamed plan as a firmware does (`Interpolator::keep_fed`,
+//! `Interpolator::holds_back`): the motion presses the hold at the last
+//! chunk's hold point and comes to rest inside the rows held; a chunk
+//! whose hold point the moving motion has passed waits (with it as the
+//! last chunk held, no hold would stop in time); at rest such a chunk is
+//! taken but does not resume the motion; a chunk whose hold point lies
+//! ahead does.
+
+use firmware_core::interp::Feeding;
+use firmware_core::stream::{commit_q20, set_commit, Chunk};
+use firmware_core::{HoldState, Table};
+use planner_host::builtin;
+use planner_host::plan::{plan_curve, PlanConfig};
+use planner_host::stream::{chunk_table, ChunkOptions};
+use planner_host::stream_hold::{on_big_stack, set_hold_points, HoldSearch, StreamedRun};
+
+const T: f64 = 250e-6;
+const NQ: usize = 1024;
+const NP: usize = 2048;
+
+fn fx(x: i64) -> f64 {
+    x as f64 / (1u64 << 40) as f64
+}
+
+/// `bytes` with its hold point moved to `s_c` mm.
+fn with_hold_point(bytes: &[u8], s_c: f64) -> Vec<u8> {
+    let mut b = bytes.to_vec();
+    let s_b = fx(Chunk::parse(&b).unwrap().info().s_b);
+    set_commit(&mut b, commit_q20(s_b - s_c)).unwrap();
+    b
+}
+
+#[test]
+fn a_starved_motion_waits_for_a_chunk_whose_hold_point_lies_ahead() {
+    on_big_stack(starved_motion).unwrap();
+}
+
+fn starved_motion() {
+    let curve = builtin::by_name("butterfly").unwrap().unwrap();
+    let out = plan_curve(&curve, &PlanConfig::default()).unwrap();
+    let table = Table::parse(&out.table_bytes).unwrap();
+    let opts = ChunkOptions {
+        chunk_mm: 8.0,
+        u_form: true,
+        ..ChunkOptions::default()
+    };
+    let mut chunks = chunk_table(&table, &opts).unwrap();
+    set_hold_points::<NQ, NP>(&table, &mut chunks, &HoldSearch::default()).unwrap();
+    // The first k chunks only: the motion starves at chunk k − 1's hold point.
+    let k = 12;
+    let mut run = StreamedRun::<NQ, NP>::start(&table, &chunks[..k], T).unwrap();
+    assert!(run.ip.window().ready());
+    let held_end = fx(run.ip.window().held_end());
+    let hold_at = fx(run.ip.window().hold_point());
+    let mut pressed = None;
+    for _ in 0..400_000 {
+        run.ip.release_passed();
+        match run.ip.keep_fed().unwrap() {
+            Feeding::Starving => pressed = Some(run.ip.s_mm()),
+            Feeding::Fed | Feeding::Starved => {}
+            f => panic!("{f:?} without a chunk"),
+        }
+        if run.ip.hold_state() == HoldState::Held {
+            break;
+        }
+        run.ip.tick().unwrap();
+    }
+    let pressed = pressed.expect("no hold pressed");
+    let rest = run.ip.s_mm();
+    println!(
+        "hold point {hold_at:.3} mm, pressed at {pressed:.3}, at rest at {rest:.3}, rows to {held_end:.3}"
+    );
+    assert!(pressed >= hold_at && rest < held_end);
+    assert_eq!(run.ip.hold_state(), HoldState::Held);
+
+    // At rest: chunk k with its hold point behind the motion is taken, but
+    // the motion stays at rest.
+    let late = with_hold_point(&chunks[k], rest - 5.0);
+    let c = Chunk::parse(&late).unwrap();
+    assert!(!run.ip.holds_back(&c), "at rest every chunk is taken");
+    run.ip.push_chunk(&c).unwrap();
+    for _ in 0..100 {
+        assert_eq!(run.ip.keep_fed().unwrap(), Feeding::Starved);
+        run.ip.tick().unwrap();
+    }
+    assert_eq!(run.ip.s_mm(), rest);
+
+    // The chunks after it, with their own hold points: those behind the
+    // motion are taken at rest without resuming; the first ahead resumes.
+    let mut j = k + 1;
+    loop {
+        let c = Chunk::parse(&chunks[j]).unwrap();
+        run.ip.push_chunk(&c).unwrap();
+        let feeding = run.ip.keep_fed().unwrap();
+        if fx(c.info().commit_point()) > rest {
+            assert_eq!(feeding, Feeding::Resumed);
+            break;
+        }
+        assert_eq!(feeding, Feeding::Starved, "chunk {j}");
+        j += 1;
+    }
+    for _ in 0..400 {
+        run.ip.tick().unwrap();
+    }
+    assert!(run.ip.s_mm() > rest);
+
+    // Moving: a chunk whose hold point lies behind waits; one whose hold
+    // point lies ahead is taken.
+    let s = run.ip.s_mm();
+    let behind = with_hold_point(&chunks[j + 1], s - 1.0);
+    assert!(run.ip.holds_back(&Chunk::parse(&behind).unwrap()));
+    let ahead = with_hold_point(&chunks[j + 1], s + 1.0);
+    assert!(!run.ip.holds_back(&Chunk::parse(&ahead).unwrap()));
+}
