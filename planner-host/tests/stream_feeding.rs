@@ -4,7 +4,7 @@
 //! whose hold point the moving motion has passed waits (with it as the
 //! last chunk held, no hold would stop in time); at rest such a chunk is
 //! taken but does not resume the motion; a chunk whose hold point lies
-//! ahead does.
+//! far enough ahead does (`Interpolator::can_go_on`).
 
 use firmware_core::interp::Feeding;
 use firmware_core::stream::{commit_q20, set_commit, Chunk};
@@ -86,13 +86,18 @@ fn starved_motion() {
     assert_eq!(run.ip.s_mm(), rest);
 
     // The chunks after it, with their own hold points: those behind the
-    // motion are taken at rest without resuming; the first ahead resumes.
+    // motion or too near are taken at rest without resuming; the first far
+    // enough ahead resumes.
     let mut j = k + 1;
     loop {
         let c = Chunk::parse(&chunks[j]).unwrap();
         run.ip.push_chunk(&c).unwrap();
+        let go = run.ip.can_go_on();
+        if fx(c.info().commit_point()) <= rest {
+            assert!(!go, "chunk {j}: its hold point is behind");
+        }
         let feeding = run.ip.keep_fed().unwrap();
-        if fx(c.info().commit_point()) > rest {
+        if go {
             assert_eq!(feeding, Feeding::Resumed);
             break;
         }

@@ -18,7 +18,7 @@
 //!   [`Interpolator::holds_back`]), the rows passed are freed,
 //!   [`Interpolator::keep_fed`] presses a hold when the motion reaches the
 //!   last chunk's hold point without the next one (and releases it once a
-//!   chunk whose hold point lies ahead comes), then the tick. The ring's
+//!   chunk whose hold point lies far enough ahead comes), then the tick. The ring's
 //!   free space goes back to the host one latency later. Held with the
 //!   window full and its hold point behind, the run ends with
 //!   [`StreamRunError::WindowStuck`].
@@ -152,10 +152,10 @@ pub enum StreamRunError {
         chunks: usize,
     },
     /// Held at rest for want of chunks, the window full and the hold point
-    /// of its last chunk behind the motion: the next chunk never fits, so
-    /// the motion never goes on (a stop from the last hold point rested
-    /// past the next one's).
-    #[error("held at {s_mm:.3} mm for want of chunks after {chunks}, with the plan window full and its last hold point behind: it holds too little of the path for this plan's stops (a larger --window-rows or a shorter --chunk-mm)")]
+    /// of its last chunk behind the motion or too near to go on
+    /// (`Interpolator::can_go_on`): the next chunk never fits, so the
+    /// motion never goes on.
+    #[error("held at {s_mm:.3} mm for want of chunks after {chunks}, with the plan window full and its last hold point behind or too near: it holds too little of the path for this plan's stops (a larger --window-rows or a shorter --chunk-mm)")]
     WindowStuck {
         /// Where the motion rests, mm.
         s_mm: f64,
@@ -407,7 +407,7 @@ pub fn run_stream_each<const CAP: usize, const NQ: usize, const NP: usize>(
                 run.starved_ticks += 1;
                 let w = ipr.window();
                 let stuck = ipr.hold_state() == firmware_core::HoldState::Held
-                    && fx(w.hold_point()) <= ipr.s_mm()
+                    && !ipr.can_go_on()
                     && ring.get(0).is_some_and(|c| !w.fits(&c));
                 if stuck {
                     return Err(StreamRunError::WindowStuck {

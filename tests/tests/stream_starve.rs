@@ -152,16 +152,17 @@ fn stalled_link_into<const C: usize, const Q: usize, const P: usize>() {
 
 /// A host that plans the 1.2 m meander (in 120 mm windows) more slowly
 /// than the machine runs it: chunk i ready 0.05 + 0.3·i s after the start,
-/// about five times the chunk's machining time, so the firmware starves at
-/// almost every chunk, pressing the hold from the plan's own motion, from a
-/// resume still under way, and from stops not yet at rest. Every stop comes
+/// about five times the chunk's machining time, so the firmware starves
+/// again and again, pressing the hold from the plan's own motion and from
+/// resumes still under way (at rest it waits until the last hold point lies
+/// far enough ahead, `Interpolator::can_go_on`). Every stop comes
 /// to rest inside the rows held (a tick past them is a fault that ends the
 /// run), the path is finished, and every limit holds on the setpoints.
 /// The hold points found for one chunk used to be carried over to the
 /// next, whose rows let the stop's look-ahead brake later: this run ran
 /// past its rows 81 mm into the path.
 #[test]
-fn a_host_slower_than_the_machine_starves_every_chunk_and_never_runs_past_the_rows() {
+fn a_host_slower_than_the_machine_starves_it_again_and_again_and_never_runs_past_the_rows() {
     big_stack(slower_host);
 }
 
@@ -190,11 +191,7 @@ fn slower_host() {
         "{n} chunks, {} starvations, {} ticks starved; machining {:.3} s (the plan's {:.3} s); ratios {:?}",
         rep.starvations, rep.starved_ticks, rep.machining_time_s, rep.planned_time_s, rep.ratios
     );
-    assert!(
-        rep.starvations as usize >= n / 3,
-        "only {} starvations",
-        rep.starvations
-    );
+    assert!(rep.starvations >= 10, "only {} starvations", rep.starvations);
     assert!(rep.check_ok, "{:?}", rep.ratios);
     // (the last chunk is ready 0.05 + 0.3·(n − 1) s after the start: the
     // path ends after it)

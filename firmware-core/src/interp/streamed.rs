@@ -33,6 +33,10 @@ use crate::stream::window::{PlanWindow, WindowError, WindowOf};
 #[cfg(doc)]
 use crate::interp::setpoint::Fault;
 
+/// A starved motion resumes once the last chunk's hold point lies this
+/// many times the plan's stopping distance ahead ([`Interpolator::can_go_on`]).
+pub const RESUME_ROOM: f32 = 2.0;
+
 /// How the stream keeps up with the motion ([`Interpolator::keep_fed`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -44,7 +48,7 @@ pub enum Feeding {
     /// the next one: a feed hold was pressed now.
     Starving,
     /// Stopping or at rest for want of chunks, or of one whose hold point
-    /// lies ahead of the motion.
+    /// lies far enough ahead ([`Interpolator::can_go_on`]).
     Starved,
     /// New chunks came while starved: the hold was released (resume).
     Resumed,
@@ -124,6 +128,19 @@ where
         !info.is_last() && self.hold_state() != HoldState::Held && info.commit_point() <= self.s
     }
 
+    /// Whether the rows held let a starved motion go on: the plan's last
+    /// chunk is in, or the last chunk's hold point lies ahead by at least
+    /// [`RESUME_ROOM`] times the plan's stopping distance here. Nearer, a
+    /// resume would hop: accelerate, and at the hold point brake against
+    /// its own acceleration (a hold pressed in a fast resume is the hold's
+    /// hardest case); behind, it would press the hold again at once, from
+    /// a state no hold point was found for.
+    pub fn can_go_on(&self) -> bool {
+        let hp = self.views.window_ref().hold_point();
+        let room = to_fx(f64::from(RESUME_ROOM * self.fh.stop_distance(self.qs.v)));
+        hp == i64::MAX || self.s.saturating_add(room) < hp
+    }
+
     /// Call between ticks, after pushing what arrived: presses a feed hold
     /// when the motion has reached the hold point of the last chunk held
     /// (the chunk's s_c: a hold pressed there stops inside the rows held,
@@ -133,10 +150,7 @@ where
     pub fn keep_fed(&mut self) -> Result<Feeding, HoldError> {
         let w = self.views.window_ref();
         if let Some(end) = w.starved {
-            // (resumed only once the rows held let the motion go on: a
-            // chunk whose hold point is behind the motion would press the
-            // hold again at once, from a state no hold point was found for)
-            if w.held_end() == end || self.s >= w.hold_point() {
+            if w.held_end() == end || !self.can_go_on() {
                 return Ok(Feeding::Starved);
             }
             self.views.window_mut().starved = None;
