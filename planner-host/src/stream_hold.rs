@@ -14,26 +14,33 @@
 //! ([`PlanWindow::truncate`]) with the hold pressed, ticked to rest. Where
 //! chunk i fails, the search looks back through the copies kept at the
 //! earlier coarse tests for the latest where it passes and tests every
-//! `step_mm` from there ([`HoldPointSearch`]). A test passes when the stop
+//! `step_mm` around it ([`HoldPointSearch`]). A test passes when the stop
 //! rests `margin_mm` and `margin_frac` of its length before chunk i's end;
-//! s_c is a passing test `backoff_mm` before the last one.
+//! s_c is a passing test `backoff_mm` before the last one of the latest
+//! run of passing tests.
 //!
 //! Why each of these, measured on long meanders fed more slowly than they
 //! run (docs/streaming-design.md, "starved stops"):
 //! - **A chunk's own tests.** The stop's look-ahead reads every row held,
 //!   and with more rows ahead it can brake later: one chunk's hold point
 //!   does not hold for the next, though its rows reach further.
-//! - **The backoff.** The stop's length is not smooth in where it is
-//!   pressed; just before the tests turn it can jump by millimetres for a
-//!   press one tick later, and the firmware presses on its own tick.
-//! - **The margin's fraction.** After a hold and resume the firmware's λ
-//!   stays a little under 1 for seconds; from there a 105 mm stop measured
-//!   a few hundredths of a millimetre longer than the dry run's.
+//! - **The backoff, on a test.** The stop's length is neither smooth nor
+//!   monotone in where it is pressed: just before the tests turn it can
+//!   jump by millimetres for a press one tick later, and a press 1 mm
+//!   before one that passed can run past the rows (both measured). The
+//!   firmware presses on its own tick, so s_c lies inside a run of passing
+//!   tests, never on an untested point back from one.
+//! - **The margin's fraction.** Stops from the firmware's state and the dry
+//!   run's can still part by a little (measured: a few hundredths of a
+//!   millimetre on a 105 mm stop, pressed in a resume's tail).
 //!
 //! None of this is a bound: it is what the measurements needed, with room.
-//! The firmware side keeps to the chunks found for: it takes no chunk whose
-//! hold point the moving motion has passed and resumes only towards a hold
-//! point ahead (`Interpolator::holds_back`, [`Interpolator::keep_fed`]).
+//! The firmware side keeps to the states and chunks the tests were run
+//! for: a resume that has all but reached the plan lands (a hold is then
+//! pressed from the plan, as in the dry run), it takes no chunk whose hold
+//! point the moving motion has passed, and it resumes only towards a hold
+//! point far enough ahead (`Interpolator::holds_back`,
+//! `Interpolator::can_go_on`, [`Interpolator::keep_fed`]).
 
 use firmware_core::interp::{Interpolator, StreamHead};
 use firmware_core::math::source::Point4Array;
@@ -320,7 +327,9 @@ pub struct HoldPointSearch<const NQ: usize, const NP: usize> {
     known: Vec<f64>,
     /// The chunk whose hold point is sought.
     i: usize,
-    /// The last hold point found (for chunks the end came before).
+    /// The last coarse test chunk i passed, and the last hold point found
+    /// (for a chunk the end came before).
+    last_pass: Option<f64>,
     last_found: Option<f64>,
     next_test: f64,
     tests: usize,
@@ -360,6 +369,7 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
             s_c: vec![],
             known: vec![],
             i: 0,
+            last_pass: None,
             last_found: None,
             next_test: 0.0,
             tests: 0,
@@ -460,6 +470,7 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                     self.entering = false;
                     self.tests += 1;
                     if stops_before(&run.ip, end, &parse(self.i + 1, next)?, &self.how) {
+                        self.last_pass = Some(s);
                         break;
                     }
                     self.resolve(chunks, end, &parse(self.i + 1, next)?)?;
@@ -490,57 +501,64 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
     }
 
     /// Chunk i, ending at `end` and followed by `next`, failed at the
-    /// latest coarse test: its hold point is the latest test before that
-    /// passes, looked for back through the kept dry runs and then every
-    /// `step_mm` from there, less `backoff_mm` (a test that passed, where
-    /// one lies that far back in the run of fine tests that passed).
+    /// latest coarse test: the latest kept coarse test at which it passes
+    /// is looked for back through the dry runs kept, and from the one
+    /// before that to the one after, it is tested every `step_mm`; its hold
+    /// point from those ([`hold_point_of_runs`]).
     fn resolve(&mut self, chunks: &[Vec<u8>], end: i64, next: &Chunk<'_>) -> Result<(), HoldPointError> {
         let n = self.history.len();
-        let mut from = None;
+        let holds_i = |t: &StreamedRun<NQ, NP>| t.ip.window().held_end() >= end;
+        let mut found = None;
         for k in (0..n.saturating_sub(1)).rev() {
             let mut t = self.history[k].0.clone();
             t.push(chunks)?;
-            if t.ip.window().held_end() < end {
+            if !holds_i(&t) {
                 // (chunk i did not fit the window yet: nor the firmware's)
                 break;
             }
             self.tests += 1;
             if stops_before(&t.ip, end, next, &self.how) {
-                from = Some((t, self.history[k].1, self.history[k + 1].1));
+                found = Some(k);
                 break;
             }
         }
-        let s_c = match from {
+        let s_c = match found {
             None => NOT_ALONE_MM,
-            Some((mut t, s0, until)) => {
-                let mut dense = vec![s0];
-                let mut next_fine = s0 + self.how.step_mm;
-                while !t.ip.is_done() {
-                    let sp = t.step(chunks)?;
-                    if sp.s_mm >= until {
-                        break;
-                    }
-                    if sp.s_mm >= next_fine {
-                        t.push(chunks)?;
-                        self.tests += 1;
-                        if !stops_before(&t.ip, end, next, &self.how) {
-                            break;
-                        }
-                        dense.push(sp.s_mm);
-                        next_fine = sp.s_mm + self.how.step_mm;
+            Some(k) => {
+                // Every `step_mm` from the coarse test before the one that
+                // passed (where chunk i is held then) to the one after: the
+                // passing runs between failures.
+                let mut from = self.history[k].0.clone();
+                if let Some((h, _)) = k.checked_sub(1).and_then(|k0| self.history.get(k0)) {
+                    let mut t = h.clone();
+                    t.push(chunks)?;
+                    if holds_i(&t) {
+                        from = t;
                     }
                 }
-                let target = dense.last().copied().unwrap_or(s0) - self.how.backoff_mm;
-                dense
-                    .iter()
-                    .rev()
-                    .find(|&&t| t <= target)
-                    .copied()
-                    .unwrap_or(target)
+                let until = self.history[k + 1].1;
+                let mut t = from;
+                t.push(chunks)?;
+                let mut tests = vec![];
+                let mut at = t.ip.s_mm();
+                loop {
+                    self.tests += 1;
+                    tests.push((at, stops_before(&t.ip, end, next, &self.how)));
+                    let goal = at + self.how.step_mm;
+                    while !t.ip.is_done() && t.ip.s_mm() < goal {
+                        t.step(chunks)?;
+                    }
+                    t.push(chunks)?;
+                    at = t.ip.s_mm();
+                    if t.ip.is_done() || at >= until {
+                        break;
+                    }
+                }
+                hold_point_of_runs(&tests, self.how.backoff_mm)
             }
         };
         self.s_c[self.i] = s_c;
-        self.last_found = Some(s_c);
+        (self.last_pass, self.last_found) = (None, Some(s_c));
         self.known[self.i] = self.started.elapsed().as_secs_f64();
         if self.i < 3 && std::env::var_os("FEEDLP_TIME_DEBUG").is_some() {
             eprintln!(
@@ -555,8 +573,8 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
 
     /// The hold points, once [`HoldPointSearch::advance`] has had every
     /// chunk: chunks the dry run did not reach a failing test for (the end
-    /// came first) keep the last success; the last chunk has none (its s_c
-    /// is its end).
+    /// came first) keep the last coarse test that passed (else the hold
+    /// point found before); the last chunk has none (its s_c is its end).
     pub fn finish(mut self) -> Result<HoldPoints, HoldPointError> {
         let fx = |x: i64| x as f64 / (1u64 << 40) as f64;
         let n = self.chunk_end.len();
@@ -566,7 +584,7 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                 self.s_c[k] = if k + 1 == n {
                     fx(self.chunk_end[k])
                 } else {
-                    self.last_found.unwrap_or(0.0)
+                    self.last_pass.or(self.last_found).unwrap_or(0.0)
                 };
                 self.known[k] = now;
             }
@@ -584,6 +602,22 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
             known_after_s: self.known,
         })
     }
+}
+
+/// The hold point from tests every `step_mm` ((s, passed), in order): in
+/// the latest run of passing tests, the latest `backoff_mm` before its last
+/// (else its first), so that the tests on both sides of the press passed.
+/// The stop's length is not monotone in where it is pressed: an earlier
+/// press can fail where a later one passed, so s_c is always a test that
+/// passed, never a point back from one. `NOT_ALONE_MM` without a pass.
+fn hold_point_of_runs(tests: &[(f64, bool)], backoff_mm: f64) -> f64 {
+    let Some(last) = tests.iter().rposition(|t| t.1) else {
+        return NOT_ALONE_MM;
+    };
+    let first = tests[..last].iter().rposition(|t| !t.1).map_or(0, |f| f + 1);
+    let run = &tests[first..=last];
+    let target = run[run.len() - 1].0 - backoff_mm;
+    run.iter().rev().find(|t| t.0 <= target).unwrap_or(&run[0]).0
 }
 
 /// A copy of `ip` cut back to the chunks ending at `s_end` (Q40; those it
@@ -637,4 +671,32 @@ pub fn set_hold_points<const NQ: usize, const NP: usize>(
         set_commit(c, commit_q20(lead)).map_err(|error| HoldPointError::Chunk { index, error })?;
     }
     Ok(hp)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_hold_point_is_a_passing_test_in_the_latest_run_of_them() {
+        let t = |v: &[(f64, bool)]| hold_point_of_runs(v, 1.0);
+        // A run of five passes before the failure: 1 mm back from its last.
+        let run: Vec<_> = (0..6).map(|k| (k as f64 * 0.25, k < 5)).collect();
+        assert_eq!(t(&run), 0.0);
+        // An earlier press failed (not monotone): the latest run only, and
+        // its first test where it is shorter than the backoff.
+        let gap = [
+            (0.0, true),
+            (0.25, false),
+            (0.5, true),
+            (0.75, true),
+            (1.0, false),
+        ];
+        assert_eq!(t(&gap), 0.5);
+        // Passing to the end of the tests.
+        let all: Vec<_> = (0..9).map(|k| (k as f64 * 0.25, true)).collect();
+        assert_eq!(t(&all), 1.0);
+        assert_eq!(t(&[(0.0, false), (0.25, false)]), NOT_ALONE_MM);
+        assert_eq!(t(&[]), NOT_ALONE_MM);
+    }
 }

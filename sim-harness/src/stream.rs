@@ -15,7 +15,8 @@
 //!   ([`ChunkRing::push`]: CRC, order, continuity), the ring's oldest chunks
 //!   move into the plan window as it has room ([`Interpolator::push_chunk`];
 //!   a chunk whose hold point the moving motion has passed waits for rest,
-//!   [`Interpolator::holds_back`]), the rows passed are freed,
+//!   [`Interpolator::holds_back`], unless it goes in with the chunks after it
+//!   up to one whose hold point lies ahead), the rows passed are freed,
 //!   [`Interpolator::keep_fed`] presses a hold when the motion reaches the
 //!   last chunk's hold point without the next one (and releases it once a
 //!   chunk whose hold point lies far enough ahead comes), then the tick. The ring's
@@ -206,6 +207,8 @@ pub fn run_stream_each<const CAP: usize, const NQ: usize, const NP: usize>(
     let timeout = 4.0 * link.latency_s + 0.02;
     // firmware
     let mut ip: Option<Interpolator<'static, 0, 0, PlanWindow<NQ, NP>>> = None;
+    // Chunks still to push as one batch (a late chunk and those after it).
+    let mut batch_left = 0usize;
     let mut window = PlanWindow::<NQ, NP>::new();
     let mut pushed = 0usize;
     let mut last_seq = u32::MAX;
@@ -339,7 +342,30 @@ pub fn run_stream_each<const CAP: usize, const NQ: usize, const NP: usize>(
         while let Some(c) = ring.get(0) {
             let info = *c.info();
             let fits = match &ip {
-                Some(ip) => ip.window().fits(&c) && !ip.holds_back(&c),
+                Some(ip) if batch_left > 0 || !ip.holds_back(&c) => ip.window().fits(&c),
+                Some(ip) => {
+                    // A chunk whose hold point the motion has passed goes in
+                    // only with the chunks after it up to one whose hold
+                    // point lies ahead, all in the ring and fitting: the
+                    // window never ends on it while the motion moves.
+                    let mut batch = vec![c];
+                    let ahead = loop {
+                        let Some(next) = ring.get(batch.len()) else {
+                            break false;
+                        };
+                        let ahead = !ip.holds_back(&next);
+                        batch.push(next);
+                        if ahead {
+                            break true;
+                        }
+                    };
+                    if ahead && ip.window().fits_run(&batch) {
+                        batch_left = batch.len();
+                        true
+                    } else {
+                        false
+                    }
+                }
                 None => window.fits(&c),
             };
             if !fits {
@@ -356,6 +382,7 @@ pub fn run_stream_each<const CAP: usize, const NQ: usize, const NP: usize>(
             ring.release_through(info.s_b);
             ring_bytes -= info.len;
             pushed += 1;
+            batch_left = batch_left.saturating_sub(1);
             changed = true;
             if ip.is_none() && window.ready() {
                 let w = std::mem::take(&mut window);

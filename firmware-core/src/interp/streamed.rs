@@ -37,6 +37,11 @@ use crate::interp::setpoint::Fault;
 /// many times the plan's stopping distance ahead ([`Interpolator::can_go_on`]).
 pub const RESUME_ROOM: f32 = 2.0;
 
+/// A resume within this of λ = 1 (and λ̇ within [`LAND_W`] /s) lands
+/// between ticks of a stream ([`Interpolator::keep_fed`]).
+const LAND_X: f64 = 1e-9;
+const LAND_W: f64 = 1e-8;
+
 /// How the stream keeps up with the motion ([`Interpolator::keep_fed`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -128,6 +133,29 @@ where
         !info.is_last() && self.hold_state() != HoldState::Held && info.commit_point() <= self.s
     }
 
+    /// A resume this near the plan lands: λ = 1, λ̇ = 0, and the hold's
+    /// state cleared as if no hold had run. The resume's tail approaches
+    /// λ = 1 exponentially and would stay a resume for seconds; a hold
+    /// pressed from there stops otherwise than from the plan (its look-ahead
+    /// and relaxations start from the resume's last period), and the host
+    /// finds a stream's hold points by pressing holds on the plan
+    /// (`planner_host::stream_hold`). The step is |1 − λ|·ṡ ≤ 1e-9·ṡ in
+    /// speed and |λ̇|·ṡ ≤ 1e-8·ṡ in acceleration: nothing a limit sees.
+    fn land_resume(&mut self) {
+        let ctl = &self.fh.ctl;
+        let near = ctl.state() == HoldState::Resuming
+            && !ctl.mid_period()
+            && self.fh.seg_tau.is_none()
+            && 1.0 - ctl.lambda() < LAND_X
+            && ctl.mu().abs() < LAND_W;
+        if near {
+            self.fh.reset();
+            self.fh.brake = 0.0;
+            self.fh.ahead = Default::default();
+            self.fh.prep = Default::default();
+        }
+    }
+
     /// Whether the rows held let a starved motion go on: the plan's last
     /// chunk is in, or the last chunk's hold point lies ahead by at least
     /// [`RESUME_ROOM`] times the plan's stopping distance here. Nearer, a
@@ -148,6 +176,7 @@ where
     /// such a hold once it is. A hold pressed by the operator is left
     /// alone: [`Interpolator::resume`] releases it.
     pub fn keep_fed(&mut self) -> Result<Feeding, HoldError> {
+        self.land_resume();
         let w = self.views.window_ref();
         if let Some(end) = w.starved {
             if w.held_end() == end || !self.can_go_on() {

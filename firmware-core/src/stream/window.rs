@@ -262,6 +262,23 @@ impl<const NQ: usize, const NP: usize> PlanWindow<NQ, NP> {
         nq <= NQ.saturating_sub(self.q_n) && usize::from(info.n_p) <= NP.saturating_sub(self.p_n)
     }
 
+    /// Whether `chunks`, in order after the rows held, would all fit now
+    /// (as [`PlanWindow::fits`] of each after the ones before it).
+    pub fn fits_run(&self, chunks: &[Chunk<'_>]) -> bool {
+        let (mut q, mut p, mut next) = (self.q_n, self.p_n, self.next_span);
+        for c in chunks {
+            let info = c.info();
+            let repeat = usize::from(q > 0 && info.first_span.wrapping_add(1) == next);
+            q = q.saturating_add(usize::from(info.n_q).saturating_sub(repeat));
+            p = p.saturating_add(usize::from(info.n_p));
+            next = info.first_span.wrapping_add(u32::from(info.n_q));
+            if q > NQ || p > NP {
+                return false;
+            }
+        }
+        true
+    }
+
     /// Append `chunk`'s rows (checked by [`Chunk::parse`]), or refuse it
     /// with nothing changed. Decodes every row once (not for the tick
     /// context: ~10⁴ instructions a row on a Cortex-M4F).
