@@ -127,7 +127,10 @@ where
     /// progress was found for the rows it holds (its look-ahead reads every
     /// row held: more rows can make it longer). At rest it is taken, and
     /// the motion goes on once a chunk whose hold point is ahead is in
-    /// ([`Interpolator::keep_fed`]).
+    /// ([`Interpolator::keep_fed`]). Moving, it may go in with the chunks
+    /// after it up to one whose hold point lies ahead, all between the same
+    /// two ticks (checked together by [`PlanWindow::fits_run`]): the window
+    /// then never ends on it.
     pub fn holds_back(&self, chunk: &Chunk<'_>) -> bool {
         let info = chunk.info();
         !info.is_last() && self.hold_state() != HoldState::Held && info.commit_point() <= self.s
