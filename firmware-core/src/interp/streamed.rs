@@ -149,7 +149,7 @@ where
         let near = ctl.state() == HoldState::Resuming
             && !ctl.mid_period()
             && self.fh.seg_tau.is_none()
-            && 1.0 - ctl.lambda() < LAND_X
+            && (1.0 - ctl.lambda()).abs() < LAND_X
             && ctl.mu().abs() < LAND_W;
         if near {
             self.fh.reset();
