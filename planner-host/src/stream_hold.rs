@@ -528,17 +528,23 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                 // Every `step_mm` from the coarse test before the one that
                 // passed (where chunk i is held then) to the one after: the
                 // passing runs between failures.
-                let mut from = self.history[k].0.clone();
-                if let Some((h, _)) = k.checked_sub(1).and_then(|k0| self.history.get(k0)) {
-                    let mut t = h.clone();
-                    t.push(chunks)?;
-                    if holds_i(&t) {
-                        from = t;
+                let before = match k.checked_sub(1).and_then(|k0| self.history.get(k0)) {
+                    Some((h, _)) => {
+                        let mut t = h.clone();
+                        t.push(chunks)?;
+                        holds_i(&t).then_some(t)
                     }
-                }
+                    None => None,
+                };
+                let mut t = match before {
+                    Some(t) => t,
+                    None => {
+                        let mut t = self.history[k].0.clone();
+                        t.push(chunks)?;
+                        t
+                    }
+                };
                 let until = self.history[k + 1].1;
-                let mut t = from;
-                t.push(chunks)?;
                 let mut tests = vec![];
                 let mut at = t.ip.s_mm();
                 loop {
