@@ -510,6 +510,11 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
         let holds_i = |t: &StreamedRun<NQ, NP>| t.ip.window().held_end() >= end;
         let mut found = None;
         for k in (0..n.saturating_sub(1)).rev() {
+            if self.last_pass == Some(self.history[k].1) {
+                // (chunk i passed there on the way: not tested again)
+                found = Some(k);
+                break;
+            }
             let mut t = self.history[k].0.clone();
             t.push(chunks)?;
             if !holds_i(&t) {
