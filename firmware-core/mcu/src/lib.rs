@@ -1,6 +1,6 @@
 //! Support code shared by the MCU binaries: semihosting exit, the panic and
-//! fault handlers, the instruction-count window markers, and the setpoint
-//! digest.
+//! fault handlers, text lines without `core::fmt` ([`Line`]), the
+//! instruction-count window markers, and the setpoint digest.
 //!
 //! # Instruction-count windows
 //!
@@ -42,22 +42,111 @@ pub fn exit(ok: bool) -> ! {
     }
 }
 
+// The handlers print with `Line`, not `core::fmt`: a panic message's
+// formatting would link the whole formatting machinery (about 4 KB of
+// flash) into every image, the streamed run's included.
+
 #[panic_handler]
 fn panic(info: &core::panic::PanicInfo) -> ! {
-    hprintln!("PANIC: {}", info);
+    let line = Line::new().s("PANIC");
+    match info.location() {
+        Some(l) => line.s(" at ").s(l.file()).s(":").u(u64::from(l.line())).put(),
+        None => line.put(),
+    }
     exit(false)
 }
 
 #[exception]
 unsafe fn HardFault(ef: &ExceptionFrame) -> ! {
-    hprintln!("HARDFAULT: {:?}", ef);
+    Line::new().s("HARDFAULT at pc 0x").x(u64::from(ef.pc()), 8).put();
     exit(false)
 }
 
 #[exception]
 unsafe fn DefaultHandler(irqn: i16) {
-    hprintln!("UNEXPECTED EXCEPTION/IRQ {}", irqn);
+    Line::new()
+        .s("UNEXPECTED EXCEPTION/IRQ ")
+        .i(i64::from(irqn))
+        .put();
     exit(false)
+}
+
+/// One line of text for the host's stdout over semihosting, built without
+/// `core::fmt` (which costs about 4 KB of flash: the streamed run keeps its
+/// image small with this). Longer text than the buffer is cut.
+pub struct Line {
+    buf: [u8; Line::CAP],
+    n: usize,
+}
+
+impl Default for Line {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Line {
+    /// Bytes a line holds, its newline included.
+    pub const CAP: usize = 160;
+
+    /// An empty line.
+    pub const fn new() -> Self {
+        Line {
+            buf: [0; Line::CAP],
+            n: 0,
+        }
+    }
+
+    // (one byte kept for the newline)
+    fn byte(mut self, b: u8) -> Self {
+        if self.n < Self::CAP - 1 {
+            self.buf[self.n] = b;
+            self.n += 1;
+        }
+        self
+    }
+
+    /// Text.
+    pub fn s(self, text: &str) -> Self {
+        self.bytes(text.as_bytes())
+    }
+
+    /// An unsigned number in decimal.
+    pub fn u(self, v: u64) -> Self {
+        let mut d = [0u8; 20];
+        self.bytes(decimal(v, &mut d))
+    }
+
+    fn bytes(mut self, bytes: &[u8]) -> Self {
+        for &b in bytes {
+            self = self.byte(b);
+        }
+        self
+    }
+
+    /// A signed number in decimal.
+    pub fn i(self, v: i64) -> Self {
+        match v < 0 {
+            true => self.byte(b'-').u(v.unsigned_abs()),
+            false => self.u(v as u64),
+        }
+    }
+
+    /// The low `width` hex digits of `v` (lower case, zero-padded).
+    pub fn x(mut self, v: u64, width: u32) -> Self {
+        for k in (0..width.min(16)).rev() {
+            self = self.byte(b"0123456789abcdef"[((v >> (4 * k)) & 0xf) as usize]);
+        }
+        self
+    }
+
+    /// Ends the line and writes it to the host's stdout.
+    pub fn put(mut self) {
+        self.buf[self.n] = b'\n';
+        if let Ok(mut out) = cortex_m_semihosting::hio::hstdout() {
+            let _ = out.write_all(&self.buf[..=self.n]);
+        }
+    }
 }
 
 // The markers must survive LTO: a store to a never-read static is deleted

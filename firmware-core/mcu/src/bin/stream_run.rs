@@ -25,11 +25,10 @@
 #![no_main]
 
 use cortex_m_rt::entry;
-use cortex_m_semihosting::hprintln;
 use firmware_core::interp::Interpolator;
 use firmware_core::stream::frame::{encode_ack, encode_nak, KIND_HEAD};
 use firmware_core::stream::{ChunkRing, Frame, FrameDecoder, PlanWindow, StreamError, StreamHead};
-use firmware_mcu::{exit, stack_high_water, stack_paint, Fnv1a64};
+use firmware_mcu::{exit, stack_high_water, stack_paint, Fnv1a64, Line};
 
 /// Servo period, s.
 const PERIOD_S: f64 = 250e-6;
@@ -112,12 +111,15 @@ fn main() -> ! {
     let (mut ring_peak, mut window_peak) = (0usize, 0usize);
     let mut last_seq = u32::MAX;
     let mut gate = i64::MAX;
-    hprintln!(
-        "stream-run: ring {} B, window {} q spans and {} pieces, waiting on UART0",
-        RING_CAP,
-        NQ,
-        NP
-    );
+    Line::new()
+        .s("stream-run: ring ")
+        .u(RING_CAP as u64)
+        .s(" B, window ")
+        .u(NQ as u64)
+        .s(" q spans and ")
+        .u(NP as u64)
+        .s(" pieces, waiting on UART0")
+        .put();
     ack(&uart, u32::MAX, ring.free());
     loop {
         // the bytes that arrived
@@ -130,7 +132,7 @@ fn main() -> ! {
                     Ok((h, _plan, true)) if head.is_some_and(|(_, known)| !known) => {
                         if let (Some(ipr), Some(e)) = (ip.as_mut(), h.ends) {
                             if ipr.set_stop(&e).is_err() {
-                                hprintln!("stop segment refused");
+                                Line::new().s("stop segment refused").put();
                                 exit(false)
                             }
                         }
@@ -174,7 +176,7 @@ fn main() -> ! {
                 Ok(true) => {}
                 Ok(false) => break,
                 Err(_) => {
-                    hprintln!("chunk refused by the plan window");
+                    Line::new().s("chunk refused by the plan window").put();
                     exit(false)
                 }
             }
@@ -201,7 +203,7 @@ fn main() -> ! {
                     ip = Some(s);
                 }
                 Err(_) => {
-                    hprintln!("plan head refused");
+                    Line::new().s("plan head refused").put();
                     exit(false)
                 }
             }
@@ -221,7 +223,7 @@ fn main() -> ! {
         match ipr.tick() {
             Ok(sp) => digest.setpoint(&sp),
             Err(_) => {
-                hprintln!("fault at tick {}", ipr.ticks());
+                Line::new().s("fault at tick ").u(ipr.ticks()).put();
                 exit(false)
             }
         }
@@ -230,16 +232,33 @@ fn main() -> ! {
         }
     }
     let ticks = ip.as_ref().map_or(0, |i| i.ticks());
-    hprintln!(
-        "ticks {}, chunks {}, refused {}, bad frames {}, waits {}",
-        ticks,
-        chunks,
-        refused,
-        frames_bad,
-        waits
-    );
-    hprintln!("ring peak {} B, window peak {} pieces", ring_peak, window_peak);
-    hprintln!("stack high water {} B", stack_high_water());
-    hprintln!("digest: fnv1a64-pos-le={:016x}", digest.finish());
+    Line::new()
+        .s("ticks ")
+        .u(ticks)
+        .s(", chunks ")
+        .u(u64::from(chunks))
+        .s(", refused ")
+        .u(u64::from(refused))
+        .s(", bad frames ")
+        .u(u64::from(frames_bad))
+        .s(", waits ")
+        .u(waits)
+        .put();
+    Line::new()
+        .s("ring peak ")
+        .u(ring_peak as u64)
+        .s(" B, window peak ")
+        .u(window_peak as u64)
+        .s(" pieces")
+        .put();
+    Line::new()
+        .s("stack high water ")
+        .u(stack_high_water() as u64)
+        .s(" B")
+        .put();
+    Line::new()
+        .s("digest: fnv1a64-pos-le=")
+        .x(digest.finish(), 16)
+        .put();
     exit(true)
 }
