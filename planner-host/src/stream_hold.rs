@@ -573,9 +573,10 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
         self.known[self.i] = self.started.elapsed().as_secs_f64();
         if self.i < 3 && std::env::var_os("FEEDLP_TIME_DEBUG").is_some() {
             eprintln!(
-                "  hold point of chunk {}: {:.1} ms",
+                "  hold point of chunk {}: {:.1} ms, s_c {:.2} mm",
                 self.i,
-                self.known[self.i] * 1e3
+                self.known[self.i] * 1e3,
+                s_c
             );
         }
         self.i += 1;

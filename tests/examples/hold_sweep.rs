@@ -1,0 +1,173 @@
+//! Feed hold pressed all along a path: how far each stop runs and whether
+//! its setpoints keep every limit.
+//!
+//! Each curve is planned whole (`PlanConfig::default()`), run through the
+//! firmware, and every `--every` ticks a copy of the interpolator is held and
+//! ticked to rest. Per curve it prints the stop lengths (median, 90th
+//! percentile, largest), their ratio to the time-optimal jerk-limited stop
+//! along the tangent alone from the same feed and acceleration (a lower
+//! bound: it ignores the axes), and the largest ratio to each limit on the
+//! setpoints of the 60 ticks before the press, the stop and 60 ticks at rest
+//! (finite differences, `sim_harness::metrics`), with the press that gave it.
+//!
+//! ```text
+//! cargo run --release -p e2e-tests --example hold_sweep -- [--every 97] [CURVE …]
+//! ```
+//!
+//! CURVE: a built-in name (butterfly, circle, fan, star, trident) or a curve
+//! JSON file; all five built-ins without one.
+
+use std::collections::VecDeque;
+
+use clap::Parser;
+use firmware_core::{HoldState, Interpolator, Setpoint, Table};
+use planner_host::plan::{self, PlanConfig};
+use sim_harness::metrics::{self, Ratios, Tick};
+
+/// Press the feed hold every N ticks along each curve and measure the stops.
+#[derive(Parser, Debug)]
+struct Args {
+    /// Ticks between two presses (each on its own copy of the run).
+    #[arg(long, default_value_t = 97)]
+    every: u64,
+    /// Built-in curve names or curve JSON files (default: the built-ins).
+    curves: Vec<String>,
+}
+
+const PERIOD_S: f64 = 250e-6;
+/// Setpoints kept before a press and ticked at rest after it.
+const PAD: usize = 60;
+
+/// Length of the time-optimal stop from feed `v` and acceleration `a` ≥ 0
+/// with |s̈| ≤ `am`, |s⃛| ≤ `jm`: jerk −jm down to a peak deceleration p,
+/// p held, +jm back to 0 as the feed reaches 0 (p < am when the feed runs
+/// out first, found by bisection).
+fn ideal_stop_mm(v: f64, a: f64, am: f64, jm: f64) -> f64 {
+    // (s and v after the first ramp, and the feed the last ramp takes off)
+    let ramp = |p: f64| {
+        let t1 = (a + p) / jm;
+        let v1 = v + a * t1 - jm * t1 * t1 / 2.0;
+        let s1 = v * t1 + a * t1 * t1 / 2.0 - jm * t1.powi(3) / 6.0;
+        (s1, v1, p * p / (2.0 * jm))
+    };
+    let (_, v1, v3) = ramp(am);
+    let p = if v1 >= v3 {
+        am
+    } else {
+        let (mut lo, mut hi) = (0.0, am);
+        for _ in 0..60 {
+            let m = 0.5 * (lo + hi);
+            let (_, v1, v3) = ramp(m);
+            if v1 >= v3 {
+                lo = m
+            } else {
+                hi = m
+            }
+        }
+        lo
+    };
+    let (s1, v1, v3) = ramp(p);
+    let t2 = if p > 0.0 { ((v1 - v3) / p).max(0.0) } else { 0.0 };
+    let t3 = p / jm;
+    s1 + v1 * t2 - p * t2 * t2 / 2.0 + v3 * t3 - p * t3 * t3 / 2.0 + jm * t3.powi(3) / 6.0
+}
+
+fn worst(r: &Ratios) -> f64 {
+    [r.vel, r.acc, r.jerk, r.feed, r.tacc, r.tjerk]
+        .into_iter()
+        .fold(0.0, f64::max)
+}
+
+/// A firmware or planner error as text (the firmware's are `no_std`, not
+/// `std::error::Error`).
+fn text<E: std::fmt::Debug>(e: E) -> String {
+    format!("{e:?}")
+}
+
+fn main() -> Result<(), String> {
+    let args = Args::parse();
+    let names: Vec<String> = match args.curves.is_empty() {
+        true => ["butterfly", "circle", "fan", "star", "trident"]
+            .map(String::from)
+            .to_vec(),
+        false => args.curves.clone(),
+    };
+    for name in &names {
+        let curve = match planner_host::builtin::by_name(name) {
+            Some(c) => c.map_err(text)?,
+            None => planner_host::Nurbs::load(std::path::Path::new(name)).map_err(text)?,
+        };
+        let out = plan::plan_curve(&curve, &PlanConfig::default()).map_err(text)?;
+        let lim = Table::parse(&out.table_bytes).map_err(text)?.limits();
+        let mut run =
+            Interpolator::new(Table::parse(&out.table_bytes).map_err(text)?, PERIOD_S).map_err(text)?;
+        let mut before: VecDeque<Setpoint> = VecDeque::new();
+        let (mut lengths, mut over_ideal) = (vec![], vec![]);
+        let (mut all, mut at) = (Ratios::default(), (0.0, 0.0));
+        let mut k = 0u64;
+        while !run.is_done() {
+            let sp = run.tick().map_err(text)?;
+            let feed_before = before.back().map_or(0.0, |p| p.feed_mm_s);
+            before.push_back(sp);
+            if before.len() > PAD {
+                before.pop_front();
+            }
+            k += 1;
+            if k < args.every {
+                continue;
+            }
+            k = 0;
+            let mut held = run.clone();
+            let s0 = held.s_mm();
+            held.hold().map_err(text)?;
+            let mut pts: Vec<Setpoint> = before.iter().copied().collect();
+            while held.hold_state() != HoldState::Held && !held.is_done() {
+                pts.push(held.tick().map_err(text)?);
+            }
+            for _ in 0..PAD {
+                pts.push(held.tick().map_err(text)?);
+            }
+            let len = held.s_mm() - s0;
+            let acc = ((sp.feed_mm_s - feed_before) / PERIOD_S).max(0.0);
+            lengths.push(len);
+            over_ideal.push(len / ideal_stop_mm(sp.feed_mm_s, acc, lim.abar, lim.jbar).max(1e-9));
+            let ticks: Vec<Tick> = pts
+                .iter()
+                .map(|p| Tick {
+                    t_s: p.t_s,
+                    cmd_mm: p.pos_mm,
+                    s_mm: p.s_mm,
+                    u: p.u,
+                    feed_mm_s: p.feed_mm_s,
+                    act_mm: p.pos_mm,
+                })
+                .collect();
+            let r = metrics::compute(&ticks, PERIOD_S, &lim, None).ratios;
+            if worst(&r) > at.1 {
+                at = (s0, worst(&r));
+            }
+            all = all.max(r);
+        }
+        let q = |v: &mut Vec<f64>, p: f64| {
+            v.sort_by(f64::total_cmp);
+            v.get(((v.len().max(1) - 1) as f64 * p).round() as usize)
+                .copied()
+                .unwrap_or(f64::NAN)
+        };
+        println!(
+            "{}: {} holds; stop mm median {:.1}, p90 {:.1}, max {:.1}; × the tangential ideal: median {:.2}, p90 {:.2}",
+            out.curve,
+            lengths.len(),
+            q(&mut lengths, 0.5),
+            q(&mut lengths, 0.9),
+            q(&mut lengths, 1.0),
+            q(&mut over_ideal, 0.5),
+            q(&mut over_ideal, 0.9),
+        );
+        println!(
+            "  worst ratios: vel {:.4} acc {:.4} jerk {:.4} feed {:.4} tacc {:.4} tjerk {:.4} (largest {:.4}, pressed at {:.2} mm)",
+            all.vel, all.acc, all.jerk, all.feed, all.tacc, all.tjerk, at.1, at.0
+        );
+    }
+    Ok(())
+}
