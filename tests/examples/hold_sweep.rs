@@ -119,7 +119,11 @@ fn main() -> Result<(), String> {
             k = 0;
             let mut held = run.clone();
             let s0 = held.s_mm();
-            held.hold().map_err(text)?;
+            match held.hold() {
+                // (the last tick of the path: nothing left to hold)
+                Err(firmware_core::HoldError::Done) => continue,
+                r => r.map_err(text)?,
+            }
             let mut pts: Vec<Setpoint> = before.iter().copied().collect();
             while held.hold_state() != HoldState::Held && !held.is_done() {
                 pts.push(held.tick().map_err(text)?);
