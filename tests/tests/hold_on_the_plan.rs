@@ -1,11 +1,17 @@
-//! A feed hold pressed on the plan (λ = 1, μ = 0) where the plan's jerk is
-//! at the limit and jumps within a tick: the Fan at 174.86 mm and 459.80 mm.
-//! There the hold's first constraint interval can lie wholly on the side of
-//! speeding up (a relaxed, infeasible tick); taking it stepped λ past 1 and
-//! clamped it back, 1.28× and 1.45× the x axis's jerk limit in forward
-//! differences (found by `cargo run --release -p e2e-tests --example
-//! hold_sweep`). A hold not yet approaching now never moves away from rest:
-//! at λ = 1 it follows the plan until it can brake.
+//! A feed hold pressed on the plan (λ = 1, μ = 0) where the plan's axis
+//! jerk is near the limit and changes fast, found by `cargo run --release
+//! -p e2e-tests --example hold_sweep`:
+//!
+//! - the Fan at 174.86 mm and 459.80 mm, where it jumps within a tick: the
+//!   hold's first constraint interval can lie wholly on the side of speeding
+//!   up (a relaxed, infeasible tick); taking it stepped λ past 1 and clamped
+//!   it back, 1.28× and 1.45× the x axis's jerk limit in forward
+//!   differences. A hold not yet approaching now never moves away from
+//!   rest: at λ = 1 it follows the plan until it can brake.
+//! - the Butterfly at 129.26 mm, where it rises 0.07 j a control period:
+//!   the hold's first period took J as constant (its change is known from
+//!   the period before, and on the plan there was none) and braked into
+//!   it, 1.012×. The change is now seeded from the plan one period back.
 
 use firmware_core::{HoldState, Interpolator, Setpoint, Table};
 use planner_host::plan::{self, PlanConfig};
@@ -33,11 +39,15 @@ fn hold_after(bytes: &[u8], press: usize) -> Vec<Setpoint> {
 }
 
 #[test]
-fn a_hold_pressed_where_the_plans_jerk_jumps_keeps_the_jerk_limit() {
-    let curve = planner_host::builtin::by_name("fan").unwrap().unwrap();
-    let out = plan::plan_curve(&curve, &PlanConfig::default()).unwrap();
-    let lim = Table::parse(&out.table_bytes).unwrap().limits();
-    for (press, near_mm) in [(6111, 174.86), (16236, 459.80)] {
+fn a_hold_pressed_where_the_plans_jerk_changes_fast_keeps_every_limit() {
+    for (name, press, near_mm) in [
+        ("fan", 6111, 174.86),
+        ("fan", 16236, 459.80),
+        ("butterfly", 7380, 129.26),
+    ] {
+        let curve = planner_host::builtin::by_name(name).unwrap().unwrap();
+        let out = plan::plan_curve(&curve, &PlanConfig::default()).unwrap();
+        let lim = Table::parse(&out.table_bytes).unwrap().limits();
         let pts = hold_after(&out.table_bytes, press);
         let at = pts[PAD - 1].s_mm;
         assert!(
@@ -56,7 +66,7 @@ fn a_hold_pressed_where_the_plans_jerk_jumps_keeps_the_jerk_limit() {
             })
             .collect();
         let r = metrics::compute(&ticks, PERIOD_S, &lim, None).ratios;
-        eprintln!("hold pressed at {at:.3} mm: {r:?}");
+        eprintln!("{name}, hold pressed at {at:.3} mm: {r:?}");
         for (what, v) in [
             ("vel", r.vel),
             ("acc", r.acc),
@@ -65,7 +75,7 @@ fn a_hold_pressed_where_the_plans_jerk_jumps_keeps_the_jerk_limit() {
             ("tacc", r.tacc),
             ("tjerk", r.tjerk),
         ] {
-            assert!(v <= 1.01, "{what} {v} after a hold pressed at {at} mm");
+            assert!(v <= 1.01, "{name}: {what} {v} after a hold pressed at {at} mm");
         }
     }
 }

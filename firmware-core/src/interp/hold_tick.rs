@@ -93,6 +93,9 @@ impl<'a, const Q: usize, const W: usize, R: PlanRows<'a>> Interpolator<'a, Q, W,
             self.fh.to_end = true;
         } else {
             let starting = self.fh.ctl.state() != HoldState::Stopping;
+            if self.fh.ctl.state() == HoldState::Running {
+                self.seed_growth();
+            }
             self.fh.ctl.hold();
             if starting && self.fh.ctl.state() == HoldState::Stopping {
                 // A whole look-ahead sweep now, outside the tick, over the
@@ -640,6 +643,28 @@ impl<'a, const Q: usize, const W: usize, R: PlanRows<'a>> Interpolator<'a, Q, W,
     /// A hold or resume request between ticks: the next control period's
     /// kinematics now, unless a period is in progress (its second tick
     /// prepares the next) or they are there already for this state.
+    /// Before the first control period of a hold pressed on the plan: J's
+    /// change over the period before, as every later period has it
+    /// ([`Self::hold_kin`]'s `dj`), from the plan's kinematics one period
+    /// back (ṡ, s̈, s⃛ stepped back along the plan, s⁗ = ½q‴ṡ² + ½q″s̈;
+    /// the current piece's polynomial there). Without it the first period
+    /// took J as constant: where the plan's axis jerk was near the limit
+    /// and rising, the first ν braked into it (1.012× the Butterfly's x
+    /// jerk, pressed at 129.26 mm).
+    fn seed_growth(&mut self) {
+        if self.phase != Phase::Run || self.fh.prev_j.is_some() || self.fh.seg_tau.is_some() {
+            return;
+        }
+        let [_, dq, ddq, dddq] = self.qs.qd;
+        let v = self.qs.v;
+        let (p1, p2, p3) = (v, 0.5 * dq, 0.5 * ddq * v);
+        let p4 = 0.5 * dddq * v * v + 0.5 * ddq * p2;
+        let hp = PERIOD_TICKS as f32 * self.h;
+        let back = self.s.saturating_sub(f32_to_fx(mx(0.0, p1) * hp));
+        // (an unreadable piece leaves J's change at 0, as before)
+        let _ = self.hold_kin([p1 - p2 * hp, p2 - p3 * hp, p3 - p4 * hp], back);
+    }
+
     fn prepare_request(&mut self) {
         if self.phase == Phase::Run && !self.prepared() {
             self.period_end();
