@@ -34,6 +34,21 @@ pub struct Tick {
     pub act_mm: [f64; 3],
 }
 
+impl Tick {
+    /// A setpoint with servos that follow it exactly (actual = commanded):
+    /// what the limits are checked on.
+    pub fn of_setpoint(sp: &firmware_core::Setpoint) -> Tick {
+        Tick {
+            t_s: sp.t_s,
+            cmd_mm: sp.pos_mm,
+            s_mm: sp.s_mm,
+            u: sp.u,
+            feed_mm_s: sp.feed_mm_s,
+            act_mm: sp.pos_mm,
+        }
+    }
+}
+
 /// The toolpath geometry the contour error is measured against.
 pub trait Toolpath {
     /// Parameter range (u₀, u₁).

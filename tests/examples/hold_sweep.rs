@@ -135,17 +135,7 @@ fn main() -> Result<(), String> {
             let acc = ((sp.feed_mm_s - feed_before) / PERIOD_S).max(0.0);
             lengths.push(len);
             over_ideal.push(len / ideal_stop_mm(sp.feed_mm_s, acc, lim.abar, lim.jbar).max(1e-9));
-            let ticks: Vec<Tick> = pts
-                .iter()
-                .map(|p| Tick {
-                    t_s: p.t_s,
-                    cmd_mm: p.pos_mm,
-                    s_mm: p.s_mm,
-                    u: p.u,
-                    feed_mm_s: p.feed_mm_s,
-                    act_mm: p.pos_mm,
-                })
-                .collect();
+            let ticks: Vec<Tick> = pts.iter().map(Tick::of_setpoint).collect();
             let r = metrics::compute(&ticks, PERIOD_S, &lim, None).ratios;
             if worst(&r) > at.1 {
                 at = (s0, worst(&r));

@@ -188,16 +188,7 @@ fn run_with_holds(at: &[f64]) -> Run {
 }
 
 fn ticks(pts: &[Setpoint]) -> Vec<Tick> {
-    pts.iter()
-        .map(|p| Tick {
-            t_s: p.t_s,
-            cmd_mm: p.pos_mm,
-            s_mm: p.s_mm,
-            u: p.u,
-            feed_mm_s: p.feed_mm_s,
-            act_mm: p.pos_mm,
-        })
-        .collect()
+    pts.iter().map(Tick::of_setpoint).collect()
 }
 
 fn ratios(pts: &[Setpoint], lim: &Limits) -> (metrics::Ratios, metrics::Ratios) {

@@ -54,17 +54,7 @@ fn a_hold_pressed_where_the_plans_jerk_changes_fast_keeps_every_limit() {
             (at - near_mm).abs() < 0.01,
             "pressed at {at} mm, not near {near_mm}"
         );
-        let ticks: Vec<Tick> = pts
-            .iter()
-            .map(|p| Tick {
-                t_s: p.t_s,
-                cmd_mm: p.pos_mm,
-                s_mm: p.s_mm,
-                u: p.u,
-                feed_mm_s: p.feed_mm_s,
-                act_mm: p.pos_mm,
-            })
-            .collect();
+        let ticks: Vec<Tick> = pts.iter().map(Tick::of_setpoint).collect();
         let r = metrics::compute(&ticks, PERIOD_S, &lim, None).ratios;
         eprintln!("{name}, hold pressed at {at:.3} mm: {r:?}");
         for (what, v) in [
