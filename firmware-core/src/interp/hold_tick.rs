@@ -640,9 +640,6 @@ impl<'a, const Q: usize, const W: usize, R: PlanRows<'a>> Interpolator<'a, Q, W,
         true
     }
 
-    /// A hold or resume request between ticks: the next control period's
-    /// kinematics now, unless a period is in progress (its second tick
-    /// prepares the next) or they are there already for this state.
     /// Before the first control period of a hold pressed on the plan: J's
     /// change over the period before, as every later period has it
     /// ([`Self::hold_kin`]'s `dj`), from the plan's kinematics one period
@@ -665,6 +662,9 @@ impl<'a, const Q: usize, const W: usize, R: PlanRows<'a>> Interpolator<'a, Q, W,
         let _ = self.hold_kin([p1 - p2 * hp, p2 - p3 * hp, p3 - p4 * hp], back);
     }
 
+    /// A hold or resume request between ticks: the next control period's
+    /// kinematics now, unless a period is in progress (its second tick
+    /// prepares the next) or they are there already for this state.
     fn prepare_request(&mut self) {
         if self.phase == Phase::Run && !self.prepared() {
             self.period_end();
