@@ -72,12 +72,6 @@ fn ideal_stop_mm(v: f64, a: f64, am: f64, jm: f64) -> f64 {
     s1 + v1 * t2 - p * t2 * t2 / 2.0 + v3 * t3 - p * t3 * t3 / 2.0 + jm * t3.powi(3) / 6.0
 }
 
-fn worst(r: &Ratios) -> f64 {
-    [r.vel, r.acc, r.jerk, r.feed, r.tacc, r.tjerk]
-        .into_iter()
-        .fold(0.0, f64::max)
-}
-
 /// A firmware or planner error as text (the firmware's are `no_std`, not
 /// `std::error::Error`).
 fn text<E: std::fmt::Debug>(e: E) -> String {
@@ -137,8 +131,8 @@ fn main() -> Result<(), String> {
             over_ideal.push(len / ideal_stop_mm(sp.feed_mm_s, acc, lim.abar, lim.jbar).max(1e-9));
             let ticks: Vec<Tick> = pts.iter().map(Tick::of_setpoint).collect();
             let r = metrics::compute(&ticks, PERIOD_S, &lim, None).ratios;
-            if worst(&r) > at.1 {
-                at = (s0, worst(&r));
+            if r.worst() > at.1 {
+                at = (s0, r.worst());
             }
             all = all.max(r);
         }
