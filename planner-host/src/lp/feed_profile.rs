@@ -71,6 +71,14 @@ impl FeedProfile {
         Ok(p)
     }
 
+    /// One feed from s = 0 on (a plan's v̄; taken as it is).
+    pub fn constant(feed_mm_s: f64) -> FeedProfile {
+        FeedProfile {
+            starts: vec![0.0],
+            feeds: vec![feed_mm_s],
+        }
+    }
+
     /// The feed limit at `s`: the stretch's holding s; on a break (within
     /// 1e-9 mm) the lower of the two.
     pub fn at(&self, s: f64) -> f64 {
@@ -125,6 +133,17 @@ impl FeedProfile {
         }
     }
 
+    /// This profile on [0, `at`), `after`'s from `at` on: a feed changed
+    /// at `at` (a feedrate override taking effect there).
+    pub fn switched_at(&self, at: f64, after: &FeedProfile) -> FeedProfile {
+        let mut pairs: Vec<(f64, f64)> = self.stretches().filter(|&(s, _)| s < at).collect();
+        // (the stretch of `after` holding `at`, not the lower on a break)
+        let from = after.stretches().take_while(|&(s, _)| s <= at).last();
+        pairs.extend(from.map(|(_, f)| (at.max(0.0), f)));
+        pairs.extend(after.stretches().filter(|&(s, _)| s > at));
+        FeedProfile::new(&pairs).unwrap_or_else(|_| after.clone())
+    }
+
     /// Every feed capped at `cap`.
     pub fn capped(&self, cap: f64) -> FeedProfile {
         let pairs: Vec<(f64, f64)> = self.stretches().map(|(s, f)| (s, f.min(cap))).collect();
@@ -153,6 +172,10 @@ mod tests {
         assert_eq!(p.max(), 20.0);
         assert_eq!(p.scaled(0.5).at(6.0), 10.0);
         assert_eq!(p.capped(15.0).at(6.0), 15.0);
+        let q = p.switched_at(6.0, &p.scaled(0.5));
+        assert_eq!(q.breaks(), &[5.0, 6.0, 9.0]);
+        assert_eq!((q.at(5.5), q.at(7.0), q.at(10.0)), (20.0, 10.0, 2.0));
+        assert_eq!(p.switched_at(0.0, &p.scaled(2.0)), p.scaled(2.0));
     }
 
     #[test]

@@ -95,6 +95,15 @@ pub enum PlanError {
     /// certified formulation.
     #[error("committing as the plan goes needs windows (--window-mm) and the certified formulation")]
     Committing,
+    /// A running plan could not be replanned at a new feed from where it
+    /// was asked ([`crate::plan::replan`]).
+    #[error("replan from s = {s_mm:.3} mm: {reason}")]
+    Splice {
+        /// The splice point asked for, mm.
+        s_mm: f64,
+        /// Why not.
+        reason: SpliceError,
+    },
     /// The feed profile is not a valid step function.
     #[error("feed profile: {0}")]
     FeedProfile(#[from] FeedProfileError),
@@ -105,5 +114,55 @@ pub enum PlanError {
         path: String,
         /// Why.
         source: std::io::Error,
+    },
+}
+
+/// Why a running plan cannot be replanned from a splice point
+/// ([`PlanError::Splice`]).
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum SpliceError {
+    /// The splice lies in the start segment's join: the start is planned
+    /// with the path's first window and is not replanned.
+    #[error("it lies before the start join's end at {join_mm:.3} mm")]
+    InStart {
+        /// Where q leaves the start join, mm.
+        join_mm: f64,
+    },
+    /// The splice lies too near the stop join to leave a window before it.
+    #[error(
+        "it lies within a window of the stop join at {join_mm:.3} mm: the plan's own stop runs from there"
+    )]
+    InStop {
+        /// Where the stop join starts, mm.
+        join_mm: f64,
+    },
+    /// The running plan's control points are not one per basis function
+    /// of the knot vector the curve and configuration give.
+    #[error("the running plan has {found} control points, the knot vector {expected}")]
+    Ctrl {
+        /// Control points of the knot vector.
+        expected: usize,
+        /// Control points given.
+        found: usize,
+    },
+    /// An override factor is not finite and > 0.
+    #[error("feed factor {alpha} must be finite and > 0")]
+    Alpha {
+        /// The factor.
+        alpha: f64,
+    },
+    /// The splice point is not on the path.
+    #[error("it is not on the path (0 … {length_mm:.3} mm)")]
+    OffPath {
+        /// The path's length, mm.
+        length_mm: f64,
+    },
+    /// No feed change within the tries planned: the first window after the
+    /// splice had no plan however far the new feed was put off.
+    #[error("the first window had no plan with the new feed put off by up to {knots} knots of q")]
+    NoRoom {
+        /// Knots past the first candidate tried last.
+        knots: usize,
     },
 }

@@ -9,6 +9,8 @@
 //!    [`windowed`]: the same LPs window by window along the path.
 //! 5. `levels`: the feedrate override levels, each a whole plan.
 //! 6. `pipeline`: the steps above in order, and the table encoding.
+//!    [`replan`]: a running plan replanned from a splice point at a new
+//!    feed (the feedrate override of a streamed program).
 //! 7. `output`: the finished plan ([`PlanOutput`]); [`verify`]: its dense
 //!    re-evaluation against every limit; `atomic_write`: writing the table.
 //!
@@ -22,6 +24,7 @@ pub(crate) mod levels;
 pub(crate) mod lp_stage;
 pub(crate) mod output;
 pub(crate) mod pipeline;
+pub mod replan;
 pub(crate) mod stall;
 pub mod su_fit;
 pub mod verify;

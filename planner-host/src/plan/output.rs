@@ -7,6 +7,7 @@ use crate::geometry::arc_length::ArcLength;
 use crate::geometry::curve::Nurbs;
 use crate::geometry::junction::Jump;
 use crate::limits::Ratios;
+use crate::lp::feed_profile::FeedProfile;
 use crate::lp::problem::LpStats;
 use crate::plan::config::PlanConfig;
 use crate::plan::verify::{dense_check_ends, DenseReport};
@@ -74,6 +75,10 @@ pub struct PlanOutput {
     /// What the windows cost, when planned window by window
     /// ([`crate::plan::windowed`]).
     pub windows: Option<WindowStats>,
+    /// Where a replan at a new feed ([`crate::plan::replan`]) kept the
+    /// running plan and where the new feed starts; `None` for a plan from
+    /// the start.
+    pub feed_change: Option<crate::plan::replan::FeedChangeAt>,
     /// The override levels of [`PlanConfig::override_levels`], sorted by
     /// percent (level id k ≥ 1 of docs/override-design.md is `levels[k − 1]`).
     #[serde(skip_serializing_if = "Vec::is_empty")]
@@ -141,16 +146,37 @@ impl PlanOutput {
     /// The dense re-evaluation of this plan ([`crate::plan::verify::dense_check_ends`]),
     /// end segments included.
     pub fn dense_check(&self, curve: &Nurbs, arc: &ArcLength, per_span: usize) -> DenseReport {
+        // (a replan holds the feed limit of its feed change)
+        let (limits, feed) = match &self.feed_change {
+            Some(f) => (
+                Limits {
+                    vbar: f.profile.max(),
+                    ..self.config.limits
+                },
+                Some(&f.profile),
+            ),
+            None => (self.config.limits, self.config.feed_profile.as_ref()),
+        };
         dense_check_ends(
             curve,
             arc,
             &self.q_knots,
             &self.q_ctrl,
             self.ends.as_ref(),
-            &self.config.limits,
-            self.config.feed_profile.as_ref(),
+            &limits,
+            feed,
             per_span,
         )
+    }
+
+    /// The feed limit along the path this plan holds: a replan's
+    /// ([`crate::plan::replan::FeedChangeAt::profile`]), else the configured
+    /// profile, else v̄ throughout.
+    pub fn feed_limit(&self) -> FeedProfile {
+        match &self.feed_change {
+            Some(f) => f.profile.clone(),
+            None => crate::plan::replan::programmed(&self.config),
+        }
     }
 
     /// The human-readable summary, with the dense check when given.

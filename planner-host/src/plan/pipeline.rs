@@ -19,8 +19,11 @@ use crate::plan::knots::{end_room, refine_turning, with_breaks, with_feed_breaks
 use crate::plan::levels::validate_levels;
 use crate::plan::lp_stage::{check_points, LpStage, Refine, Solved};
 use crate::plan::output::PlanOutput;
+use crate::plan::replan::{FeedChangeAt, Resume};
 use crate::plan::su_fit::{SetpointBudget, SuMap};
+use crate::plan::windowed::WindowStart;
 use crate::sampling;
+use firmware_core::Limits;
 
 /// Ranges of knot-span groups the pieces are fitted in (on rayon).
 const PIECE_RANGES: usize = 16;
@@ -127,7 +130,18 @@ pub fn plan_curve_committing(
     if cfg.windows.is_none() || cfg.formulation != Formulation::Certified {
         return Err(PlanError::Committing);
     }
-    plan_curve_inner(curve, cfg, &|_, _| {}, Some(on_commit))
+    plan_curve_inner(curve, cfg, &|_, _| {}, Some(on_commit), None)
+}
+
+/// [`plan_curve_committing`] from a running plan's control points, at a
+/// new feed ([`crate::plan::replan`]); commits told if `on_commit`.
+pub(crate) fn plan_curve_resumed(
+    curve: &Nurbs,
+    cfg: &PlanConfig,
+    resume: &Resume<'_>,
+    on_commit: Option<&CommitSink<'_>>,
+) -> Result<PlanOutput, PlanError> {
+    plan_curve_inner(curve, cfg, &|_, _| {}, on_commit, Some(resume))
 }
 
 /// [`plan_curve`], calling `progress(done, total)` after the base plan and
@@ -138,7 +152,7 @@ pub fn plan_curve_with_progress(
     cfg: &PlanConfig,
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<PlanOutput, PlanError> {
-    plan_curve_inner(curve, cfg, progress, None)
+    plan_curve_inner(curve, cfg, progress, None, None)
 }
 
 fn plan_curve_inner(
@@ -146,6 +160,7 @@ fn plan_curve_inner(
     cfg: &PlanConfig,
     progress: &(dyn Fn(usize, usize) + Sync),
     on_commit: Option<&CommitSink<'_>>,
+    resume: Option<&Resume<'_>>,
 ) -> Result<PlanOutput, PlanError> {
     let t0 = Instant::now();
     curve.validate()?;
@@ -259,7 +274,7 @@ fn plan_curve_inner(
         let mut retry_samples = samples;
         let mut bisections = 0;
         let mut window_stats = None;
-        let (knots, base, geometry_time_s) = loop {
+        let (knots, base, geometry_time_s, feed_change) = loop {
             let samples = match cfg.ends {
                 EndMode::Jerk => end_room(retry_samples.clone(), &cfg.limits, length, &|s| {
                     path_derivs_at(curve, &arc, s)
@@ -279,14 +294,29 @@ fn plan_curve_inner(
                 ..lp_stage(curve, &arc, &knots, cfg, progress, steps, 0)
             };
             let mut geometry_time_s = t0.elapsed().as_secs_f64();
+            // a replan: the kept control points, the feed change
+            let resumed = resume.map(|r| r.at(&knots, cfg)).transpose()?;
             let solved = match (&cfg.windows, cfg.formulation) {
                 // window by window: each window evaluates its own check points
                 (Some(w), Formulation::Certified) => {
-                    stage.solve_windowed(&cfg.limits, &jumps, w).map(|(s, st)| {
+                    let (limits, start) = match (resume, &resumed) {
+                        (Some(r), Some(at)) => (
+                            at.limits,
+                            Some(WindowStart {
+                                ctrl: r.change.ctrl,
+                                through: at.through,
+                                s_mm: r.change.s_mm,
+                                profile: &at.profile,
+                            }),
+                        ),
+                        _ => (cfg.limits, None),
+                    };
+                    stage.solve_windowed(&limits, &jumps, w, start).map(|(s, st)| {
                         window_stats = Some(st);
                         s
                     })
                 }
+                _ if resume.is_some() => return Err(PlanError::Committing),
                 _ => {
                     let (points, is_knot): (Vec<EvalPoint>, Vec<bool>) = match cfg.formulation {
                         Formulation::Paper => basis_rows::greville(&knots)
@@ -307,12 +337,22 @@ fn plan_curve_inner(
             match solved {
                 Ok(base) => {
                     stage.step_done();
-                    break (knots, base, geometry_time_s);
+                    let change = resume.zip(resumed).map(|(r, at)| FeedChangeAt {
+                        s_splice_mm: r.change.s_mm,
+                        through: at.through,
+                        s_free_mm: knots[at.through + 1],
+                        s_feed_mm: at.s_feed,
+                        alpha: r.change.alpha,
+                        profile: at.profile,
+                        tries: 1,
+                    });
+                    break (knots, base, geometry_time_s, change);
                 }
                 Err(PlanError::Stall { .. } | PlanError::Lp(_))
                     if cfg.formulation == Formulation::Certified
                         && bisections < KNOT_RETRIES
-                        && on_commit.is_none() =>
+                        && on_commit.is_none()
+                        && resume.is_none() =>
                 {
                     retry_samples = bisect_all(&retry_samples);
                     bisections += 1;
@@ -320,7 +360,14 @@ fn plan_curve_inner(
                 Err(e) => return Err(e),
             }
         };
-        Ok((knots, base, geometry_time_s, bisections, window_stats))
+        Ok((
+            knots,
+            base,
+            geometry_time_s,
+            bisections,
+            window_stats,
+            feed_change,
+        ))
     };
     let (su, planned) = match on_commit {
         // (the map on a thread of its own, not rayon's: the planning thread
@@ -369,7 +416,7 @@ fn plan_curve_inner(
             .ok_or(PlanError::Committing)??,
     };
     let su = &su;
-    let (knots, base, geometry_time_s, bisections, window_stats) = planned?;
+    let (knots, base, geometry_time_s, bisections, window_stats, feed_change) = planned?;
     dbg_t("LPs");
     // the levels on the knots the base plan held on, the base counted as done
     let stage = lp_stage(curve, &arc, &knots, cfg, progress, steps, 1);
@@ -400,7 +447,14 @@ fn plan_curve_inner(
         })
         .collect();
     let parts = TableParts {
-        limits: cfg.limits,
+        // (a replan's q may reach the higher factor's feed, or an earlier one's)
+        limits: match &feed_change {
+            Some(f) => Limits {
+                vbar: (f.profile.max()).max(ctrl.iter().fold(0.0f64, |m, &a| m.max(a)).sqrt()),
+                ..cfg.limits
+            },
+            None => cfg.limits,
+        },
         path_length_mm: length,
         predicted_time_s,
         nurbs_degree: curve.degree as u32,
@@ -465,6 +519,7 @@ fn plan_curve_inner(
         knot_bisections: bisections,
         windows: window_stats,
         levels,
+        feed_change,
     })
 }
 

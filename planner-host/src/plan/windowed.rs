@@ -57,13 +57,27 @@ use crate::lp::basis_rows::{BasisRow, ORDER};
 use crate::lp::problem::{EvalPoint, FeedLp, LpStats};
 use crate::lp::trust_region;
 use crate::plan::config::WindowConfig;
-use crate::plan::error::PlanError;
+use crate::plan::error::{PlanError, SpliceError};
 use crate::plan::lp_stage::{
     check_points, LpStage, Solved, PEAK_LOOK, REFINE_PER_CURVE_SPAN, REFINE_PER_SPAN, REFINE_ROUNDS,
     REFINE_TRIGGER, REPORT_PER_SPAN,
 };
 use crate::plan::output::WindowStats;
 use rayon::prelude::*;
+
+/// A windowed plan's start inside a running plan: its control points
+/// a_0 … a_through are kept, the windows plan from there.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct WindowStart<'a> {
+    /// The running plan's control points, one per basis function.
+    pub(crate) ctrl: &'a [f64],
+    /// The last kept.
+    pub(crate) through: usize,
+    /// The splice point asked for, mm (for the errors).
+    pub(crate) s_mm: f64,
+    /// The feed limit along the path the windows plan with.
+    pub(crate) profile: &'a crate::lp::feed_profile::FeedProfile,
+}
 
 /// The windows' LPs stop at a duality gap this many times looser
 /// (`SolverSettings::gap_loosening`): on the 11 m meander at 200/150 mm,
@@ -156,15 +170,26 @@ impl LpStage<'_> {
         });
     }
 
-    /// Plan with `limits` window by window (see the module docs).
+    /// Plan with `limits` window by window (see the module docs), from the
+    /// path's start or, with `start`, from a running plan's control points
+    /// (a replan at a new feed, [`crate::plan::replan`]).
     pub(crate) fn solve_windowed(
         &self,
         limits: &Limits,
         jumps: &[Jump],
         wc: &WindowConfig,
+        start: Option<WindowStart<'_>>,
     ) -> Result<(Solved, WindowStats), PlanError> {
         let (cfg, knots) = (self.cfg, self.knots);
-        let (profile, end_rows) = self.profile_and_end_rows(limits);
+        // (a replan keeps the running plan's end rows: its start join is
+        // committed, and its stop join is where the chunks sent put it)
+        let (profile, end_rows) = match start {
+            Some(st) => (
+                Some(st.profile.clone()),
+                self.profile_and_end_rows(&self.cfg.limits).1,
+            ),
+            None => self.profile_and_end_rows(limits),
+        };
         let caps: Vec<crate::lp::JumpCap> = jumps
             .iter()
             .map(|j| crate::lp::jump_cap(j, cfg.servo_period_s))
@@ -182,6 +207,32 @@ impl LpStage<'_> {
         // forced check points the window before found past its commit
         let mut carried: Vec<EvalPoint> = Vec::new();
         let mut i_l = 0usize;
+        if let Some(st) = start {
+            let splice = |reason| PlanError::Splice {
+                s_mm: st.s_mm,
+                reason,
+            };
+            if st.ctrl.len() != n {
+                return Err(splice(SpliceError::Ctrl {
+                    expected: n,
+                    found: st.ctrl.len(),
+                }));
+            }
+            if st.through < start_last.max(ORDER - 1) {
+                return Err(splice(SpliceError::InStart {
+                    join_mm: knots[start_last.max(ORDER - 1) + 1],
+                }));
+            }
+            if st.through + 3 * ORDER >= stop_first {
+                return Err(splice(SpliceError::InStop {
+                    join_mm: knots[stop_first + 1],
+                }));
+            }
+            committed[..=st.through].copy_from_slice(&st.ctrl[..=st.through]);
+            i_l = st.through;
+            // the first linearisation point: min(q̂, the running plan)
+            prev = (0, st.ctrl.to_vec());
+        }
         let mut stats = WindowStats::default();
         let mut lps: Vec<LpStats> = Vec::new();
         // the committed check points' s (all forced: every row is in every LP)
