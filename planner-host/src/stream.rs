@@ -264,6 +264,7 @@ impl ChunkCutter {
                     commit: 0,
                     first: false,
                     last: false,
+                    splice: false,
                 };
                 if j1 - j0 > 1
                     && self
@@ -290,6 +291,7 @@ impl ChunkCutter {
                 commit: 0,
                 first: index == 0,
                 last,
+                splice: false,
             };
             out.push(self.encode(rows, jj, head, index)?);
             self.index += 1;

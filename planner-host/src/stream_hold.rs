@@ -42,7 +42,7 @@
 //! point far enough ahead (`Interpolator::holds_back`,
 //! `Interpolator::can_go_on`, [`Interpolator::keep_fed`]).
 
-use firmware_core::interp::{Interpolator, StreamHead};
+use firmware_core::interp::{Interpolator, SpliceError, Spliced, StreamHead};
 use firmware_core::math::source::Point4Array;
 use firmware_core::stream::{commit_q20, set_commit, Chunk, ChunkError, PlanWindow, WindowError};
 use firmware_core::{EndSegments, F64Array, HoldState, InterpError, Setpoint, Table};
@@ -63,6 +63,9 @@ pub fn stream_head(table: &Table) -> Option<StreamHead> {
         last_u: knots.last()?,
     })
 }
+
+/// Chunks at most in a splice's run ([`StreamedRun::take_splice`]).
+pub const SPLICE_RUN: usize = 8;
 
 /// The hold point of a chunk on which no hold stops in time, even from the
 /// start: before the path (the firmware starts the motion only once the last
@@ -152,6 +155,30 @@ impl<const NQ: usize, const NP: usize> StreamedRun<NQ, NP> {
         }
     }
 
+    /// Offer the splice `chunks[at]` to the interpolator
+    /// ([`Interpolator::take_splice`]) with the chunks after it at hand, up
+    /// to [`SPLICE_RUN`]: `chunks` is the plan as now sent, the running
+    /// plan's chunks before `at` and the replan's from it. Taken, the next
+    /// chunk pushed is the one after the run (with the last, the stop
+    /// segment again).
+    pub fn take_splice(&mut self, chunks: &[Vec<u8>], at: usize) -> Result<Spliced, HoldPointError> {
+        let mut run = Vec::new();
+        for (k, bytes) in chunks.iter().enumerate().skip(at).take(SPLICE_RUN) {
+            run.push(parse(k, bytes)?);
+        }
+        let r = self.ip.take_splice(&run).map_err(HoldPointError::Splice)?;
+        if let Spliced::Taken(n) = r {
+            self.next = at + n;
+            if n.checked_sub(1)
+                .and_then(|k| run.get(k))
+                .is_some_and(|c| c.info().is_last())
+            {
+                self.stop();
+            }
+        }
+        Ok(r)
+    }
+
     /// [`StreamedRun::feed`], then one tick.
     pub fn step(&mut self, chunks: &[Vec<u8>]) -> Result<Setpoint, HoldPointError> {
         self.feed(chunks)?;
@@ -192,6 +219,9 @@ pub enum HoldPointError {
     /// The streamed interpolator could not start.
     #[error("the streamed interpolator refused the plan: {0:?}")]
     Interp(InterpError),
+    /// A splice cannot be taken.
+    #[error("splice refused: {0:?}")]
+    Splice(SpliceError),
     /// The search's thread could not start or panicked.
     #[error("the hold-point search's thread failed")]
     Thread,

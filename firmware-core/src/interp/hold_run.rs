@@ -186,6 +186,19 @@ impl HoldRun {
         self.ctl.state() != HoldState::Running || self.seg_tau.is_some()
     }
 
+    /// Forget what was read ahead of the current q span and piece (the
+    /// rows there were replaced by a splice): the cursors and derivatives
+    /// filled ahead, the look-ahead sweeps.
+    pub(super) fn forget_ahead(&mut self) {
+        self.sweep = None;
+        self.reach = false;
+        self.ahead = Ahead::default();
+        self.joined = Ahead::default();
+        self.next_dr = NO_DR;
+        self.next_pc = None;
+        self.next_qc = None;
+    }
+
     pub(super) fn reset(&mut self) {
         self.ctl.clear();
         self.seg_tau = None;

@@ -82,5 +82,5 @@ pub use self::cursor::Views;
 pub use self::interpolator::{Interpolator, OVERRIDE_Q, OVERRIDE_W, STALL_FEED_REL, STALL_REL};
 pub use self::rows::PlanRows;
 pub use self::setpoint::{Fault, InterpError, RunError, Setpoint};
-pub use self::streamed::{Feeding, StopError, RESUME_ROOM};
+pub use self::streamed::{Feeding, SpliceError, Spliced, StopError, RESUME_ROOM};
 pub use crate::stream::head::StreamHead;

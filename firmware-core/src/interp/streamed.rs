@@ -59,6 +59,39 @@ pub enum Feeding {
     Resumed,
 }
 
+/// What [`Interpolator::take_splice`] did.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum Spliced {
+    /// The run went in: this many chunks, from the first given.
+    Taken(usize),
+    /// Not yet: no chunk of the run has its hold point ahead of the
+    /// motion, the window has no room for it yet, or a stop or a resume is
+    /// in progress.
+    Waiting,
+}
+
+/// Why a splice can never be taken: drop it and the chunks after it (the
+/// host replans from further on).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum SpliceError {
+    /// The motion is at or past the splice's s_a, or has ended.
+    Late {
+        /// The splice's s_a (Q40 mm).
+        s_a: i64,
+        /// Where the motion is (Q40 mm).
+        s: i64,
+    },
+    /// The splice starts at or after the plan's stop segment.
+    InStop,
+    /// The window refused the run (another plan, s_a not the end of a
+    /// held piece, q spans that do not continue the rows kept).
+    Window(WindowError),
+}
+
 /// Why the stop segment was refused (nothing changed).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -199,6 +232,69 @@ where
             return Ok(Feeding::Starving);
         }
         Ok(Feeding::Fed)
+    }
+
+    /// Whether `chunk` is a splice into the rows held (it starts before
+    /// their end): it goes in by [`Interpolator::take_splice`], not
+    /// [`Interpolator::push_chunk`].
+    pub fn splices_rows(&self, chunk: &Chunk<'_>) -> bool {
+        let info = chunk.info();
+        info.is_splice() && info.s_a < self.views.window_ref().held_end()
+    }
+
+    /// Replace the rows from a splice's s_a on (a replan at a new feed,
+    /// C² at s_a by construction: the host keeps q up to there) by `run`,
+    /// the splice chunk and those after it as they arrived; not for the
+    /// tick context. Taken are the chunks up to the first whose hold point
+    /// lies ahead of the motion (at rest, the splice alone: the motion goes
+    /// on only towards a hold point ahead), once they fit in the window
+    /// with the rows from s_a on dropped, while running or held at rest —
+    /// never during a stop or a resume, whose look-ahead read the rows
+    /// replaced. The stop segment is asked for again with the new last
+    /// chunk ([`Interpolator::set_stop`]), and what the hold read ahead of
+    /// the current piece and q span is forgotten.
+    pub fn take_splice(&mut self, run: &[Chunk<'_>]) -> Result<Spliced, SpliceError> {
+        let Some(c0) = run.first() else {
+            return Ok(Spliced::Waiting);
+        };
+        let s_a = c0.info().s_a;
+        if self.s >= s_a || matches!(self.phase, Phase::Done | Phase::Faulted(_)) {
+            return Err(SpliceError::Late { s_a, s: self.s });
+        }
+        if self.ends.is_some() && self.stop_at != i64::MAX && s_a >= self.stop_at {
+            return Err(SpliceError::InStop);
+        }
+        let state = self.hold_state();
+        let at_rest = state == HoldState::Held;
+        if !(state == HoldState::Running || at_rest) || self.fh.seg_tau.is_some() || self.fh.to_end {
+            return Ok(Spliced::Waiting);
+        }
+        let m = if at_rest {
+            0
+        } else {
+            let ahead = run
+                .iter()
+                .position(|c| c.info().is_last() || c.info().commit_point() > self.s);
+            match ahead {
+                Some(m) => m,
+                None => return Ok(Spliced::Waiting),
+            }
+        };
+        let run = run.get(..=m).unwrap_or(run);
+        match self.views.window_ref().splice_fits(run) {
+            Ok(()) => {}
+            Err(WindowError::Full { .. }) => return Ok(Spliced::Waiting),
+            Err(e) => return Err(SpliceError::Window(e)),
+        }
+        self.views.window_mut().splice(run).map_err(SpliceError::Window)?;
+        let ends_plan = run.last().is_some_and(|c| c.info().is_last());
+        self.stop_at = if ends_plan && self.ends.is_none() {
+            self.len_fx
+        } else {
+            i64::MAX
+        };
+        self.fh.forget_ahead();
+        Ok(Spliced::Taken(run.len()))
     }
 
     /// The window cut back to the chunks ending at `s_end` (Q40 mm,

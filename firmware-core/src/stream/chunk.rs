@@ -58,6 +58,10 @@ impl ChunkInfo {
     pub fn is_last(&self) -> bool {
         self.flags & flags::LAST != 0
     }
+    /// A splice: the chunk replaces the plan from its s_a on ([`flags::SPLICE`]).
+    pub fn is_splice(&self) -> bool {
+        self.flags & flags::SPLICE != 0
+    }
     /// Pieces carry the f32 u form.
     pub fn has_u_form(&self) -> bool {
         self.flags & flags::U_FORM != 0

@@ -28,6 +28,8 @@ pub struct ChunkHead {
     pub first: bool,
     /// The plan's last chunk.
     pub last: bool,
+    /// A splice: the chunk replaces the plan from its s_a on.
+    pub splice: bool,
 }
 
 /// One stretch of a plan: what a chunk carries, as slices.
@@ -174,6 +176,9 @@ pub fn encode_chunk(head: &ChunkHead, stretch: &Stretch, out: &mut [u8]) -> Resu
     if head.first {
         fl |= flags::FIRST;
     }
+    if head.splice {
+        fl |= flags::SPLICE;
+    }
     let mut h = Writer::new(w.b, 0);
     let fields: [(usize, &[u8]); 12] = [
         (field::MAGIC, &MAGIC),
@@ -221,10 +226,25 @@ pub fn commit_q20(mm: f64) -> u32 {
 /// Q20 mm) and its CRC; the chunk is parsed before and after, so a chunk
 /// that does not parse is refused and nothing is written.
 pub fn set_commit(chunk: &mut [u8], commit: u32) -> Result<(), ChunkError> {
+    rewrite(chunk, field::COMMIT, &commit.to_le_bytes())
+}
+
+/// Rewrite the sequence number of an encoded chunk and, with `splice`,
+/// set its splice flag ([`flags::SPLICE`]): a chunk of a replan sent as a
+/// splice, or after one. Parsed before and after, as [`set_commit`].
+pub fn set_seq(chunk: &mut [u8], seq: u32, splice: bool) -> Result<(), ChunkError> {
+    let flags = Chunk::parse(chunk)?.info().flags | if splice { flags::SPLICE } else { 0 };
+    rewrite(chunk, field::FLAGS, &[flags])?;
+    rewrite(chunk, field::SEQ, &seq.to_le_bytes())
+}
+
+/// `value` written at header offset `at` of a chunk that parses, its CRC
+/// made again.
+fn rewrite(chunk: &mut [u8], at: usize, value: &[u8]) -> Result<(), ChunkError> {
     Chunk::parse(chunk)?;
     let body = chunk.len() - CRC_LEN;
-    if let Some(f) = chunk.get_mut(field::COMMIT..field::COMMIT + 4) {
-        f.copy_from_slice(&commit.to_le_bytes());
+    if let Some(f) = chunk.get_mut(at..at + value.len()) {
+        f.copy_from_slice(value);
     }
     let crc = crc32(chunk.get(..body).unwrap_or(&[]));
     if let Some(f) = chunk.get_mut(body..) {

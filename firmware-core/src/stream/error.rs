@@ -152,6 +152,13 @@ pub enum StreamError {
     FirstFlag,
     /// A chunk after the plan's last chunk.
     AfterLast,
+    /// A splice whose s_a lies inside a held chunk, not at its end.
+    InsideChunk {
+        /// The splice's s_a (Q40 mm).
+        s_a: i64,
+        /// The seq of the chunk holding it.
+        chunk_seq: u32,
+    },
     /// Not enough room (bytes, or chunk slots: then `free` is 0).
     Full {
         /// Bytes of the chunk.

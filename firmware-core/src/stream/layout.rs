@@ -34,8 +34,14 @@ pub mod flags {
     pub const LAST: u8 = 1 << 1;
     /// The first chunk of the plan: its s_a is 0.
     pub const FIRST: u8 = 1 << 2;
+    /// A splice: the chunk replaces the plan from its s_a on (a replan at
+    /// a new feed). The chunks held that start at or after s_a are dropped
+    /// (`ChunkRing::push`), and the rows from s_a on once the run it starts
+    /// goes in (`Interpolator::take_splice`); its sequence number is the
+    /// next one, as any chunk's.
+    pub const SPLICE: u8 = 1 << 3;
     /// Every flag bit this version knows.
-    pub const KNOWN: u8 = U_FORM | LAST | FIRST;
+    pub const KNOWN: u8 = U_FORM | LAST | FIRST | SPLICE;
 }
 
 /// Flag bits of the q part (the byte after `first_span`).

@@ -26,10 +26,13 @@
 //! +--------+------+-----------------------------------------------------+
 //! |      0 |    2 | magic "FC"                                          |
 //! |      2 |    1 | version u8 = 2 (`VERSION`)                          |
-//! |      3 |    1 | flags: bit 0 u form, bit 1 last, bit 2 first; rest 0|
+//! |      3 |    1 | flags: bit 0 u form, bit 1 last, bit 2 first,       |
+//! |        |      | bit 3 splice; rest 0                                |
 //! |      4 |    4 | seq u32, +1 per chunk, wrapping                     |
 //! |      8 |    4 | plan_id u32                                         |
-//! |     12 |    8 | s_a i64, Q40 mm (= the previous chunk's s_b)        |
+//! |     12 |    8 | s_a i64, Q40 mm (= the previous chunk's s_b; a      |
+//! |        |      | splice's: a held chunk's s_b, the plan replaced     |
+//! |        |      | from there)                                         |
 //! |     20 |    8 | s_b i64, Q40 mm (> s_a; L in the last chunk)        |
 //! |     28 |    4 | commit u32, Q20 mm: s_b − s_c                       |
 //! |     32 |    2 | n_q u16, q spans (≥ 1)                              |
@@ -131,7 +134,7 @@ pub(crate) mod varint;
 pub(crate) mod window;
 
 pub use self::chunk::{Chunk, ChunkInfo, PieceForm, Pieces, QSpanForm, QSpans};
-pub use self::encode::{commit_q20, encode_chunk, set_commit, ChunkHead, Stretch};
+pub use self::encode::{commit_q20, encode_chunk, set_commit, set_seq, ChunkHead, Stretch};
 pub use self::error::{ChunkEncodeError, ChunkError, Malformed, StreamError};
 pub use self::frame::{Frame, FrameDecoder, FrameError};
 pub use self::head::{HeadError, StreamHead, HEAD_LEN};

@@ -25,6 +25,8 @@ pub struct PushOk {
     pub seq: u32,
     /// [`ChunkRing::free`] after the push.
     pub free: usize,
+    /// Chunks a splice dropped (those held from its s_a on).
+    pub dropped: usize,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -72,12 +74,14 @@ impl<const CAP: usize, const SLOTS: usize> ChunkRing<CAP, SLOTS> {
         self.expect = None;
     }
 
-    /// Where a chunk of `len` bytes would go, if it fits now.
-    fn place(&self, len: usize) -> Option<usize> {
-        if self.slots.is_full() {
+    /// Where a chunk of `len` bytes would go with only the oldest `keep`
+    /// chunks held, if it fits.
+    fn place(&self, keep: usize, len: usize) -> Option<usize> {
+        if keep >= SLOTS {
             return None;
         }
-        let (Some(front), Some(back)) = (self.slots.front(), self.slots.back()) else {
+        let back = keep.checked_sub(1).and_then(|i| self.slots.iter().nth(i));
+        let (Some(front), Some(back)) = (self.slots.front(), back) else {
             return (len <= CAP).then_some(0);
         };
         let end = back.at.saturating_add(back.info.len);
@@ -113,9 +117,17 @@ impl<const CAP: usize, const SLOTS: usize> ChunkRing<CAP, SLOTS> {
     /// other a [`StreamError::OutOfOrder`]), nothing after the last chunk,
     /// the first-chunk flag (set exactly on the chunk that starts the ring),
     /// s_a = the previous s_b, then the room. A refused chunk changes nothing.
+    ///
+    /// A splice ([`ChunkInfo::is_splice`]) replaces the plan from its s_a
+    /// on: s_a is at most the previous s_b, and the end of a held chunk or
+    /// at most the oldest one's start (then it splices into the rows the
+    /// plan window holds, `Interpolator::take_splice`); the held chunks
+    /// from s_a on are dropped (`PushOk::dropped`), and it may follow the
+    /// plan's last chunk.
     pub fn push(&mut self, bytes: &[u8]) -> Result<PushOk, StreamError> {
         let chunk = Chunk::parse(bytes)?;
         let info = *chunk.info();
+        let mut drop = 0usize;
         match self.expect {
             None => {
                 if !info.is_first() {
@@ -140,25 +152,47 @@ impl<const CAP: usize, const SLOTS: usize> ChunkRing<CAP, SLOTS> {
                         }
                     });
                 }
-                if e.ended {
+                if e.ended && !info.is_splice() {
                     return Err(StreamError::AfterLast);
                 }
                 if info.is_first() {
                     return Err(StreamError::FirstFlag);
                 }
-                if info.s_a != e.s_a {
+                let behind = info.is_splice() && info.s_a < e.s_a;
+                if info.s_a != e.s_a && !behind {
                     return Err(StreamError::Discontinuous {
                         expected: e.s_a,
                         got: info.s_a,
                     });
                 }
+                if behind {
+                    // the held chunks from s_a on go; s_a must end the one
+                    // before them
+                    for slot in self.slots.iter().rev() {
+                        if slot.info.s_a >= info.s_a {
+                            drop += 1;
+                        } else {
+                            if slot.info.s_b != info.s_a {
+                                return Err(StreamError::InsideChunk {
+                                    s_a: info.s_a,
+                                    chunk_seq: slot.info.seq,
+                                });
+                            }
+                            break;
+                        }
+                    }
+                }
             }
         }
         let need = bytes.len();
-        let at = self.place(need).ok_or(StreamError::Full {
+        let keep = self.slots.len() - drop;
+        let at = self.place(keep, need).ok_or(StreamError::Full {
             need,
             free: self.free(),
         })?;
+        for _ in 0..drop {
+            self.slots.pop_back();
+        }
         let dst = at
             .checked_add(need)
             .and_then(|end| self.buf.get_mut(at..end))
@@ -176,6 +210,7 @@ impl<const CAP: usize, const SLOTS: usize> ChunkRing<CAP, SLOTS> {
         Ok(PushOk {
             seq: info.seq,
             free: self.free(),
+            dropped: drop,
         })
     }
 
@@ -188,6 +223,15 @@ impl<const CAP: usize, const SLOTS: usize> ChunkRing<CAP, SLOTS> {
             n += 1;
         }
         n
+    }
+
+    /// Drop the newest `n` chunks held (a splice that came too late to be
+    /// taken, and the chunks after it); the next chunk is expected as
+    /// before, and a splice from at most the ring's new end replaces them.
+    pub fn drop_newest(&mut self, n: usize) {
+        for _ in 0..n {
+            self.slots.pop_back();
+        }
     }
 
     /// Chunks held.

@@ -77,6 +77,12 @@ pub enum WindowError {
     /// The chunk's rows could not be decoded (it was not checked by
     /// [`Chunk::parse`]), or it holds no piece.
     Undecodable,
+    /// A splice whose s_a is not the end of a piece held before the rows'
+    /// end (Q40 mm).
+    NotABreak {
+        /// The splice's s_a.
+        s_a: i64,
+    },
 }
 
 impl core::fmt::Display for WindowError {
@@ -105,6 +111,9 @@ impl core::fmt::Display for WindowError {
             }
             WindowError::AfterLast => write!(f, "chunk after the plan's last"),
             WindowError::Undecodable => write!(f, "chunk rows not decodable"),
+            WindowError::NotABreak { s_a } => {
+                write!(f, "splice at {s_a} (Q40 mm) is not a held piece end")
+            }
         }
     }
 }
@@ -420,6 +429,90 @@ impl<const NQ: usize, const NP: usize> PlanWindow<NQ, NP> {
             self.hold_at = i64::MIN;
         }
         true
+    }
+
+    /// Whether the rows from the splice's s_a on could be replaced by `run`
+    /// (a splice chunk and the chunks after it, in order): the same plan,
+    /// s_a the end of a held piece before the rows' end, the run's q spans
+    /// continuing those kept (the span holding s_a, repeated, the same
+    /// row), and the run fitting once the rows from s_a on are dropped
+    /// ([`WindowError::Full`] otherwise). Nothing changes.
+    pub fn splice_fits(&self, run: &[Chunk<'_>]) -> Result<(), WindowError> {
+        let c0 = run.first().ok_or(WindowError::Undecodable)?;
+        let info = *c0.info();
+        if let Some(held) = self.plan_id.filter(|&h| h != info.plan_id) {
+            return Err(WindowError::OtherPlan {
+                held,
+                found: info.plan_id,
+            });
+        }
+        let s_a = info.s_a;
+        let np = (0..self.p_n)
+            .find(|&k| self.prow(self.p_lo + k).is_some_and(|r| to_fx(r.end) == s_a))
+            .map(|k| k + 1)
+            .filter(|_| s_a < self.held_end)
+            .ok_or(WindowError::NotABreak { s_a })?;
+        let mut nq = self.q_n;
+        while nq > 0
+            && self
+                .qrow(self.q_lo + nq - 1)
+                .is_some_and(|r| to_fx(r.start) >= s_a)
+        {
+            nq -= 1;
+        }
+        let next = u32::try_from(self.q_lo + nq + 3).unwrap_or(u32::MAX);
+        let repeat = nq > 0 && info.first_span.wrapping_add(1) == next;
+        if !(info.first_span == next || repeat) {
+            return Err(WindowError::QSpans {
+                expected: next,
+                found: info.first_span,
+            });
+        }
+        if repeat {
+            let idx = self.q_lo + nq - 1;
+            let same = c0
+                .q_spans()
+                .next()
+                .is_some_and(|form| self.qrow(idx) == Some(&Self::q_row(idx, &form)));
+            if !same {
+                return Err(WindowError::QSpans {
+                    expected: next,
+                    found: info.first_span,
+                });
+            }
+        }
+        // (as fits_run, from the rows kept)
+        let (mut q, mut p, mut nx) = (nq, np, next);
+        for c in run {
+            let i = c.info();
+            let rep = usize::from(q > 0 && i.first_span.wrapping_add(1) == nx);
+            q = q.saturating_add(usize::from(i.n_q).saturating_sub(rep));
+            p = p.saturating_add(usize::from(i.n_p));
+            nx = i.first_span.wrapping_add(u32::from(i.n_q));
+            if q > NQ || p > NP {
+                return Err(WindowError::Full {
+                    free_q: NQ.saturating_sub(nq),
+                    free_p: NP.saturating_sub(np),
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// Replace the rows from the splice's s_a on by `run` (see
+    /// [`PlanWindow::splice_fits`], checked first: refused with nothing
+    /// changed). The plan's end is unknown again unless the run ends it.
+    pub fn splice(&mut self, run: &[Chunk<'_>]) -> Result<(), WindowError> {
+        self.splice_fits(run)?;
+        let s_a = run.first().map_or(i64::MAX, |c| c.info().s_a);
+        if !self.truncate(s_a) {
+            return Err(WindowError::NotABreak { s_a });
+        }
+        // (cannot fail for parsed chunks that passed the checks above)
+        for c in run {
+            self.push(c)?;
+        }
+        Ok(())
     }
 
     /// Free the q spans before global index `q` and the pieces before `p`

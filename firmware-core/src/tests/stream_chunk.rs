@@ -243,6 +243,7 @@ fn encode_chunk_refuses_bad_stretches() {
         commit: 0,
         first: false,
         last: false,
+        splice: false,
     };
     let mut out = vec![0u8; 1 << 16];
     assert!(encode_chunk(&head, &s, &mut out).is_ok());

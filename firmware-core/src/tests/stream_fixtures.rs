@@ -98,6 +98,7 @@ pub(super) fn chunk_table(t: &Table, mm: f64, u_form: bool, plan_id: u32, seq0: 
                 commit: 0,
                 first: k == 0,
                 last: k + 1 == n,
+                splice: false,
             };
             let mut out = vec![0u8; 1 << 20];
             let len = encode_chunk(&head, &stretch(&r, jj, u_form), &mut out).unwrap();
@@ -135,6 +136,23 @@ pub(super) fn hand_chunk(payload: &[u8], n_q: u16, n_p: u16) -> Vec<u8> {
     b[field::PAYLOAD_LEN..field::PAYLOAD_LEN + 4].copy_from_slice(&(payload.len() as u32).to_le_bytes());
     b.extend_from_slice(payload);
     b.extend_from_slice(&[0; 4]);
+    reseal(&mut b);
+    b
+}
+
+/// `chunk` as a splice (the flag set), with sequence number `seq`.
+pub(super) fn as_splice(chunk: &[u8], seq: u32) -> Vec<u8> {
+    let mut b = chunk.to_vec();
+    b[field::FLAGS] |= crate::stream::layout::flags::SPLICE;
+    b[field::SEQ..field::SEQ + 4].copy_from_slice(&seq.to_le_bytes());
+    reseal(&mut b);
+    b
+}
+
+/// `chunk` with sequence number `seq` (and its flags otherwise).
+pub(super) fn with_seq(chunk: &[u8], seq: u32) -> Vec<u8> {
+    let mut b = chunk.to_vec();
+    b[field::SEQ..field::SEQ + 4].copy_from_slice(&seq.to_le_bytes());
     reseal(&mut b);
     b
 }

@@ -224,3 +224,73 @@ fn ring_full_by_bytes_and_by_slots() {
     assert!(ring.is_empty() && ring.expected_seq().is_none());
     ring.push(&plan(10.0, 4)[0]).unwrap();
 }
+
+/// A splice replaces the chunks held from its s_a on: they are dropped,
+/// the splice follows the chunk ending there, and the sequence goes on from
+/// it; one from inside a held chunk, from past the end, or out of sequence
+/// is refused with the ring unchanged.
+#[test]
+fn a_splice_drops_the_chunks_held_from_its_start_and_goes_on_from_there() {
+    let chunks = plan(10.0, 5);
+    assert!(chunks.len() >= 6);
+    let info = |c: &[u8]| *Chunk::parse(c).unwrap().info();
+    let mut ring: ChunkRing<{ 1 << 16 }> = ChunkRing::new();
+    for c in &chunks[..5] {
+        ring.push(c).unwrap();
+    }
+    // from inside chunk 2: refused, nothing changed
+    let mut inside = as_splice(&chunks[2], 105);
+    let s_in = info(&chunks[2]).s_a + 1;
+    inside[field::S_A..field::S_A + 8].copy_from_slice(&s_in.to_le_bytes());
+    reseal(&mut inside);
+    if let Ok(c) = Chunk::parse(&inside) {
+        let before = state(&ring);
+        assert_eq!(
+            ring.push(c.as_bytes()),
+            Err(StreamError::InsideChunk {
+                s_a: s_in,
+                chunk_seq: 102
+            })
+        );
+        assert_eq!(state(&ring), before);
+    }
+    // past the end of what is held: a gap, as for any chunk
+    let before = state(&ring);
+    assert!(matches!(
+        ring.push(&as_splice(&chunks[5], 106)),
+        Err(StreamError::OutOfOrder { .. })
+    ));
+    let past = as_splice(&chunks[6], 105);
+    assert!(matches!(ring.push(&past), Err(StreamError::Discontinuous { .. })));
+    assert_eq!(state(&ring), before);
+    // from chunk 2's start: chunks 2, 3, 4 go, the splice takes their place
+    let ok = ring.push(&as_splice(&chunks[2], 105)).unwrap();
+    assert_eq!((ok.seq, ok.dropped), (105, 3));
+    assert_eq!(ring.len(), 3);
+    assert_eq!(ring.held_end(), Some(info(&chunks[2]).s_b));
+    assert!(ring.get(2).unwrap().info().is_splice());
+    // and the plan goes on after it, in sequence
+    for (k, c) in chunks[3..].iter().enumerate() {
+        let ok = ring.push(&with_seq(c, 106 + k as u32)).unwrap();
+        assert_eq!(ok.dropped, 0);
+    }
+    assert!(ring.has_last());
+    // a splice may follow the plan's last chunk, and may drop every chunk
+    // held (it then starts inside the rows the plan window holds)
+    let next = 106 + (chunks.len() - 3) as u32;
+    ring.release_through(info(&chunks[0]).s_b);
+    let s0 = ring.held_start().unwrap();
+    let first = ring.get(0).unwrap().as_bytes().to_vec();
+    let held = ring.len();
+    let ok = ring.push(&as_splice(&first, next)).unwrap();
+    assert_eq!((ok.dropped, ring.len()), (held, 1));
+    assert_eq!(ring.held_start(), Some(s0));
+    ring.release_through(ring.held_end().unwrap());
+    let ok = ring.push(&as_splice(&chunks[2], next + 1)).unwrap();
+    assert_eq!((ok.dropped, ring.len()), (0, 1));
+    // the newest held chunks dropped by the caller (a splice too late to be
+    // taken): the next splice comes on the sequence
+    ring.drop_newest(1);
+    assert!(ring.is_empty());
+    assert!(ring.push(&as_splice(&chunks[3], next + 2)).is_ok());
+}

@@ -1,0 +1,149 @@
+//! A feedrate override on a streamed program: while the Butterfly runs from
+//! its chunks, the host replans the path ahead at the new feed from a chunk
+//! boundary the motion has not reached (`plan::replan`), and the firmware
+//! splices the replan's chunks in there (`Interpolator::take_splice`). The
+//! replan's chunks before the boundary are the running plan's, byte for
+//! byte; every limit holds on the setpoints (padded at rest) across the
+//! splice, against the feed limit of the change; the new feed holds from
+//! where the replan put it and is reached.
+//!
+//! Printed: `cargo test --release -p e2e-tests --test stream_override -- --nocapture`.
+
+use firmware_core::interp::Spliced;
+use firmware_core::stream::{set_seq, Chunk};
+use firmware_core::{Setpoint, Table};
+use planner_host::plan::replan::{replan, FeedChange};
+use planner_host::plan::{plan_curve, PlanConfig, PlanOutput, WindowConfig};
+use planner_host::stream::{chunk_table, ChunkOptions};
+use planner_host::stream_hold::StreamedRun;
+use sim_harness::metrics::{self, Tick};
+
+const T: f64 = 250e-6;
+const NQ: usize = 64;
+const NP: usize = 192;
+
+fn chunks_of(out: &PlanOutput) -> Vec<Vec<u8>> {
+    let table = Table::parse(&out.table_bytes).unwrap();
+    let opts = ChunkOptions {
+        chunk_mm: 8.0,
+        ..ChunkOptions::default()
+    };
+    chunk_table(&table, &opts).unwrap()
+}
+
+/// Where a chunk starts, mm (its first piece's start break).
+fn start_mm(c: &[u8]) -> f64 {
+    Chunk::parse(c).unwrap().pieces().next().unwrap().start
+}
+
+struct Overridden {
+    setpoints: Vec<Setpoint>,
+    replanned: PlanOutput,
+    /// Where the motion was when the change was asked for, and the splice.
+    asked_mm: f64,
+    splice_mm: f64,
+}
+
+/// The Butterfly streamed, the feed changed to `alpha` once the motion
+/// passes `at_mm`, from the first chunk boundary `lead_mm` ahead.
+fn run(alpha: f64, at_mm: f64, lead_mm: f64) -> Overridden {
+    let curve = planner_host::builtin::butterfly().unwrap();
+    let cfg = PlanConfig {
+        windows: Some(WindowConfig::default()),
+        ..PlanConfig::default()
+    };
+    let running = plan_curve(&curve, &cfg).unwrap();
+    let table = Table::parse(&running.table_bytes).unwrap();
+    let chunks = chunks_of(&running);
+    let mut sent = chunks.clone();
+    let mut sr = StreamedRun::<NQ, NP>::start(&table, &sent, T).unwrap();
+    let mut setpoints = Vec::new();
+    let mut change = None;
+    while !sr.ip.is_done() {
+        sr.feed(&sent).unwrap();
+        let s = sr.ip.s_mm();
+        if change.is_none() && s > at_mm {
+            // the boundary: a chunk's start lead_mm ahead, a piece break
+            let i = (1..chunks.len())
+                .find(|&i| start_mm(&chunks[i]) > s + lead_mm)
+                .unwrap();
+            let s_b = start_mm(&chunks[i]);
+            let out = replan(
+                &curve,
+                &cfg,
+                &FeedChange {
+                    ctrl: &running.q_ctrl,
+                    before: &running.feed_limit(),
+                    s_mm: s_b,
+                    alpha,
+                },
+            )
+            .unwrap();
+            let new = chunks_of(&out);
+            assert_eq!(
+                new[..i],
+                chunks[..i],
+                "the replan's chunks before the splice differ"
+            );
+            sent.truncate(i);
+            sent.extend_from_slice(&new[i..]);
+            for (k, c) in sent.iter_mut().enumerate().skip(i) {
+                set_seq(c, 1000 + k as u32, k == i).unwrap();
+            }
+            sr.set_ends(Table::parse(&out.table_bytes).unwrap().ends());
+            let r = sr.take_splice(&sent, i).unwrap();
+            assert!(matches!(r, Spliced::Taken(_)), "{r:?}");
+            change = Some((s, s_b, out));
+        }
+        setpoints.push(sr.ip.tick().unwrap());
+        assert!(setpoints.len() < 2_000_000);
+    }
+    let (asked_mm, splice_mm, replanned) = change.expect("the change was made");
+    Overridden {
+        setpoints,
+        replanned,
+        asked_mm,
+        splice_mm,
+    }
+}
+
+#[test]
+fn an_override_replanned_and_spliced_into_the_stream_holds_every_limit_and_reaches_the_new_feed() {
+    for (alpha, at_mm) in [(0.5, 100.0), (0.3, 200.0), (1.2, 60.0)] {
+        let o = run(alpha, at_mm, 20.0);
+        let out = &o.replanned;
+        let lim = Table::parse(&out.table_bytes).unwrap().limits();
+        let f = out.feed_change.as_ref().unwrap();
+        let ticks: Vec<Tick> = o.setpoints.iter().map(Tick::of_setpoint).collect();
+        let m = metrics::compute(&ticks, T, &lim, None);
+        let vbar = out.config.limits.vbar;
+        // the new feed from s_f on, and reached
+        let after: Vec<&Setpoint> = o.setpoints.iter().filter(|p| p.s_mm >= f.s_feed_mm).collect();
+        let top = after.iter().fold(0.0f64, |m, p| m.max(p.feed_mm_s));
+        let end = o.setpoints.last().unwrap();
+        eprintln!(
+            "override to {:.0} % asked at {:.2} mm: splice {:.2} mm, new feed from {:.2} mm ({} plan(s)), \
+             fastest after it {top:.2} mm/s of {:.2}; machining {:.4} s (plan {:.4} s); ratios at rest {:?}",
+            alpha * 100.0,
+            o.asked_mm,
+            o.splice_mm,
+            f.s_feed_mm,
+            f.tries,
+            alpha * vbar,
+            end.t_s,
+            out.predicted_time_s,
+            m.ratios_at_rest,
+        );
+        assert!(
+            (end.s_mm - out.path_length_mm).abs() < 1e-9,
+            "the path's end reached"
+        );
+        assert!(m.ratios_at_rest.worst() <= 1.01, "{:?}", m.ratios_at_rest);
+        assert!(top <= alpha * vbar * 1.002, "{top} mm/s after the change");
+        if alpha < 1.0 {
+            assert!(top >= alpha * vbar * 0.99, "the new feed is reached: {top}");
+        }
+        // the motion runs the replan's time (the tick follows the plan)
+        assert!((end.t_s - out.predicted_time_s).abs() < 0.01 * out.predicted_time_s);
+    }
+}
