@@ -303,12 +303,28 @@ pub fn hold_points<const NQ: usize, const NP: usize>(
     chunks: &[Vec<u8>],
     how: &HoldSearch,
 ) -> Result<HoldPoints, HoldPointError> {
+    hold_points_given::<NQ, NP>(table, chunks, how, &[])
+}
+
+/// [`hold_points`] with those of the first chunks given (a replan's
+/// chunks before its splice are the running plan's, and so are their hold
+/// points): the dry run runs past them without testing, each given one
+/// taken where the tests of a search would have turned (the first coarse
+/// test `backoff_mm` past it), and the search tests from the first chunk
+/// not given on, with the dry runs kept at the coarse steps before as ever.
+pub fn hold_points_given<const NQ: usize, const NP: usize>(
+    table: &Table,
+    chunks: &[Vec<u8>],
+    how: &HoldSearch,
+    given: &[f64],
+) -> Result<HoldPoints, HoldPointError> {
     let head = stream_head(table).ok_or(HoldPointError::Head)?;
     let ends = table.ends();
     // (on a thread of its own: the window and the dry run's copies of it
     // live on its stack)
     on_big_stack(|| {
         let mut search = HoldPointSearch::<NQ, NP>::new(&head, ends, *how, std::time::Instant::now());
+        search.given = given.to_vec();
         search.advance(chunks)?;
         search.finish()
     })
@@ -371,6 +387,8 @@ pub struct HoldPointSearch<const NQ: usize, const NP: usize> {
     history: std::collections::VecDeque<(Box<StreamedRun<NQ, NP>>, f64)>,
     /// Chunk i waits to enter the dry run's window.
     entering: bool,
+    /// Hold points given for the first chunks ([`hold_points_given`]).
+    given: Vec<f64>,
 }
 
 /// Coarse tests the search keeps the dry run of, to look back from a
@@ -406,6 +424,7 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
             testing: None,
             history: Default::default(),
             entering: false,
+            given: vec![],
         }
     }
 
@@ -498,6 +517,19 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                         break;
                     }
                     self.entering = false;
+                    if let Some(&g) = self.given.get(self.i) {
+                        // (a given hold point: the tests pass up to just
+                        // past it, and turn there)
+                        if s <= g + self.how.backoff_mm {
+                            self.last_pass = Some(s);
+                            break;
+                        }
+                        self.s_c[self.i] = g;
+                        (self.last_pass, self.last_found) = (None, Some(g));
+                        self.known[self.i] = self.started.elapsed().as_secs_f64();
+                        self.i += 1;
+                        continue;
+                    }
                     self.tests += 1;
                     if stops_before(&run.ip, end, &parse(self.i + 1, next)?, &self.how) {
                         self.last_pass = Some(s);
@@ -708,7 +740,17 @@ pub fn set_hold_points<const NQ: usize, const NP: usize>(
     chunks: &mut [Vec<u8>],
     how: &HoldSearch,
 ) -> Result<HoldPoints, HoldPointError> {
-    let hp = hold_points::<NQ, NP>(table, chunks, how)?;
+    set_hold_points_given::<NQ, NP>(table, chunks, how, &[])
+}
+
+/// [`hold_points_given`], written into the chunks' commit fields.
+pub fn set_hold_points_given<const NQ: usize, const NP: usize>(
+    table: &Table,
+    chunks: &mut [Vec<u8>],
+    how: &HoldSearch,
+    given: &[f64],
+) -> Result<HoldPoints, HoldPointError> {
+    let hp = hold_points_given::<NQ, NP>(table, chunks, how, given)?;
     for (index, (c, &lead)) in chunks.iter_mut().zip(&hp.lead_mm).enumerate() {
         set_commit(c, commit_q20(lead)).map_err(|error| HoldPointError::Chunk { index, error })?;
     }

@@ -49,6 +49,7 @@ pub mod scenario;
 pub mod servo;
 pub mod steps;
 pub mod stream;
+pub mod stream_host;
 
 pub use check::{check_trajectory, CheckConfig, CheckReport, Trajectory};
 pub use geometry::CurveGeometry;

@@ -27,9 +27,9 @@
 //! Motion starts when the first chunk is in the window; the setpoints'
 //! times are the firmware's own clock from then on.
 
-use firmware_core::interp::{Feeding, Interpolator};
+use firmware_core::interp::{Feeding, Interpolator, SpliceError, Spliced};
 use firmware_core::stream::frame::encoded_max_len;
-use firmware_core::stream::{ChunkRing, PlanWindow};
+use firmware_core::stream::{set_seq, Chunk, ChunkRing, PlanWindow};
 use firmware_core::{Setpoint, Table};
 use planner_host::stream_hold::stream_head;
 
@@ -101,13 +101,132 @@ pub struct StreamRun {
     pub refused_duplicate: usize,
     /// Out of order refused (a NAK each).
     pub refused_order: usize,
+    /// Feed changes asked for, in order, and what became of each.
+    pub overrides: Vec<OverrideRun>,
+}
+
+/// A feed change on a streamed run: the host's replan from a splice point,
+/// sent as a splice and taken by the firmware ([`StreamHost`]).
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct OverrideRun {
+    /// When the change was asked for, s from the host's start.
+    pub asked_s: f64,
+    /// The new feed factor.
+    pub alpha: f64,
+    /// The motion's s the host knew then (one latency old), mm.
+    pub known_mm: f64,
+    /// The splice point of the replan taken (or of the last tried), mm.
+    pub splice_mm: f64,
+    /// Where the new feed limit holds from, mm.
+    pub feed_from_mm: f64,
+    /// The host's replanning and hold-point search, wall time, s.
+    pub host_s: f64,
+    /// When the firmware took the splice, s (None: never, the path ended).
+    pub taken_s: Option<f64>,
+    /// When the motion passed the splice point onto the replan, s.
+    pub effect_s: Option<f64>,
+    /// When the motion reached `feed_from_mm`, s.
+    pub at_feed_s: Option<f64>,
+    /// Splices the motion had passed before they could be taken (replanned
+    /// from further on each time).
+    pub late: u32,
+    /// A later change came before this one could be replanned: the newest
+    /// wins, this one was never made.
+    pub superseded: bool,
+}
+
+/// A feed change asked for while streaming, as the host knows it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Ask {
+    /// When, s from the host's start.
+    pub t_s: f64,
+    /// The new feed factor of the programmed feed.
+    pub alpha: f64,
+    /// The motion's s as last reported (one latency old), mm.
+    pub s_mm: f64,
+    /// Its feed then, mm/s.
+    pub feed_mm_s: f64,
+    /// Asked again: the splice before it came too late.
+    pub retry: bool,
+}
+
+/// The host's replan for an [`Ask`]: the chunks replacing the plan from
+/// `s_a` on (the first a splice), and when each is ready.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Replacement {
+    /// The splice point, Q40 mm (a chunk boundary of the running plan).
+    pub s_a: i64,
+    /// The replan's chunks from `s_a` on, hold points set (seqs and the
+    /// splice flag are the run's to set).
+    pub chunks: Vec<Vec<u8>>,
+    /// Per chunk, when it is ready, s after the ask.
+    pub ready_after_s: Vec<f64>,
+    /// The replan's end segments (the stop segment comes again).
+    pub ends: Option<firmware_core::EndSegments>,
+    /// The splice point and where the new feed holds from, mm.
+    pub splice_mm: f64,
+    /// See `splice_mm`.
+    pub feed_from_mm: f64,
+    /// The host's wall time for it, s.
+    pub host_s: f64,
+}
+
+/// The host's side of feed changes during a streamed run.
+pub trait StreamHost {
+    /// The changes to ask for: (time s from the host's start, factor), in
+    /// time order.
+    fn asks(&self) -> Vec<(f64, f64)>;
+    /// Replan for `ask` (the plan running is the last one taken); `None`:
+    /// no change is possible any more (the path's end is near).
+    fn replan(&mut self, ask: &Ask) -> Result<Option<Replacement>, String>;
+    /// The firmware took the replacement last returned, `after_s` after
+    /// the ask it answered: it runs now.
+    fn taken(&mut self, after_s: f64);
+    /// The firmware refused the replacement last returned as too late; its
+    /// rows end at `held_end` (Q40 mm). The running plan's chunks from there
+    /// on, hold points set (empty: it holds them all), to send at once as a
+    /// splice (the firmware takes nothing else next), and its end segments.
+    fn late(&mut self, held_end: i64) -> (Vec<Vec<u8>>, Option<firmware_core::EndSegments>);
 }
 
 /// A frame on its way up (firmware → host).
 #[derive(Clone, Copy, Debug)]
 enum Up {
-    Ack { seq: u32, free: usize },
-    Nak { expected: u32 },
+    Ack {
+        seq: u32,
+        free: usize,
+    },
+    Nak {
+        expected: u32,
+    },
+    /// The splice with this seq went in.
+    Taken {
+        seq: u32,
+    },
+    /// The splice with this seq came too late (dropped with what followed),
+    /// and where the rows held end (Q40 mm).
+    Late {
+        seq: u32,
+        held_end: i64,
+    },
+}
+
+/// The splice in flight taken at `t`: its record says so, and the changes
+/// before it that had not taken effect and splice at or after it never will
+/// (it replaced their replans before they began).
+fn take_record(records: &mut [OverrideRun], in_flight: Option<(u32, usize)>, t: f64) {
+    let Some((_, rec)) = in_flight else { return };
+    let at = records.get(rec).map_or(f64::NAN, |o| o.splice_mm);
+    for o in records
+        .iter_mut()
+        .take(rec)
+        .filter(|o| o.effect_s.is_none() && o.splice_mm >= at)
+    {
+        o.superseded = true;
+    }
+    if let Some(o) = records.get_mut(rec) {
+        o.taken_s = Some(t);
+    }
 }
 
 /// Why a streamed run stopped.
@@ -144,6 +263,14 @@ pub enum StreamRunError {
     /// The motion did not end in time.
     #[error("no end after {0} ticks")]
     TooLong(u64),
+    /// The host could not replan a feed change.
+    #[error("feed change at {t_s:.3} s: {message}")]
+    Replan {
+        /// When it was asked for, s.
+        t_s: f64,
+        /// Why.
+        message: String,
+    },
     /// The window is full and no chunk in it has a hold point ahead of the
     /// start: no hold from the start stops inside the rows it can hold, so
     /// the motion never starts.
@@ -187,9 +314,43 @@ pub fn run_stream_each<const CAP: usize, const NQ: usize, const NP: usize>(
     link: &StreamLink,
     each: &mut dyn FnMut(&Setpoint),
 ) -> Result<StreamRun, StreamRunError> {
+    run_stream_host::<CAP, NQ, NP>(table, chunks, link, None, each)
+}
+
+/// [`run_stream_each`] with feed changes: at each of `host`'s asks the
+/// host replans ([`StreamHost::replan`], knowing the motion's s one
+/// latency late), keeps sending the running plan until the replan's first
+/// chunk is ready, then sends the replan's chunks from the splice point on
+/// (the first flagged a splice, seqs going on from the last sent); the
+/// firmware takes the splice ([`Interpolator::take_splice`]) or, the motion
+/// past its start, refuses it as late ([`ChunkRing::refuse_splice`]), and
+/// the host replans from further on. One change at a time: an ask waits
+/// while the one before is in flight.
+pub fn run_stream_host<const CAP: usize, const NQ: usize, const NP: usize>(
+    table: &Table,
+    chunks: &[Vec<u8>],
+    link: &StreamLink,
+    mut host: Option<&mut dyn StreamHost>,
+    each: &mut dyn FnMut(&Setpoint),
+) -> Result<StreamRun, StreamRunError> {
     let head = stream_head(table).ok_or(StreamRunError::Head)?;
-    let framed: Vec<usize> = chunks.iter().map(|c| encoded_max_len(c.len()) + 1).collect();
-    let n = chunks.len();
+    // the chunks as the host sends them (a splice replaces a tail), seq =
+    // position; when each is ready
+    let mut chunks: Vec<Vec<u8>> = chunks.to_vec();
+    let mut framed: Vec<usize> = chunks.iter().map(|c| encoded_max_len(c.len()) + 1).collect();
+    let mut ready_s: Vec<f64> = link.ready_s.clone();
+    // (time, factor, the record it retries)
+    let mut asks: std::collections::VecDeque<(f64, f64, Option<usize>)> = host
+        .as_ref()
+        .map(|h| h.asks().into_iter().map(|(t, a)| (t, a, None)).collect())
+        .unwrap_or_default();
+    // a replacement computed, not yet in the list: (ready at, it, record index)
+    let mut replacing: Option<(f64, Replacement, usize)> = None;
+    // the splice sent and not yet taken or refused: (seq, record index)
+    let mut in_flight: Option<(u32, usize)> = None;
+    // the motion's (t, s, feed) as reported, for the host's one-latency-old view
+    let mut telemetry: std::collections::VecDeque<(f64, f64, f64)> = Default::default();
+    let mut stop_ends = table.ends();
     let mut ring: Box<ChunkRing<CAP, 64>> = Box::default();
     // host: the next chunk to send, the last acknowledged, the ring's free
     // bytes as last reported, when the firmware last spoke; the link busy
@@ -198,7 +359,7 @@ pub fn run_stream_each<const CAP: usize, const NQ: usize, const NP: usize>(
     let (mut next, mut acked, mut free) = (0usize, None::<usize>, CAP);
     let mut last_word = 0.0f64;
     let mut link_free_at = 0.0f64;
-    let mut down: Vec<(f64, usize, bool)> = Vec::new();
+    let mut down: Vec<(f64, Vec<u8>, bool)> = Vec::new();
     let mut up: std::collections::VecDeque<(f64, Up)> = std::collections::VecDeque::new();
     let mut restarted = false;
     let f = link.faults;
@@ -219,13 +380,14 @@ pub fn run_stream_each<const CAP: usize, const NQ: usize, const NP: usize>(
         starvations: 0,
         ring_peak_bytes: 0,
         window_peak_pieces: 0,
-        chunks: n,
+        chunks: chunks.len(),
         framed_bytes: framed.iter().sum(),
         starved_reach_mm: vec![],
         transmissions: 0,
         refused_crc: 0,
         refused_duplicate: 0,
         refused_order: 0,
+        overrides: vec![],
     };
     let mut stop_set = false;
     let mut ring_bytes = 0usize;
@@ -251,13 +413,159 @@ pub fn run_stream_each<const CAP: usize, const NQ: usize, const NP: usize>(
             match m {
                 Up::Ack { seq, free: fr } => {
                     free = fr;
-                    if seq != u32::MAX {
+                    // (an ack of a splice refused as late, after the host
+                    // dropped it from its list, is not news)
+                    if seq != u32::MAX && (seq as usize) < chunks.len() {
                         let s = seq as usize;
                         acked = Some(acked.map_or(s, |a| a.max(s)));
                         next = next.max(s + 1);
                     }
                 }
                 Up::Nak { expected } => next = next.min(expected as usize),
+                Up::Taken { seq } => {
+                    if let Some((_, rec)) = in_flight.filter(|&(sq, _)| sq == seq) {
+                        in_flight = None;
+                        // (a restored running plan is no change)
+                        if let (Some(h), Some(o)) = (host.as_mut(), run.overrides.get(rec)) {
+                            h.taken(t - o.asked_s);
+                        }
+                    }
+                }
+                Up::Late { seq, held_end } => {
+                    if let Some((_, rec)) = in_flight.filter(|&(sq, _)| sq == seq) {
+                        // the dead splice and what followed it are not sent
+                        // again: the running plan's chunks from the end of
+                        // the rows held go now, as a splice, and the same
+                        // change is asked again
+                        in_flight = None;
+                        let pos = seq as usize;
+                        chunks.truncate(pos);
+                        framed.truncate(pos);
+                        ready_s.truncate(pos);
+                        next = next.min(pos);
+                        acked = acked.map(|a| a.min(pos.saturating_sub(1)));
+                        if let Some(o) = run.overrides.get_mut(rec) {
+                            o.late += 1;
+                            asks.push_front((t, o.alpha, Some(rec)));
+                        }
+                        if let Some(h) = host.as_mut() {
+                            let (restore, ends) = h.late(held_end);
+                            stop_ends = ends;
+                            if !restore.is_empty() {
+                                for (k, mut c) in restore.into_iter().enumerate() {
+                                    set_seq(&mut c, (pos + k) as u32, k == 0).map_err(|e| {
+                                        StreamRunError::Replan {
+                                            t_s: t,
+                                            message: format!("restored chunk {k}: {e}"),
+                                        }
+                                    })?;
+                                    framed.push(encoded_max_len(c.len()) + 1);
+                                    chunks.push(c);
+                                    ready_s.push(t);
+                                }
+                                in_flight = Some((pos as u32, usize::MAX));
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        // host: a feed change due, replanned now (one at a time) ...
+        if let Some(h) = host.as_mut() {
+            let due = asks.front().is_some_and(|&(at, _, _)| at <= t);
+            if due && replacing.is_none() && in_flight.is_none() {
+                // (asks that came while one was in flight: the newest wins)
+                while asks.len() > 1 && asks.get(1).is_some_and(|&(at, _, _)| at <= t) {
+                    if let Some((at, alpha, retry)) = asks.pop_front() {
+                        if retry.is_none() {
+                            run.overrides.push(OverrideRun {
+                                asked_s: at,
+                                alpha,
+                                known_mm: f64::NAN,
+                                splice_mm: f64::NAN,
+                                feed_from_mm: f64::NAN,
+                                host_s: 0.0,
+                                taken_s: None,
+                                effect_s: None,
+                                at_feed_s: None,
+                                late: 0,
+                                superseded: true,
+                            });
+                        }
+                    }
+                }
+                if let Some((at, alpha, retry)) = asks.pop_front() {
+                    let seen = t - link.latency_s;
+                    let (s_mm, feed_mm_s) = telemetry
+                        .iter()
+                        .rev()
+                        .find(|&&(ts, _, _)| ts <= seen)
+                        .map_or((0.0, 0.0), |&(_, s, v)| (s, v));
+                    let ask = Ask {
+                        t_s: t,
+                        alpha,
+                        s_mm,
+                        feed_mm_s,
+                        retry: retry.is_some(),
+                    };
+                    let rep = h
+                        .replan(&ask)
+                        .map_err(|message| StreamRunError::Replan { t_s: t, message })?;
+                    let rec = match retry {
+                        Some(rec) => rec,
+                        None => {
+                            run.overrides.push(OverrideRun {
+                                asked_s: at,
+                                alpha,
+                                known_mm: s_mm,
+                                splice_mm: f64::NAN,
+                                feed_from_mm: f64::NAN,
+                                host_s: 0.0,
+                                taken_s: None,
+                                effect_s: None,
+                                at_feed_s: None,
+                                late: 0,
+                                superseded: false,
+                            });
+                            run.overrides.len() - 1
+                        }
+                    };
+                    if let Some(rep) = rep {
+                        if let Some(o) = run.overrides.get_mut(rec) {
+                            o.splice_mm = rep.splice_mm;
+                            o.feed_from_mm = rep.feed_from_mm;
+                            o.host_s += rep.host_s;
+                        }
+                        let first = t + rep.ready_after_s.first().copied().unwrap_or(0.0);
+                        replacing = Some((first, rep, rec));
+                    }
+                }
+            }
+        }
+        // ... and its chunks in the list once the first is ready: the
+        // running plan's from the splice point on that were not sent go
+        if replacing.as_ref().is_some_and(|&(at, _, _)| at <= t) {
+            if let Some((at0, rep, rec)) = replacing.take() {
+                let from = (0..chunks.len())
+                    .find(|&i| Chunk::parse(&chunks[i]).is_ok_and(|c| c.info().s_a >= rep.s_a))
+                    .unwrap_or(chunks.len());
+                let pos = from.max(next).min(chunks.len());
+                chunks.truncate(pos);
+                framed.truncate(pos);
+                ready_s.resize(pos, 0.0);
+                let first_after = rep.ready_after_s.first().copied().unwrap_or(0.0);
+                for (k, (mut c, r)) in rep.chunks.into_iter().zip(rep.ready_after_s).enumerate() {
+                    let seq = (pos + k) as u32;
+                    set_seq(&mut c, seq, k == 0).map_err(|e| StreamRunError::Replan {
+                        t_s: t,
+                        message: format!("replacement chunk {k}: {e}"),
+                    })?;
+                    framed.push(encoded_max_len(c.len()) + 1);
+                    chunks.push(c);
+                    ready_s.push(at0 - first_after + r);
+                }
+                in_flight = Some((pos as u32, rec));
+                stop_ends = rep.ends;
             }
         }
         let first_unacked = acked.map_or(0, |a| a + 1);
@@ -265,9 +573,12 @@ pub fn run_stream_each<const CAP: usize, const NQ: usize, const NP: usize>(
             next = first_unacked;
             last_word = t;
         }
-        let pending: usize = chunks[first_unacked.min(next)..next].iter().map(Vec::len).sum();
-        let ready = !link.ready_s.get(next).is_some_and(|&r| r > t);
-        if next < n
+        let pending: usize = chunks[first_unacked.min(next).min(chunks.len())..next.min(chunks.len())]
+            .iter()
+            .map(Vec::len)
+            .sum();
+        let ready = !ready_s.get(next).is_some_and(|&r| r > t);
+        if next < chunks.len()
             && ready
             && link_free_at <= t
             && !stalled(t)
@@ -291,9 +602,9 @@ pub fn run_stream_each<const CAP: usize, const NQ: usize, const NP: usize>(
                 } else {
                     0.0
                 };
-                down.push((arrive + late, next, every(f.corrupt_every, tx)));
+                down.push((arrive + late, chunks[next].clone(), every(f.corrupt_every, tx)));
                 if every(f.duplicate_every, tx) {
-                    down.push((arrive + dur, next, false));
+                    down.push((arrive + dur, chunks[next].clone(), false));
                 }
             }
             next += 1;
@@ -302,8 +613,7 @@ pub fn run_stream_each<const CAP: usize, const NQ: usize, const NP: usize>(
         let mut changed = false;
         down.sort_by(|a, b| a.0.total_cmp(&b.0));
         while down.first().is_some_and(|&(at, _, _)| at <= t) {
-            let (_, i, corrupt) = down.remove(0);
-            let mut bytes = chunks[i].clone();
+            let (_, mut bytes, corrupt) = down.remove(0);
             if corrupt {
                 let mid = bytes.len() / 2;
                 bytes[mid] ^= 0x5a;
@@ -311,7 +621,8 @@ pub fn run_stream_each<const CAP: usize, const NQ: usize, const NP: usize>(
             let reply = match ring.push(&bytes) {
                 Ok(ok) => {
                     last_seq = ok.seq;
-                    ring_bytes += bytes.len();
+                    // (a splice drops the chunks held from its start on)
+                    ring_bytes = ring.iter().map(|c| c.info().len).sum();
                     changed = true;
                     Up::Ack {
                         seq: ok.seq,
@@ -338,8 +649,51 @@ pub fn run_stream_each<const CAP: usize, const NQ: usize, const NP: usize>(
             up.push_back((t + link.latency_s, reply));
         }
         run.ring_peak_bytes = run.ring_peak_bytes.max(ring_bytes);
+        // a splice into the rows held: taken with the chunks after it up to
+        // one whose hold point lies ahead, or refused as late
+        if let (Some(ipr), Some(c)) = (ip.as_mut(), ring.get(0)) {
+            if ipr.splices_rows(&c) {
+                let seq = c.info().seq;
+                let run_chunks: Vec<Chunk<'_>> = ring.iter().collect();
+                let taken = ipr.take_splice(&run_chunks);
+                let end = match taken {
+                    Ok(Spliced::Taken(k)) => run_chunks.get(k.wrapping_sub(1)).map(|c| c.info().s_b),
+                    _ => None,
+                };
+                drop(run_chunks);
+                match taken {
+                    Ok(Spliced::Taken(k)) => {
+                        if let Some(end) = end {
+                            ring.release_through(end);
+                        }
+                        pushed += k;
+                        stop_set = false;
+                        changed = true;
+                        up.push_back((t + link.latency_s, Up::Taken { seq }));
+                        take_record(&mut run.overrides, in_flight, t);
+                    }
+                    Ok(_) => {}
+                    Err(SpliceError::Late { .. }) => {
+                        ring.refuse_splice();
+                        changed = true;
+                        let held_end = ipr.window().held_end();
+                        up.push_back((t + link.latency_s, Up::Late { seq, held_end }));
+                    }
+                    Err(e) => {
+                        return Err(StreamRunError::Window {
+                            index: pushed,
+                            message: format!("splice refused: {e:?}"),
+                        })
+                    }
+                }
+                ring_bytes = ring.iter().map(|c| c.info().len).sum();
+            }
+        }
         // ring → window, as it has room
         while let Some(c) = ring.get(0) {
+            if ip.as_ref().is_some_and(|ipr| ipr.splices_rows(&c)) {
+                break;
+            }
             let info = *c.info();
             let fits = match &ip {
                 Some(ip) if batch_left > 0 || !ip.holds_back(&c) => ip.window().fits(&c),
@@ -382,6 +736,12 @@ pub fn run_stream_each<const CAP: usize, const NQ: usize, const NP: usize>(
             ring.release_through(info.s_b);
             ring_bytes -= info.len;
             pushed += 1;
+            if info.is_splice() {
+                // (a splice at the end of the rows held: in as any chunk)
+                stop_set = false;
+                up.push_back((t + link.latency_s, Up::Taken { seq: info.seq }));
+                take_record(&mut run.overrides, in_flight, t);
+            }
             batch_left = batch_left.saturating_sub(1);
             changed = true;
             if ip.is_none() && window.ready() {
@@ -413,8 +773,8 @@ pub fn run_stream_each<const CAP: usize, const NQ: usize, const NP: usize>(
             }
             continue;
         };
-        if pushed == n && !stop_set {
-            if let Some(e) = table.ends() {
+        if ipr.window().has_last() && !stop_set {
+            if let Some(e) = stop_ends {
                 ipr.set_stop(&e).map_err(|e| StreamRunError::Fault {
                     tick: ipr.ticks(),
                     message: format!("stop segment refused: {e:?}"),
@@ -458,6 +818,27 @@ pub fn run_stream_each<const CAP: usize, const NQ: usize, const NP: usize>(
             *reach = reach.max(sp.s_mm);
         }
         each(&sp);
+        if host.is_some() {
+            telemetry.push_back((t, sp.s_mm, sp.feed_mm_s));
+            while telemetry
+                .front()
+                .is_some_and(|&(ts, _, _)| ts < t - link.latency_s - 0.01)
+            {
+                telemetry.pop_front();
+            }
+            for o in run
+                .overrides
+                .iter_mut()
+                .filter(|o| o.taken_s.is_some() && !o.superseded)
+            {
+                if o.effect_s.is_none() && sp.s_mm >= o.splice_mm {
+                    o.effect_s = Some(t);
+                }
+                if o.at_feed_s.is_none() && sp.s_mm >= o.feed_from_mm {
+                    o.at_feed_s = Some(t);
+                }
+            }
+        }
         if ipr.is_done() {
             if let Some((reach, end)) = starve.take() {
                 run.starved_reach_mm.push((reach, fx(end)));
@@ -497,6 +878,14 @@ pub struct StreamOptions {
     /// from this file if it exists (a run replayed with the same timing),
     /// else written to it.
     pub ready_times: Option<std::path::PathBuf>,
+    /// Feed changes while streaming: (time s from the host's start, factor
+    /// of the programmed feed), each replanned and spliced in
+    /// ([`crate::stream_host`]).
+    pub overrides: Vec<(f64, f64)>,
+    /// Each feed change's chunks ready this long after its ask, s, whatever
+    /// the replan took on this machine (a run that does not depend on the
+    /// machine's speed); `None`: when they were.
+    pub host_replan_s: Option<f64>,
 }
 
 /// The plan windows the simulation has (q spans, pieces): three MCU sizes
@@ -519,6 +908,8 @@ impl Default for StreamOptions {
             window_rows: (SIM_WINDOW_Q, SIM_WINDOW_P),
             host_slowdown: 1.0,
             ready_times: None,
+            overrides: vec![],
+            host_replan_s: None,
         }
     }
 }
@@ -578,8 +969,15 @@ pub struct StreamReport {
     pub planned_time_s: f64,
     /// Largest ratio to each limit on the setpoints (50 ticks at rest padding).
     pub ratios: planner_host::Ratios,
-    /// Every ratio within 1 + tol, contour and end points within tolerance.
+    /// Every ratio within 1 + tol, contour and end points within tolerance
+    /// (with feed changes, the feed against each one's limit too).
     pub check_ok: bool,
+    /// The feed changes and what became of each (command to effect: from
+    /// `asked_s` to `effect_s`, the motion on the replan).
+    pub overrides: Vec<OverrideRun>,
+    /// Largest feed over the changed feed limit, once each change's new feed
+    /// holds (until the next change takes effect); 0 without changes.
+    pub override_feed_ratio: f64,
 }
 
 /// Why `feedsim stream` failed.
@@ -727,16 +1125,74 @@ fn stream_through<const Q: usize, const P: usize>(
         t_s: Vec::with_capacity(expect),
         pos_mm: Vec::with_capacity(expect),
     };
+    // feed changes: the host replans the running plan at each
+    let mut host = match o.overrides.is_empty() {
+        true => None,
+        false => Some(
+            crate::stream_host::ReplanHost::<Q, P>::new(
+                curve,
+                &cfg,
+                out.clone(),
+                chunks.clone(),
+                hp.s_c_mm.clone(),
+                &opts,
+                &how,
+                o.overrides.clone(),
+                o.latency_s,
+            )
+            .map(|mut h| {
+                h.fixed_host_s = o.host_replan_s;
+                h
+            })
+            .map_err(StreamError::Option)?,
+        ),
+    };
+    let mut feeds: Vec<(f64, f64, f64)> = Vec::new();
     let run = planner_host::stream_hold::on_big_stack(|| {
-        run_sized::<Q, P>(&table, &chunks, &link, o.ring_bytes, &mut |sp: &Setpoint| {
-            traj.t_s.push(sp.t_s);
-            traj.pos_mm.push(sp.pos_mm);
-        })
+        let host = host.as_mut().map(|h| h as &mut dyn StreamHost);
+        run_sized::<Q, P>(
+            &table,
+            &chunks,
+            &link,
+            o.ring_bytes,
+            host,
+            &mut |sp: &Setpoint| {
+                traj.t_s.push(sp.t_s);
+                traj.pos_mm.push(sp.pos_mm);
+                if !o.overrides.is_empty() {
+                    feeds.push((sp.t_s, sp.feed_mm_s, sp.s_mm));
+                }
+            },
+        )
     })
     .ok_or_else(|| StreamError::Option("the run's thread failed to start or panicked".into()))??;
+    // each change's feed limit from where it holds to where the next that
+    // took effect spliced (in s: the setpoints' clock starts with the motion)
+    let vbar = table.limits().vbar;
+    let mut override_feed_ratio = 0.0f64;
+    for (k, ov) in run.overrides.iter().enumerate() {
+        if ov.at_feed_s.is_none() {
+            continue;
+        }
+        let until = run.overrides[k + 1..]
+            .iter()
+            .find(|n| n.effect_s.is_some())
+            .map_or(f64::INFINITY, |n| n.splice_mm);
+        for &(_, f, _) in feeds
+            .iter()
+            .filter(|&&(_, _, s)| s >= ov.feed_from_mm && s < until)
+        {
+            override_feed_ratio = override_feed_ratio.max(f / (ov.alpha * vbar));
+        }
+    }
     let geometry = crate::CurveGeometry::from_table(&table).map_err(|e| StreamError::Table(e.to_string()))?;
+    // (a change above the programmed feed raises the feed limit)
+    let top = o.overrides.iter().fold(1.0f64, |m, &(_, a)| m.max(a));
     let check = crate::CheckConfig {
-        limits: table.limits(),
+        limits: planner_host::Limits {
+            vbar: vbar * top,
+            ..table.limits()
+        },
         pad_rest: 50,
         tol: o.tol,
         ..Default::default()
@@ -774,7 +1230,9 @@ fn stream_through<const Q: usize, const P: usize>(
             tacc: r.tacc.ratio,
             tjerk: r.tjerk.ratio,
         },
-        check_ok: rep.ok,
+        check_ok: rep.ok && override_feed_ratio <= 1.0 + o.tol,
+        overrides: run.overrides,
+        override_feed_ratio,
     })
 }
 
@@ -785,17 +1243,18 @@ fn run_sized<const Q: usize, const P: usize>(
     chunks: &[Vec<u8>],
     link: &StreamLink,
     ring_bytes: usize,
+    host: Option<&mut dyn StreamHost>,
     each: &mut dyn FnMut(&Setpoint),
 ) -> Result<StreamRun, StreamError> {
     Ok(match ring_bytes {
-        4096 => run_stream_each::<4096, Q, P>(table, chunks, link, each),
-        8192 => run_stream_each::<8192, Q, P>(table, chunks, link, each),
-        16384 => run_stream_each::<16384, Q, P>(table, chunks, link, each),
-        32768 => run_stream_each::<32768, Q, P>(table, chunks, link, each),
-        65536 => run_stream_each::<65536, Q, P>(table, chunks, link, each),
-        131072 => run_stream_each::<131072, Q, P>(table, chunks, link, each),
-        262144 => run_stream_each::<262144, Q, P>(table, chunks, link, each),
-        524288 => run_stream_each::<524288, Q, P>(table, chunks, link, each),
-        _ => run_stream_each::<1048576, Q, P>(table, chunks, link, each),
+        4096 => run_stream_host::<4096, Q, P>(table, chunks, link, host, each),
+        8192 => run_stream_host::<8192, Q, P>(table, chunks, link, host, each),
+        16384 => run_stream_host::<16384, Q, P>(table, chunks, link, host, each),
+        32768 => run_stream_host::<32768, Q, P>(table, chunks, link, host, each),
+        65536 => run_stream_host::<65536, Q, P>(table, chunks, link, host, each),
+        131072 => run_stream_host::<131072, Q, P>(table, chunks, link, host, each),
+        262144 => run_stream_host::<262144, Q, P>(table, chunks, link, host, each),
+        524288 => run_stream_host::<524288, Q, P>(table, chunks, link, host, each),
+        _ => run_stream_host::<1048576, Q, P>(table, chunks, link, host, each),
     }?)
 }

@@ -147,3 +147,64 @@ fn an_override_replanned_and_spliced_into_the_stream_holds_every_limit_and_reach
         assert!((end.t_s - out.predicted_time_s).abs() < 0.01 * out.predicted_time_s);
     }
 }
+
+/// A storm of feed changes on a streamed program, through the simulated
+/// link (`feedsim stream --override T:PCT …`): each change replanned at the
+/// host and spliced in, or replaced by a later one before it could take
+/// effect, or too near the end to be made; none lost, the motion reaches
+/// the path's end, every limit holds on the setpoints (50 ticks at rest
+/// padding, the feed against the highest override), and once each change's
+/// new feed holds the feed stays under it. The host's time is fixed (each
+/// replan's chunks ready 0.25 s after its ask), so the run does not depend
+/// on this machine's speed.
+#[test]
+fn an_override_storm_on_a_streamed_program_loses_nothing_and_holds_every_limit() {
+    use sim_harness::stream::{stream_curve, StreamOptions};
+    let curve = planner_host::builtin::butterfly().unwrap();
+    let asks = vec![
+        (0.4, 0.5),
+        (0.6, 1.4),
+        (1.1, 0.3),
+        (1.2, 0.9),
+        (2.0, 0.6),
+        (2.2, 1.0),
+        (2.9, 0.4),
+        (3.5, 1.5),
+        (4.0, 0.7),
+    ];
+    let o = StreamOptions {
+        overrides: asks.clone(),
+        host_replan_s: Some(0.25),
+        ..StreamOptions::default()
+    };
+    let rep = stream_curve(&curve, &o).unwrap();
+    for v in &rep.overrides {
+        eprintln!(
+            "{:>4.0} % asked {:.3} s at {:.2} mm: splice {:.2} mm, feed from {:.2} mm, taken {:?}, on the replan {:?} ({:?} s after the ask), late {}, superseded {}",
+            v.alpha * 100.0,
+            v.asked_s,
+            v.known_mm,
+            v.splice_mm,
+            v.feed_from_mm,
+            v.taken_s,
+            v.effect_s,
+            v.effect_s.map(|e| e - v.asked_s),
+            v.late,
+            v.superseded
+        );
+    }
+    eprintln!(
+        "machining {:.3} s, ratios {:?}, feed against the overrides {:.4}",
+        rep.machining_time_s, rep.ratios, rep.override_feed_ratio
+    );
+    assert_eq!(rep.overrides.len(), asks.len(), "every change accounted for");
+    for v in &rep.overrides {
+        let made = v.taken_s.is_some();
+        let no_room = v.splice_mm.is_nan() && v.known_mm > 0.5 * rep.length_mm;
+        assert!(made || v.superseded || no_room, "{v:?}");
+    }
+    let effective = rep.overrides.iter().filter(|v| v.effect_s.is_some()).count();
+    assert!(effective >= 4, "{effective} changes took effect");
+    assert!(rep.check_ok, "{:?}", rep.ratios);
+    assert!(rep.override_feed_ratio <= 1.01 && rep.override_feed_ratio > 0.9);
+}

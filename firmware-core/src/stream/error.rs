@@ -152,6 +152,12 @@ pub enum StreamError {
     FirstFlag,
     /// A chunk after the plan's last chunk.
     AfterLast,
+    /// A splice was refused as too late; the chunk with its seq must be
+    /// the host's new splice.
+    SpliceExpected {
+        /// The seq the new splice must carry.
+        seq: u32,
+    },
     /// A splice whose s_a lies inside a held chunk, not at its end.
     InsideChunk {
         /// The splice's s_a (Q40 mm).

@@ -42,6 +42,8 @@ struct Expect {
     seq: u32,
     s_a: i64,
     ended: bool,
+    /// Only a splice (with `seq`) may come: one was refused as too late.
+    splice: bool,
 }
 
 /// Received chunks of one plan, in order, `CAP` bytes, at most `SLOTS` of them.
@@ -141,6 +143,9 @@ impl<const CAP: usize, const SLOTS: usize> ChunkRing<CAP, SLOTS> {
                         got: info.plan_id,
                     });
                 }
+                if e.splice && !info.is_splice() && info.seq == e.seq {
+                    return Err(StreamError::SpliceExpected { seq: e.seq });
+                }
                 if info.seq != e.seq {
                     let behind = e.seq.wrapping_sub(info.seq);
                     return Err(if behind != 0 && behind <= u32::MAX / 2 {
@@ -206,6 +211,7 @@ impl<const CAP: usize, const SLOTS: usize> ChunkRing<CAP, SLOTS> {
             seq: info.seq.wrapping_add(1),
             s_a: info.s_b,
             ended: info.is_last(),
+            splice: false,
         });
         Ok(PushOk {
             seq: info.seq,
@@ -225,13 +231,25 @@ impl<const CAP: usize, const SLOTS: usize> ChunkRing<CAP, SLOTS> {
         n
     }
 
-    /// Drop the newest `n` chunks held (a splice that came too late to be
-    /// taken, and the chunks after it); the next chunk is expected as
-    /// before, and a splice from at most the ring's new end replaces them.
-    pub fn drop_newest(&mut self, n: usize) {
-        for _ in 0..n {
-            self.slots.pop_back();
+    /// The splice at the ring's head could not be taken
+    /// (`SpliceError::Late`): drop it and the chunks after it, and take
+    /// next only a splice with its seq (the host's replan from further on;
+    /// anything else is refused with [`StreamError::SpliceExpected`]).
+    pub fn refuse_splice(&mut self) {
+        let Some(head) = self.slots.front().map(|s| s.info) else {
+            return;
+        };
+        if !head.is_splice() {
+            return;
         }
+        self.slots.clear();
+        self.expect = Some(Expect {
+            plan_id: head.plan_id,
+            seq: head.seq,
+            s_a: i64::MAX,
+            ended: false,
+            splice: true,
+        });
     }
 
     /// Chunks held.

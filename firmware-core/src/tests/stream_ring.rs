@@ -288,9 +288,19 @@ fn a_splice_drops_the_chunks_held_from_its_start_and_goes_on_from_there() {
     ring.release_through(ring.held_end().unwrap());
     let ok = ring.push(&as_splice(&chunks[2], next + 1)).unwrap();
     assert_eq!((ok.dropped, ring.len()), (0, 1));
-    // the newest held chunks dropped by the caller (a splice too late to be
-    // taken): the next splice comes on the sequence
-    ring.drop_newest(1);
+    // a splice too late to be taken: dropped with what came after it, and
+    // only a new splice with its seq taken next
+    ring.push(&with_seq(&chunks[3], next + 2)).unwrap();
+    ring.refuse_splice();
     assert!(ring.is_empty());
-    assert!(ring.push(&as_splice(&chunks[3], next + 2)).is_ok());
+    assert_eq!(ring.expected_seq(), Some(next + 1));
+    assert_eq!(
+        ring.push(&with_seq(&chunks[4], next + 1)),
+        Err(StreamError::SpliceExpected { seq: next + 1 })
+    );
+    assert!(matches!(
+        ring.push(&as_splice(&chunks[4], next + 2)),
+        Err(StreamError::OutOfOrder { .. })
+    ));
+    assert!(ring.push(&as_splice(&chunks[4], next + 1)).is_ok());
 }

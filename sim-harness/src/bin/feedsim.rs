@@ -10,7 +10,8 @@
 //! feedsim report [CURVES...] [--densities 0.25,0.5,1,2] [--out DIR] [--formulations paper,default] [--qhat-bound B] [--objective O]
 //! feedsim override [SCENARIOS...] [--latency-ms 5] [--out DIR]
 //! feedsim stream CURVE [--link uart:BAUD] [--latency-ms 5] [--ring-bytes 16384] [--chunk-mm 8]
-//!                      [--window-mm W --commit-mm C] [--stall T:D]... [--tol 0.01] [--json]
+//!                      [--window-mm W --commit-mm C] [--stall T:D]... [--override T:PCT]...
+//!                      [--tol 0.01] [--json]
 //! feedsim completions SHELL
 //! ```
 
@@ -229,6 +230,16 @@ enum Cmd {
         /// A link stall: START:DURATION in seconds from the start of sending (repeatable).
         #[arg(long)]
         stall: Vec<String>,
+        /// A feedrate override while streaming: at T seconds from the start of sending,
+        /// PCT percent of the programmed feed (repeatable, in time order). The host replans
+        /// the path ahead at the new feed and the firmware splices it in; the check holds
+        /// the feed to each override once it applies.
+        #[arg(long = "override")]
+        overrides: Vec<String>,
+        /// With --override: each replan's chunks ready this many milliseconds after its
+        /// ask, whatever it took on this machine (runs that do not depend on its speed).
+        #[arg(long)]
+        host_replan_ms: Option<f64>,
         /// Planning in windows: a host this many times slower, each chunk ready this many
         /// times later than it was here (a slower computer beside the machine).
         #[arg(long, default_value_t = 1.0, requires = "window_mm")]
@@ -627,6 +638,8 @@ fn run(cli: Cli) -> Result<(), Failure> {
             window_mm,
             commit_mm,
             stall,
+            overrides,
+            host_replan_ms,
             host_slowdown,
             ready_times,
             period_us,
@@ -661,8 +674,27 @@ fn run(cli: Cli) -> Result<(), Failure> {
                 })
                 .collect::<Option<Vec<_>>>()
                 .ok_or_else(|| Failure::input("--stall: expected START:DURATION in seconds, e.g. 1.0:0.5"))?;
+            let overrides = overrides
+                .iter()
+                .map(|s| {
+                    let (t, p) = s.split_once(':')?;
+                    let (t, p) = (t.parse::<f64>().ok()?, p.parse::<f64>().ok()?);
+                    (t >= 0.0 && p > 0.0 && p.is_finite()).then_some((t, p / 100.0))
+                })
+                .collect::<Option<Vec<_>>>()
+                .filter(|v| v.windows(2).all(|w| w[0].0 <= w[1].0))
+                .ok_or_else(|| {
+                    Failure::input(
+                        "--override: expected T:PCT (seconds, percent > 0), in time order, e.g. 1.5:50",
+                    )
+                })?;
             let nurbs = load_curve(&curve)?;
+            if host_replan_ms.is_some_and(|h| !(h.is_finite() && h >= 0.0)) {
+                return Err(Failure::input("--host-replan-ms: expected a time ≥ 0"));
+            }
             let opts = sim_harness::stream::StreamOptions {
+                overrides,
+                host_replan_s: host_replan_ms.map(|h| h * 1e-3),
                 baud,
                 latency_s: latency_ms * 1e-3,
                 ring_bytes,
@@ -717,6 +749,29 @@ fn run(cli: Cli) -> Result<(), Failure> {
                     r.tjerk,
                     if rep.check_ok { "ok" } else { "over the limits" }
                 );
+                for o in &rep.overrides {
+                    let at = |t: Option<f64>| t.map_or("never".to_string(), |t| format!("{t:.3} s"));
+                    outln!(
+                        "  override {:.0} % asked at {:.3} s (motion known at {:.2} mm): splice at {:.2} mm, new feed from {:.2} mm; host {:.0} ms, taken {}, on the replan {} ({}), at the new feed {}; {} late",
+                        o.alpha * 100.0,
+                        o.asked_s,
+                        o.known_mm,
+                        o.splice_mm,
+                        o.feed_from_mm,
+                        o.host_s * 1e3,
+                        at(o.taken_s),
+                        at(o.effect_s),
+                        o.effect_s.map_or("-".to_string(), |e| format!("{:.0} ms after the ask", (e - o.asked_s) * 1e3)),
+                        at(o.at_feed_s),
+                        o.late
+                    );
+                }
+                if !rep.overrides.is_empty() {
+                    outln!(
+                        "  feed against each override once it holds: {:.4}",
+                        rep.override_feed_ratio
+                    );
+                }
             }
             if rep.check_ok {
                 Ok(())
