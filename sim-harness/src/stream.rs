@@ -33,6 +33,8 @@ use firmware_core::stream::{set_seq, Chunk, ChunkRing, PlanWindow};
 use firmware_core::{Setpoint, Table};
 use planner_host::stream_hold::stream_head;
 
+use crate::stream_host::{Ask, Replacement, StreamHost};
+
 /// The link and the firmware's buffers.
 #[derive(Clone, Debug, PartialEq)]
 pub struct StreamLink {
@@ -133,60 +135,27 @@ pub struct OverrideRun {
     /// A later change came before this one could be replanned: the newest
     /// wins, this one was never made.
     pub superseded: bool,
+    /// What became of it, once the run ended.
+    pub outcome: OverrideOutcome,
 }
 
-/// A feed change asked for while streaming, as the host knows it.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Ask {
-    /// When, s from the host's start.
-    pub t_s: f64,
-    /// The new feed factor of the programmed feed.
-    pub alpha: f64,
-    /// The motion's s as last reported (one latency old), mm.
-    pub s_mm: f64,
-    /// Its feed then, mm/s.
-    pub feed_mm_s: f64,
-    /// Asked again: the splice before it came too late.
-    pub retry: bool,
-}
-
-/// The host's replan for an [`Ask`]: the chunks replacing the plan from
-/// `s_a` on (the first a splice), and when each is ready.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Replacement {
-    /// The splice point, Q40 mm (a chunk boundary of the running plan).
-    pub s_a: i64,
-    /// The replan's chunks from `s_a` on, hold points set (seqs and the
-    /// splice flag are the run's to set).
-    pub chunks: Vec<Vec<u8>>,
-    /// Per chunk, when it is ready, s after the ask.
-    pub ready_after_s: Vec<f64>,
-    /// The replan's end segments (the stop segment comes again).
-    pub ends: Option<firmware_core::EndSegments>,
-    /// The splice point and where the new feed holds from, mm.
-    pub splice_mm: f64,
-    /// See `splice_mm`.
-    pub feed_from_mm: f64,
-    /// The host's wall time for it, s.
-    pub host_s: f64,
-}
-
-/// The host's side of feed changes during a streamed run.
-pub trait StreamHost {
-    /// The changes to ask for: (time s from the host's start, factor), in
-    /// time order.
-    fn asks(&self) -> Vec<(f64, f64)>;
-    /// Replan for `ask` (the plan running is the last one taken); `None`:
-    /// no change is possible any more (the path's end is near).
-    fn replan(&mut self, ask: &Ask) -> Result<Option<Replacement>, String>;
-    /// The firmware took the replacement last returned, `after_s` after
-    /// the ask it answered: it runs now.
-    fn taken(&mut self, after_s: f64);
-    /// The firmware refused the replacement last returned as too late; its
-    /// rows end at `held_end` (Q40 mm). The running plan's chunks from there
-    /// on, hold points set (empty: it holds them all), to send at once as a
-    /// splice (the firmware takes nothing else next), and its end segments.
-    fn late(&mut self, held_end: i64) -> (Vec<Vec<u8>>, Option<firmware_core::EndSegments>);
+/// What became of a feed change on a streamed run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum OverrideOutcome {
+    /// The motion ran onto its replan.
+    Effective,
+    /// Taken, then replaced by a later change's splice before the motion
+    /// reached it.
+    Replaced,
+    /// A later change came before this one was replanned (the newest wins).
+    Superseded,
+    /// No splice left before the path's stop (or the change came after it).
+    NoRoom,
+    /// Replanned and sent, but the path ended before the firmware took it.
+    PathEnded,
+    /// Not known yet (the run is still going).
+    Pending,
 }
 
 /// A frame on its way up (firmware → host).
@@ -209,6 +178,41 @@ enum Up {
         seq: u32,
         held_end: i64,
     },
+}
+
+/// What became of each change once the run ended (`asks` those never
+/// replanned).
+fn settle(records: &mut Vec<OverrideRun>, asks: &std::collections::VecDeque<(f64, f64, Option<usize>)>) {
+    for o in records.iter_mut() {
+        o.outcome = if o.effect_s.is_some() {
+            OverrideOutcome::Effective
+        } else if o.superseded && o.taken_s.is_some() {
+            OverrideOutcome::Replaced
+        } else if o.superseded {
+            OverrideOutcome::Superseded
+        } else if o.splice_mm.is_nan() {
+            OverrideOutcome::NoRoom
+        } else {
+            OverrideOutcome::PathEnded
+        };
+    }
+    for &(at, alpha, retry) in asks.iter().filter(|a| a.2.is_none()) {
+        let _ = retry;
+        records.push(OverrideRun {
+            asked_s: at,
+            alpha,
+            known_mm: f64::NAN,
+            splice_mm: f64::NAN,
+            feed_from_mm: f64::NAN,
+            host_s: 0.0,
+            taken_s: None,
+            effect_s: None,
+            at_feed_s: None,
+            late: 0,
+            superseded: false,
+            outcome: OverrideOutcome::PathEnded,
+        });
+    }
 }
 
 /// The splice in flight taken at `t`: its record says so, and the changes
@@ -490,6 +494,7 @@ pub fn run_stream_host<const CAP: usize, const NQ: usize, const NP: usize>(
                                 at_feed_s: None,
                                 late: 0,
                                 superseded: true,
+                                outcome: OverrideOutcome::Superseded,
                             });
                         }
                     }
@@ -526,6 +531,7 @@ pub fn run_stream_host<const CAP: usize, const NQ: usize, const NP: usize>(
                                 at_feed_s: None,
                                 late: 0,
                                 superseded: false,
+                                outcome: OverrideOutcome::Pending,
                             });
                             run.overrides.len() - 1
                         }
@@ -843,6 +849,7 @@ pub fn run_stream_host<const CAP: usize, const NQ: usize, const NP: usize>(
             if let Some((reach, end)) = starve.take() {
                 run.starved_reach_mm.push((reach, fx(end)));
             }
+            settle(&mut run.overrides, &asks);
             return Ok(run);
         }
     }
@@ -883,8 +890,9 @@ pub struct StreamOptions {
     /// ([`crate::stream_host`]).
     pub overrides: Vec<(f64, f64)>,
     /// Each feed change's chunks ready this long after its ask, s, whatever
-    /// the replan took on this machine (a run that does not depend on the
-    /// machine's speed); `None`: when they were.
+    /// the replan took on this machine, and the plan's own chunks all at hand
+    /// from the start (a run that does not depend on the machine's speed);
+    /// `None`: when they were.
     pub host_replan_s: Option<f64>,
 }
 
@@ -1114,7 +1122,11 @@ fn stream_through<const Q: usize, const P: usize>(
         stalls: o.stalls.clone(),
         period_s: o.period_s,
         faults: LinkFaults::default(),
-        ready_s,
+        // (fixed host times: the plan's chunks all at hand from the start)
+        ready_s: match o.host_replan_s {
+            Some(_) => vec![],
+            None => ready_s,
+        },
     };
     // (on a thread of its own: the firmware's ring and a host-sized window
     // live on its stack, several megabytes)

@@ -4,7 +4,8 @@
 //! (`planner_host::plan::replan`), cut the replan into chunks, check that
 //! those before the boundary are the running plan's byte for byte, find the
 //! replan's hold points, and hand the chunks from the boundary on to the run
-//! ([`crate::stream::run_stream_host`]), which sends them as a splice.
+//! ([`crate::stream::run_stream_host`]), which sends them as a splice. The
+//! run asks through [`StreamHost`]; [`ReplanHost`] is the planner's.
 //!
 //! The boundary lies as far ahead as the motion goes, at the running plan's
 //! fastest feed over the next 300 mm, in the time the last change took from
@@ -28,7 +29,59 @@ use planner_host::stream::{chunk_table, ChunkOptions};
 use planner_host::stream_hold::{set_hold_points_given, HoldSearch};
 use planner_host::Nurbs;
 
-use crate::stream::{Ask, Replacement, StreamHost};
+/// A feed change asked for while streaming, as the host knows it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Ask {
+    /// When, s from the host's start.
+    pub t_s: f64,
+    /// The new feed factor of the programmed feed.
+    pub alpha: f64,
+    /// The motion's s as last reported (one latency old), mm.
+    pub s_mm: f64,
+    /// Its feed then, mm/s.
+    pub feed_mm_s: f64,
+    /// Asked again: the splice before it came too late.
+    pub retry: bool,
+}
+
+/// The host's replan for an [`Ask`]: the chunks replacing the plan from
+/// `s_a` on (the first a splice), and when each is ready.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Replacement {
+    /// The splice point, Q40 mm (a chunk boundary of the running plan).
+    pub s_a: i64,
+    /// The replan's chunks from `s_a` on, hold points set (seqs and the
+    /// splice flag are the run's to set).
+    pub chunks: Vec<Vec<u8>>,
+    /// Per chunk, when it is ready, s after the ask.
+    pub ready_after_s: Vec<f64>,
+    /// The replan's end segments (the stop segment comes again).
+    pub ends: Option<firmware_core::EndSegments>,
+    /// The splice point and where the new feed holds from, mm.
+    pub splice_mm: f64,
+    /// See `splice_mm`.
+    pub feed_from_mm: f64,
+    /// The host's wall time for it, s.
+    pub host_s: f64,
+}
+
+/// The host's side of feed changes during a streamed run.
+pub trait StreamHost {
+    /// The changes to ask for: (time s from the host's start, factor), in
+    /// time order.
+    fn asks(&self) -> Vec<(f64, f64)>;
+    /// Replan for `ask` (the plan running is the last one taken); `None`:
+    /// no change is possible any more (the path's end is near).
+    fn replan(&mut self, ask: &Ask) -> Result<Option<Replacement>, String>;
+    /// The firmware took the replacement last returned, `after_s` after
+    /// the ask it answered: it runs now.
+    fn taken(&mut self, after_s: f64);
+    /// The firmware refused the replacement last returned as too late; its
+    /// rows end at `held_end` (Q40 mm). The running plan's chunks from there
+    /// on, hold points set (empty: it holds them all), to send at once as a
+    /// splice (the firmware takes nothing else next), and its end segments.
+    fn late(&mut self, held_end: i64) -> (Vec<Vec<u8>>, Option<firmware_core::EndSegments>);
+}
 
 /// A plan as the host runs it: the plan, its chunks without hold points,
 /// the hold points (mm), the chunks as sent.

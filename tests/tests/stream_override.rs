@@ -159,7 +159,7 @@ fn an_override_replanned_and_spliced_into_the_stream_holds_every_limit_and_reach
 /// on this machine's speed.
 #[test]
 fn an_override_storm_on_a_streamed_program_loses_nothing_and_holds_every_limit() {
-    use sim_harness::stream::{stream_curve, StreamOptions};
+    use sim_harness::stream::{stream_curve, OverrideOutcome, StreamOptions};
     let curve = planner_host::builtin::butterfly().unwrap();
     let asks = vec![
         (0.4, 0.5),
@@ -180,7 +180,7 @@ fn an_override_storm_on_a_streamed_program_loses_nothing_and_holds_every_limit()
     let rep = stream_curve(&curve, &o).unwrap();
     for v in &rep.overrides {
         eprintln!(
-            "{:>4.0} % asked {:.3} s at {:.2} mm: splice {:.2} mm, feed from {:.2} mm, taken {:?}, on the replan {:?} ({:?} s after the ask), late {}, superseded {}",
+            "{:>4.0} % asked {:.3} s at {:.2} mm: splice {:.2} mm, feed from {:.2} mm, taken {:?}, on the replan {:?} ({:?} s after the ask), late {}: {:?}",
             v.alpha * 100.0,
             v.asked_s,
             v.known_mm,
@@ -190,7 +190,7 @@ fn an_override_storm_on_a_streamed_program_loses_nothing_and_holds_every_limit()
             v.effect_s,
             v.effect_s.map(|e| e - v.asked_s),
             v.late,
-            v.superseded
+            v.outcome
         );
     }
     eprintln!(
@@ -199,11 +199,17 @@ fn an_override_storm_on_a_streamed_program_loses_nothing_and_holds_every_limit()
     );
     assert_eq!(rep.overrides.len(), asks.len(), "every change accounted for");
     for v in &rep.overrides {
-        let made = v.taken_s.is_some();
-        let no_room = v.splice_mm.is_nan() && v.known_mm > 0.5 * rep.length_mm;
-        assert!(made || v.superseded || no_room, "{v:?}");
+        // (each with what became of it; none still pending)
+        assert!(v.outcome != OverrideOutcome::Pending, "{v:?}");
+        if v.outcome == OverrideOutcome::NoRoom {
+            assert!(v.known_mm > 0.5 * rep.length_mm, "no room at {} mm", v.known_mm);
+        }
     }
-    let effective = rep.overrides.iter().filter(|v| v.effect_s.is_some()).count();
+    let effective = rep
+        .overrides
+        .iter()
+        .filter(|v| v.outcome == OverrideOutcome::Effective)
+        .count();
     assert!(effective >= 4, "{effective} changes took effect");
     assert!(rep.check_ok, "{:?}", rep.ratios);
     assert!(rep.override_feed_ratio <= 1.01 && rep.override_feed_ratio > 0.9);

@@ -78,7 +78,7 @@ pub struct PlanOutput {
     /// Where a replan at a new feed ([`crate::plan::replan`]) kept the
     /// running plan and where the new feed starts; `None` for a plan from
     /// the start.
-    pub feed_change: Option<crate::plan::replan::FeedChangeAt>,
+    pub feed_change: Option<crate::plan::feed_change::FeedChangeAt>,
     /// The override levels of [`PlanConfig::override_levels`], sorted by
     /// percent (level id k ≥ 1 of docs/override-design.md is `levels[k − 1]`).
     #[serde(skip_serializing_if = "Vec::is_empty")]
@@ -170,12 +170,12 @@ impl PlanOutput {
     }
 
     /// The feed limit along the path this plan holds: a replan's
-    /// ([`crate::plan::replan::FeedChangeAt::profile`]), else the configured
+    /// ([`crate::plan::feed_change::FeedChangeAt::profile`]), else the configured
     /// profile, else v̄ throughout.
     pub fn feed_limit(&self) -> FeedProfile {
         match &self.feed_change {
             Some(f) => f.profile.clone(),
-            None => crate::plan::replan::programmed(&self.config),
+            None => crate::plan::feed_change::programmed(&self.config),
         }
     }
 
