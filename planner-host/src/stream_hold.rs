@@ -388,7 +388,7 @@ pub struct HoldPointSearch<const NQ: usize, const NP: usize> {
     /// Chunk i waits to enter the dry run's window.
     entering: bool,
     /// Hold points given for the first chunks ([`hold_points_given`]).
-    given: Vec<f64>,
+    pub(crate) given: Vec<f64>,
 }
 
 /// Coarse tests the search keeps the dry run of, to look back from a

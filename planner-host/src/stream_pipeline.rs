@@ -23,6 +23,7 @@ use firmware_core::table::{fit_pieces, piece_group_bounds, FittedPiece, TablePar
 use firmware_core::{EndSegments, SuSegment};
 
 use crate::geometry::curve::Nurbs;
+use crate::plan::replan::{replan_committing, FeedChange};
 use crate::plan::{plan_curve_committing, Commit, PlanConfig, PlanError, PlanOutput};
 use crate::stream::{ChunkCutter, ChunkOptions, ChunkTableError, TableRows};
 use crate::stream_hold::{HoldPointError, HoldPointSearch, HoldPoints, HoldSearch};
@@ -273,6 +274,20 @@ pub fn plan_in_chunks(
     opts: &ChunkOptions,
     on: &(dyn Fn(Planned) + Sync),
 ) -> Result<PlanOutput, PipelineError> {
+    plan_in_chunks_from(curve, cfg, opts, None, on)
+}
+
+/// [`plan_in_chunks`], or with `change` the replan of a running plan at a
+/// new feed ([`crate::plan::replan`]): its chunks before the splice are the
+/// running plan's (cut again, byte for byte), those after it come as its
+/// windows commit.
+pub fn plan_in_chunks_from(
+    curve: &Nurbs,
+    cfg: &PlanConfig,
+    opts: &ChunkOptions,
+    change: Option<&FeedChange>,
+    on: &(dyn Fn(Planned) + Sync),
+) -> Result<PlanOutput, PipelineError> {
     let pipe: Mutex<Option<ChunkPipeline>> = Mutex::new(None);
     let failed: Mutex<Option<PipelineError>> = Mutex::new(None);
     let sink = |c: &Commit| {
@@ -310,7 +325,10 @@ pub fn plan_in_chunks(
             Err(e) => *fail = Some(e.into()),
         }
     };
-    let plan = plan_curve_committing(curve, cfg, &sink)?;
+    let plan = match change {
+        Some(ch) => replan_committing(curve, cfg, ch, &sink)?,
+        None => plan_curve_committing(curve, cfg, &sink)?,
+    };
     if let Some(e) = failed.into_inner().unwrap_or_else(|e| e.into_inner()) {
         return Err(e);
     }
@@ -330,6 +348,21 @@ pub fn plan_and_stream<const NQ: usize, const NP: usize>(
     opts: &ChunkOptions,
     how: &HoldSearch,
 ) -> Result<PlannedStream, PipelineError> {
+    plan_and_stream_from::<NQ, NP>(curve, cfg, opts, how, None)
+}
+
+/// [`plan_and_stream`], or with `change` the replan of a running plan at a
+/// new feed and the hold points of the running plan's chunks before its
+/// splice (given, not searched again: [`crate::stream_hold::hold_points_given`]):
+/// the replan's chunks after the splice can leave as its windows commit.
+pub fn plan_and_stream_from<const NQ: usize, const NP: usize>(
+    curve: &Nurbs,
+    cfg: &PlanConfig,
+    opts: &ChunkOptions,
+    how: &HoldSearch,
+    change: Option<(&FeedChange, &[f64])>,
+) -> Result<PlannedStream, PipelineError> {
+    let given: Vec<f64> = change.map_or_else(Vec::new, |c| c.1.to_vec());
     let t0 = Instant::now();
     let (tx, rx) = mpsc::channel::<Planned>();
     let (plan, searched) = std::thread::scope(|scope| {
@@ -343,7 +376,11 @@ pub fn plan_and_stream<const NQ: usize, const NP: usize>(
                     let mut search: Option<HoldPointSearch<NQ, NP>> = None;
                     for m in rx {
                         match m {
-                            Planned::Head(h) => search = Some(HoldPointSearch::new(&h, h.ends, *how, t0)),
+                            Planned::Head(h) => {
+                                let mut s = HoldPointSearch::new(&h, h.ends, *how, t0);
+                                s.given.clone_from(&given);
+                                search = Some(s);
+                            }
                             Planned::Stop(h) => {
                                 if let Some(s) = search.as_mut() {
                                     s.set_ends(h.ends);
@@ -360,7 +397,7 @@ pub fn plan_and_stream<const NQ: usize, const NP: usize>(
                 },
             );
         let tx = Mutex::new(tx);
-        let plan = plan_in_chunks(curve, cfg, opts, &|m| {
+        let plan = plan_in_chunks_from(curve, cfg, opts, change.map(|c| c.0), &|m| {
             if std::env::var_os("FEEDLP_TIME_DEBUG").is_some() {
                 if let Planned::Chunks(c) = &m {
                     eprintln!(

@@ -15,18 +15,23 @@
 //! the host replans from further on, with a lead half again longer; the run
 //! counts such retries.
 //!
-//! The replan's hold points before the splice are the running plan's (its
-//! chunks there are): the search runs its dry run past them without testing
-//! and tests from the splice on ([`set_hold_points_given`]).
+//! The replan runs through the chunk pipeline
+//! (`planner_host::stream_pipeline::plan_and_stream_from`): its chunks are
+//! cut and their hold points found as its windows commit, so the first
+//! ones can leave long before the rest of the path is replanned. The hold
+//! points before the splice are the running plan's (its chunks there are):
+//! the search runs its dry run past them without testing and tests from the
+//! splice on.
 
 use std::time::Instant;
 
 use firmware_core::stream::Chunk;
 use firmware_core::Table;
-use planner_host::plan::replan::{replan, FeedChange};
+use planner_host::plan::replan::FeedChange;
 use planner_host::plan::{PlanConfig, PlanError, PlanOutput, WindowConfig};
 use planner_host::stream::{chunk_table, ChunkOptions};
-use planner_host::stream_hold::{set_hold_points_given, HoldSearch};
+use planner_host::stream_hold::HoldSearch;
+use planner_host::stream_pipeline::{plan_and_stream_from, PipelineError};
 use planner_host::Nurbs;
 
 /// A feed change asked for while streaming, as the host knows it.
@@ -214,32 +219,39 @@ impl<const Q: usize, const P: usize> StreamHost for ReplanHost<'_, Q, P> {
             s_mm: s_b,
             alpha: ask.alpha,
         };
-        let out = match replan(self.curve, &self.cfg, &change) {
-            Ok(out) => out,
+        // the replan in windows, its chunks cut and their hold points found
+        // as the windows commit (those before the splice given)
+        let given = self.running_s_c.get(..i).unwrap_or(&[]);
+        let st = match plan_and_stream_from::<Q, P>(
+            self.curve,
+            &self.cfg,
+            &self.opts,
+            &self.how,
+            Some((&change, given)),
+        ) {
+            Ok(st) => st,
             // (the path's stop is near: the change comes too late to matter)
-            Err(PlanError::Splice { .. }) => return Ok(None),
+            Err(PipelineError::Plan(PlanError::Splice { .. })) => return Ok(None),
             Err(e) => return Err(e.to_string()),
         };
-        let new = chunks_of(&out, &self.opts)?;
-        if new.get(..i) != self.running_chunks.get(..i) {
+        if st.chunks.get(..i) != self.running_sent.get(..i) {
             return Err(format!(
                 "the replan's chunks before the splice at {s_b:.3} mm differ from the running plan's"
             ));
         }
-        let plan_s = t0.elapsed().as_secs_f64();
+        let out = st.plan;
         let table = Table::parse(&out.table_bytes).map_err(|e| e.to_string())?;
-        let mut sent = new.clone();
-        let given = self.running_s_c.get(..i).unwrap_or(&[]);
-        let hp =
-            set_hold_points_given::<Q, P>(&table, &mut sent, &self.how, given).map_err(|e| e.to_string())?;
+        let new = chunks_of(&out, &self.opts)?;
+        let sent = st.chunks;
         let ready_after_s: Vec<f64> = match self.fixed_host_s {
-            Some(h) => vec![h; hp.known_after_s.len().saturating_sub(i)],
-            None => hp.known_after_s[i..].iter().map(|k| plan_s + k).collect(),
+            Some(h) => vec![h; sent.len().saturating_sub(i)],
+            None => st.ready_s.get(i..).unwrap_or(&[]).to_vec(),
         };
+        let hp_s_c = st.hold.s_c_mm;
         let feed_from_mm = out.feed_change.as_ref().map_or(s_b, |f| f.s_feed_mm);
         let ends = table.ends();
         let chunks = sent[i..].to_vec();
-        self.offered = Some((out, new, hp.s_c_mm.clone(), sent));
+        self.offered = Some((out, new, hp_s_c, sent));
         Ok(Some(Replacement {
             s_a,
             chunks,
