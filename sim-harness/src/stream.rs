@@ -343,6 +343,11 @@ pub fn run_stream_host<const CAP: usize, const NQ: usize, const NP: usize>(
     let mut chunks: Vec<Vec<u8>> = chunks.to_vec();
     let mut framed: Vec<usize> = chunks.iter().map(|c| encoded_max_len(c.len()) + 1).collect();
     let mut ready_s: Vec<f64> = link.ready_s.clone();
+    // per chunk, its s_a, and whether a splice replaced it (never sent
+    // again: a seq is never sent twice with other bytes)
+    let s_a_of = |c: &[u8]| Chunk::parse(c).map_or(i64::MAX, |c| c.info().s_a);
+    let mut starts: Vec<i64> = chunks.iter().map(|c| s_a_of(c)).collect();
+    let mut dead: Vec<bool> = vec![false; chunks.len()];
     // (time, factor, the record it retries)
     let mut asks: std::collections::VecDeque<(f64, f64, Option<usize>)> = host
         .as_ref()
@@ -354,7 +359,10 @@ pub fn run_stream_host<const CAP: usize, const NQ: usize, const NP: usize>(
     let mut in_flight: Option<(u32, usize)> = None;
     // the motion's (t, s, feed) as reported, for the host's one-latency-old view
     let mut telemetry: std::collections::VecDeque<(f64, f64, f64)> = Default::default();
+    // the end segments of the plan the window holds, and of the splice in
+    // flight (its stop segment only once it is taken)
     let mut stop_ends = table.ends();
+    let mut splice_ends = None;
     let mut ring: Box<ChunkRing<CAP, 64>> = Box::default();
     // host: the next chunk to send, the last acknowledged, the ring's free
     // bytes as last reported, when the firmware last spoke; the link busy
@@ -437,36 +445,43 @@ pub fn run_stream_host<const CAP: usize, const NQ: usize, const NP: usize>(
                 }
                 Up::Late { seq, held_end } => {
                     if let Some((_, rec)) = in_flight.filter(|&(sq, _)| sq == seq) {
-                        // the dead splice and what followed it are not sent
-                        // again: the running plan's chunks from the end of
-                        // the rows held go now, as a splice, and the same
-                        // change is asked again
+                        // the dead splice and what followed it are never
+                        // sent again, nor the running plan's chunks from the
+                        // end of the rows held: those go again now, after
+                        // everything sent, as a splice; the same change is
+                        // asked again
                         in_flight = None;
-                        let pos = seq as usize;
-                        chunks.truncate(pos);
-                        framed.truncate(pos);
-                        ready_s.truncate(pos);
-                        next = next.min(pos);
-                        acked = acked.map(|a| a.min(pos.saturating_sub(1)));
+                        for d in dead.iter_mut().skip(seq as usize) {
+                            *d = true;
+                        }
+                        for (d, &st) in dead.iter_mut().zip(&starts) {
+                            if st >= held_end {
+                                *d = true;
+                            }
+                        }
                         if let Some(o) = run.overrides.get_mut(rec) {
                             o.late += 1;
                             asks.push_front((t, o.alpha, Some(rec)));
                         }
                         if let Some(h) = host.as_mut() {
                             let (restore, ends) = h.late(held_end);
-                            stop_ends = ends;
-                            if !restore.is_empty() {
-                                for (k, mut c) in restore.into_iter().enumerate() {
-                                    set_seq(&mut c, (pos + k) as u32, k == 0).map_err(|e| {
-                                        StreamRunError::Replan {
-                                            t_s: t,
-                                            message: format!("restored chunk {k}: {e}"),
-                                        }
-                                    })?;
-                                    framed.push(encoded_max_len(c.len()) + 1);
-                                    chunks.push(c);
-                                    ready_s.push(t);
-                                }
+                            splice_ends = Some(ends);
+                            let pos = chunks.len();
+                            for (k, mut c) in restore.into_iter().enumerate() {
+                                set_seq(&mut c, (pos + k) as u32, k == 0).map_err(|e| {
+                                    StreamRunError::Replan {
+                                        t_s: t,
+                                        message: format!("restored chunk {k}: {e}"),
+                                    }
+                                })?;
+                                framed.push(encoded_max_len(c.len()) + 1);
+                                starts.push(s_a_of(&c));
+                                dead.push(false);
+                                chunks.push(c);
+                                ready_s.resize(pos + k, 0.0);
+                                ready_s.push(t);
+                            }
+                            if chunks.len() > pos {
                                 in_flight = Some((pos as u32, usize::MAX));
                             }
                         }
@@ -552,12 +567,14 @@ pub fn run_stream_host<const CAP: usize, const NQ: usize, const NP: usize>(
         // running plan's from the splice point on that were not sent go
         if replacing.as_ref().is_some_and(|&(at, _, _)| at <= t) {
             if let Some((at0, rep, rec)) = replacing.take() {
-                let from = (0..chunks.len())
-                    .find(|&i| Chunk::parse(&chunks[i]).is_ok_and(|c| c.info().s_a >= rep.s_a))
-                    .unwrap_or(chunks.len());
-                let pos = from.max(next).min(chunks.len());
-                chunks.truncate(pos);
-                framed.truncate(pos);
+                // the chunks from the splice point on are replaced; the
+                // replan's go after everything sent
+                for (d, &st) in dead.iter_mut().zip(&starts) {
+                    if st >= rep.s_a {
+                        *d = true;
+                    }
+                }
+                let pos = chunks.len();
                 ready_s.resize(pos, 0.0);
                 let first_after = rep.ready_after_s.first().copied().unwrap_or(0.0);
                 for (k, (mut c, r)) in rep.chunks.into_iter().zip(rep.ready_after_s).enumerate() {
@@ -567,11 +584,13 @@ pub fn run_stream_host<const CAP: usize, const NQ: usize, const NP: usize>(
                         message: format!("replacement chunk {k}: {e}"),
                     })?;
                     framed.push(encoded_max_len(c.len()) + 1);
+                    starts.push(s_a_of(&c));
+                    dead.push(false);
                     chunks.push(c);
                     ready_s.push(at0 - first_after + r);
                 }
                 in_flight = Some((pos as u32, rec));
-                stop_ends = rep.ends;
+                splice_ends = Some(rep.ends);
             }
         }
         let first_unacked = acked.map_or(0, |a| a + 1);
@@ -579,9 +598,12 @@ pub fn run_stream_host<const CAP: usize, const NQ: usize, const NP: usize>(
             next = first_unacked;
             last_word = t;
         }
-        let pending: usize = chunks[first_unacked.min(next).min(chunks.len())..next.min(chunks.len())]
-            .iter()
-            .map(Vec::len)
+        while dead.get(next).copied().unwrap_or(false) {
+            next += 1;
+        }
+        let pending: usize = (first_unacked.min(next)..next.min(chunks.len()))
+            .filter(|&p| !dead[p])
+            .map(|p| chunks[p].len())
             .sum();
         let ready = !ready_s.get(next).is_some_and(|&r| r > t);
         if next < chunks.len()
@@ -674,6 +696,9 @@ pub fn run_stream_host<const CAP: usize, const NQ: usize, const NP: usize>(
                         }
                         pushed += k;
                         stop_set = false;
+                        if let Some(e) = splice_ends.take() {
+                            stop_ends = e;
+                        }
                         changed = true;
                         up.push_back((t + link.latency_s, Up::Taken { seq }));
                         take_record(&mut run.overrides, in_flight, t);
@@ -745,6 +770,9 @@ pub fn run_stream_host<const CAP: usize, const NQ: usize, const NP: usize>(
             if info.is_splice() {
                 // (a splice at the end of the rows held: in as any chunk)
                 stop_set = false;
+                if let Some(e) = splice_ends.take() {
+                    stop_ends = e;
+                }
                 up.push_back((t + link.latency_s, Up::Taken { seq: info.seq }));
                 take_record(&mut run.overrides, in_flight, t);
             }

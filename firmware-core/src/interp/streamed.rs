@@ -246,8 +246,9 @@ where
     /// C² at s_a by construction: the host keeps q up to there) by `run`,
     /// the splice chunk and those after it as they arrived; not for the
     /// tick context. Taken are the chunks up to the first whose hold point
-    /// lies ahead of the motion (at rest, the splice alone: the motion goes
-    /// on only towards a hold point ahead), once they fit in the window
+    /// lies ahead of the motion by [`RESUME_ROOM`] times the plan's stopping
+    /// distance, as a starved motion resumes (at rest, the splice alone: the
+    /// motion goes on only towards a hold point ahead), once they fit in the window
     /// with the rows from s_a on dropped, while running or held at rest —
     /// never during a stop or a resume, whose look-ahead read the rows
     /// replaced. The stop segment is asked for again with the new last
@@ -269,12 +270,15 @@ where
         if !(state == HoldState::Running || at_rest) || self.fh.seg_tau.is_some() || self.fh.to_end {
             return Ok(Spliced::Waiting);
         }
+        // (ahead by the room a starved motion resumes with: taken with less,
+        // the motion would starve at once, before the chunks after it come)
+        let room = to_fx(f64::from(RESUME_ROOM * self.fh.stop_distance(self.qs.v)));
         let m = if at_rest {
             0
         } else {
             let ahead = run
                 .iter()
-                .position(|c| c.info().is_last() || c.info().commit_point() > self.s);
+                .position(|c| c.info().is_last() || c.info().commit_point() > self.s.saturating_add(room));
             match ahead {
                 Some(m) => m,
                 None => return Ok(Spliced::Waiting),

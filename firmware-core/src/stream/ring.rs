@@ -124,8 +124,10 @@ impl<const CAP: usize, const SLOTS: usize> ChunkRing<CAP, SLOTS> {
     /// on: s_a is at most the previous s_b, and the end of a held chunk or
     /// at most the oldest one's start (then it splices into the rows the
     /// plan window holds, `Interpolator::take_splice`); the held chunks
-    /// from s_a on are dropped (`PushOk::dropped`), and it may follow the
-    /// plan's last chunk.
+    /// from s_a on are dropped (`PushOk::dropped`), it may follow the
+    /// plan's last chunk, and it may carry a later seq than the next (the
+    /// chunks it skips are replaced: a host never sends a seq twice with
+    /// other bytes).
     pub fn push(&mut self, bytes: &[u8]) -> Result<PushOk, StreamError> {
         let chunk = Chunk::parse(bytes)?;
         let info = *chunk.info();
@@ -146,8 +148,11 @@ impl<const CAP: usize, const SLOTS: usize> ChunkRing<CAP, SLOTS> {
                 if e.splice && !info.is_splice() && info.seq == e.seq {
                     return Err(StreamError::SpliceExpected { seq: e.seq });
                 }
-                if info.seq != e.seq {
-                    let behind = e.seq.wrapping_sub(info.seq);
+                let behind = e.seq.wrapping_sub(info.seq);
+                // (a splice may skip seqs: what it replaces need not come;
+                // its s_a below keeps the rows whole)
+                let skips = info.is_splice() && behind > u32::MAX / 2;
+                if info.seq != e.seq && !skips {
                     return Err(if behind != 0 && behind <= u32::MAX / 2 {
                         StreamError::Duplicate { seq: info.seq }
                     } else {
