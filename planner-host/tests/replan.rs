@@ -23,6 +23,17 @@ fn q_at(plan: &PlanOutput, s: f64) -> f64 {
     BasisRow::at(&plan.q_knots, s).map_or(0.0, |b| b.apply(0, &plan.q_ctrl))
 }
 
+/// `running` replanned from `s_b` at the feed factor `alpha`.
+fn replan_at(curve: &Nurbs, cfg: &PlanConfig, running: &PlanOutput, s_b: f64, alpha: f64) -> PlanOutput {
+    let change = FeedChange {
+        ctrl: &running.q_ctrl,
+        before: &running.feed_limit(),
+        s_mm: s_b,
+        alpha,
+    };
+    replan(curve, cfg, &change).unwrap()
+}
+
 /// Checks one replan against the running plan and prints what it did.
 fn check(curve: &Nurbs, arc: &ArcLength, running: &PlanOutput, out: &PlanOutput, s_b: f64, alpha: f64) {
     let f = out
@@ -91,13 +102,7 @@ fn a_lower_and_a_higher_feed_from_a_splice_keep_q_up_to_it_and_hold_every_limit(
     let cfg = windowed();
     let running = plan_curve(&curve, &cfg).unwrap();
     for (s_b, alpha) in [(150.0, 1.0), (150.0, 1.5), (150.0, 0.5), (90.0, 0.25)] {
-        let change = FeedChange {
-            ctrl: &running.q_ctrl,
-            before: &running.feed_limit(),
-            s_mm: s_b,
-            alpha,
-        };
-        let out = replan(&curve, &cfg, &change).unwrap();
+        let out = replan_at(&curve, &cfg, &running, s_b, alpha);
         check(&curve, &arc, &running, &out, s_b, alpha);
         // slower takes longer (faster is bounded by the axes on this curve:
         // its time is printed, not asserted)
@@ -124,13 +129,7 @@ fn an_override_storm_replans_from_each_plan_in_turn() {
         (142.0, 0.3),
         (230.0, 1.5),
     ] {
-        let change = FeedChange {
-            ctrl: &running.q_ctrl,
-            before: &running.feed_limit(),
-            s_mm: s_b,
-            alpha,
-        };
-        let out = replan(&curve, &cfg, &change).unwrap();
+        let out = replan_at(&curve, &cfg, &running, s_b, alpha);
         check(&curve, &arc, &running, &out, s_b, alpha);
         running = out;
     }

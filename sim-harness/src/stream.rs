@@ -139,6 +139,27 @@ pub struct OverrideRun {
     pub outcome: OverrideOutcome,
 }
 
+impl OverrideRun {
+    /// A change asked at `asked_s` for `alpha`, the motion known at
+    /// `known_mm`, nothing done about it yet.
+    fn asked(asked_s: f64, alpha: f64, known_mm: f64, outcome: OverrideOutcome) -> Self {
+        OverrideRun {
+            asked_s,
+            alpha,
+            known_mm,
+            splice_mm: f64::NAN,
+            feed_from_mm: f64::NAN,
+            host_s: 0.0,
+            taken_s: None,
+            effect_s: None,
+            at_feed_s: None,
+            late: 0,
+            superseded: false,
+            outcome,
+        }
+    }
+}
+
 /// What became of a feed change on a streamed run.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "snake_case")]
@@ -196,22 +217,13 @@ fn settle(records: &mut Vec<OverrideRun>, asks: &std::collections::VecDeque<(f64
             OverrideOutcome::PathEnded
         };
     }
-    for &(at, alpha, retry) in asks.iter().filter(|a| a.2.is_none()) {
-        let _ = retry;
-        records.push(OverrideRun {
-            asked_s: at,
+    for &(at, alpha, _) in asks.iter().filter(|a| a.2.is_none()) {
+        records.push(OverrideRun::asked(
+            at,
             alpha,
-            known_mm: f64::NAN,
-            splice_mm: f64::NAN,
-            feed_from_mm: f64::NAN,
-            host_s: 0.0,
-            taken_s: None,
-            effect_s: None,
-            at_feed_s: None,
-            late: 0,
-            superseded: false,
-            outcome: OverrideOutcome::PathEnded,
-        });
+            f64::NAN,
+            OverrideOutcome::PathEnded,
+        ));
     }
 }
 
@@ -497,19 +509,10 @@ pub fn run_stream_host<const CAP: usize, const NQ: usize, const NP: usize>(
                 while asks.len() > 1 && asks.get(1).is_some_and(|&(at, _, _)| at <= t) {
                     if let Some((at, alpha, retry)) = asks.pop_front() {
                         if retry.is_none() {
+                            let o = OverrideRun::asked(at, alpha, f64::NAN, OverrideOutcome::Superseded);
                             run.overrides.push(OverrideRun {
-                                asked_s: at,
-                                alpha,
-                                known_mm: f64::NAN,
-                                splice_mm: f64::NAN,
-                                feed_from_mm: f64::NAN,
-                                host_s: 0.0,
-                                taken_s: None,
-                                effect_s: None,
-                                at_feed_s: None,
-                                late: 0,
                                 superseded: true,
-                                outcome: OverrideOutcome::Superseded,
+                                ..o
                             });
                         }
                     }
@@ -534,20 +537,8 @@ pub fn run_stream_host<const CAP: usize, const NQ: usize, const NP: usize>(
                     let rec = match retry {
                         Some(rec) => rec,
                         None => {
-                            run.overrides.push(OverrideRun {
-                                asked_s: at,
-                                alpha,
-                                known_mm: s_mm,
-                                splice_mm: f64::NAN,
-                                feed_from_mm: f64::NAN,
-                                host_s: 0.0,
-                                taken_s: None,
-                                effect_s: None,
-                                at_feed_s: None,
-                                late: 0,
-                                superseded: false,
-                                outcome: OverrideOutcome::Pending,
-                            });
+                            run.overrides
+                                .push(OverrideRun::asked(at, alpha, s_mm, OverrideOutcome::Pending));
                             run.overrides.len() - 1
                         }
                     };
