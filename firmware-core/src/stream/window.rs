@@ -398,26 +398,9 @@ impl<const NQ: usize, const NP: usize> PlanWindow<NQ, NP> {
     /// pressed to stop inside the chunks held); `s_end` not a held piece
     /// end: nothing changes and `false`.
     pub fn truncate(&mut self, s_end: i64) -> bool {
-        let mut keep_p = None;
-        for k in 0..self.p_n {
-            if let Some(r) = self.prow(self.p_lo + k) {
-                if to_fx(r.end) == s_end {
-                    keep_p = Some(k + 1);
-                    break;
-                }
-            }
-        }
-        let Some(np) = keep_p else {
+        let Some((np, nq)) = self.kept_through(s_end) else {
             return false;
         };
-        let mut nq = self.q_n;
-        while nq > 0
-            && self
-                .qrow(self.q_lo + nq - 1)
-                .is_some_and(|r| to_fx(r.start) >= s_end)
-        {
-            nq -= 1;
-        }
         if np < self.p_n || nq < self.q_n || self.has_last() {
             self.p_n = np;
             self.q_n = nq;
@@ -447,19 +430,10 @@ impl<const NQ: usize, const NP: usize> PlanWindow<NQ, NP> {
             });
         }
         let s_a = info.s_a;
-        let np = (0..self.p_n)
-            .find(|&k| self.prow(self.p_lo + k).is_some_and(|r| to_fx(r.end) == s_a))
-            .map(|k| k + 1)
+        let (np, nq) = self
+            .kept_through(s_a)
             .filter(|_| s_a < self.held_end)
             .ok_or(WindowError::NotABreak { s_a })?;
-        let mut nq = self.q_n;
-        while nq > 0
-            && self
-                .qrow(self.q_lo + nq - 1)
-                .is_some_and(|r| to_fx(r.start) >= s_a)
-        {
-            nq -= 1;
-        }
         let next = u32::try_from(self.q_lo + nq + 3).unwrap_or(u32::MAX);
         let repeat = nq > 0 && info.first_span.wrapping_add(1) == next;
         if !(info.first_span == next || repeat) {
@@ -513,6 +487,23 @@ impl<const NQ: usize, const NP: usize> PlanWindow<NQ, NP> {
             self.push(c)?;
         }
         Ok(())
+    }
+
+    /// The pieces and q spans held that stay when the rows are cut back to
+    /// `s_end` (Q40 mm): the pieces up to the one ending there, the q spans
+    /// starting before it; `None` if no held piece ends there.
+    fn kept_through(&self, s_end: i64) -> Option<(usize, usize)> {
+        let np =
+            (0..self.p_n).find(|&k| self.prow(self.p_lo + k).is_some_and(|r| to_fx(r.end) == s_end))? + 1;
+        let mut nq = self.q_n;
+        while nq > 0
+            && self
+                .qrow(self.q_lo + nq - 1)
+                .is_some_and(|r| to_fx(r.start) >= s_end)
+        {
+            nq -= 1;
+        }
+        Some((np, nq))
     }
 
     /// Free the q spans before global index `q` and the pieces before `p`
