@@ -3,14 +3,15 @@
 //! runs. Splicing the same chunks back in changes no tick, bit for bit (the
 //! rows dropped and pushed again, what the hold read ahead forgotten); a
 //! splice the motion has reached is refused as late, one of another plan
-//! as such, with nothing changed.
+//! as such, one whose pieces step off the path as a step, with nothing
+//! changed.
 
 use firmware_core::interp::{SpliceError, Spliced};
-use firmware_core::stream::{set_seq, Chunk};
+use firmware_core::stream::{set_seq, Chunk, WindowError};
 use firmware_core::{Setpoint, Table};
 use planner_host::builtin;
 use planner_host::plan::{plan_curve, PlanConfig};
-use planner_host::stream::{chunk_table, ChunkOptions};
+use planner_host::stream::{chunk_rows, chunk_table, ChunkOptions, TableRows};
 use planner_host::stream_hold::{HoldPointError, StreamedRun};
 
 const T: f64 = 250e-6;
@@ -134,6 +135,34 @@ fn a_late_or_discontinuous_splice_is_refused_with_nothing_changed() {
     let r = run.take_splice(&sent, j);
     assert!(
         matches!(r, Err(HoldPointError::Splice(SpliceError::Window(_)))),
+        "{r:?}"
+    );
+    assert_eq!(run.ip.window().held(), held);
+    // a splice of the same plan and arc lengths whose pieces are the path
+    // moved 0.01 mm along x: refused as a step, before any row is dropped
+    let mut moved = TableRows::of(&table);
+    for w in &mut moved.words {
+        w[3] += (0.01 * FX) as i64;
+    }
+    let moved = chunk_rows(
+        &moved,
+        &ChunkOptions {
+            chunk_mm: 8.0,
+            ..ChunkOptions::default()
+        },
+    )
+    .unwrap();
+    let mut sent = chunks.clone();
+    sent[j].clone_from(&moved[j]);
+    set_seq(&mut sent[j], 9, true).unwrap();
+    let r = run.take_splice(&sent, j);
+    assert!(
+        matches!(
+            r,
+            Err(HoldPointError::Splice(SpliceError::Window(
+                WindowError::Step { .. }
+            )))
+        ),
         "{r:?}"
     );
     assert_eq!(run.ip.window().held(), held);

@@ -2,14 +2,15 @@
 //! chunks, fed into a bounded window ahead of the motion and freed behind
 //! it, give the same setpoints, bit for bit, as the tick over the whole
 //! table; the window never holds more than a stretch of the plan; a chunk
-//! that does not continue the rows held is refused with nothing changed.
+//! that does not continue the rows held (in plan, arc length, q spans or
+//! position) is refused with nothing changed.
 
 use firmware_core::interp::Interpolator;
-use firmware_core::stream::{Chunk, PlanWindow, WindowError};
+use firmware_core::stream::{Chunk, PlanWindow, WindowError, JOIN_TOL_FX};
 use firmware_core::{F64Array, Setpoint, Table};
 use planner_host::builtin;
 use planner_host::plan::{plan_curve, PlanConfig};
-use planner_host::stream::{chunk_table, ChunkOptions};
+use planner_host::stream::{chunk_rows, chunk_table, ChunkOptions, TableRows};
 use planner_host::stream_hold::StreamedRun;
 
 const T: f64 = 250e-6;
@@ -129,6 +130,73 @@ fn a_chunk_that_does_not_continue_the_window_is_refused_with_nothing_changed() {
         Err(WindowError::Full { .. })
     ));
     assert_eq!(small.held(), (0, 0));
+}
+
+/// A chunk that parses, belongs to the plan held and continues its arc
+/// length, but whose pieces are another path's (this one moved 0.01 mm
+/// along x), is refused before the motion could step to it: at the join
+/// with the rows held, and at a join inside the chunk; nothing changes.
+#[test]
+fn a_chunk_whose_pieces_step_away_from_the_path_is_refused_with_nothing_changed() {
+    let curve = builtin::by_name("star").unwrap().unwrap();
+    let out = plan_curve(&curve, &PlanConfig::default()).unwrap();
+    let table = Table::parse(&out.table_bytes).unwrap();
+    let opts = ChunkOptions {
+        chunk_mm: 8.0,
+        u_form: true,
+        ..ChunkOptions::default()
+    };
+    let rows = TableRows::of(&table);
+    let chunks = chunk_rows(&rows, &opts).unwrap();
+    // x's b₀ (word 3) of every piece from `from` on, moved by 0.01 mm
+    let moved_from = |from: usize| {
+        let mut moved = rows.clone();
+        for w in &mut moved.words[from..] {
+            w[3] += (0.01 * (1u64 << 40) as f64) as i64;
+        }
+        chunk_rows(&moved, &opts).unwrap()
+    };
+    fn parse(b: &[u8]) -> Chunk<'_> {
+        Chunk::parse(b).unwrap()
+    }
+    let step_mm = |e: Result<(), WindowError>| match e {
+        Err(WindowError::Step { step, .. }) => step as f64 / (1u64 << 40) as f64,
+        other => panic!("not refused as a step: {other:?}"),
+    };
+    let mut w = PlanWindow::<NQ, NP>::new();
+    w.push(&parse(&chunks[0])).unwrap();
+    let held = (w.held(), w.held_end());
+    // the whole path moved: chunk 1 starts 0.01 mm from where chunk 0 ends
+    let first_of_1 = w.held().1;
+    let moved = moved_from(first_of_1);
+    assert_eq!(moved[1].len(), chunks[1].len());
+    let step = step_mm(w.push(&parse(&moved[1])));
+    assert!((step - 0.01).abs() < 1e-6, "step {step} mm");
+    assert_eq!((w.held(), w.held_end()), held);
+    // moved from chunk 1's second piece: it steps inside the chunk
+    let n1 = usize::from(parse(&chunks[1]).info().n_p);
+    assert!(n1 >= 2, "chunk 1 has {n1} pieces");
+    let step = step_mm(w.push(&parse(&moved_from(first_of_1 + 1)[1])));
+    assert!((step - 0.01).abs() < 1e-6, "step {step} mm");
+    assert_eq!((w.held(), w.held_end()), held);
+    // the path's own chunks meet within the tolerance, to the end (the
+    // rows before the last q span and piece freed as a tick passing them)
+    let mut pieces = w.held().1;
+    for c in &chunks[1..] {
+        let c = parse(c);
+        if !w.fits(&c) {
+            // (q span index = knot span − 3: the span the chunk repeats stays)
+            w.release_before(c.info().first_span as usize - 3, pieces - 1);
+        }
+        w.push(&c).unwrap();
+        pieces += usize::from(c.info().n_p);
+    }
+    assert!(w.has_last());
+    println!(
+        "moved chunks refused at a step of 0.01 mm; the star's {} chunks meet within {} Q40 mm",
+        chunks.len(),
+        JOIN_TOL_FX
+    );
 }
 
 /// A feed hold on streamed rows cut back short of the plan's end, as the

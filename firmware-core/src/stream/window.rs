@@ -14,9 +14,13 @@
 //!
 //! Continuity is checked on every push: the chunk must belong to the plan
 //! being held, its first piece must start where the last held piece ends
-//! (Q40, exactly), and its q spans must continue the held ones (a span
+//! (in arc length, Q40, exactly; in position, on every axis within
+//! [`JOIN_TOL_FX`], and so must each of its pieces where the one before it
+//! ends), and its q spans must continue the held ones (a span
 //! meeting two chunks is sent in both: the copy already held is skipped
-//! after checking that it is the same row). The last chunk of the plan
+//! after checking that it is the same row). A chunk that parses (its CRC
+//! good, its arc lengths continuing) but carries another path's pieces is
+//! refused before the motion could step to them ([`WindowError::Step`]). The last chunk of the plan
 //! fixes the last q span's and the last piece's indices, which the tick
 //! runs to the end of the path.
 //!
@@ -27,7 +31,7 @@ use crate::interp::cursor::{tau_of, PCur, QCur};
 use crate::interp::rows::{PlanRows, Rows};
 use crate::servo_forms::fixed::to_fx;
 use crate::servo_forms::piece::{
-    piece_shift_mask, pos_derivs, PieceU, PIECE_F64_LEN, PIECE_HEAD_LEN, POS_BYTES,
+    piece_shift_mask, pos_derivs, pos_eval, PieceU, PIECE_F64_LEN, PIECE_HEAD_LEN, POS_BYTES,
 };
 use crate::servo_forms::q_span::{QLocal, Q_FX_LEN, Q_LOCAL_LEN};
 use crate::stream::chunk::{Chunk, PieceForm, QSpanForm};
@@ -83,6 +87,15 @@ pub enum WindowError {
         /// The splice's s_a.
         s_a: i64,
     },
+    /// A piece does not start where the piece before it ends: the motion
+    /// would step there (the chunk is another path's, or broken). The
+    /// pieces of one path meet within [`JOIN_TOL_FX`].
+    Step {
+        /// Where the pieces meet, Q40 mm of arc length.
+        s: i64,
+        /// The largest axis difference, Q40 mm.
+        step: i64,
+    },
 }
 
 impl core::fmt::Display for WindowError {
@@ -113,6 +126,12 @@ impl core::fmt::Display for WindowError {
             WindowError::Undecodable => write!(f, "chunk rows not decodable"),
             WindowError::NotABreak { s_a } => {
                 write!(f, "splice at {s_a} (Q40 mm) is not a held piece end")
+            }
+            WindowError::Step { s, step } => {
+                write!(
+                    f,
+                    "pieces meeting at {s} (Q40 mm) step by {step} (Q40 mm) on an axis"
+                )
             }
         }
     }
@@ -159,6 +178,32 @@ impl PRow {
         w.copy_from_slice(b);
         Some(u64::from_le_bytes(w))
     }
+
+    /// The position (Q40 mm) at arc length `s` (Q40 mm), as the tick
+    /// evaluates it.
+    fn pos(&self, s: i64) -> Option<[i64; 3]> {
+        let (shift, constant) = piece_shift_mask(self.word(2)?)?;
+        let centre = self.word(1)? as i64;
+        let c: &[u8; POS_BYTES] = self.words.get(POS_AT..POS_AT + POS_BYTES)?.try_into().ok()?;
+        Some(pos_eval(c, tau_of(s, centre, shift), constant))
+    }
+}
+
+/// How far apart (Q40 mm, on any axis) two pieces of one path may meet:
+/// each is fitted to the curve at the exact arc length within
+/// [`FIT_TOL_MM`](crate::servo_forms::fit::FIT_TOL_MM), so they meet within
+/// twice that, and rounding to Q40 adds a few units. Measured on the
+/// streamed Butterfly, meanders and programs: at most a few Q40 units
+/// (docs/streaming-design.md). A step above this is not the path's: a
+/// chunk from another path with the same plan id and arc lengths, or
+/// broken rows that still parse.
+pub const JOIN_TOL_FX: i64 = 1 << 20;
+
+/// The largest axis difference of two positions (Q40 mm).
+fn step_between(a: [i64; 3], b: [i64; 3]) -> i64 {
+    a.iter()
+        .zip(b.iter())
+        .fold(0i64, |m, (x, y)| m.max(x.wrapping_sub(*y).saturating_abs()))
 }
 
 /// The q spans and pieces of a streamed plan held for the tick: up to `NQ`
@@ -187,6 +232,9 @@ pub struct PlanWindow<const NQ: usize, const NP: usize> {
     hold_at: i64,
     /// A hold pressed for want of chunks, and the end of the rows held then.
     pub(crate) starved: Option<i64>,
+    /// The position at the end of the last held piece (Q40 mm): where the
+    /// next chunk's first piece must start, within [`JOIN_TOL_FX`].
+    end_pos: Option<[i64; 3]>,
 }
 
 impl<const NQ: usize, const NP: usize> Default for PlanWindow<NQ, NP> {
@@ -212,6 +260,7 @@ impl<const NQ: usize, const NP: usize> PlanWindow<NQ, NP> {
             next_span: 3,
             hold_at: i64::MIN,
             starved: None,
+            end_pos: None,
         }
     }
 
@@ -359,21 +408,33 @@ impl<const NQ: usize, const NP: usize> PlanWindow<NQ, NP> {
         }
         let mut np = 0usize;
         let mut end = info.s_a;
+        // (the first chunk's first piece starts the path: nothing to meet)
+        let mut end_pos = if first_chunk { None } else { self.end_pos };
         for form in chunk.pieces() {
             if to_fx(form.start) != end {
                 return Err(WindowError::Undecodable);
             }
             let idx = p_at + np;
+            let new = Self::p_row(idx, &form);
+            let start_pos = new.pos(end).ok_or(WindowError::Undecodable)?;
+            if let Some(before) = end_pos {
+                let step = step_between(before, start_pos);
+                if step > JOIN_TOL_FX {
+                    return Err(WindowError::Step { s: end, step });
+                }
+            }
+            end = to_fx(form.end);
+            end_pos = Some(new.pos(end).ok_or(WindowError::Undecodable)?);
             let Some(row) = idx.checked_rem(NP).and_then(|slot| self.p.get_mut(slot)) else {
                 return Err(WindowError::Undecodable);
             };
-            *row = Self::p_row(idx, &form);
-            end = to_fx(form.end);
+            *row = new;
             np += 1;
         }
         if np != usize::from(info.n_p) || end != info.s_b {
             return Err(WindowError::Undecodable);
         }
+        self.end_pos = end_pos;
         self.q_n += nq;
         self.p_n += np;
         self.held_end = info.s_b;
@@ -402,6 +463,7 @@ impl<const NQ: usize, const NP: usize> PlanWindow<NQ, NP> {
             return false;
         };
         if np < self.p_n || nq < self.q_n || self.has_last() {
+            self.end_pos = self.prow(self.p_lo + np - 1).and_then(|r| r.pos(s_end));
             self.p_n = np;
             self.q_n = nq;
             self.held_end = s_end;
@@ -455,7 +517,9 @@ impl<const NQ: usize, const NP: usize> PlanWindow<NQ, NP> {
                 });
             }
         }
-        // (as fits_run, from the rows kept)
+        // (as fits_run, from the rows kept; then the pieces' joins, the
+        // first at the kept piece's end: a splice is refused whole, before
+        // any row is dropped)
         let (mut q, mut p, mut nx) = (nq, np, next);
         for c in run {
             let i = c.info();
@@ -470,6 +534,24 @@ impl<const NQ: usize, const NP: usize> PlanWindow<NQ, NP> {
                 });
             }
         }
+        let kept_end = self.prow(self.p_lo + np - 1).and_then(|r| r.pos(s_a));
+        Self::joins_meet(kept_end.ok_or(WindowError::Undecodable)?, run)
+    }
+
+    /// Whether the pieces of `run` (chunks in order) meet one another, the
+    /// first at `from`, within [`JOIN_TOL_FX`]: [`WindowError::Step`] at
+    /// the first that does not.
+    fn joins_meet(from: [i64; 3], run: &[Chunk<'_>]) -> Result<(), WindowError> {
+        let mut at = from;
+        for form in run.iter().flat_map(|c| c.pieces()) {
+            let row = Self::p_row(0, &form);
+            let s = to_fx(form.start);
+            let step = step_between(at, row.pos(s).ok_or(WindowError::Undecodable)?);
+            if step > JOIN_TOL_FX {
+                return Err(WindowError::Step { s, step });
+            }
+            at = row.pos(to_fx(form.end)).ok_or(WindowError::Undecodable)?;
+        }
         Ok(())
     }
 
@@ -482,7 +564,8 @@ impl<const NQ: usize, const NP: usize> PlanWindow<NQ, NP> {
         if !self.truncate(s_a) {
             return Err(WindowError::NotABreak { s_a });
         }
-        // (cannot fail for parsed chunks that passed the checks above)
+        // (cannot fail for parsed chunks that passed the checks above, the
+        // joins' included)
         for c in run {
             self.push(c)?;
         }
