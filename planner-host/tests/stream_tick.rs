@@ -3,7 +3,8 @@
 //! it, give the same setpoints, bit for bit, as the tick over the whole
 //! table; the window never holds more than a stretch of the plan; a chunk
 //! that does not continue the rows held (in plan, arc length, q spans or
-//! position) is refused with nothing changed.
+//! position), or rows that do not start and end at the head's points, are
+//! refused with nothing changed.
 
 use firmware_core::interp::Interpolator;
 use firmware_core::stream::{Chunk, PlanWindow, WindowError, JOIN_TOL_FX};
@@ -197,6 +198,73 @@ fn a_chunk_whose_pieces_step_away_from_the_path_is_refused_with_nothing_changed(
         chunks.len(),
         JOIN_TOL_FX
     );
+}
+
+/// The first and last setpoints of a streamed plan are its head's points:
+/// a head whose start point is not where the rows start is refused when the
+/// motion would start, and one whose end point is not where they end, when
+/// the plan's last chunk comes (the rows held before it stay).
+#[test]
+fn a_head_whose_end_points_are_not_the_rows_is_refused() {
+    let curve = builtin::by_name("star").unwrap().unwrap();
+    let out = plan_curve(&curve, &PlanConfig::default()).unwrap();
+    let table = Table::parse(&out.table_bytes).unwrap();
+    let chunks = chunk_table(
+        &table,
+        &ChunkOptions {
+            chunk_mm: 8.0,
+            ..ChunkOptions::default()
+        },
+    )
+    .unwrap();
+    let head = planner_host::stream_hold::stream_head(&table).unwrap();
+    let first = |w: &mut PlanWindow<NQ, NP>| w.push(&Chunk::parse(&chunks[0]).unwrap()).unwrap();
+    // the head's own points: the run starts
+    let mut w = PlanWindow::<NQ, NP>::new();
+    first(&mut w);
+    type Streamed = Interpolator<'static, 0, 0, PlanWindow<NQ, NP>>;
+    assert!(Streamed::streamed(&head, w, T).is_ok());
+    // the start 0.01 mm off along y
+    let mut off = head;
+    off.first_pos_mm[1] += 0.01;
+    let mut w = PlanWindow::<NQ, NP>::new();
+    first(&mut w);
+    assert!(matches!(
+        w.clone().expect_ends(off.first_pos_mm, off.last_pos_mm),
+        Err(WindowError::Ends { s: 0, .. })
+    ));
+    assert_eq!(
+        Streamed::streamed(&off, w, T).err(),
+        Some(firmware_core::InterpError::Inconsistent)
+    );
+    // the end 0.01 mm off along x: every chunk goes in but the last
+    let mut off = head;
+    off.last_pos_mm[0] -= 0.01;
+    let mut w = PlanWindow::<NQ, NP>::new();
+    first(&mut w);
+    w.expect_ends(off.first_pos_mm, off.last_pos_mm).unwrap();
+    let (last, before) = chunks.split_last().unwrap();
+    let mut pieces = w.held().1;
+    for c in before[1..].iter().chain([last]) {
+        let c = Chunk::parse(c).unwrap();
+        if !w.fits(&c) {
+            // (the rows before the chunk's q spans and the last piece freed)
+            w.release_before(c.info().first_span as usize - 3, pieces - 1);
+        }
+        if c.info().is_last() {
+            break;
+        }
+        w.push(&c).unwrap();
+        pieces += usize::from(c.info().n_p);
+    }
+    let held = (w.held(), w.held_end());
+    let r = w.push(&Chunk::parse(last).unwrap());
+    let Err(WindowError::Ends { step, .. }) = r else {
+        panic!("the last chunk taken: {r:?}");
+    };
+    assert!((step as f64 / (1u64 << 40) as f64 - 0.01).abs() < 1e-6);
+    assert_eq!((w.held(), w.held_end()), held);
+    assert!(!w.has_last());
 }
 
 /// A feed hold on streamed rows cut back short of the plan's end, as the

@@ -27,7 +27,9 @@ pub enum InterpError {
     /// The period is not a finite number > 0.
     BadPeriod,
     /// The table's views do not fit together (cannot happen for a table from
-    /// [`Table::parse`](crate::table::view::Table::parse)).
+    /// [`Table::parse`](crate::table::view::Table::parse)); for a streamed
+    /// plan, the head and the rows held do not (its length, or the path's
+    /// start and end points, [`crate::stream::PlanWindow::expect_ends`]).
     Inconsistent,
 }
 

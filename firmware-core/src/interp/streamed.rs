@@ -111,11 +111,19 @@ where
     /// holds its first chunk at least, ticking every `period_s` seconds
     /// (`window` by value, or a `&mut` to one kept elsewhere — a static on
     /// an MCU, where moving a large window through the stack would not fit).
-    pub fn streamed(head: &StreamHead, window: B, period_s: f64) -> Result<Self, InterpError> {
+    /// [`InterpError::Inconsistent`] if the rows do not start at the head's
+    /// first point (or, the last chunk held, end at its last).
+    pub fn streamed(head: &StreamHead, mut window: B, period_s: f64) -> Result<Self, InterpError> {
         let length_mm = head.length_mm;
         if !(length_mm.is_finite() && length_mm > 0.0) {
             return Err(InterpError::Inconsistent);
         }
+        // (the first and last setpoints are the head's points: the rows
+        // must start and end there, [`PlanWindow::expect_ends`])
+        window
+            .window_mut()
+            .expect_ends(head.first_pos_mm, head.last_pos_mm)
+            .map_err(|_| InterpError::Inconsistent)?;
         let plan = PlanHead {
             length_mm,
             limits: head.limits,

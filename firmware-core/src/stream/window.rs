@@ -87,6 +87,16 @@ pub enum WindowError {
         /// The splice's s_a.
         s_a: i64,
     },
+    /// The rows do not start (s = 0) or end (s = L) at the point the plan's
+    /// head gives for the path's start or end ([`PlanWindow::expect_ends`]):
+    /// the first and last setpoints are the head's, so the motion would
+    /// step there.
+    Ends {
+        /// Where, Q40 mm of arc length (0 or L).
+        s: i64,
+        /// The largest axis difference, Q40 mm.
+        step: i64,
+    },
     /// A piece does not start where the piece before it ends: the motion
     /// would step there (the chunk is another path's, or broken). The
     /// pieces of one path meet within [`JOIN_TOL_FX`].
@@ -126,6 +136,12 @@ impl core::fmt::Display for WindowError {
             WindowError::Undecodable => write!(f, "chunk rows not decodable"),
             WindowError::NotABreak { s_a } => {
                 write!(f, "splice at {s_a} (Q40 mm) is not a held piece end")
+            }
+            WindowError::Ends { s, step } => {
+                write!(
+                    f,
+                    "rows at {s} (Q40 mm) are {step} (Q40 mm) from the plan head's end point"
+                )
             }
             WindowError::Step { s, step } => {
                 write!(
@@ -235,6 +251,9 @@ pub struct PlanWindow<const NQ: usize, const NP: usize> {
     /// The position at the end of the last held piece (Q40 mm): where the
     /// next chunk's first piece must start, within [`JOIN_TOL_FX`].
     end_pos: Option<[i64; 3]>,
+    /// The path's start and end points the plan's head gives (Q40 mm), once
+    /// told ([`PlanWindow::expect_ends`]).
+    ends_pos: Option<([i64; 3], [i64; 3])>,
 }
 
 impl<const NQ: usize, const NP: usize> Default for PlanWindow<NQ, NP> {
@@ -261,6 +280,7 @@ impl<const NQ: usize, const NP: usize> PlanWindow<NQ, NP> {
             hold_at: i64::MIN,
             starved: None,
             end_pos: None,
+            ends_pos: None,
         }
     }
 
@@ -309,6 +329,39 @@ impl<const NQ: usize, const NP: usize> PlanWindow<NQ, NP> {
     /// window or already passed).
     pub fn has_last(&self) -> bool {
         self.p_last != usize::MAX
+    }
+
+    /// The path's start and end points as the plan's head gives them (mm):
+    /// the rows must start and end there within [`JOIN_TOL_FX`] (the first
+    /// and last setpoints are the head's). Checked now against the rows
+    /// held (the path's first piece, and its last if held), and against the
+    /// last piece of the plan's last chunk when it comes (a push or a
+    /// splice); refused with [`WindowError::Ends`] and nothing changed.
+    pub fn expect_ends(&mut self, first_mm: [f64; 3], last_mm: [f64; 3]) -> Result<(), WindowError> {
+        let ends = (first_mm.map(to_fx), last_mm.map(to_fx));
+        if self.p_lo == 0 && self.p_n > 0 {
+            let start = self.prow(0).ok_or(WindowError::Undecodable)?.start;
+            let at = self.prow(0).and_then(|r| r.pos(to_fx(start)));
+            let step = step_between(at.ok_or(WindowError::Undecodable)?, ends.0);
+            if step > JOIN_TOL_FX {
+                return Err(WindowError::Ends { s: 0, step });
+            }
+        }
+        if self.has_last() {
+            Self::ends_at(ends.1, self.held_end, self.end_pos)?;
+        }
+        self.ends_pos = Some(ends);
+        Ok(())
+    }
+
+    /// [`WindowError::Ends`] unless `at` (the rows' end position at `s`)
+    /// is `last` within [`JOIN_TOL_FX`].
+    fn ends_at(last: [i64; 3], s: i64, at: Option<[i64; 3]>) -> Result<(), WindowError> {
+        let step = step_between(at.ok_or(WindowError::Undecodable)?, last);
+        if step > JOIN_TOL_FX {
+            return Err(WindowError::Ends { s, step });
+        }
+        Ok(())
     }
 
     /// Whether `chunk` would fit now: its q spans (those not yet held) and
@@ -434,6 +487,9 @@ impl<const NQ: usize, const NP: usize> PlanWindow<NQ, NP> {
         if np != usize::from(info.n_p) || end != info.s_b {
             return Err(WindowError::Undecodable);
         }
+        if let (true, Some((_, last))) = (info.is_last(), self.ends_pos) {
+            Self::ends_at(last, end, end_pos)?;
+        }
         self.end_pos = end_pos;
         self.q_n += nq;
         self.p_n += np;
@@ -535,14 +591,18 @@ impl<const NQ: usize, const NP: usize> PlanWindow<NQ, NP> {
             }
         }
         let kept_end = self.prow(self.p_lo + np - 1).and_then(|r| r.pos(s_a));
-        Self::joins_meet(kept_end.ok_or(WindowError::Undecodable)?, run)
+        let (s, at) = Self::joins_meet(kept_end.ok_or(WindowError::Undecodable)?, run)?;
+        match (run.last().is_some_and(|c| c.info().is_last()), self.ends_pos) {
+            (true, Some((_, last))) => Self::ends_at(last, s, Some(at)),
+            _ => Ok(()),
+        }
     }
 
     /// Whether the pieces of `run` (chunks in order) meet one another, the
     /// first at `from`, within [`JOIN_TOL_FX`]: [`WindowError::Step`] at
-    /// the first that does not.
-    fn joins_meet(from: [i64; 3], run: &[Chunk<'_>]) -> Result<(), WindowError> {
-        let mut at = from;
+    /// the first that does not; else the run's end (s, position), Q40 mm.
+    fn joins_meet(from: [i64; 3], run: &[Chunk<'_>]) -> Result<(i64, [i64; 3]), WindowError> {
+        let (mut s_at, mut at) = (0, from);
         for form in run.iter().flat_map(|c| c.pieces()) {
             let row = Self::p_row(0, &form);
             let s = to_fx(form.start);
@@ -550,9 +610,10 @@ impl<const NQ: usize, const NP: usize> PlanWindow<NQ, NP> {
             if step > JOIN_TOL_FX {
                 return Err(WindowError::Step { s, step });
             }
-            at = row.pos(to_fx(form.end)).ok_or(WindowError::Undecodable)?;
+            s_at = to_fx(form.end);
+            at = row.pos(s_at).ok_or(WindowError::Undecodable)?;
         }
-        Ok(())
+        Ok((s_at, at))
     }
 
     /// Replace the rows from the splice's s_a on by `run` (see
