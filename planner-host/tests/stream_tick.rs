@@ -202,8 +202,8 @@ fn a_chunk_whose_pieces_step_away_from_the_path_is_refused_with_nothing_changed(
 
 /// The first and last setpoints of a streamed plan are its head's points:
 /// a head whose start point is not where the rows start is refused when the
-/// motion would start, and one whose end point is not where they end, when
-/// the plan's last chunk comes (the rows held before it stay).
+/// motion would start, and one whose end point or length is not where they
+/// end, when the plan's last chunk comes (the rows held before it stay).
 #[test]
 fn a_head_whose_end_points_are_not_the_rows_is_refused() {
     let curve = builtin::by_name("star").unwrap().unwrap();
@@ -230,41 +230,55 @@ fn a_head_whose_end_points_are_not_the_rows_is_refused() {
     let mut w = PlanWindow::<NQ, NP>::new();
     first(&mut w);
     assert!(matches!(
-        w.clone().expect_ends(off.first_pos_mm, off.last_pos_mm),
+        w.clone()
+            .expect_ends(off.first_pos_mm, off.last_pos_mm, off.length_mm),
         Err(WindowError::Ends { s: 0, .. })
     ));
     assert_eq!(
         Streamed::streamed(&off, w, T).err(),
         Some(firmware_core::InterpError::Inconsistent)
     );
-    // the end 0.01 mm off along x: every chunk goes in but the last
+    // every chunk in but the last, the head's end as given: the last's push
+    let last_push = |off: &firmware_core::interp::StreamHead| {
+        let mut w = PlanWindow::<NQ, NP>::new();
+        first(&mut w);
+        w.expect_ends(off.first_pos_mm, off.last_pos_mm, off.length_mm)
+            .unwrap();
+        let (last, before) = chunks.split_last().unwrap();
+        let mut pieces = w.held().1;
+        for c in before[1..].iter().chain([last]) {
+            let c = Chunk::parse(c).unwrap();
+            if !w.fits(&c) {
+                // (the rows before the chunk's q spans and the last piece freed)
+                w.release_before(c.info().first_span as usize - 3, pieces - 1);
+            }
+            if c.info().is_last() {
+                break;
+            }
+            w.push(&c).unwrap();
+            pieces += usize::from(c.info().n_p);
+        }
+        let held = (w.held(), w.held_end());
+        let r = w.push(&Chunk::parse(last).unwrap());
+        if r.is_err() {
+            assert_eq!((w.held(), w.held_end()), held);
+        }
+        assert_eq!(w.has_last(), r.is_ok());
+        r
+    };
+    assert_eq!(last_push(&head), Ok(()));
+    // the end 0.01 mm off along x
     let mut off = head;
     off.last_pos_mm[0] -= 0.01;
-    let mut w = PlanWindow::<NQ, NP>::new();
-    first(&mut w);
-    w.expect_ends(off.first_pos_mm, off.last_pos_mm).unwrap();
-    let (last, before) = chunks.split_last().unwrap();
-    let mut pieces = w.held().1;
-    for c in before[1..].iter().chain([last]) {
-        let c = Chunk::parse(c).unwrap();
-        if !w.fits(&c) {
-            // (the rows before the chunk's q spans and the last piece freed)
-            w.release_before(c.info().first_span as usize - 3, pieces - 1);
-        }
-        if c.info().is_last() {
-            break;
-        }
-        w.push(&c).unwrap();
-        pieces += usize::from(c.info().n_p);
-    }
-    let held = (w.held(), w.held_end());
-    let r = w.push(&Chunk::parse(last).unwrap());
+    let r = last_push(&off);
     let Err(WindowError::Ends { step, .. }) = r else {
         panic!("the last chunk taken: {r:?}");
     };
     assert!((step as f64 / (1u64 << 40) as f64 - 0.01).abs() < 1e-6);
-    assert_eq!((w.held(), w.held_end()), held);
-    assert!(!w.has_last());
+    // the path 0.01 mm longer than the rows
+    let mut off = head;
+    off.length_mm += 0.01;
+    assert!(matches!(last_push(&off), Err(WindowError::Length { .. })));
 }
 
 /// A feed hold on streamed rows cut back short of the plan's end, as the

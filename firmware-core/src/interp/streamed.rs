@@ -112,7 +112,7 @@ where
     /// (`window` by value, or a `&mut` to one kept elsewhere — a static on
     /// an MCU, where moving a large window through the stack would not fit).
     /// [`InterpError::Inconsistent`] if the rows do not start at the head's
-    /// first point (or, the last chunk held, end at its last).
+    /// first point (or, the last chunk held, end at its last, at L).
     pub fn streamed(head: &StreamHead, mut window: B, period_s: f64) -> Result<Self, InterpError> {
         let length_mm = head.length_mm;
         if !(length_mm.is_finite() && length_mm > 0.0) {
@@ -122,7 +122,7 @@ where
         // must start and end there, [`PlanWindow::expect_ends`])
         window
             .window_mut()
-            .expect_ends(head.first_pos_mm, head.last_pos_mm)
+            .expect_ends(head.first_pos_mm, head.last_pos_mm, length_mm)
             .map_err(|_| InterpError::Inconsistent)?;
         let plan = PlanHead {
             length_mm,

@@ -97,6 +97,14 @@ pub enum WindowError {
         /// The largest axis difference, Q40 mm.
         step: i64,
     },
+    /// The plan's last chunk does not end at the head's path length L (the
+    /// tick runs to L).
+    Length {
+        /// The chunk's s_b, Q40 mm.
+        end: i64,
+        /// L, Q40 mm.
+        length: i64,
+    },
     /// A piece does not start where the piece before it ends: the motion
     /// would step there (the chunk is another path's, or broken). The
     /// pieces of one path meet within [`JOIN_TOL_FX`].
@@ -141,6 +149,12 @@ impl core::fmt::Display for WindowError {
                 write!(
                     f,
                     "rows at {s} (Q40 mm) are {step} (Q40 mm) from the plan head's end point"
+                )
+            }
+            WindowError::Length { end, length } => {
+                write!(
+                    f,
+                    "the plan's last chunk ends at {end} (Q40 mm), its length is {length}"
                 )
             }
             WindowError::Step { s, step } => {
@@ -251,9 +265,9 @@ pub struct PlanWindow<const NQ: usize, const NP: usize> {
     /// The position at the end of the last held piece (Q40 mm): where the
     /// next chunk's first piece must start, within [`JOIN_TOL_FX`].
     end_pos: Option<[i64; 3]>,
-    /// The path's start and end points the plan's head gives (Q40 mm), once
-    /// told ([`PlanWindow::expect_ends`]).
-    ends_pos: Option<([i64; 3], [i64; 3])>,
+    /// The path's start and end points and its length the plan's head
+    /// gives (Q40 mm), once told ([`PlanWindow::expect_ends`]).
+    ends_pos: Option<([i64; 3], [i64; 3], i64)>,
 }
 
 impl<const NQ: usize, const NP: usize> Default for PlanWindow<NQ, NP> {
@@ -331,14 +345,21 @@ impl<const NQ: usize, const NP: usize> PlanWindow<NQ, NP> {
         self.p_last != usize::MAX
     }
 
-    /// The path's start and end points as the plan's head gives them (mm):
-    /// the rows must start and end there within [`JOIN_TOL_FX`] (the first
-    /// and last setpoints are the head's). Checked now against the rows
-    /// held (the path's first piece, and its last if held), and against the
-    /// last piece of the plan's last chunk when it comes (a push or a
-    /// splice); refused with [`WindowError::Ends`] and nothing changed.
-    pub fn expect_ends(&mut self, first_mm: [f64; 3], last_mm: [f64; 3]) -> Result<(), WindowError> {
-        let ends = (first_mm.map(to_fx), last_mm.map(to_fx));
+    /// The path's start and end points and its length as the plan's head
+    /// gives them (mm): the rows must start and end there, in position
+    /// within [`JOIN_TOL_FX`] (the first and last setpoints are the
+    /// head's), and the last at L exactly (the tick runs to L). Checked now
+    /// against the rows held (the path's first piece, and its last if held),
+    /// and against the plan's last chunk when it comes (a push or a
+    /// splice); refused with [`WindowError::Ends`] or
+    /// [`WindowError::Length`] and nothing changed.
+    pub fn expect_ends(
+        &mut self,
+        first_mm: [f64; 3],
+        last_mm: [f64; 3],
+        length_mm: f64,
+    ) -> Result<(), WindowError> {
+        let ends = (first_mm.map(to_fx), last_mm.map(to_fx), to_fx(length_mm));
         if self.p_lo == 0 && self.p_n > 0 {
             let start = self.prow(0).ok_or(WindowError::Undecodable)?.start;
             let at = self.prow(0).and_then(|r| r.pos(to_fx(start)));
@@ -348,15 +369,23 @@ impl<const NQ: usize, const NP: usize> PlanWindow<NQ, NP> {
             }
         }
         if self.has_last() {
-            Self::ends_at(ends.1, self.held_end, self.end_pos)?;
+            Self::ends_at(ends, self.held_end, self.end_pos)?;
         }
         self.ends_pos = Some(ends);
         Ok(())
     }
 
-    /// [`WindowError::Ends`] unless `at` (the rows' end position at `s`)
-    /// is `last` within [`JOIN_TOL_FX`].
-    fn ends_at(last: [i64; 3], s: i64, at: Option<[i64; 3]>) -> Result<(), WindowError> {
+    /// [`WindowError::Length`] unless `s` (the rows' end) is the head's L,
+    /// [`WindowError::Ends`] unless `at` (the position there) is its last
+    /// point within [`JOIN_TOL_FX`].
+    fn ends_at(
+        (_, last, length): ([i64; 3], [i64; 3], i64),
+        s: i64,
+        at: Option<[i64; 3]>,
+    ) -> Result<(), WindowError> {
+        if s != length {
+            return Err(WindowError::Length { end: s, length });
+        }
         let step = step_between(at.ok_or(WindowError::Undecodable)?, last);
         if step > JOIN_TOL_FX {
             return Err(WindowError::Ends { s, step });
@@ -487,8 +516,8 @@ impl<const NQ: usize, const NP: usize> PlanWindow<NQ, NP> {
         if np != usize::from(info.n_p) || end != info.s_b {
             return Err(WindowError::Undecodable);
         }
-        if let (true, Some((_, last))) = (info.is_last(), self.ends_pos) {
-            Self::ends_at(last, end, end_pos)?;
+        if let (true, Some(ends)) = (info.is_last(), self.ends_pos) {
+            Self::ends_at(ends, end, end_pos)?;
         }
         self.end_pos = end_pos;
         self.q_n += nq;
@@ -593,7 +622,7 @@ impl<const NQ: usize, const NP: usize> PlanWindow<NQ, NP> {
         let kept_end = self.prow(self.p_lo + np - 1).and_then(|r| r.pos(s_a));
         let (s, at) = Self::joins_meet(kept_end.ok_or(WindowError::Undecodable)?, run)?;
         match (run.last().is_some_and(|c| c.info().is_last()), self.ends_pos) {
-            (true, Some((_, last))) => Self::ends_at(last, s, Some(at)),
+            (true, Some(ends)) => Self::ends_at(ends, s, Some(at)),
             _ => Ok(()),
         }
     }
