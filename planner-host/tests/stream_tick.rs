@@ -281,6 +281,93 @@ fn a_head_whose_end_points_are_not_the_rows_is_refused() {
     assert!(matches!(last_push(&off), Err(WindowError::Length { .. })));
 }
 
+/// The stop segment ends the plan: one that q does not join at its s₂ (the
+/// same plan's at 10 % less jerk, so at another speed there) is refused —
+/// at once when the rows at s₂ are held, else the chunk bringing them is
+/// (the rows held before it stay); the plan's own is taken.
+#[test]
+fn a_stop_segment_that_q_does_not_join_is_refused() {
+    use firmware_core::interp::StopError;
+    // rows at s₂ held: the Trident in one chunk
+    let curve = builtin::by_name("trident").unwrap().unwrap();
+    let out = plan_curve(&curve, &PlanConfig::default()).unwrap();
+    let table = Table::parse(&out.table_bytes).unwrap();
+    let one = chunk_table(
+        &table,
+        &ChunkOptions {
+            chunk_mm: 1000.0,
+            ..ChunkOptions::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(one.len(), 1);
+    let head = planner_host::stream_hold::stream_head(&table).unwrap();
+    let own = head.ends.unwrap();
+    let mut off = own;
+    off.jerk_stop *= 0.9;
+    let mut w = PlanWindow::<128, 256>::new();
+    w.push(&Chunk::parse(&one[0]).unwrap()).unwrap();
+    let mut ip = Interpolator::<'static, 0, 0, PlanWindow<128, 256>>::streamed(&head, w, T).unwrap();
+    assert_eq!(ip.set_stop(&off), Err(StopError::Join));
+    assert_eq!(ip.set_stop(&own), Ok(()));
+    while !ip.is_done() {
+        ip.tick().unwrap();
+    }
+    // rows at s₂ yet to come: the Butterfly in 8 mm chunks, the stop told
+    // from the start
+    let curve = builtin::by_name("butterfly").unwrap().unwrap();
+    let out = plan_curve(&curve, &PlanConfig::default()).unwrap();
+    let table = Table::parse(&out.table_bytes).unwrap();
+    let chunks = chunk_table(
+        &table,
+        &ChunkOptions {
+            chunk_mm: 8.0,
+            ..ChunkOptions::default()
+        },
+    )
+    .unwrap();
+    let own = table.ends().unwrap();
+    let mut off = own;
+    off.jerk_stop *= 0.9;
+    let length = table.path_length_mm();
+    for (stop, refused) in [(own, false), (off, true)] {
+        let mut w = PlanWindow::<NQ, NP>::new();
+        w.push(&Chunk::parse(&chunks[0]).unwrap()).unwrap();
+        w.expect_join(true, stop.s_stop, stop.q_join(length, true))
+            .unwrap();
+        let mut pieces = w.held().1;
+        let mut result = Ok(());
+        for c in &chunks[1..] {
+            let c = Chunk::parse(c).unwrap();
+            if !w.fits(&c) {
+                // (the rows before the chunk's q spans and the last piece freed)
+                w.release_before(c.info().first_span as usize - 3, pieces - 1);
+            }
+            let held = (w.held(), w.held_end());
+            result = w.push(&c);
+            if result.is_err() {
+                assert_eq!((w.held(), w.held_end()), held);
+                // (the chunk whose q spans reach s₂)
+                let fx = |x: i64| x as f64 / (1u64 << 40) as f64;
+                let (a, b) = (fx(c.info().s_a), fx(c.info().s_b));
+                assert!(a < stop.s_stop && stop.s_stop <= b + 1.0, "{a} .. {b}");
+                break;
+            }
+            pieces += usize::from(c.info().n_p);
+        }
+        assert_eq!(
+            result.is_err(),
+            refused,
+            "stop at {:.3} mm, jerk {}: {result:?}",
+            stop.s_stop,
+            stop.jerk_stop
+        );
+        if refused {
+            assert!(matches!(result, Err(WindowError::EndJoin { stop: true, .. })));
+        }
+    }
+}
+
 /// A feed hold on streamed rows cut back short of the plan's end, as the
 /// hold-point search and a starved firmware press it: the hold's look-ahead
 /// finds the rows held (the plan's last row index is unknown to a window

@@ -101,6 +101,9 @@ pub enum StopError {
     NotExpected,
     /// The motion is already at or past the segment's start s₂.
     TooLate,
+    /// q does not join the segment at s₂ as it gives (the rows held there,
+    /// [`PlanWindow::expect_join`]): another plan's stop.
+    Join,
 }
 
 impl<'a, const Q: usize, const W: usize, const NQ: usize, const NP: usize, B> Interpolator<'a, Q, W, B>
@@ -124,6 +127,14 @@ where
             .window_mut()
             .expect_ends(head.first_pos_mm, head.last_pos_mm, length_mm)
             .map_err(|_| InterpError::Inconsistent)?;
+        if let Some(e) = head.ends {
+            // (q must join the start segment; the stop's is told with it,
+            // [`Interpolator::set_stop`])
+            window
+                .window_mut()
+                .expect_join(false, e.s_start, e.q_join(length_mm, false))
+                .map_err(|_| InterpError::Inconsistent)?;
+        }
         let plan = PlanHead {
             length_mm,
             limits: head.limits,
@@ -328,7 +339,9 @@ where
     }
 
     /// The plan's stop segment (its start part is ignored): needed before
-    /// the motion reaches its s₂, refused after.
+    /// the motion reaches its s₂, refused after, and refused if q does not
+    /// join it at s₂ (checked now if the rows there are held, else when
+    /// they come: the push is refused, [`WindowError::EndJoin`]).
     pub fn set_stop(&mut self, stop: &EndSegments) -> Result<(), StopError> {
         let Some(mut e) = self.ends else {
             return Err(StopError::NotExpected);
@@ -341,6 +354,10 @@ where
             return Err(StopError::TooLate);
         }
         (e.s_stop, e.jerk_stop, e.t_stop) = (stop.s_stop, stop.jerk_stop, stop.t_stop);
+        self.views
+            .window_mut()
+            .expect_join(true, e.s_stop, e.q_join(self.length_mm, true))
+            .map_err(|_| StopError::Join)?;
         self.ends = Some(e);
         self.stop_at = s2;
         self.segk = SegConsts::new(&e, self.length_mm, self.period_s);

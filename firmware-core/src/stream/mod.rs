@@ -139,4 +139,4 @@ pub use self::error::{ChunkEncodeError, ChunkError, Malformed, StreamError};
 pub use self::frame::{Frame, FrameDecoder, FrameError};
 pub use self::head::{HeadError, StreamHead, HEAD_LEN};
 pub use self::ring::{ChunkRing, PushOk, DEFAULT_SLOTS};
-pub use self::window::{PlanWindow, WindowError, WindowOf, JOIN_TOL_FX};
+pub use self::window::{PlanWindow, WindowError, WindowOf, END_JOIN_TOL_REL, JOIN_TOL_FX};

@@ -97,6 +97,15 @@ pub enum WindowError {
         /// The largest axis difference, Q40 mm.
         step: i64,
     },
+    /// q does not join the plan's start or stop segment at its join s as
+    /// the segment gives (q, q′, q″ within [`END_JOIN_TOL_REL`]): the
+    /// motion would enter or leave the segment at another speed.
+    EndJoin {
+        /// The join, Q40 mm.
+        s: i64,
+        /// The stop segment's join (else the start segment's).
+        stop: bool,
+    },
     /// The plan's last chunk does not end at the head's path length L (the
     /// tick runs to L).
     Length {
@@ -150,6 +159,10 @@ impl core::fmt::Display for WindowError {
                     f,
                     "rows at {s} (Q40 mm) are {step} (Q40 mm) from the plan head's end point"
                 )
+            }
+            WindowError::EndJoin { s, stop } => {
+                let which = if stop { "stop" } else { "start" };
+                write!(f, "q does not join the {which} segment at {s} (Q40 mm)")
             }
             WindowError::Length { end, length } => {
                 write!(
@@ -229,6 +242,13 @@ impl PRow {
 /// broken rows that still parse.
 pub const JOIN_TOL_FX: i64 = 1 << 20;
 
+/// How closely q must join an end segment in the window's rows: q, q′ and
+/// q″ at the join within this of the segment's, relative (q′ and q″ also
+/// against q/h and q/h², h the q span's length). The rows' f32 form
+/// reproduces a table's joins within 2.2e-7 (the built-in curves); a
+/// segment of another plan or feed is off by far more.
+pub const END_JOIN_TOL_REL: f64 = 1e-4;
+
 /// The largest axis difference of two positions (Q40 mm).
 fn step_between(a: [i64; 3], b: [i64; 3]) -> i64 {
     a.iter()
@@ -268,6 +288,9 @@ pub struct PlanWindow<const NQ: usize, const NP: usize> {
     /// The path's start and end points and its length the plan's head
     /// gives (Q40 mm), once told ([`PlanWindow::expect_ends`]).
     ends_pos: Option<([i64; 3], [i64; 3], i64)>,
+    /// The start and stop segments' joins (s, Q40 mm; q, q′, q″) q must
+    /// meet, once told ([`PlanWindow::expect_join`]).
+    joins: [Option<(i64, [f64; 3])>; 2],
 }
 
 impl<const NQ: usize, const NP: usize> Default for PlanWindow<NQ, NP> {
@@ -295,6 +318,7 @@ impl<const NQ: usize, const NP: usize> PlanWindow<NQ, NP> {
             starved: None,
             end_pos: None,
             ends_pos: None,
+            joins: [None; 2],
         }
     }
 
@@ -343,6 +367,54 @@ impl<const NQ: usize, const NP: usize> PlanWindow<NQ, NP> {
     /// window or already passed).
     pub fn has_last(&self) -> bool {
         self.p_last != usize::MAX
+    }
+
+    /// The start (`stop` false) or stop segment's join: q, q′, q″ the
+    /// segment gives at its s (mm). Checked now if the rows holding s are
+    /// held, else when they come (a push); refused with
+    /// [`WindowError::EndJoin`] and nothing changed. A splice forgets the
+    /// stop's (its plan may end otherwise: the stop is told again).
+    pub fn expect_join(&mut self, stop: bool, s_mm: f64, q: [f64; 3]) -> Result<(), WindowError> {
+        let join = (to_fx(s_mm), q);
+        let held = (0..self.q_n)
+            .filter_map(|k| self.qrow(self.q_lo + k))
+            .find(|r| Self::holds_join(r, join.0, stop));
+        if let Some(r) = held {
+            Self::join_meets(r, join, stop)?;
+        }
+        if let Some(j) = self.joins.get_mut(usize::from(stop)) {
+            *j = Some(join);
+        }
+        Ok(())
+    }
+
+    /// Whether q span `r` holds the join at `s` (Q40 mm): the start join
+    /// in [start, end), the stop join in (start, end] (the q spline may
+    /// break at s₂: past it the stop segment runs, not q).
+    fn holds_join(r: &QRow, s: i64, stop: bool) -> bool {
+        let (a, b) = (to_fx(r.start), to_fx(r.end));
+        if stop {
+            a < s && s <= b
+        } else {
+            a <= s && s < b
+        }
+    }
+
+    /// [`WindowError::EndJoin`] unless q span `r` (holding the join) meets
+    /// `(s, [q, q′, q″])` within [`END_JOIN_TOL_REL`], from its f32 form.
+    fn join_meets(r: &QRow, (s, want): (i64, [f64; 3]), stop: bool) -> Result<(), WindowError> {
+        let t = (crate::servo_forms::fixed::fx_to_f64(s) - r.start) as f32;
+        let [q, q1, q2, _] = QLocal::from_array(r.local).eval(t);
+        let h = (r.end - r.start).max(f64::MIN_POSITIVE);
+        let q0 = want[0].abs();
+        let scale = [q0, want[1].abs() + q0 / h, want[2].abs() + q0 / (h * h)];
+        let got = [f64::from(q), f64::from(q1), f64::from(q2)];
+        let ok = (0..3).all(|k| (got[k] - want[k]).abs() <= END_JOIN_TOL_REL * scale[k]);
+        if ok {
+            Ok(())
+        } else {
+            Err(WindowError::EndJoin { s, stop })
+        }
     }
 
     /// The path's start and end points and its length as the plan's head
@@ -469,6 +541,7 @@ impl<const NQ: usize, const NP: usize> PlanWindow<NQ, NP> {
         // Decode into the free rows first (nothing visible changes until
         // everything decoded and matched).
         let (q_at, p_at) = (self.q_lo + self.q_n, self.p_lo + self.p_n);
+        let joins = self.joins;
         let mut nq = 0usize;
         for (k, form) in chunk.q_spans().enumerate() {
             if k == 0 && repeat {
@@ -486,6 +559,11 @@ impl<const NQ: usize, const NP: usize> PlanWindow<NQ, NP> {
                 return Err(WindowError::Undecodable);
             };
             *row = Self::q_row(idx, &form);
+            for (stop, join) in [false, true].into_iter().zip(joins) {
+                if let Some(j) = join.filter(|j| Self::holds_join(row, j.0, stop)) {
+                    Self::join_meets(row, j, stop)?;
+                }
+            }
             nq += 1;
         }
         let mut np = 0usize;
@@ -654,6 +732,8 @@ impl<const NQ: usize, const NP: usize> PlanWindow<NQ, NP> {
         if !self.truncate(s_a) {
             return Err(WindowError::NotABreak { s_a });
         }
+        // (the stop is told again for the spliced plan)
+        self.joins[1] = None;
         // (cannot fail for parsed chunks that passed the checks above, the
         // joins' included)
         for c in run {
