@@ -333,6 +333,84 @@ pub fn run_stream_each<const CAP: usize, const NQ: usize, const NP: usize>(
     run_stream_host::<CAP, NQ, NP>(table, chunks, link, None, each)
 }
 
+/// The chunks as the host sends them, seq = position: a replan's, or the
+/// running plan's restored after a late splice, go after everything sent as
+/// a splice, and the chunks they replace are dead — never sent again, as a
+/// seq is never sent twice with other bytes. Per chunk: its bytes, framed
+/// size, s_a (Q40 mm), whether dead and when it is ready (s; none: at once).
+struct SentChunks {
+    bytes: Vec<Vec<u8>>,
+    framed: Vec<usize>,
+    s_a: Vec<i64>,
+    dead: Vec<bool>,
+    ready_s: Vec<f64>,
+}
+
+impl SentChunks {
+    fn new(chunks: &[Vec<u8>], ready_s: &[f64]) -> Self {
+        let mut sent = SentChunks {
+            bytes: Vec::new(),
+            framed: Vec::new(),
+            s_a: Vec::new(),
+            dead: Vec::new(),
+            ready_s: ready_s.to_vec(),
+        };
+        for c in chunks {
+            sent.push(c.clone());
+        }
+        sent
+    }
+
+    fn len(&self) -> usize {
+        self.bytes.len()
+    }
+
+    fn push(&mut self, c: Vec<u8>) {
+        self.framed.push(encoded_max_len(c.len()) + 1);
+        self.s_a.push(Chunk::parse(&c).map_or(i64::MAX, |c| c.info().s_a));
+        self.dead.push(false);
+        self.bytes.push(c);
+    }
+
+    /// The chunks from position `seq` on are dead.
+    fn kill_from_seq(&mut self, seq: usize) {
+        for d in self.dead.iter_mut().skip(seq) {
+            *d = true;
+        }
+    }
+
+    /// The chunks starting at or past `s_a` (Q40 mm) are dead.
+    fn kill_from_s(&mut self, s_a: i64) {
+        for (d, &st) in self.dead.iter_mut().zip(&self.s_a) {
+            if st >= s_a {
+                *d = true;
+            }
+        }
+    }
+
+    /// `chunks` (each with its ready time) appended as a splice: seq =
+    /// position, the first flagged. Its first position, if any; `what`
+    /// names them in an error at `t`.
+    fn append_splice(
+        &mut self,
+        chunks: impl IntoIterator<Item = (Vec<u8>, f64)>,
+        what: &str,
+        t: f64,
+    ) -> Result<Option<usize>, StreamRunError> {
+        let pos = self.len();
+        self.ready_s.resize(pos, 0.0);
+        for (k, (mut c, ready)) in chunks.into_iter().enumerate() {
+            set_seq(&mut c, (pos + k) as u32, k == 0).map_err(|e| StreamRunError::Replan {
+                t_s: t,
+                message: format!("{what} chunk {k}: {e}"),
+            })?;
+            self.push(c);
+            self.ready_s.push(ready);
+        }
+        Ok((self.len() > pos).then_some(pos))
+    }
+}
+
 /// [`run_stream_each`] with feed changes: at each of `host`'s asks the
 /// host replans ([`StreamHost::replan`], knowing the motion's s one
 /// latency late), keeps sending the running plan until the replan's first
@@ -350,16 +428,8 @@ pub fn run_stream_host<const CAP: usize, const NQ: usize, const NP: usize>(
     each: &mut dyn FnMut(&Setpoint),
 ) -> Result<StreamRun, StreamRunError> {
     let head = stream_head(table).ok_or(StreamRunError::Head)?;
-    // the chunks as the host sends them (a splice replaces a tail), seq =
-    // position; when each is ready
-    let mut chunks: Vec<Vec<u8>> = chunks.to_vec();
-    let mut framed: Vec<usize> = chunks.iter().map(|c| encoded_max_len(c.len()) + 1).collect();
-    let mut ready_s: Vec<f64> = link.ready_s.clone();
-    // per chunk, its s_a, and whether a splice replaced it (never sent
-    // again: a seq is never sent twice with other bytes)
-    let s_a_of = |c: &[u8]| Chunk::parse(c).map_or(i64::MAX, |c| c.info().s_a);
-    let mut starts: Vec<i64> = chunks.iter().map(|c| s_a_of(c)).collect();
-    let mut dead: Vec<bool> = vec![false; chunks.len()];
+    // the chunks as the host sends them (a splice replaces a tail)
+    let mut sent = SentChunks::new(chunks, &link.ready_s);
     // (time, factor, the record it retries)
     let mut asks: std::collections::VecDeque<(f64, f64, Option<usize>)> = host
         .as_ref()
@@ -404,8 +474,8 @@ pub fn run_stream_host<const CAP: usize, const NQ: usize, const NP: usize>(
         starvations: 0,
         ring_peak_bytes: 0,
         window_peak_pieces: 0,
-        chunks: chunks.len(),
-        framed_bytes: framed.iter().sum(),
+        chunks: sent.len(),
+        framed_bytes: sent.framed.iter().sum(),
         starved_reach_mm: vec![],
         transmissions: 0,
         refused_crc: 0,
@@ -439,7 +509,7 @@ pub fn run_stream_host<const CAP: usize, const NQ: usize, const NP: usize>(
                     free = fr;
                     // (an ack of a splice refused as late, after the host
                     // dropped it from its list, is not news)
-                    if seq != u32::MAX && (seq as usize) < chunks.len() {
+                    if seq != u32::MAX && (seq as usize) < sent.len() {
                         let s = seq as usize;
                         acked = Some(acked.map_or(s, |a| a.max(s)));
                         next = next.max(s + 1);
@@ -463,14 +533,8 @@ pub fn run_stream_host<const CAP: usize, const NQ: usize, const NP: usize>(
                         // everything sent, as a splice; the same change is
                         // asked again
                         in_flight = None;
-                        for d in dead.iter_mut().skip(seq as usize) {
-                            *d = true;
-                        }
-                        for (d, &st) in dead.iter_mut().zip(&starts) {
-                            if st >= held_end {
-                                *d = true;
-                            }
-                        }
+                        sent.kill_from_seq(seq as usize);
+                        sent.kill_from_s(held_end);
                         if let Some(o) = run.overrides.get_mut(rec) {
                             o.late += 1;
                             asks.push_front((t, o.alpha, Some(rec)));
@@ -478,22 +542,9 @@ pub fn run_stream_host<const CAP: usize, const NQ: usize, const NP: usize>(
                         if let Some(h) = host.as_mut() {
                             let (restore, ends) = h.late(held_end);
                             splice_ends = Some(ends);
-                            let pos = chunks.len();
-                            for (k, mut c) in restore.into_iter().enumerate() {
-                                set_seq(&mut c, (pos + k) as u32, k == 0).map_err(|e| {
-                                    StreamRunError::Replan {
-                                        t_s: t,
-                                        message: format!("restored chunk {k}: {e}"),
-                                    }
-                                })?;
-                                framed.push(encoded_max_len(c.len()) + 1);
-                                starts.push(s_a_of(&c));
-                                dead.push(false);
-                                chunks.push(c);
-                                ready_s.resize(pos + k, 0.0);
-                                ready_s.push(t);
-                            }
-                            if chunks.len() > pos {
+                            let first =
+                                sent.append_splice(restore.into_iter().map(|c| (c, t)), "restored", t)?;
+                            if let Some(pos) = first {
                                 in_flight = Some((pos as u32, usize::MAX));
                             }
                         }
@@ -560,26 +611,11 @@ pub fn run_stream_host<const CAP: usize, const NQ: usize, const NP: usize>(
             if let Some((at0, rep, rec)) = replacing.take() {
                 // the chunks from the splice point on are replaced; the
                 // replan's go after everything sent
-                for (d, &st) in dead.iter_mut().zip(&starts) {
-                    if st >= rep.s_a {
-                        *d = true;
-                    }
-                }
-                let pos = chunks.len();
-                ready_s.resize(pos, 0.0);
+                sent.kill_from_s(rep.s_a);
                 let first_after = rep.ready_after_s.first().copied().unwrap_or(0.0);
-                for (k, (mut c, r)) in rep.chunks.into_iter().zip(rep.ready_after_s).enumerate() {
-                    let seq = (pos + k) as u32;
-                    set_seq(&mut c, seq, k == 0).map_err(|e| StreamRunError::Replan {
-                        t_s: t,
-                        message: format!("replacement chunk {k}: {e}"),
-                    })?;
-                    framed.push(encoded_max_len(c.len()) + 1);
-                    starts.push(s_a_of(&c));
-                    dead.push(false);
-                    chunks.push(c);
-                    ready_s.push(at0 - first_after + r);
-                }
+                let ready = rep.ready_after_s.into_iter().map(|r| at0 - first_after + r);
+                let pos = sent.len();
+                sent.append_splice(rep.chunks.into_iter().zip(ready), "replacement", t)?;
                 in_flight = Some((pos as u32, rec));
                 splice_ends = Some(rep.ends);
             }
@@ -589,21 +625,21 @@ pub fn run_stream_host<const CAP: usize, const NQ: usize, const NP: usize>(
             next = first_unacked;
             last_word = t;
         }
-        while dead.get(next).copied().unwrap_or(false) {
+        while sent.dead.get(next).copied().unwrap_or(false) {
             next += 1;
         }
-        let pending: usize = (first_unacked.min(next)..next.min(chunks.len()))
-            .filter(|&p| !dead[p])
-            .map(|p| chunks[p].len())
+        let pending: usize = (first_unacked.min(next)..next.min(sent.len()))
+            .filter(|&p| !sent.dead[p])
+            .map(|p| sent.bytes[p].len())
             .sum();
-        let ready = !ready_s.get(next).is_some_and(|&r| r > t);
-        if next < chunks.len()
+        let ready = !sent.ready_s.get(next).is_some_and(|&r| r > t);
+        if next < sent.len()
             && ready
             && link_free_at <= t
             && !stalled(t)
-            && free.saturating_sub(pending) >= chunks[next].len()
+            && free.saturating_sub(pending) >= sent.bytes[next].len()
         {
-            let dur = framed[next] as f64 / link.bytes_per_s;
+            let dur = sent.framed[next] as f64 / link.bytes_per_s;
             let mut end = t + dur;
             // a stall starting during the frame holds it up
             for &(a, d) in &link.stalls {
@@ -621,9 +657,13 @@ pub fn run_stream_host<const CAP: usize, const NQ: usize, const NP: usize>(
                 } else {
                     0.0
                 };
-                down.push((arrive + late, chunks[next].clone(), every(f.corrupt_every, tx)));
+                down.push((
+                    arrive + late,
+                    sent.bytes[next].clone(),
+                    every(f.corrupt_every, tx),
+                ));
                 if every(f.duplicate_every, tx) {
-                    down.push((arrive + dur, chunks[next].clone(), false));
+                    down.push((arrive + dur, sent.bytes[next].clone(), false));
                 }
             }
             next += 1;
