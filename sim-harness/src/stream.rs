@@ -51,6 +51,13 @@ pub struct StreamLink {
     /// Per chunk, the earliest time the host may send it, s (its hold point
     /// is known then); empty: all at once.
     pub ready_s: Vec<f64>,
+    /// Chunk k's first transmission carries these bytes instead: a host
+    /// that sends a chunk that parses and continues the ring but not the
+    /// path (another path's, with the same plan id, seq and arc lengths).
+    /// The plan window refuses it; the ring drops it and NAKs its seq
+    /// ([`firmware_core::stream::ChunkRing::refuse_head`]), and the host
+    /// resends chunk k itself.
+    pub substitute: Vec<(usize, Vec<u8>)>,
 }
 
 /// Damage to the DATA frames on the link, by transmission number (the
@@ -103,6 +110,9 @@ pub struct StreamRun {
     pub refused_duplicate: usize,
     /// Out of order refused (a NAK each).
     pub refused_order: usize,
+    /// Chunks the plan window refused after the ring took them (dropped and
+    /// NAKed; the motion went on, on the rows held).
+    pub refused_window: usize,
     /// Feed changes asked for, in order, and what became of each.
     pub overrides: Vec<OverrideRun>,
 }
@@ -430,6 +440,8 @@ pub fn run_stream_host<const CAP: usize, const NQ: usize, const NP: usize>(
     let head = stream_head(table).ok_or(StreamRunError::Head)?;
     // the chunks as the host sends them (a splice replaces a tail)
     let mut sent = SentChunks::new(chunks, &link.ready_s);
+    // (which of the link's substitutions went out)
+    let mut substituted = vec![false; link.substitute.len()];
     // (time, factor, the record it retries)
     let mut asks: std::collections::VecDeque<(f64, f64, Option<usize>)> = host
         .as_ref()
@@ -481,6 +493,7 @@ pub fn run_stream_host<const CAP: usize, const NQ: usize, const NP: usize>(
         refused_crc: 0,
         refused_duplicate: 0,
         refused_order: 0,
+        refused_window: 0,
         overrides: vec![],
     };
     let mut stop_set = false;
@@ -657,11 +670,15 @@ pub fn run_stream_host<const CAP: usize, const NQ: usize, const NP: usize>(
                 } else {
                     0.0
                 };
-                down.push((
-                    arrive + late,
-                    sent.bytes[next].clone(),
-                    every(f.corrupt_every, tx),
-                ));
+                let swap = link.substitute.iter().position(|(k, _)| *k == next);
+                let bytes = match swap.filter(|&i| !substituted[i]) {
+                    Some(i) => {
+                        substituted[i] = true;
+                        link.substitute[i].1.clone()
+                    }
+                    None => sent.bytes[next].clone(),
+                };
+                down.push((arrive + late, bytes, every(f.corrupt_every, tx)));
                 if every(f.duplicate_every, tx) {
                     down.push((arrive + dur, sent.bytes[next].clone(), false));
                 }
@@ -791,6 +808,18 @@ pub fn run_stream_host<const CAP: usize, const NQ: usize, const NP: usize>(
                 Some(ip) => ip.push_chunk(&c),
                 None => window.push(&c),
             };
+            if r.is_err() && !info.is_splice() {
+                // (it parsed and continued the ring, not the rows held:
+                // dropped with what followed, its seq NAKed; the motion goes
+                // on, on the rows held, and holds if they run out)
+                run.refused_window += 1;
+                if let Some(seq) = ring.refuse_head() {
+                    up.push_back((t + link.latency_s, Up::Nak { expected: seq }));
+                }
+                ring_bytes = 0;
+                changed = true;
+                break;
+            }
             r.map_err(|e| StreamRunError::Window {
                 index: pushed,
                 message: e.to_string(),
@@ -1186,6 +1215,7 @@ fn stream_through<const Q: usize, const P: usize>(
             Some(_) => vec![],
             None => ready_s,
         },
+        substitute: vec![],
     };
     // (on a thread of its own: the firmware's ring and a host-sized window
     // live on its stack, several megabytes)

@@ -64,6 +64,7 @@ fn link(baud: f64, stalls: Vec<(f64, f64)>) -> StreamLink {
         period_s: T,
         faults: Default::default(),
         ready_s: vec![],
+        substitute: vec![],
     }
 }
 

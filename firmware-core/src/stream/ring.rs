@@ -257,6 +257,25 @@ impl<const CAP: usize, const SLOTS: usize> ChunkRing<CAP, SLOTS> {
         });
     }
 
+    /// The chunk at the ring's head was refused by the plan window (it
+    /// parses and continues the ring, but not the rows held:
+    /// `WindowError`): drop it and the chunks after it, and wait for its
+    /// seq again — the host resends from there on a NAK naming it, and the
+    /// motion goes on, on the rows held. Returns that seq (`None`: the ring
+    /// was empty). Not for a splice ([`ChunkRing::refuse_splice`]).
+    pub fn refuse_head(&mut self) -> Option<u32> {
+        let head = self.slots.front().map(|s| s.info)?;
+        self.slots.clear();
+        self.expect = (!head.is_first()).then_some(Expect {
+            plan_id: head.plan_id,
+            seq: head.seq,
+            s_a: head.s_a,
+            ended: false,
+            splice: false,
+        });
+        Some(head.seq)
+    }
+
     /// Chunks held.
     pub fn len(&self) -> usize {
         self.slots.len()

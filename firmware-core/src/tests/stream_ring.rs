@@ -308,3 +308,39 @@ fn a_splice_drops_the_chunks_held_from_its_start_and_goes_on_from_there() {
     assert!(ring.push(&as_splice(&chunks[4], next + 5)).is_ok());
     assert_eq!(ring.expected_seq(), Some(next + 6));
 }
+
+/// A chunk the plan window refuses after the ring took it: the ring drops
+/// it and the chunks after it and waits for its seq again (the host resends
+/// from the NAK); the first chunk refused, it waits for a first chunk.
+#[test]
+fn a_head_the_window_refuses_is_dropped_with_what_followed_and_asked_again() {
+    let chunks = plan(10.0, 5);
+    assert!(chunks.len() >= 4);
+    let mut ring: ChunkRing<{ 1 << 16 }> = ChunkRing::new();
+    for c in &chunks[..4] {
+        ring.push(c).unwrap();
+    }
+    // chunk 0 in the window, chunk 1 refused there
+    let end0 = ring.get(0).unwrap().info().s_b;
+    assert_eq!(ring.release_through(end0), 1);
+    assert_eq!(ring.refuse_head(), Some(101));
+    assert!(ring.is_empty());
+    assert_eq!(ring.expected_seq(), Some(101));
+    assert_eq!(ring.free(), 1 << 16);
+    // chunk 2 is not next; chunk 1 again is, and the rest after it
+    assert!(matches!(
+        ring.push(&chunks[2]),
+        Err(StreamError::OutOfOrder { .. })
+    ));
+    for (k, c) in chunks[1..4].iter().enumerate() {
+        assert_eq!(ring.push(c).unwrap().seq, 101 + k as u32);
+    }
+    // the plan's first chunk refused: a first chunk again
+    let mut ring: ChunkRing<{ 1 << 16 }> = ChunkRing::new();
+    ring.push(&chunks[0]).unwrap();
+    assert_eq!(ring.refuse_head(), Some(100));
+    assert_eq!(ring.expected_seq(), None);
+    assert!(matches!(ring.push(&chunks[1]), Err(StreamError::FirstFlag)));
+    ring.push(&chunks[0]).unwrap();
+    assert_eq!(ring.refuse_head().map(|_| ring.refuse_head()), Some(None));
+}

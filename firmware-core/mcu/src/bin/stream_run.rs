@@ -9,7 +9,9 @@
 //! free bytes (the host's first credit); every chunk accepted into the ring
 //! is acknowledged with the ring's free bytes then, every chunk moved on into
 //! the plan window with the free bytes after it left the ring; a refused
-//! chunk gets a NAK naming the seq expected (a duplicate, an ACK again).
+//! chunk gets a NAK naming the seq expected (a duplicate, an ACK again), and
+//! so does one the plan window refuses (dropped from the ring with the
+//! chunks after it, `ChunkRing::refuse_head`).
 //!
 //! The run: each pass of the loop takes the bytes that arrived, moves chunks
 //! from the ring into the window as it has room, frees the rows passed and
@@ -165,6 +167,7 @@ fn main() -> ! {
         }
         // ring → window
         let mut moved = false;
+        let mut refused_head = false;
         while let Some(c) = ring.get(0) {
             let s_b = c.info().s_b;
             let r = match (ip.as_mut(), window.as_mut()) {
@@ -176,13 +179,26 @@ fn main() -> ! {
                 Ok(true) => {}
                 Ok(false) => break,
                 Err(_) => {
-                    Line::new().s("chunk refused by the plan window").put();
-                    exit(false)
+                    refused_head = true;
+                    break;
                 }
             }
             ring.release_through(s_b);
             chunks += 1;
             moved = true;
+        }
+        if refused_head {
+            // (it parsed and continued the ring, not the rows held — another
+            // path's pieces, ends or joins: dropped with what followed, its
+            // seq NAKed; the host resends from there)
+            refused += 1;
+            if let Some(seq) = ring.refuse_head() {
+                last_seq = seq.wrapping_sub(1);
+                let mut buf = [0u8; 32];
+                if let Ok(n) = encode_nak(seq, &mut buf) {
+                    uart.tx(&buf[..n]);
+                }
+            }
         }
         if moved {
             ack(&uart, last_seq, ring.free());
