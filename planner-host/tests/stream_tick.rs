@@ -180,18 +180,8 @@ fn a_chunk_whose_pieces_step_away_from_the_path_is_refused_with_nothing_changed(
     let step = step_mm(w.push(&parse(&moved_from(first_of_1 + 1)[1])));
     assert!((step - 0.01).abs() < 1e-6, "step {step} mm");
     assert_eq!((w.held(), w.held_end()), held);
-    // the path's own chunks meet within the tolerance, to the end (the
-    // rows before the last q span and piece freed as a tick passing them)
-    let mut pieces = w.held().1;
-    for c in &chunks[1..] {
-        let c = parse(c);
-        if !w.fits(&c) {
-            // (q span index = knot span − 3: the span the chunk repeats stays)
-            w.release_before(c.info().first_span as usize - 3, pieces - 1);
-        }
-        w.push(&c).unwrap();
-        pieces += usize::from(c.info().n_p);
-    }
+    // the path's own chunks meet within the tolerance, to the end
+    push_freeing(&mut w, &chunks[1..]).unwrap();
     assert!(w.has_last());
     println!(
         "moved chunks refused at a step of 0.01 mm; the star's {} chunks meet within {} Q40 mm",
@@ -206,17 +196,8 @@ fn a_chunk_whose_pieces_step_away_from_the_path_is_refused_with_nothing_changed(
 /// end, when the plan's last chunk comes (the rows held before it stay).
 #[test]
 fn a_head_whose_end_points_are_not_the_rows_is_refused() {
-    let curve = builtin::by_name("star").unwrap().unwrap();
-    let out = plan_curve(&curve, &PlanConfig::default()).unwrap();
-    let table = Table::parse(&out.table_bytes).unwrap();
-    let chunks = chunk_table(
-        &table,
-        &ChunkOptions {
-            chunk_mm: 8.0,
-            ..ChunkOptions::default()
-        },
-    )
-    .unwrap();
+    let (bytes, chunks) = in_chunks("star", 8.0);
+    let table = Table::parse(&bytes).unwrap();
     let head = planner_host::stream_hold::stream_head(&table).unwrap();
     let first = |w: &mut PlanWindow<NQ, NP>| w.push(&Chunk::parse(&chunks[0]).unwrap()).unwrap();
     // the head's own points: the run starts
@@ -244,27 +225,12 @@ fn a_head_whose_end_points_are_not_the_rows_is_refused() {
         first(&mut w);
         w.expect_ends(off.first_pos_mm, off.last_pos_mm, off.length_mm)
             .unwrap();
-        let (last, before) = chunks.split_last().unwrap();
-        let mut pieces = w.held().1;
-        for c in before[1..].iter().chain([last]) {
-            let c = Chunk::parse(c).unwrap();
-            if !w.fits(&c) {
-                // (the rows before the chunk's q spans and the last piece freed)
-                w.release_before(c.info().first_span as usize - 3, pieces - 1);
-            }
-            if c.info().is_last() {
-                break;
-            }
-            w.push(&c).unwrap();
-            pieces += usize::from(c.info().n_p);
-        }
-        let held = (w.held(), w.held_end());
-        let r = w.push(&Chunk::parse(last).unwrap());
-        if r.is_err() {
-            assert_eq!((w.held(), w.held_end()), held);
-        }
+        let r = push_freeing(&mut w, &chunks[1..]);
         assert_eq!(w.has_last(), r.is_ok());
-        r
+        r.map_err(|(k, e)| {
+            assert_eq!(k + 2, chunks.len(), "refused before the last chunk: {e:?}");
+            e
+        })
     };
     assert_eq!(last_push(&head), Ok(()));
     // the end 0.01 mm off along x
@@ -289,17 +255,8 @@ fn a_head_whose_end_points_are_not_the_rows_is_refused() {
 fn a_stop_segment_that_q_does_not_join_is_refused() {
     use firmware_core::interp::StopError;
     // rows at s₂ held: the Trident in one chunk
-    let curve = builtin::by_name("trident").unwrap().unwrap();
-    let out = plan_curve(&curve, &PlanConfig::default()).unwrap();
-    let table = Table::parse(&out.table_bytes).unwrap();
-    let one = chunk_table(
-        &table,
-        &ChunkOptions {
-            chunk_mm: 1000.0,
-            ..ChunkOptions::default()
-        },
-    )
-    .unwrap();
+    let (bytes, one) = in_chunks("trident", 1000.0);
+    let table = Table::parse(&bytes).unwrap();
     assert_eq!(one.len(), 1);
     let head = planner_host::stream_hold::stream_head(&table).unwrap();
     let own = head.ends.unwrap();
@@ -315,17 +272,8 @@ fn a_stop_segment_that_q_does_not_join_is_refused() {
     }
     // rows at s₂ yet to come: the Butterfly in 8 mm chunks, the stop told
     // from the start
-    let curve = builtin::by_name("butterfly").unwrap().unwrap();
-    let out = plan_curve(&curve, &PlanConfig::default()).unwrap();
-    let table = Table::parse(&out.table_bytes).unwrap();
-    let chunks = chunk_table(
-        &table,
-        &ChunkOptions {
-            chunk_mm: 8.0,
-            ..ChunkOptions::default()
-        },
-    )
-    .unwrap();
+    let (bytes, chunks) = butterfly_in_chunks(8.0);
+    let table = Table::parse(&bytes).unwrap();
     let own = table.ends().unwrap();
     let mut off = own;
     off.jerk_stop *= 0.9;
@@ -335,26 +283,14 @@ fn a_stop_segment_that_q_does_not_join_is_refused() {
         w.push(&Chunk::parse(&chunks[0]).unwrap()).unwrap();
         w.expect_join(true, stop.s_stop, stop.q_join(length, true))
             .unwrap();
-        let mut pieces = w.held().1;
-        let mut result = Ok(());
-        for c in &chunks[1..] {
-            let c = Chunk::parse(c).unwrap();
-            if !w.fits(&c) {
-                // (the rows before the chunk's q spans and the last piece freed)
-                w.release_before(c.info().first_span as usize - 3, pieces - 1);
-            }
-            let held = (w.held(), w.held_end());
-            result = w.push(&c);
-            if result.is_err() {
-                assert_eq!((w.held(), w.held_end()), held);
-                // (the chunk whose q spans reach s₂)
-                let fx = |x: i64| x as f64 / (1u64 << 40) as f64;
-                let (a, b) = (fx(c.info().s_a), fx(c.info().s_b));
-                assert!(a < stop.s_stop && stop.s_stop <= b + 1.0, "{a} .. {b}");
-                break;
-            }
-            pieces += usize::from(c.info().n_p);
-        }
+        let result = push_freeing(&mut w, &chunks[1..]).map_err(|(k, e)| {
+            // (the chunk whose q spans reach s₂)
+            let info = *Chunk::parse(&chunks[k + 1]).unwrap().info();
+            let fx = |x: i64| x as f64 / (1u64 << 40) as f64;
+            let (a, b) = (fx(info.s_a), fx(info.s_b));
+            assert!(a < stop.s_stop && stop.s_stop <= b + 1.0, "{a} .. {b}");
+            e
+        });
         assert_eq!(
             result.is_err(),
             refused,
@@ -493,7 +429,13 @@ fn hold_alike() {
 
 /// The Butterfly's table and its chunks of about `chunk_mm`.
 fn butterfly_in_chunks(chunk_mm: f64) -> (Vec<u8>, Vec<Vec<u8>>) {
-    let curve = builtin::by_name("butterfly").unwrap().unwrap();
+    in_chunks("butterfly", chunk_mm)
+}
+
+/// A built-in curve's table and its chunks of about `chunk_mm` (u form
+/// sent).
+fn in_chunks(name: &str, chunk_mm: f64) -> (Vec<u8>, Vec<Vec<u8>>) {
+    let curve = builtin::by_name(name).unwrap().unwrap();
     let out = plan_curve(&curve, &PlanConfig::default()).unwrap();
     let table = Table::parse(&out.table_bytes).unwrap();
     let opts = ChunkOptions {
@@ -503,4 +445,29 @@ fn butterfly_in_chunks(chunk_mm: f64) -> (Vec<u8>, Vec<Vec<u8>>) {
     };
     let chunks = chunk_table(&table, &opts).unwrap();
     (out.table_bytes, chunks)
+}
+
+/// Push `chunks` after the rows `w` holds (none freed yet), in order,
+/// freeing before each that does not fit the rows before its q spans and
+/// the last piece held (as a tick passing them would). At the first refusal,
+/// its index in `chunks` and the error, the rows held unchanged by it.
+fn push_freeing<const Q: usize, const P: usize>(
+    w: &mut PlanWindow<Q, P>,
+    chunks: &[Vec<u8>],
+) -> Result<(), (usize, WindowError)> {
+    let mut pieces = w.held().1;
+    for (k, c) in chunks.iter().enumerate() {
+        let c = Chunk::parse(c).unwrap();
+        if !w.fits(&c) {
+            // (q span index = knot span − 3: the span the chunk repeats stays)
+            w.release_before(c.info().first_span as usize - 3, pieces - 1);
+        }
+        let held = (w.held(), w.held_end());
+        if let Err(e) = w.push(&c) {
+            assert_eq!((w.held(), w.held_end()), held, "chunk {k} refused: {e:?}");
+            return Err((k, e));
+        }
+        pieces += usize::from(c.info().n_p);
+    }
+    Ok(())
 }

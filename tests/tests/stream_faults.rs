@@ -20,6 +20,21 @@ const CAP: usize = 64 * 1024;
 const NQ: usize = 512;
 const NP: usize = 2048;
 
+/// The Star's table, its chunk options (4 mm) and chunks with their hold
+/// points.
+fn star_in_chunks() -> (Vec<u8>, ChunkOptions, Vec<Vec<u8>>) {
+    let curve = planner_host::builtin::by_name("star").unwrap().unwrap();
+    let out = plan_curve(&curve, &PlanConfig::default()).unwrap();
+    let table = Table::parse(&out.table_bytes).unwrap();
+    let opts = ChunkOptions {
+        chunk_mm: 4.0,
+        ..ChunkOptions::default()
+    };
+    let mut chunks = chunk_table(&table, &opts).unwrap();
+    set_hold_points::<NQ, NP>(&table, &mut chunks, &HoldSearch::default()).unwrap();
+    (out.table_bytes, opts, chunks)
+}
+
 fn run(table: &Table, chunks: &[Vec<u8>], faults: LinkFaults) -> StreamRun {
     run_with(table, chunks, faults, vec![])
 }
@@ -45,15 +60,8 @@ fn run_with(
 #[test]
 fn damaged_lost_repeated_and_reordered_chunks_and_a_host_restart_lose_nothing() {
     big_stack(|| {
-        let curve = planner_host::builtin::by_name("star").unwrap().unwrap();
-        let out = plan_curve(&curve, &PlanConfig::default()).unwrap();
-        let table = Table::parse(&out.table_bytes).unwrap();
-        let opts = ChunkOptions {
-            chunk_mm: 4.0,
-            ..ChunkOptions::default()
-        };
-        let mut chunks = chunk_table(&table, &opts).unwrap();
-        set_hold_points::<NQ, NP>(&table, &mut chunks, &HoldSearch::default()).unwrap();
+        let (bytes, _, chunks) = star_in_chunks();
+        let table = Table::parse(&bytes).unwrap();
         let clean = run(&table, &chunks, LinkFaults::default());
         assert_eq!(clean.transmissions, chunks.len());
         let cases = [
@@ -139,15 +147,8 @@ fn damaged_lost_repeated_and_reordered_chunks_and_a_host_restart_lose_nothing() 
 #[test]
 fn a_chunk_of_another_path_is_refused_by_the_window_and_the_right_one_resent() {
     big_stack(|| {
-        let curve = planner_host::builtin::by_name("star").unwrap().unwrap();
-        let out = plan_curve(&curve, &PlanConfig::default()).unwrap();
-        let table = Table::parse(&out.table_bytes).unwrap();
-        let opts = ChunkOptions {
-            chunk_mm: 4.0,
-            ..ChunkOptions::default()
-        };
-        let mut chunks = chunk_table(&table, &opts).unwrap();
-        set_hold_points::<NQ, NP>(&table, &mut chunks, &HoldSearch::default()).unwrap();
+        let (bytes, opts, chunks) = star_in_chunks();
+        let table = Table::parse(&bytes).unwrap();
         let mut moved = TableRows::of(&table);
         for w in &mut moved.words {
             w[3] += (0.01 * (1u64 << 40) as f64) as i64;
