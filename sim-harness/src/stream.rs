@@ -111,7 +111,8 @@ pub struct StreamRun {
     /// Out of order refused (a NAK each).
     pub refused_order: usize,
     /// Chunks the plan window refused after the ring took them (dropped and
-    /// NAKed; the motion went on, on the rows held).
+    /// NAKed; a splice's run: dropped, the host told as for a late one; the
+    /// motion went on, on the rows held).
     pub refused_window: usize,
     /// Feed changes asked for, in order, and what became of each.
     pub overrides: Vec<OverrideRun>,
@@ -752,17 +753,19 @@ pub fn run_stream_host<const CAP: usize, const NQ: usize, const NP: usize>(
                         take_record(&mut run.overrides, in_flight, t);
                     }
                     Ok(_) => {}
-                    Err(SpliceError::Late { .. }) => {
+                    Err(e) => {
+                        // late, or refused by the window (a run that is not
+                        // the path's: another path's pieces, ends or joins):
+                        // dropped with what followed, the host told as for
+                        // a late one (it resends the running plan from the
+                        // rows' end and asks again); the motion goes on
+                        if !matches!(e, SpliceError::Late { .. }) {
+                            run.refused_window += 1;
+                        }
                         ring.refuse_splice();
                         changed = true;
                         let held_end = ipr.window().held_end();
                         up.push_back((t + link.latency_s, Up::Late { seq, held_end }));
-                    }
-                    Err(e) => {
-                        return Err(StreamRunError::Window {
-                            index: pushed,
-                            message: format!("splice refused: {e:?}"),
-                        })
                     }
                 }
                 ring_bytes = ring.iter().map(|c| c.info().len).sum();

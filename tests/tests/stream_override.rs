@@ -214,3 +214,120 @@ fn an_override_storm_on_a_streamed_program_loses_nothing_and_holds_every_limit()
     assert!(rep.check_ok, "{:?}", rep.ratios);
     assert!(rep.override_feed_ratio <= 1.01 && rep.override_feed_ratio > 0.9);
 }
+
+/// A host whose first replan goes out with another path's chunk in place of
+/// its first (the Butterfly moved 0.01 mm along x: the same arc lengths, q
+/// spans and seq): the firmware refuses the splice (`WindowError::Step`)
+/// with its rows unchanged and tells the host as it tells a late one; the
+/// host resends the running plan from the rows' end and asks again, the
+/// change takes effect, and the motion never leaves the path: every limit
+/// within 1 % on the setpoints (50 ticks at rest padding).
+#[test]
+fn a_splice_of_another_path_is_refused_and_the_change_made_again() {
+    use e2e_tests::streamed::{big_stack, check};
+    use firmware_core::stream::set_commit;
+    use planner_host::stream::{chunk_rows, TableRows};
+    use planner_host::stream_hold::{set_hold_points, HoldSearch};
+    use sim_harness::stream::{run_stream_host, LinkFaults, OverrideOutcome, StreamLink};
+    use sim_harness::stream_host::{Ask, Replacement, ReplanHost, StreamHost};
+    const Q: usize = 256;
+    const P: usize = 512;
+    /// The replan host, its first replacement spoiled.
+    struct Spoiling<'a> {
+        inner: ReplanHost<'a, Q, P>,
+        moved: Vec<Vec<u8>>,
+        spoiled: bool,
+    }
+    impl StreamHost for Spoiling<'_> {
+        fn asks(&self) -> Vec<(f64, f64)> {
+            self.inner.asks()
+        }
+        fn replan(&mut self, ask: &Ask) -> Result<Option<Replacement>, String> {
+            let mut r = self.inner.replan(ask)?;
+            if let Some(rep) = r.as_mut().filter(|_| !self.spoiled) {
+                let at = |c: &[u8]| Chunk::parse(c).unwrap().info().s_a;
+                if let Some(m) = self.moved.iter().find(|m| at(m) == rep.s_a) {
+                    let commit = Chunk::parse(&rep.chunks[0]).unwrap().info().commit;
+                    rep.chunks[0].clone_from(m);
+                    set_commit(&mut rep.chunks[0], commit).unwrap();
+                    self.spoiled = true;
+                }
+            }
+            Ok(r)
+        }
+        fn taken(&mut self, after_s: f64) {
+            self.inner.taken(after_s)
+        }
+        fn late(&mut self, held_end: i64) -> (Vec<Vec<u8>>, Option<firmware_core::EndSegments>) {
+            self.inner.late(held_end)
+        }
+    }
+    big_stack(|| {
+        let curve = planner_host::builtin::butterfly().unwrap();
+        let cfg = PlanConfig::default();
+        let out = plan_curve(&curve, &cfg).unwrap();
+        let table = Table::parse(&out.table_bytes).unwrap();
+        let opts = ChunkOptions {
+            chunk_mm: 8.0,
+            ..ChunkOptions::default()
+        };
+        let how = HoldSearch::default();
+        let mut chunks = chunk_table(&table, &opts).unwrap();
+        let hp = set_hold_points::<Q, P>(&table, &mut chunks, &how).unwrap();
+        let mut rows = TableRows::of(&table);
+        for w in &mut rows.words {
+            w[3] += (0.01 * (1u64 << 40) as f64) as i64;
+        }
+        let moved = chunk_rows(&rows, &opts).unwrap();
+        let asks = vec![(1.0, 0.5)];
+        let mut inner = ReplanHost::<Q, P>::new(
+            &curve,
+            &cfg,
+            out.clone(),
+            chunks.clone(),
+            hp.s_c_mm.clone(),
+            &opts,
+            &how,
+            asks,
+            0.005,
+        )
+        .unwrap();
+        inner.fixed_host_s = Some(0.25);
+        let mut host = Spoiling {
+            inner,
+            moved,
+            spoiled: false,
+        };
+        let link = StreamLink {
+            bytes_per_s: 2e5,
+            latency_s: 0.005,
+            stalls: vec![],
+            period_s: T,
+            faults: LinkFaults::default(),
+            ready_s: vec![],
+            substitute: vec![],
+        };
+        let mut setpoints = Vec::new();
+        let r = run_stream_host::<{ 16 * 1024 }, Q, P>(
+            &table,
+            &chunks,
+            &link,
+            Some(&mut host),
+            &mut |sp: &Setpoint| setpoints.push(*sp),
+        )
+        .unwrap();
+        let ov = &r.overrides[0];
+        eprintln!(
+            "a splice of another path: refused {} by the window; the change asked at {:.3} s, late {}, spliced at {:.2} mm, {:?}",
+            r.refused_window, ov.asked_s, ov.late, ov.splice_mm, ov.outcome
+        );
+        assert!(host.spoiled);
+        assert_eq!(r.refused_window, 1);
+        assert!(ov.late >= 1);
+        assert_eq!(ov.outcome, OverrideOutcome::Effective);
+        let end = setpoints.last().unwrap();
+        assert!((end.s_mm - table.path_length_mm()).abs() < 1e-9);
+        let rep = check(&table, &setpoints, 0.01);
+        assert!(rep.ok, "{}", rep.text());
+    });
+}
