@@ -222,13 +222,20 @@ impl PRow {
         Some(u64::from_le_bytes(w))
     }
 
-    /// The position (Q40 mm) at arc length `s` (Q40 mm), as the tick
-    /// evaluates it.
-    fn pos(&self, s: i64) -> Option<[i64; 3]> {
+    /// Its position coefficients, τ (Q61) at arc length `s` (Q40 mm), the
+    /// shift and the constant-axis mask: what evaluating it takes.
+    fn form_at(&self, s: i64) -> Option<(&[u8; POS_BYTES], i64, u32, u32)> {
         let (shift, constant) = piece_shift_mask(self.word(2)?)?;
         let centre = self.word(1)? as i64;
         let c: &[u8; POS_BYTES] = self.words.get(POS_AT..POS_AT + POS_BYTES)?.try_into().ok()?;
-        Some(pos_eval(c, tau_of(s, centre, shift), constant))
+        Some((c, tau_of(s, centre, shift), shift, constant))
+    }
+
+    /// The position (Q40 mm) at arc length `s` (Q40 mm), as the tick
+    /// evaluates it.
+    fn pos(&self, s: i64) -> Option<[i64; 3]> {
+        let (c, tau, _, constant) = self.form_at(s)?;
+        Some(pos_eval(c, tau, constant))
     }
 }
 
@@ -433,8 +440,7 @@ impl<const NQ: usize, const NP: usize> PlanWindow<NQ, NP> {
     ) -> Result<(), WindowError> {
         let ends = (first_mm.map(to_fx), last_mm.map(to_fx), to_fx(length_mm));
         if self.p_lo == 0 && self.p_n > 0 {
-            let start = self.prow(0).ok_or(WindowError::Undecodable)?.start;
-            let at = self.prow(0).and_then(|r| r.pos(to_fx(start)));
+            let at = self.prow(0).and_then(|r| r.pos(to_fx(r.start)));
             let step = step_between(at.ok_or(WindowError::Undecodable)?, ends.0);
             if step > JOIN_TOL_FX {
                 return Err(WindowError::Ends { s: 0, step });
@@ -964,10 +970,7 @@ impl<'a, const NQ: usize, const NP: usize> Rows<'a> for PlanWindow<NQ, NP> {
     }
 
     fn piece_derivs(&self, idx: usize, s: i64) -> Option<[[f32; 3]; 3]> {
-        let r = self.prow(idx)?;
-        let (shift, constant) = piece_shift_mask(r.word(2)?)?;
-        let centre = r.word(1)? as i64;
-        let c: &[u8; POS_BYTES] = r.words.get(POS_AT..POS_AT + POS_BYTES)?.try_into().ok()?;
-        Some(pos_derivs(c, tau_of(s, centre, shift), shift, constant))
+        let (c, tau, shift, constant) = self.prow(idx)?.form_at(s)?;
+        Some(pos_derivs(c, tau, shift, constant))
     }
 }
