@@ -1220,15 +1220,24 @@ fn stream_through<const Q: usize, const P: usize>(
         },
         substitute: vec![],
     };
-    // (on a thread of its own: the firmware's ring and a host-sized window
-    // live on its stack, several megabytes)
-    // the setpoints' times and positions only, straight into the checker's
-    // trajectory (room for the plan's time and a second more)
-    let expect = ((table.predicted_time_s() + 1.0) / o.period_s).clamp(0.0, 1e9) as usize;
-    let mut traj = crate::Trajectory {
-        t_s: Vec::with_capacity(expect),
-        pos_mm: Vec::with_capacity(expect),
+    // every setpoint checked as it comes, none kept (an hour's run is
+    // 15 million of them)
+    let vbar = table.limits().vbar;
+    let geometry = crate::CurveGeometry::from_table(&table).map_err(|e| StreamError::Table(e.to_string()))?;
+    // (a change above the programmed feed raises the feed limit)
+    let top = o.overrides.iter().fold(1.0f64, |m, &(_, a)| m.max(a));
+    let check = crate::CheckConfig {
+        limits: planner_host::Limits {
+            vbar: vbar * top,
+            ..table.limits()
+        },
+        pad_rest: 50,
+        tol: o.tol,
+        ..Default::default()
     };
+    let mut checker = crate::check::OnlineCheck::new(&geometry.curve, &check, o.period_s)
+        .map_err(|e| StreamError::Check(e.to_string()))?;
+    let mut last_t_s = 0.0;
     // feed changes: the host replans the running plan at each
     let mut host = match o.overrides.is_empty() {
         true => None,
@@ -1252,6 +1261,8 @@ fn stream_through<const Q: usize, const P: usize>(
         ),
     };
     let mut feeds: Vec<(f64, f64, f64)> = Vec::new();
+    // (on a thread of its own: the firmware's ring and a host-sized window
+    // live on its stack, several megabytes)
     let run = planner_host::stream_hold::on_big_stack(|| {
         let host = host.as_mut().map(|h| h as &mut dyn StreamHost);
         run_sized::<Q, P>(
@@ -1261,8 +1272,8 @@ fn stream_through<const Q: usize, const P: usize>(
             o.ring_bytes,
             host,
             &mut |sp: &Setpoint| {
-                traj.t_s.push(sp.t_s);
-                traj.pos_mm.push(sp.pos_mm);
+                checker.push(sp.t_s, sp.pos_mm);
+                last_t_s = sp.t_s;
                 if !o.overrides.is_empty() {
                     feeds.push((sp.t_s, sp.feed_mm_s, sp.s_mm));
                 }
@@ -1272,7 +1283,6 @@ fn stream_through<const Q: usize, const P: usize>(
     .ok_or_else(|| StreamError::Option("the run's thread failed to start or panicked".into()))??;
     // each change's feed limit from where it holds to where the next that
     // took effect spliced (in s: the setpoints' clock starts with the motion)
-    let vbar = table.limits().vbar;
     let mut override_feed_ratio = 0.0f64;
     for (k, ov) in run.overrides.iter().enumerate() {
         if ov.at_feed_s.is_none() {
@@ -1289,21 +1299,8 @@ fn stream_through<const Q: usize, const P: usize>(
             override_feed_ratio = override_feed_ratio.max(f / (ov.alpha * vbar));
         }
     }
-    let geometry = crate::CurveGeometry::from_table(&table).map_err(|e| StreamError::Table(e.to_string()))?;
-    // (a change above the programmed feed raises the feed limit)
-    let top = o.overrides.iter().fold(1.0f64, |m, &(_, a)| m.max(a));
-    let check = crate::CheckConfig {
-        limits: planner_host::Limits {
-            vbar: vbar * top,
-            ..table.limits()
-        },
-        pad_rest: 50,
-        tol: o.tol,
-        ..Default::default()
-    };
-    let rep = crate::check_trajectory(&geometry.curve, &traj, &check)
-        .map_err(|e| StreamError::Check(e.to_string()))?;
-    let machining_time_s = traj.t_s.last().copied().unwrap_or(0.0);
+    let rep = checker.finish().map_err(|e| StreamError::Check(e.to_string()))?;
+    let machining_time_s = last_t_s;
     let r = &rep.ratios;
     Ok(StreamReport {
         schema_version: 1,

@@ -103,16 +103,30 @@ fn dense(c: &RefCurve, p: [f64; 3], s_lo: f64, s_hi: f64, n: usize) -> Foot {
     newton(c, p, best.1)
 }
 
-/// The closest point of every setpoint, in order (see the module docs).
-pub(crate) fn project_all(c: &RefCurve, pos: &[[f64; 3]], contour_tol: f64) -> Vec<Foot> {
-    let (u0, _) = c.u_range();
-    let len = c.length();
-    let refine_above = 0.1 * contour_tol;
-    let mut out = Vec::with_capacity(pos.len());
-    let mut seed = u0;
-    for &p in pos {
-        let mut foot = newton(c, p, seed);
-        if foot.dist > refine_above {
+/// The closest points of setpoints taken in order, each search seeded with
+/// the previous setpoint's parameter (see the module docs).
+pub(crate) struct Projector {
+    seed: f64,
+    len: f64,
+    refine_above: f64,
+}
+
+impl Projector {
+    /// Searches on `c` from u₀, refined with the dense searches above a
+    /// tenth of `contour_tol`.
+    pub(crate) fn new(c: &RefCurve, contour_tol: f64) -> Projector {
+        Projector {
+            seed: c.u_range().0,
+            len: c.length(),
+            refine_above: 0.1 * contour_tol,
+        }
+    }
+
+    /// The closest point of the next setpoint `p`.
+    pub(crate) fn next(&mut self, c: &RefCurve, p: [f64; 3]) -> Foot {
+        let len = self.len;
+        let mut foot = newton(c, p, self.seed);
+        if foot.dist > self.refine_above {
             let s = c.s_of_u(foot.u);
             let local = dense(
                 c,
@@ -125,17 +139,23 @@ pub(crate) fn project_all(c: &RefCurve, pos: &[[f64; 3]], contour_tol: f64) -> V
                 foot = local;
             }
         }
-        if foot.dist > refine_above {
+        if foot.dist > self.refine_above {
             let n = ((len / GLOBAL_STEP_MM).ceil() as usize).max(64);
             let global = dense(c, p, 0.0, len, n + 1);
             if global.dist < foot.dist {
                 foot = global;
             }
         }
-        seed = foot.u;
-        out.push(foot);
+        self.seed = foot.u;
+        foot
     }
-    out
+}
+
+/// The closest point of every setpoint, in order (see the module docs).
+#[cfg(test)]
+pub(crate) fn project_all(c: &RefCurve, pos: &[[f64; 3]], contour_tol: f64) -> Vec<Foot> {
+    let mut proj = Projector::new(c, contour_tol);
+    pos.iter().map(|&p| proj.next(c, p)).collect()
 }
 
 #[cfg(test)]

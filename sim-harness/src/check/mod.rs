@@ -24,6 +24,10 @@
 //! [`MONOTONE_TOL_MM`] fails the check; the report names every failure, and
 //! every ratio with the time, row and axis where it is largest.
 //!
+//! [`OnlineCheck`] is the same check fed one setpoint at a time, in constant
+//! memory, for runs too long to keep (`check/online.rs`);
+//! [`check_trajectory`] feeds it a stored trajectory.
+//!
 //! **Independent of the code it checks.** The curve is evaluated by the
 //! checker's own de Boor evaluation and arc-length quadrature
 //! (`check/nurbs_ref.rs`), not by planner-host's or firmware-core's evaluator: a
@@ -39,18 +43,18 @@ mod contour;
 mod csv_in;
 mod error;
 mod nurbs_ref;
+mod online;
 mod ratios;
 mod report;
 
 pub use csv_in::Trajectory;
 pub use error::CheckError;
+pub use online::OnlineCheck;
 pub use ratios::Peak;
 pub use report::{CheckReport, ContourPeak, Ratios, SCHEMA_VERSION};
 
 use firmware_core::Limits;
 use planner_host::Nurbs;
-
-use ratios::Order;
 
 /// Largest allowed distance of the first and last setpoints from r(u₀)
 /// and r(u₁), mm.
@@ -86,7 +90,8 @@ impl Default for CheckConfig {
 }
 
 /// Check the setpoints `traj` against the curve and `cfg` (see the module
-/// docs); `Err` only when the input cannot be checked at all.
+/// docs); `Err` only when the input cannot be checked at all. The servo
+/// period is the median time step; [`OnlineCheck`] does the rest.
 pub fn check_trajectory(
     curve: &Nurbs,
     traj: &Trajectory,
@@ -98,79 +103,11 @@ pub fn check_trajectory(
             "{n} setpoint(s): at least two are needed for a servo period"
         )));
     }
-    let (h, jitter) = ratios::period(&traj.t_s);
-    if !(h.is_finite() && h > 0.0) {
-        return Err(CheckError::Timing(format!(
-            "the time column does not increase (median step {h} s)"
-        )));
+    let mut check = OnlineCheck::new(curve, cfg, ratios::period(&traj.t_s))?;
+    for (&t, &p) in traj.t_s.iter().zip(&traj.pos_mm) {
+        check.push(t, p);
     }
-    let c = nurbs_ref::RefCurve::new(curve);
-    let feet = contour::project_all(&c, &traj.pos_mm, cfg.contour_tol);
-    let s: Vec<f64> = feet.iter().map(|f| c.s_of_u(f.u)).collect();
-
-    let (t, pad, lim) = (&traj.t_s[..], cfg.pad_rest, &cfg.limits);
-    let pos = &traj.pos_mm[..];
-    let ratios = Ratios {
-        vel: ratios::axial_peak(t, h, pad, pos, lim.v, Order::Vel),
-        acc: ratios::axial_peak(t, h, pad, pos, lim.a, Order::Acc),
-        jerk: ratios::axial_peak(t, h, pad, pos, lim.j, Order::Jerk),
-        feed: ratios::scalar_peak(t, h, pad, &s, lim.vbar, Order::Vel),
-        tacc: ratios::scalar_peak(t, h, pad, &s, lim.abar, Order::Acc),
-        tjerk: ratios::scalar_peak(t, h, pad, &s, lim.jbar, Order::Jerk),
-    };
-    let (imax, worst) =
-        feet.iter().enumerate().fold(
-            (0, 0.0f64),
-            |(im, m), (i, f)| if f.dist > m { (i, f.dist) } else { (im, m) },
-        );
-    let (u0, u1) = c.u_range();
-    let dist = |a: [f64; 3], b: [f64; 3]| nurbs_ref::norm([a[0] - b[0], a[1] - b[1], a[2] - b[2]]);
-    let start_err_mm = dist(traj.pos_mm[0], c.point(u0));
-    let end_err_mm = dist(traj.pos_mm[n - 1], c.point(u1));
-    let min_ds_mm = s.windows(2).map(|w| w[1] - w[0]).fold(f64::INFINITY, f64::min);
-
-    let mut fail = Vec::new();
-    for (name, peak) in ratios.named() {
-        if peak.ratio > 1.0 + cfg.tol || peak.ratio.is_nan() {
-            fail.push(name.to_string());
-        }
-    }
-    if worst.is_nan() || worst > cfg.contour_tol {
-        fail.push("contour".into());
-    }
-    if [start_err_mm, end_err_mm]
-        .iter()
-        .any(|e| e.is_nan() || *e > ENDPOINT_TOL_MM)
-    {
-        fail.push("endpoints".into());
-    }
-    if min_ds_mm.is_nan() || min_ds_mm < -MONOTONE_TOL_MM {
-        fail.push("monotone".into());
-    }
-    Ok(CheckReport {
-        schema_version: SCHEMA_VERSION,
-        ok: fail.is_empty(),
-        fail,
-        setpoints: n,
-        period_s: h,
-        period_jitter: jitter,
-        duration_s: traj.t_s[n - 1] - traj.t_s[0],
-        pad_rest: pad,
-        tol: cfg.tol,
-        ratios,
-        contour: ContourPeak {
-            max_mm: worst,
-            t_s: traj.t_s[imax],
-            row: imax,
-            tol_mm: cfg.contour_tol,
-        },
-        start_err_mm,
-        end_err_mm,
-        min_ds_mm,
-        s_end_mm: s[n - 1],
-        length_mm: c.length(),
-        limits: cfg.limits,
-    })
+    check.finish()
 }
 
 #[cfg(test)]

@@ -14,6 +14,10 @@
 //! repeated `pad` times before and after, on a time grid continued at h: a
 //! machine stands still before it starts and after it stops, so a start or
 //! stop with an acceleration step shows up as a jerk of about a/h there.
+//!
+//! [`Stencils`] takes the series one sample at a time and keeps only the
+//! last five (the jerk stencil's reach): a run of any length is checked in
+//! constant memory, centre by centre in the order of the series.
 
 use serde::Serialize;
 
@@ -40,18 +44,6 @@ impl Peak {
         row: 0,
         axis: None,
     };
-}
-
-/// The series padded with `pad` copies of its first and last values.
-pub(crate) fn pad_rest<T: Copy>(x: &[T], pad: usize) -> Vec<T> {
-    let (Some(&first), Some(&last)) = (x.first(), x.last()) else {
-        return Vec::new();
-    };
-    let mut out = Vec::with_capacity(x.len() + 2 * pad);
-    out.resize(pad, first);
-    out.extend_from_slice(x);
-    out.resize(x.len() + 2 * pad, last);
-    out
 }
 
 /// Velocity, acceleration and jerk stencils of a padded series at centre i.
@@ -89,96 +81,116 @@ impl Order {
     }
 }
 
-/// The padded time grid's centre time and CSV row for padded index i.
-struct Grid<'a> {
-    t: &'a [f64],
+/// The largest |stencil| / limit of the three stencils over a series of
+/// `D` components (3: the axes; 1: the arc length), padded with `pad`
+/// copies of its first and last samples, fed one sample at a time.
+///
+/// Centres are taken in order, components in order at each, and a peak
+/// moves only to a strictly larger ratio: the first of equal peaks is
+/// reported. A padding sample before the first is at t₀ − h·k, one after
+/// the last at t_last + h·k, its row negative or ≥ the number of samples.
+pub(crate) struct Stencils<const D: usize> {
     h: f64,
     pad: usize,
+    /// Limits of the velocity, acceleration and jerk of each component.
+    limit: [[f64; D]; 3],
+    /// The last five padded samples: centre time, row, value.
+    win: [(f64, i64, [f64; D]); 5],
+    /// Padded samples fed.
+    fed: usize,
+    /// Samples pushed (without the padding), and the last one.
+    n: usize,
+    last: (f64, [f64; D]),
+    peaks: [Peak; 3],
 }
 
-impl Grid<'_> {
-    fn at(&self, i: usize) -> (f64, i64) {
-        let row = i as i64 - self.pad as i64;
-        let n = self.t.len() as i64;
-        let t = if row < 0 {
-            self.t[0] - self.h * (-row) as f64
-        } else if row >= n {
-            self.t[self.t.len() - 1] + self.h * (row - n + 1) as f64
-        } else {
-            self.t[row as usize]
-        };
-        (t, row)
+impl<const D: usize> Stencils<D> {
+    const ORDERS: [Order; 3] = [Order::Vel, Order::Acc, Order::Jerk];
+
+    /// Stencils at the period `h` with `pad` samples at rest each side.
+    pub(crate) fn new(h: f64, pad: usize, limit: [[f64; D]; 3]) -> Self {
+        Stencils {
+            h,
+            pad,
+            limit,
+            win: [(0.0, 0, [0.0; D]); 5],
+            fed: 0,
+            n: 0,
+            last: (0.0, [0.0; D]),
+            peaks: [Peak::NONE; 3],
+        }
     }
-}
 
-/// Largest |stencil| / limit over the axes of padded positions.
-pub(crate) fn axial_peak(
-    t: &[f64],
-    h: f64,
-    pad: usize,
-    pos: &[[f64; 3]],
-    limit: [f64; 3],
-    order: Order,
-) -> Peak {
-    let grid = Grid { t, h, pad };
-    let padded = pad_rest(pos, pad);
-    let axes: [Vec<f64>; 3] = std::array::from_fn(|a| padded.iter().map(|p| p[a]).collect());
-    let r = order.reach();
-    let mut best = Peak::NONE;
-    for i in r..padded.len().saturating_sub(r) {
-        for (a, x) in axes.iter().enumerate() {
-            let q = order.eval(x, i, h).abs() / limit[a];
-            if q > best.ratio {
-                let (t_s, row) = grid.at(i);
-                best = Peak {
-                    ratio: q,
-                    t_s,
-                    row,
-                    axis: Some(["x", "y", "z"][a]),
-                };
+    /// The next sample of the series, at time `t`.
+    pub(crate) fn push(&mut self, t: f64, x: [f64; D]) {
+        if self.n == 0 {
+            for k in (1..=self.pad).rev() {
+                self.feed(t - self.h * k as f64, -(k as i64), x);
+            }
+        }
+        self.feed(t, self.n as i64, x);
+        self.n += 1;
+        self.last = (t, x);
+    }
+
+    /// The peaks of the velocity, acceleration and jerk stencils, the
+    /// padding after the last sample included.
+    pub(crate) fn finish(mut self) -> [Peak; 3] {
+        if self.n > 0 {
+            let (t, x) = self.last;
+            for k in 1..=self.pad {
+                self.feed(t + self.h * k as f64, (self.n - 1 + k) as i64, x);
+            }
+        }
+        self.peaks
+    }
+
+    /// One padded sample: the centres it completes are evaluated (the
+    /// velocity and acceleration one sample back, the jerk two).
+    fn feed(&mut self, t: f64, row: i64, x: [f64; D]) {
+        let m = self.fed;
+        self.win[m % 5] = (t, row, x);
+        self.fed += 1;
+        for (o, order) in Self::ORDERS.into_iter().enumerate() {
+            let r = order.reach();
+            // (centre i = m − r needs samples i − r ..= i + r, i ≥ r)
+            if m < 2 * r {
+                continue;
+            }
+            let at = |j: usize| &self.win[(m - 2 * r + j) % 5];
+            let centre = at(r);
+            for d in 0..D {
+                let mut xs = [0.0; 5];
+                for (j, v) in xs.iter_mut().enumerate().take(2 * r + 1) {
+                    *v = at(j).2[d];
+                }
+                let q = order.eval(&xs, r, self.h).abs() / self.limit[o][d];
+                if q > self.peaks[o].ratio {
+                    self.peaks[o] = Peak {
+                        ratio: q,
+                        t_s: centre.0,
+                        row: centre.1,
+                        axis: (D == 3).then(|| ["x", "y", "z"][d]),
+                    };
+                }
             }
         }
     }
-    best
 }
 
-/// Largest |stencil| / limit of a padded scalar series (arc length).
-pub(crate) fn scalar_peak(t: &[f64], h: f64, pad: usize, s: &[f64], limit: f64, order: Order) -> Peak {
-    let grid = Grid { t, h, pad };
-    let padded = pad_rest(s, pad);
-    let r = order.reach();
-    let mut best = Peak::NONE;
-    for i in r..padded.len().saturating_sub(r) {
-        let q = order.eval(&padded, i, h).abs() / limit;
-        if q > best.ratio {
-            let (t_s, row) = grid.at(i);
-            best = Peak {
-                ratio: q,
-                t_s,
-                row,
-                axis: None,
-            };
-        }
-    }
-    best
-}
-
-/// The servo period as the median time step, and the largest deviation of
-/// a step from it relative to it.
-pub(crate) fn period(t: &[f64]) -> (f64, f64) {
+/// The servo period as the median time step (NaN without a step).
+pub(crate) fn period(t: &[f64]) -> f64 {
     let mut d: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
     if d.is_empty() {
-        return (f64::NAN, f64::NAN);
+        return f64::NAN;
     }
-    let jitter_abs = |h: f64, d: &[f64]| d.iter().fold(0.0f64, |m, &x| m.max((x - h).abs()));
     d.sort_by(f64::total_cmp);
     let m = d.len() / 2;
-    let h = if d.len() % 2 == 1 {
+    if d.len() % 2 == 1 {
         d[m]
     } else {
         0.5 * (d[m - 1] + d[m])
-    };
-    (h, jitter_abs(h, &d) / h)
+    }
 }
 
 #[cfg(test)]
@@ -187,6 +199,24 @@ mod tests {
 
     fn grid(n: usize, h: f64) -> Vec<f64> {
         (0..n).map(|k| k as f64 * h).collect()
+    }
+
+    /// The peak of `order` over the axes of `pos` at times `t`.
+    fn axial_peak(t: &[f64], h: f64, pad: usize, pos: &[[f64; 3]], limit: [f64; 3], order: Order) -> Peak {
+        let mut st = Stencils::<3>::new(h, pad, [limit; 3]);
+        for (&t, &p) in t.iter().zip(pos) {
+            st.push(t, p);
+        }
+        st.finish()[order as usize]
+    }
+
+    /// The peak of `order` over the scalar series `s` at times `t`.
+    fn scalar_peak(t: &[f64], h: f64, pad: usize, s: &[f64], limit: f64, order: Order) -> Peak {
+        let mut st = Stencils::<1>::new(h, pad, [[limit]; 3]);
+        for (&t, &x) in t.iter().zip(s) {
+            st.push(t, [x]);
+        }
+        st.finish()[order as usize]
     }
 
     #[test]
@@ -219,6 +249,7 @@ mod tests {
         let t_end = t[298];
         assert!((a.ratio - 6.0 * c * t_end).abs() < 1e-6 * a.ratio, "{a:?}");
         assert_eq!(a.row, 298);
+        assert_eq!(a.axis, None);
     }
 
     #[test]
@@ -232,20 +263,27 @@ mod tests {
         assert!(plain.ratio < 1e-3, "{plain:?}");
         // at rest before: the stencil centred on the first setpoint straddles the
         // acceleration step from 0 to a0: (s₂ − 2s₁) / 2h³ = a0 / 2h exactly
-        let padded = pad_rest(&s, 50);
-        let j0 = Order::Jerk.eval(&padded, 50, h);
+        let j0 = Order::Jerk.eval(&[0.0, 0.0, 0.0, s[1], s[2]], 2, h);
         assert!((j0 - a0 / (2.0 * h)).abs() < 1e-6 * j0, "{j0}");
-        assert!(scalar_peak(&t, h, 50, &s, 16000.0, Order::Jerk).ratio >= j0 / 16000.0);
+        let padded = scalar_peak(&t, h, 50, &s, 16000.0, Order::Jerk);
+        assert!(padded.ratio >= j0 / 16000.0);
     }
 
     #[test]
     fn padding_times_continue_the_grid() {
+        // a step down at the first sample: the jerk stencils centred on rows −1,
+        // 0 and 1 are equal in size, the first (in the padding, at t₀ − h) is kept
         let h = 0.5;
-        let t = vec![10.0, 10.5, 11.0];
-        let g = Grid { t: &t, h, pad: 2 };
-        assert_eq!(g.at(0), (9.0, -2));
-        assert_eq!(g.at(2), (10.0, 0));
-        assert_eq!(g.at(6), (12.0, 4));
-        assert_eq!(period(&[0.0, 1.0, 2.0, 3.5]), (1.0, 0.5));
+        let t = [10.0, 10.5, 11.0];
+        let j = scalar_peak(&t, h, 3, &[1.0, 0.0, 0.0], 1.0, Order::Jerk);
+        assert_eq!((j.t_s, j.row), (9.5, -1));
+        assert_eq!(j.ratio, 1.0 / (2.0 * h * h * h));
+        // without padding three samples hold no jerk centre (two either side)
+        assert_eq!(
+            scalar_peak(&t, h, 0, &[1.0, 0.0, 0.0], 1.0, Order::Jerk).ratio,
+            0.0
+        );
+        assert_eq!(period(&[0.0, 1.0, 2.0, 3.5]), 1.0);
+        assert!(period(&[0.0]).is_nan());
     }
 }

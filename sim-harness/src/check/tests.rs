@@ -248,27 +248,96 @@ fn full_circle_with_a_double_knot() {
     assert!((r.s_end_mm - r.length_mm).abs() < 1e-9);
 }
 
+/// `feedsim demo`'s run: the Butterfly, LEN, 1 point/mm, Table 1, 250 µs
+/// (planned and run once for the tests that read it).
+fn demo_run() -> &'static Trajectory {
+    static RUN: std::sync::OnceLock<Trajectory> = std::sync::OnceLock::new();
+    RUN.get_or_init(|| {
+        use planner_host::plan::{self, PlanConfig};
+        let curve = planner_host::builtin::butterfly().unwrap();
+        let cfg = PlanConfig {
+            sampling: planner_host::sampling::Sampling::Len,
+            density_per_mm: 1.0,
+            limits: planner_host::limits::TABLE1,
+            ..PlanConfig::default()
+        };
+        let planned = plan::plan_curve(&curve, &cfg).unwrap();
+        let res = crate::run::run_table(&planned.table_bytes, &crate::run::SimConfig::default()).unwrap();
+        Trajectory::from_ticks(&res.ticks)
+    })
+}
+
+#[test]
+fn fed_one_setpoint_at_a_time_at_the_servo_period_the_check_is_the_same() {
+    // the stored trajectory's check takes its median time step as the period; the
+    // online check, fed the same setpoints, the servo period it was run at
+    let curve = planner_host::builtin::butterfly().unwrap();
+    let traj = demo_run();
+    let cfg = CheckConfig::default();
+    let stored = check_trajectory(&curve, traj, &cfg).unwrap();
+    let mut online = OnlineCheck::new(&curve, &cfg, 250e-6).unwrap();
+    for (&t, &p) in traj.t_s.iter().zip(&traj.pos_mm) {
+        online.push(t, p);
+    }
+    assert_eq!(online.setpoints(), traj.len());
+    let r = online.finish().unwrap();
+    assert!(r.ok, "{}", r.text());
+    assert!(
+        (r.period_s - stored.period_s).abs() < 1e-15,
+        "{} vs {}",
+        r.period_s,
+        stored.period_s
+    );
+    for ((name, a), (_, b)) in r.ratios.named().into_iter().zip(stored.ratios.named()) {
+        // (the stencils divide by h, h² and h³: a period 1e-15 s apart moves them ~1e-11)
+        assert!(
+            (a.ratio - b.ratio).abs() < 1e-9 * b.ratio,
+            "{name}: {a:?} vs {b:?}"
+        );
+        assert_eq!((a.row, a.axis), (b.row, b.axis), "{name}");
+        assert!(
+            (a.t_s - b.t_s).abs() < 1e-12,
+            "{name}: at {} s vs {} s",
+            a.t_s,
+            b.t_s
+        );
+    }
+    assert_eq!(r.contour, stored.contour);
+    assert_eq!(
+        (
+            r.start_err_mm,
+            r.end_err_mm,
+            r.min_ds_mm,
+            r.s_end_mm,
+            r.duration_s
+        ),
+        (
+            stored.start_err_mm,
+            stored.end_err_mm,
+            stored.min_ds_mm,
+            stored.s_end_mm,
+            stored.duration_s
+        )
+    );
+    // the time steps of k·h in f64 stray from h by rounding only
+    assert!(r.period_jitter < 1e-9, "{}", r.period_jitter);
+    // too few setpoints, or no period: refused
+    assert!(matches!(
+        OnlineCheck::new(&curve, &cfg, 0.0),
+        Err(CheckError::Timing(_))
+    ));
+    let mut one = OnlineCheck::new(&curve, &cfg, 250e-6).unwrap();
+    one.push(0.0, traj.pos_mm[0]);
+    assert!(matches!(one.finish(), Err(CheckError::Timing(_))));
+}
+
 #[test]
 fn agrees_with_the_external_reference_checker_on_the_demo() {
-    // `feedsim demo`'s run (the Butterfly, LEN, 1 point/mm, Table 1, 250 µs) and the
-    // figures the external reference checker `check_traj.py --pad-rest 50` (numpy/scipy)
-    // printed for its CSV; the two evaluate the curve independently.
-    use planner_host::plan::{self, PlanConfig};
+    // `feedsim demo`'s run and the figures the external reference checker
+    // `check_traj.py --pad-rest 50` (numpy/scipy) printed for its CSV; the two
+    // evaluate the curve independently.
     let curve = planner_host::builtin::butterfly().unwrap();
-    let cfg = PlanConfig {
-        sampling: planner_host::sampling::Sampling::Len,
-        density_per_mm: 1.0,
-        limits: planner_host::limits::TABLE1,
-        ..PlanConfig::default()
-    };
-    let planned = plan::plan_curve(&curve, &cfg).unwrap();
-    let res = crate::run::run_table(&planned.table_bytes, &crate::run::SimConfig::default()).unwrap();
-    let r = check_trajectory(
-        &curve,
-        &Trajectory::from_ticks(&res.ticks),
-        &CheckConfig::default(),
-    )
-    .unwrap();
+    let r = check_trajectory(&curve, demo_run(), &CheckConfig::default()).unwrap();
     assert!(r.ok, "{}", r.text());
     assert_eq!(r.setpoints, 23182);
     let reference = [
