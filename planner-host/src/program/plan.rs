@@ -185,14 +185,26 @@ pub fn plan_program(
     })
 }
 
-fn plan_path(
+/// What path `index` (from 1) of a program is planned with (see the module
+/// docs): its feed limit, or profile, the machine's other limits and servo
+/// period, the sampling density.
+pub fn path_config(
     index: usize,
     p: &Path,
     machine: &Machine,
     opts: &ProgramOptions,
-) -> Result<PlannedPath, ProgramError> {
-    let t0 = Instant::now();
-    let arc = ArcLength::new(&p.curve);
+) -> Result<PlanConfig, ProgramError> {
+    path_config_on(index, p, &ArcLength::new(&p.curve), machine, opts)
+}
+
+/// [`path_config`] with the path's arc length at hand.
+fn path_config_on(
+    index: usize,
+    p: &Path,
+    arc: &ArcLength,
+    machine: &Machine,
+    opts: &ProgramOptions,
+) -> Result<PlanConfig, ProgramError> {
     let length = arc.total();
     let mut limits = machine.limits;
     limits.vbar = match p.kind {
@@ -219,14 +231,27 @@ fn plan_path(
             })?,
         PathKind::Rapid => None,
     };
-    let stretches: Vec<(f64, f64)> = feed_profile.iter().flat_map(|f| f.stretches()).collect();
-    let cfg = PlanConfig {
+    Ok(PlanConfig {
         limits,
         servo_period_s: machine.servo_period_s,
         density_per_mm: opts.density_per_mm.max(MIN_POINTS / length),
         feed_profile,
         ..PlanConfig::default()
-    };
+    })
+}
+
+fn plan_path(
+    index: usize,
+    p: &Path,
+    machine: &Machine,
+    opts: &ProgramOptions,
+) -> Result<PlannedPath, ProgramError> {
+    let t0 = Instant::now();
+    let arc = ArcLength::new(&p.curve);
+    let length = arc.total();
+    let cfg = path_config_on(index, p, &arc, machine, opts)?;
+    let limits = cfg.limits;
+    let stretches: Vec<(f64, f64)> = cfg.feed_profile.iter().flat_map(|f| f.stretches()).collect();
     let out = plan_curve(&p.curve, &cfg).map_err(|source| ProgramError::Plan {
         first_line: p.first_line,
         last_line: p.last_line,
