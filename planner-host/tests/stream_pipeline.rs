@@ -65,6 +65,33 @@ fn chunks_cut_as_windows_commit_equal_the_finished_tables() {
     }
 }
 
+#[test]
+fn a_path_no_longer_than_a_window_is_planned_whole_in_one_commit() {
+    // the Star (413.6 mm) in windows of 500 mm: the whole plan, its table and
+    // chunks byte for byte, all of q told in one last commit
+    let curve = planner_host::builtin::by_name("star").unwrap().unwrap();
+    let whole = plan_curve(&curve, &PlanConfig::default()).unwrap();
+    let cfg = PlanConfig {
+        windows: Some(WindowConfig {
+            window_mm: 500.0,
+            commit_mm: 150.0,
+        }),
+        ..PlanConfig::default()
+    };
+    let windowed = plan_curve(&curve, &cfg).unwrap();
+    assert!(windowed.windows.is_none() && windowed.path_length_mm < 500.0);
+    assert_eq!(windowed.table_bytes, whole.table_bytes);
+    let opts = ChunkOptions {
+        chunk_mm: 32.0,
+        ..ChunkOptions::default()
+    };
+    let (table_bytes, chunks, at) = pipelined(&curve, &cfg, &opts);
+    assert_eq!(table_bytes, whole.table_bytes);
+    let reference = chunk_table(&Table::parse(&table_bytes).unwrap(), &opts).unwrap();
+    assert_eq!(chunks, reference);
+    assert_eq!(at, vec![chunks.len()], "one commit with every chunk");
+}
+
 /// A commit as the sink saw it, owned.
 struct Told {
     ctrl: Vec<f64>,

@@ -122,7 +122,9 @@ impl Default for PlanConfig {
     }
 }
 
-/// How long the windows are and how much of each is committed.
+/// How long the windows are and how much of each is committed. A path no
+/// longer than `window_mm` is planned whole (with commits asked for, all of
+/// q in one last commit).
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct WindowConfig {
     /// Path a window plans ahead of its join, mm.

@@ -270,6 +270,11 @@ fn plan_curve_inner(
     let sink: Option<&CommitSink<'_>> = on_commit.map(|_| &sink as &CommitSink<'_>);
     // The plan on the sampling asked for; if it fails (a stall, or no LP of
     // the sequence held every limit), once more on every span bisected.
+    // planned whole although windows were asked for: no longer than one
+    let whole = match cfg.windows {
+        Some(w) => resume.is_none() && length <= w.window_mm,
+        None => true,
+    };
     let plan_q = || -> Result<_, PlanError> {
         let mut retry_samples = samples;
         let mut bisections = 0;
@@ -298,7 +303,10 @@ fn plan_curve_inner(
             let resumed = resume.map(|r| r.at(&knots, cfg)).transpose()?;
             let solved = match (&cfg.windows, cfg.formulation) {
                 // window by window: each window evaluates its own check points
-                (Some(w), Formulation::Certified) => {
+                // (a path no longer than a window is planned whole: it would be
+                // one window, and the whole plan is the reference the windows
+                // come within 1 % of on long paths, not on a few mm)
+                (Some(w), Formulation::Certified) if !whole => {
                     let (limits, start) = match (resume, &resumed) {
                         (Some(r), Some(at)) => (
                             at.limits,
@@ -337,6 +345,19 @@ fn plan_curve_inner(
             match solved {
                 Ok(base) => {
                     stage.step_done();
+                    // planned whole with commits asked for: all of q at once
+                    if let (true, Some(tell)) = (whole, sink) {
+                        tell(&Commit {
+                            length_mm: length,
+                            knots: &knots,
+                            ctrl: &base.ctrl,
+                            through: base.ctrl.len().saturating_sub(1),
+                            last: true,
+                            ends: base.ends,
+                            su_breaks: &[],
+                            su_segments: &[],
+                        });
+                    }
                     let change = resume.zip(resumed).map(|(r, at)| FeedChangeAt {
                         s_splice_mm: r.change.s_mm,
                         through: at.through,
