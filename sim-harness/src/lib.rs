@@ -30,6 +30,10 @@
 //!   scenarios (Figs 13–15, storm, holds, faults) as Markdown with figures.
 //! - [`steps`]: the machine file's step and direction output driven by the
 //!   setpoints, against the drives' step rate.
+//! - [`stream`], [`stream_host`], [`stream_program`]: the plan streamed in
+//!   chunks over a simulated serial link into the firmware's ring and plan
+//!   window, planned in windows while it runs, with feed changes replanned
+//!   and spliced; a part program streamed path by path.
 //! - [`check`]: the independent trajectory checker: every limit on the
 //!   setpoints with the machine at rest before and after, the contour error
 //!   against the curve by its own NURBS evaluation (`feedsim check`).
@@ -50,6 +54,7 @@ pub mod servo;
 pub mod steps;
 pub mod stream;
 pub mod stream_host;
+pub mod stream_program;
 
 pub use check::{check_trajectory, CheckConfig, CheckReport, Trajectory};
 pub use geometry::CurveGeometry;

@@ -985,6 +985,10 @@ pub struct StreamOptions {
     /// from the start (a run that does not depend on the machine's speed);
     /// `None`: when they were.
     pub host_replan_s: Option<f64>,
+    /// The host started planning this long before the link's start, s (a
+    /// path of a program, planned while the paths before it ran): each
+    /// chunk is ready that much earlier, none before the start.
+    pub host_ahead_s: f64,
 }
 
 /// The plan windows the simulation has (q spans, pieces): three MCU sizes
@@ -1009,6 +1013,7 @@ impl Default for StreamOptions {
             ready_times: None,
             overrides: vec![],
             host_replan_s: None,
+            host_ahead_s: 0.0,
         }
     }
 }
@@ -1077,6 +1082,9 @@ pub struct StreamReport {
     /// Largest feed over the changed feed limit, once each change's new feed
     /// holds (until the next change takes effect); 0 without changes.
     pub override_feed_ratio: f64,
+    /// The first and the last setpoint's position, mm.
+    #[serde(skip)]
+    pub ends_mm: [[f64; 3]; 2],
 }
 
 /// Why `feedsim stream` failed.
@@ -1095,6 +1103,36 @@ pub enum StreamError {
     /// Planning failed.
     #[error(transparent)]
     Plan(#[from] planner_host::PlanError),
+    /// The program gives no paths to stream, or leaves the travel, or a
+    /// path cannot be planned.
+    #[error(transparent)]
+    Program(Box<planner_host::program::ProgramError>),
+    /// A path of a program did not stream.
+    #[error("LINE {first_line}..{last_line}: path {index}: {source}")]
+    Path {
+        /// Path number, from 1.
+        index: usize,
+        /// Its first line.
+        first_line: usize,
+        /// Its last line.
+        last_line: usize,
+        /// Why.
+        source: Box<StreamError>,
+    },
+    /// A path's first setpoint is not where the one before it stopped.
+    #[error("path {index} (LINE {first_line}..) starts {distance_mm:.3e} mm from where path {prev} (..LINE {prev_last_line}) stopped (more than {} mm)", crate::program::JOIN_TOL_MM)]
+    Gap {
+        /// Path number, from 1.
+        index: usize,
+        /// Its first line.
+        first_line: usize,
+        /// The path before it.
+        prev: usize,
+        /// That path's last line.
+        prev_last_line: usize,
+        /// Distance, mm.
+        distance_mm: f64,
+    },
     /// The table did not parse (cannot happen for the planner's own).
     #[error("table: {0}")]
     Table(String),
@@ -1119,18 +1157,29 @@ pub enum StreamError {
 /// them through the simulated link into the firmware and check the
 /// setpoints (see the module docs).
 pub fn stream_curve(curve: &planner_host::Nurbs, o: &StreamOptions) -> Result<StreamReport, StreamError> {
+    stream_curve_with(curve, &planner_host::plan::PlanConfig::default(), o)
+}
+
+/// [`stream_curve`] planned with the limits, feed profile and sampling of
+/// `base` (the servo period and the windows are `o`'s).
+pub fn stream_curve_with(
+    curve: &planner_host::Nurbs,
+    base: &planner_host::plan::PlanConfig,
+    o: &StreamOptions,
+) -> Result<StreamReport, StreamError> {
     match o.window_rows {
-        (64, 128) => stream_through::<64, 128>(curve, o),
-        (128, 256) => stream_through::<128, 256>(curve, o),
-        (256, 512) => stream_through::<256, 512>(curve, o),
-        (SIM_WINDOW_Q, SIM_WINDOW_P) => stream_through::<SIM_WINDOW_Q, SIM_WINDOW_P>(curve, o),
+        (64, 128) => stream_through::<64, 128>(curve, base, o),
+        (128, 256) => stream_through::<128, 256>(curve, base, o),
+        (256, 512) => stream_through::<256, 512>(curve, base, o),
+        (SIM_WINDOW_Q, SIM_WINDOW_P) => stream_through::<SIM_WINDOW_Q, SIM_WINDOW_P>(curve, base, o),
         (q, p) => Err(StreamError::WindowRows(q, p)),
     }
 }
 
-/// [`stream_curve`] through a firmware window of `Q` q spans and `P` pieces.
+/// [`stream_curve_with`] through a firmware window of `Q` q spans and `P` pieces.
 fn stream_through<const Q: usize, const P: usize>(
     curve: &planner_host::Nurbs,
+    base: &planner_host::plan::PlanConfig,
     o: &StreamOptions,
 ) -> Result<StreamReport, StreamError> {
     use planner_host::plan::{plan_curve, PlanConfig, WindowConfig};
@@ -1148,7 +1197,7 @@ fn stream_through<const Q: usize, const P: usize>(
     }
     let mut cfg = PlanConfig {
         servo_period_s: o.period_s,
-        ..PlanConfig::default()
+        ..base.clone()
     };
     if let Some((window_mm, commit_mm)) = o.windows {
         cfg.windows = Some(WindowConfig { window_mm, commit_mm });
@@ -1207,6 +1256,7 @@ fn stream_through<const Q: usize, const P: usize>(
         (out, chunks, hp, plan_s, hold_points_s, ready)
     };
     let table = Table::parse(&out.table_bytes).map_err(|e| StreamError::Table(e.to_string()))?;
+    let ready_s: Vec<f64> = ready_s.iter().map(|r| (r - o.host_ahead_s).max(0.0)).collect();
     let link = StreamLink {
         bytes_per_s: o.baud / 10.0,
         latency_s: o.latency_s,
@@ -1238,6 +1288,7 @@ fn stream_through<const Q: usize, const P: usize>(
     let mut checker = crate::check::OnlineCheck::new(&geometry.curve, &check, o.period_s)
         .map_err(|e| StreamError::Check(e.to_string()))?;
     let mut last_t_s = 0.0;
+    let mut ends_mm: Option<[[f64; 3]; 2]> = None;
     // feed changes: the host replans the running plan at each
     let mut host = match o.overrides.is_empty() {
         true => None,
@@ -1274,6 +1325,7 @@ fn stream_through<const Q: usize, const P: usize>(
             &mut |sp: &Setpoint| {
                 checker.push(sp.t_s, sp.pos_mm);
                 last_t_s = sp.t_s;
+                ends_mm.get_or_insert([sp.pos_mm; 2])[1] = sp.pos_mm;
                 if !o.overrides.is_empty() {
                     feeds.push((sp.t_s, sp.feed_mm_s, sp.s_mm));
                 }
@@ -1334,6 +1386,7 @@ fn stream_through<const Q: usize, const P: usize>(
         check_ok: rep.ok && override_feed_ratio <= 1.0 + o.tol,
         overrides: run.overrides,
         override_feed_ratio,
+        ends_mm: ends_mm.unwrap_or_default(),
     })
 }
 

@@ -202,8 +202,15 @@ enum Cmd {
     /// if a limit is exceeded.
     #[command(after_help = EXIT_CODES)]
     Stream {
-        /// The toolpath: a JSON file, or a built-in curve: butterfly, circle, fan, star, trident.
+        /// The toolpath: a JSON file, a built-in curve (butterfly, circle, fan, star, trident), or a
+        /// part program (.ngc, .nc, .tap, or any file that does not start with '{'): its paths
+        /// planned with the machine's limits and each path's feed, and streamed one after
+        /// another, each from rest where the one before it stopped.
         curve: String,
+        /// Machine file (machine.toml): its limits, rapid velocity and servo period; default
+        /// the built-in Table 1 machine.
+        #[arg(long)]
+        machine: Option<PathBuf>,
         /// The link: uart:BAUD (8N1, BAUD/10 bytes/s).
         #[arg(long, default_value = "uart:2000000")]
         link: String,
@@ -248,9 +255,9 @@ enum Cmd {
         /// if FILE exists, read them from it (a run replayed with the same timing).
         #[arg(long, requires = "window_mm")]
         ready_times: Option<PathBuf>,
-        /// Servo period, microseconds.
-        #[arg(long, default_value_t = 250.0)]
-        period_us: f64,
+        /// Servo period, microseconds (default: the machine file's; the built-in machine's is 250).
+        #[arg(long)]
+        period_us: Option<f64>,
         /// A ratio fails above 1 + TOL.
         #[arg(long, default_value_t = 0.01)]
         tol: f64,
@@ -275,6 +282,13 @@ struct Failure {
 }
 
 impl Failure {
+    /// An error with this exit code.
+    fn new(code: u8, e: impl Display) -> Failure {
+        Failure {
+            code,
+            message: e.to_string(),
+        }
+    }
     /// 3: the input is unreadable or invalid.
     fn input(e: impl Display) -> Failure {
         Failure {
@@ -334,6 +348,99 @@ fn main() -> ExitCode {
 
 /// A curve argument: an existing JSON file, else the name of a built-in
 /// curve ([`planner_host::cli::load_curve`]).
+/// The exit code and message of a failed stream (see [`EXIT_CODES`]).
+fn stream_failure(e: sim_harness::stream::StreamError) -> Failure {
+    use sim_harness::stream::StreamError as E;
+    match e {
+        E::Plan(p) | E::Pipeline(planner_host::stream_pipeline::PipelineError::Plan(p)) => plan_failure(p),
+        e @ (E::RingBytes(_) | E::WindowRows(..) | E::Option(_)) => Failure::input(e),
+        // (an option that does not fit the plan)
+        e @ E::Run(
+            sim_harness::stream::StreamRunError::WindowTooSmall { .. }
+            | sim_harness::stream::StreamRunError::WindowStuck { .. },
+        ) => Failure {
+            code: planner_host::cli::EXIT_USAGE,
+            message: e.to_string(),
+        },
+        E::Program(p) => Failure::new(planner_host::cli::program_exit_code(&p), p),
+        E::Path {
+            index,
+            first_line,
+            last_line,
+            source,
+        } => {
+            let inner = stream_failure(*source);
+            Failure::new(
+                inner.code,
+                format!("LINE {first_line}..{last_line}: path {index}: {}", inner.message),
+            )
+        }
+        e => Failure::from(e.to_string()),
+    }
+}
+
+/// `feedsim stream PART.ngc`: every path streamed in turn.
+fn stream_program_cmd(
+    path: &Path,
+    machine: &planner_host::Machine,
+    opts: &sim_harness::stream::StreamOptions,
+    json: bool,
+) -> Result<(), Failure> {
+    use planner_host::gcode;
+    let bytes =
+        std::fs::read(path).map_err(|e| Failure::input(format!("cannot read {}: {e}", path.display())))?;
+    let prog = gcode::read_bytes(&bytes, gcode::ReadOptions { block_delete: false })
+        .map_err(|e| Failure::input(format!("{}: {e}", path.display())))?;
+    let popts = planner_host::program::ProgramOptions::default();
+    let rep = sim_harness::stream_program::stream_program(&prog, machine, &popts, opts).map_err(|e| {
+        let f = stream_failure(e);
+        Failure::new(f.code, format!("{}: {}", path.display(), f.message))
+    })?;
+    if json {
+        outln!("{}", serde_json::to_string(&rep)?);
+    } else {
+        let r = &rep.ratios;
+        outln!(
+            "{}: {} paths, {:.2} mm streamed in {} chunks, {:.1} bytes/mm framed, over uart:{} with {} ms latency",
+            path.display(), rep.paths, rep.length_mm, rep.chunks, rep.bytes_per_mm, rep.link_baud, rep.latency_ms
+        );
+        outln!(
+            "  planning {:.3} s ({} windows), first motion after {:.1} ms, at rest between paths {:.1} ms in all; machining {:.3} s ({:.0}x the planning time), the plans' own {:.3} s",
+            rep.plan_s, rep.windows, rep.first_motion_ms, rep.waits_ms, rep.machining_time_s, rep.plan_realtime_factor, rep.planned_time_s
+        );
+        outln!(
+            "  ring {} B (peak {} B), window {} pieces (peak {}), longest hold lead {:.1} mm; {} starvation holds, {} ticks starved",
+            rep.ring_bytes, rep.ring_peak_bytes, rep.window_pieces, rep.window_peak_pieces, rep.hold_lead_max_mm, rep.starvations, rep.starved_ticks
+        );
+        outln!(
+            "  ratios (each path against its own limits): vel {:.4} acc {:.4} jerk {:.4} feed {:.4} tacc {:.4} tjerk {:.4}: {}",
+            r.vel,
+            r.acc,
+            r.jerk,
+            r.feed,
+            r.tacc,
+            r.tjerk,
+            if rep.check_ok { "ok" } else { "over the limits" }
+        );
+        for p in rep.path.iter().filter(|p| !p.check_ok) {
+            outln!(
+                "  path {} (LINE {}..{}) over its limits: {:?}",
+                p.index,
+                p.first_line,
+                p.last_line,
+                p.ratios
+            );
+        }
+    }
+    if rep.check_ok {
+        Ok(())
+    } else {
+        Err(Failure::limit(
+            "a streamed setpoint exceeds a limit (see the ratios)",
+        ))
+    }
+}
+
 fn load_curve(arg: &str) -> Result<Nurbs, Failure> {
     planner_host::cli::load_curve(Path::new(arg)).map_err(Failure::input)
 }
@@ -630,6 +737,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
         Cmd::Demo { out } => demo(&out),
         Cmd::Stream {
             curve,
+            machine,
             link,
             latency_ms,
             ring_bytes,
@@ -646,6 +754,9 @@ fn run(cli: Cli) -> Result<(), Failure> {
             tol,
             json,
         } => {
+            let machine =
+                planner_host::cli::load_machine(machine.as_deref(), None).map_err(Failure::input)?;
+            let period_us = period_us.unwrap_or(machine.servo_period_s * 1e6);
             check_period(period_us)?;
             if !(host_slowdown.is_finite() && host_slowdown > 0.0) {
                 return Err(Failure::input(format!(
@@ -688,7 +799,6 @@ fn run(cli: Cli) -> Result<(), Failure> {
                         "--override: expected T:PCT (seconds, percent > 0), in time order, e.g. 1.5:50",
                     )
                 })?;
-            let nurbs = load_curve(&curve)?;
             if host_replan_ms.is_some_and(|h| !(h.is_finite() && h >= 0.0)) {
                 return Err(Failure::input("--host-replan-ms: expected a time ≥ 0"));
             }
@@ -706,23 +816,17 @@ fn run(cli: Cli) -> Result<(), Failure> {
                 tol,
                 host_slowdown,
                 ready_times,
+                host_ahead_s: 0.0,
             };
-            use sim_harness::stream::StreamError as E;
-            let rep = sim_harness::stream::stream_curve(&nurbs, &opts).map_err(|e| match e {
-                E::Plan(p) | E::Pipeline(planner_host::stream_pipeline::PipelineError::Plan(p)) => {
-                    plan_failure(p)
-                }
-                e @ (E::RingBytes(_) | E::WindowRows(..) | E::Option(_)) => Failure::input(e),
-                // (an option that does not fit the plan)
-                e @ E::Run(
-                    sim_harness::stream::StreamRunError::WindowTooSmall { .. }
-                    | sim_harness::stream::StreamRunError::WindowStuck { .. },
-                ) => Failure {
-                    code: planner_host::cli::EXIT_USAGE,
-                    message: e.to_string(),
-                },
-                e => Failure::from(e.to_string()),
-            })?;
+            if planner_host::cli::is_gcode_program(Path::new(&curve)) {
+                return stream_program_cmd(Path::new(&curve), &machine, &opts, json);
+            }
+            let nurbs = load_curve(&curve)?;
+            let base = planner_host::plan::PlanConfig {
+                limits: machine.limits,
+                ..planner_host::plan::PlanConfig::default()
+            };
+            let rep = sim_harness::stream::stream_curve_with(&nurbs, &base, &opts).map_err(stream_failure)?;
             if json {
                 outln!("{}", serde_json::to_string(&rep)?);
             } else {
