@@ -215,8 +215,11 @@ impl ChunkPipeline {
 /// A plan streamed as it was planned ([`plan_and_stream`]).
 #[derive(Debug)]
 pub struct PlannedStream {
-    /// The finished plan (its table, for reference and checks).
+    /// The finished plan (its table, for reference and checks, unless
+    /// planned without: `PlanConfig::table`).
     pub plan: PlanOutput,
+    /// The stream's head as it was sent last (with the stop segment).
+    pub head: StreamHead,
     /// The chunks, hold points written.
     pub chunks: Vec<Vec<u8>>,
     /// Their hold points.
@@ -229,6 +232,10 @@ pub struct PlannedStream {
     /// Wall time until the last hold point was known, s from the start.
     pub done_s: f64,
 }
+
+/// What the hold-point search's thread ends with: the chunks, their hold
+/// points, when the last was known (s from the start), the head sent last.
+type Searched = (Vec<Vec<u8>>, HoldPoints, f64, StreamHead);
 
 /// Why [`plan_and_stream`] failed.
 #[derive(Debug, thiserror::Error)]
@@ -369,33 +376,34 @@ pub fn plan_and_stream_from<const NQ: usize, const NP: usize>(
         // (the window and the dry run's copies of it live on this stack)
         let searcher = std::thread::Builder::new()
             .stack_size(crate::stream_hold::BIG_STACK_BYTES)
-            .spawn_scoped(
-                scope,
-                move || -> Result<(Vec<Vec<u8>>, HoldPoints, f64), PipelineError> {
-                    let mut chunks: Vec<Vec<u8>> = vec![];
-                    let mut search: Option<HoldPointSearch<NQ, NP>> = None;
-                    for m in rx {
-                        match m {
-                            Planned::Head(h) => {
-                                let mut s = HoldPointSearch::new(&h, h.ends, *how, t0);
-                                s.given.clone_from(&given);
-                                search = Some(s);
-                            }
-                            Planned::Stop(h) => {
-                                if let Some(s) = search.as_mut() {
-                                    s.set_ends(h.ends);
-                                }
-                            }
-                            Planned::Chunks(c) => chunks.extend(c),
+            .spawn_scoped(scope, move || -> Result<Searched, PipelineError> {
+                let mut chunks: Vec<Vec<u8>> = vec![];
+                let mut search: Option<HoldPointSearch<NQ, NP>> = None;
+                let mut head: Option<StreamHead> = None;
+                for m in rx {
+                    match m {
+                        Planned::Head(h) => {
+                            let mut s = HoldPointSearch::new(&h, h.ends, *how, t0);
+                            s.given.clone_from(&given);
+                            search = Some(s);
+                            head = Some(h);
                         }
-                        if let Some(s) = search.as_mut() {
-                            s.advance(&chunks)?;
+                        Planned::Stop(h) => {
+                            if let Some(s) = search.as_mut() {
+                                s.set_ends(h.ends);
+                            }
+                            head = Some(h);
                         }
+                        Planned::Chunks(c) => chunks.extend(c),
                     }
-                    let hp = search.ok_or(PipelineError::Head)?.finish()?;
-                    Ok((chunks, hp, t0.elapsed().as_secs_f64()))
-                },
-            );
+                    if let Some(s) = search.as_mut() {
+                        s.advance(&chunks)?;
+                    }
+                }
+                let hp = search.ok_or(PipelineError::Head)?.finish()?;
+                let head = head.ok_or(PipelineError::Head)?;
+                Ok((chunks, hp, t0.elapsed().as_secs_f64(), head))
+            });
         let tx = Mutex::new(tx);
         let plan = plan_in_chunks_from(curve, cfg, opts, change.map(|c| c.0), &|m| {
             if std::env::var_os("FEEDLP_TIME_DEBUG").is_some() {
@@ -419,13 +427,14 @@ pub fn plan_and_stream_from<const NQ: usize, const NP: usize>(
     });
     let plan = plan?;
     let plan_s = plan.total_time_s;
-    let (mut chunks, hold, done_s) = searched.map_err(|_| PipelineError::Thread)??;
+    let (mut chunks, hold, done_s, head) = searched.map_err(|_| PipelineError::Thread)??;
     for (index, (c, &lead)) in chunks.iter_mut().zip(&hold.lead_mm).enumerate() {
         set_commit(c, commit_q20(lead)).map_err(|error| HoldPointError::Chunk { index, error })?;
     }
     let ready_s = hold.known_after_s.clone();
     Ok(PlannedStream {
         plan,
+        head,
         chunks,
         hold,
         ready_s,

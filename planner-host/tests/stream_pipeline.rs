@@ -236,4 +236,19 @@ fn hold_points_alike() {
     );
     assert_eq!(st.hold.s_c_mm, at_once.s_c_mm);
     assert_eq!(st.hold.tests, at_once.tests);
+    // the head it sent last is the table's
+    assert_eq!(st.head, head);
+    // planned without the finished table: nothing of the whole path kept,
+    // the same chunks and hold points
+    let lean = PlanConfig {
+        table: false,
+        ..cfg.clone()
+    };
+    let bare = plan_and_stream::<512, 1024>(&curve, &lean, &opts, &HoldSearch::default()).unwrap();
+    assert!(bare.plan.table_bytes.is_empty() && bare.plan.check_points.is_empty());
+    assert_eq!(bare.plan.table_bytes_len, 0);
+    assert_eq!(bare.chunks, st.chunks);
+    assert_eq!(bare.hold.s_c_mm, st.hold.s_c_mm);
+    assert_eq!(bare.head, st.head);
+    assert_eq!(bare.plan.predicted_time_s, st.plan.predicted_time_s);
 }

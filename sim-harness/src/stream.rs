@@ -27,7 +27,7 @@
 //! Motion starts when the first chunk is in the window; the setpoints'
 //! times are the firmware's own clock from then on.
 
-use firmware_core::interp::{Feeding, Interpolator, SpliceError, Spliced};
+use firmware_core::interp::{Feeding, Interpolator, SpliceError, Spliced, StreamHead};
 use firmware_core::stream::frame::encoded_max_len;
 use firmware_core::stream::{set_seq, Chunk, ChunkRing, PlanWindow};
 use firmware_core::{Setpoint, Table};
@@ -435,10 +435,24 @@ pub fn run_stream_host<const CAP: usize, const NQ: usize, const NP: usize>(
     table: &Table,
     chunks: &[Vec<u8>],
     link: &StreamLink,
-    mut host: Option<&mut dyn StreamHost>,
+    host: Option<&mut dyn StreamHost>,
     each: &mut dyn FnMut(&Setpoint),
 ) -> Result<StreamRun, StreamRunError> {
     let head = stream_head(table).ok_or(StreamRunError::Head)?;
+    run_stream_head::<CAP, NQ, NP>(&head, chunks, link, host, each)
+}
+
+/// [`run_stream_host`] with the plan's head (its limits, ends and end
+/// points) instead of its table: a plan streamed as its windows commit
+/// need not have one.
+pub fn run_stream_head<const CAP: usize, const NQ: usize, const NP: usize>(
+    head: &StreamHead,
+    chunks: &[Vec<u8>],
+    link: &StreamLink,
+    mut host: Option<&mut dyn StreamHost>,
+    each: &mut dyn FnMut(&Setpoint),
+) -> Result<StreamRun, StreamRunError> {
+    let head = *head;
     // the chunks as the host sends them (a splice replaces a tail)
     let mut sent = SentChunks::new(chunks, &link.ready_s);
     // (which of the link's substitutions went out)
@@ -456,7 +470,7 @@ pub fn run_stream_host<const CAP: usize, const NQ: usize, const NP: usize>(
     let mut telemetry: std::collections::VecDeque<(f64, f64, f64)> = Default::default();
     // the end segments of the plan the window holds, and of the splice in
     // flight (its stop segment only once it is taken)
-    let mut stop_ends = table.ends();
+    let mut stop_ends = head.ends;
     let mut splice_ends = None;
     let mut ring: Box<ChunkRing<CAP, 64>> = Box::default();
     // host: the next chunk to send, the last acknowledged, the ring's free
@@ -1215,7 +1229,10 @@ fn stream_through<const Q: usize, const P: usize>(
     // Windows: chunks cut and hold points found as each window commits, the
     // host sending each as soon as it is ready (times from the start of
     // planning). The whole path: planned first, then cut and searched.
-    let (out, chunks, hp, plan_s, hold_points_s, ready_s) = if cfg.windows.is_some() {
+    let (out, head, chunks, hp, plan_s, hold_points_s, ready_s) = if cfg.windows.is_some() {
+        // (no finished table unless the host replans from it: the plan then
+        // keeps nothing of the whole path but its chunks)
+        cfg.table = !o.overrides.is_empty();
         let st = plan_and_stream::<Q, P>(curve, &cfg, &opts, &how)?;
         let mut ready: Vec<f64> = st.ready_s.iter().map(|r| r * o.host_slowdown).collect();
         match &o.ready_times {
@@ -1241,7 +1258,7 @@ fn stream_through<const Q: usize, const P: usize>(
             }
             None => {}
         }
-        (st.plan, st.chunks, st.hold, st.plan_s, st.done_s, ready)
+        (st.plan, st.head, st.chunks, st.hold, st.plan_s, st.done_s, ready)
     } else {
         let t0 = std::time::Instant::now();
         let out = plan_curve(curve, &cfg)?;
@@ -1253,9 +1270,10 @@ fn stream_through<const Q: usize, const P: usize>(
         let hold_points_s = t1.elapsed().as_secs_f64();
         // the host streams as its hold-point search goes, once planned
         let ready = hp.known_after_s.iter().map(|k| plan_s + k).collect();
-        (out, chunks, hp, plan_s, hold_points_s, ready)
+        let head = planner_host::stream_hold::stream_head(&table)
+            .ok_or_else(|| StreamError::Table("the table has no start or end point".into()))?;
+        (out, head, chunks, hp, plan_s, hold_points_s, ready)
     };
-    let table = Table::parse(&out.table_bytes).map_err(|e| StreamError::Table(e.to_string()))?;
     let ready_s: Vec<f64> = ready_s.iter().map(|r| (r - o.host_ahead_s).max(0.0)).collect();
     let link = StreamLink {
         bytes_per_s: o.baud / 10.0,
@@ -1272,20 +1290,19 @@ fn stream_through<const Q: usize, const P: usize>(
     };
     // every setpoint checked as it comes, none kept (an hour's run is
     // 15 million of them)
-    let vbar = table.limits().vbar;
-    let geometry = crate::CurveGeometry::from_table(&table).map_err(|e| StreamError::Table(e.to_string()))?;
+    let vbar = head.limits.vbar;
     // (a change above the programmed feed raises the feed limit)
     let top = o.overrides.iter().fold(1.0f64, |m, &(_, a)| m.max(a));
     let check = crate::CheckConfig {
         limits: planner_host::Limits {
             vbar: vbar * top,
-            ..table.limits()
+            ..head.limits
         },
         pad_rest: 50,
         tol: o.tol,
         ..Default::default()
     };
-    let mut checker = crate::check::OnlineCheck::new(&geometry.curve, &check, o.period_s)
+    let mut checker = crate::check::OnlineCheck::new(curve, &check, o.period_s)
         .map_err(|e| StreamError::Check(e.to_string()))?;
     let mut last_t_s = 0.0;
     let mut ends_mm: Option<[[f64; 3]; 2]> = None;
@@ -1316,21 +1333,14 @@ fn stream_through<const Q: usize, const P: usize>(
     // live on its stack, several megabytes)
     let run = planner_host::stream_hold::on_big_stack(|| {
         let host = host.as_mut().map(|h| h as &mut dyn StreamHost);
-        run_sized::<Q, P>(
-            &table,
-            &chunks,
-            &link,
-            o.ring_bytes,
-            host,
-            &mut |sp: &Setpoint| {
-                checker.push(sp.t_s, sp.pos_mm);
-                last_t_s = sp.t_s;
-                ends_mm.get_or_insert([sp.pos_mm; 2])[1] = sp.pos_mm;
-                if !o.overrides.is_empty() {
-                    feeds.push((sp.t_s, sp.feed_mm_s, sp.s_mm));
-                }
-            },
-        )
+        run_sized::<Q, P>(&head, &chunks, &link, o.ring_bytes, host, &mut |sp: &Setpoint| {
+            checker.push(sp.t_s, sp.pos_mm);
+            last_t_s = sp.t_s;
+            ends_mm.get_or_insert([sp.pos_mm; 2])[1] = sp.pos_mm;
+            if !o.overrides.is_empty() {
+                feeds.push((sp.t_s, sp.feed_mm_s, sp.s_mm));
+            }
+        })
     })
     .ok_or_else(|| StreamError::Option("the run's thread failed to start or panicked".into()))??;
     // each change's feed limit from where it holds to where the next that
@@ -1356,14 +1366,14 @@ fn stream_through<const Q: usize, const P: usize>(
     let r = &rep.ratios;
     Ok(StreamReport {
         schema_version: 1,
-        length_mm: table.path_length_mm(),
+        length_mm: out.path_length_mm,
         plan_s,
         windows: out.windows.as_ref().map_or(0, |w| w.windows),
         hold_points_s,
         first_motion_ms: run.first_motion_s * 1e3,
         plan_realtime_factor: machining_time_s / plan_s,
         chunks: run.chunks,
-        bytes_per_mm: run.framed_bytes as f64 / table.path_length_mm(),
+        bytes_per_mm: run.framed_bytes as f64 / out.path_length_mm,
         link_baud: o.baud,
         latency_ms: o.latency_s * 1e3,
         ring_bytes: o.ring_bytes,
@@ -1374,7 +1384,7 @@ fn stream_through<const Q: usize, const P: usize>(
         starvations: run.starvations,
         starved_ticks: run.starved_ticks,
         machining_time_s,
-        planned_time_s: table.predicted_time_s(),
+        planned_time_s: out.predicted_time_s,
         ratios: planner_host::Ratios {
             vel: r.vel.ratio,
             acc: r.acc.ratio,
@@ -1393,7 +1403,7 @@ fn stream_through<const Q: usize, const P: usize>(
 /// [`run_stream`] with a ring of `ring_bytes` (a power of two, 4096 ..= 1 MiB)
 /// and a window of `Q` q spans and `P` pieces.
 fn run_sized<const Q: usize, const P: usize>(
-    table: &Table,
+    head: &StreamHead,
     chunks: &[Vec<u8>],
     link: &StreamLink,
     ring_bytes: usize,
@@ -1401,14 +1411,14 @@ fn run_sized<const Q: usize, const P: usize>(
     each: &mut dyn FnMut(&Setpoint),
 ) -> Result<StreamRun, StreamError> {
     Ok(match ring_bytes {
-        4096 => run_stream_host::<4096, Q, P>(table, chunks, link, host, each),
-        8192 => run_stream_host::<8192, Q, P>(table, chunks, link, host, each),
-        16384 => run_stream_host::<16384, Q, P>(table, chunks, link, host, each),
-        32768 => run_stream_host::<32768, Q, P>(table, chunks, link, host, each),
-        65536 => run_stream_host::<65536, Q, P>(table, chunks, link, host, each),
-        131072 => run_stream_host::<131072, Q, P>(table, chunks, link, host, each),
-        262144 => run_stream_host::<262144, Q, P>(table, chunks, link, host, each),
-        524288 => run_stream_host::<524288, Q, P>(table, chunks, link, host, each),
-        _ => run_stream_host::<1048576, Q, P>(table, chunks, link, host, each),
+        4096 => run_stream_head::<4096, Q, P>(head, chunks, link, host, each),
+        8192 => run_stream_head::<8192, Q, P>(head, chunks, link, host, each),
+        16384 => run_stream_head::<16384, Q, P>(head, chunks, link, host, each),
+        32768 => run_stream_head::<32768, Q, P>(head, chunks, link, host, each),
+        65536 => run_stream_head::<65536, Q, P>(head, chunks, link, host, each),
+        131072 => run_stream_head::<131072, Q, P>(head, chunks, link, host, each),
+        262144 => run_stream_head::<262144, Q, P>(head, chunks, link, host, each),
+        524288 => run_stream_head::<524288, Q, P>(head, chunks, link, host, each),
+        _ => run_stream_head::<1048576, Q, P>(head, chunks, link, host, each),
     }?)
 }

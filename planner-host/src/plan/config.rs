@@ -92,6 +92,14 @@ pub struct PlanConfig {
     /// one sequence over the whole path.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub windows: Option<WindowConfig>,
+    /// Encode the firmware table at the end (`PlanOutput::table_bytes`). A
+    /// host that streams the chunks cut from the windows' commits
+    /// ([`crate::stream_pipeline`]) needs none: without it the plan keeps
+    /// neither the table nor its fitted pieces nor the check points
+    /// (`PlanOutput::table_bytes` and `check_points` stay empty), whose
+    /// memory grows with the path. Override levels and replans need them.
+    #[serde(skip)]
+    pub table: bool,
 }
 
 fn display<S: serde::Serializer, T: std::fmt::Display>(v: &T, s: S) -> Result<S::Ok, S::Error> {
@@ -118,6 +126,7 @@ impl Default for PlanConfig {
             override_levels: Vec::new(),
             feed_profile: None,
             windows: None,
+            table: true,
         }
     }
 }

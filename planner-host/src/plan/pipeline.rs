@@ -455,64 +455,49 @@ fn plan_curve_inner(
         ends,
         predicted_time_s,
     } = base;
-    let check_points: Vec<(f64, bool)> =
-        checks.unwrap_or_else(|| pts.iter().zip(&forced).map(|(p, &f)| (p.s, f)).collect());
+    let check_points: Vec<(f64, bool)> = match cfg.table {
+        true => checks.unwrap_or_else(|| pts.iter().zip(&forced).map(|(p, &f)| (p.s, f)).collect()),
+        // (a streaming host's plan: nothing of the whole path kept)
+        false => Vec::new(),
+    };
+    drop((pts, forced));
 
-    let homogeneous = curve.to_homogeneous_table();
-    let level_parts: Vec<table::LevelParts> = levels
-        .iter()
-        .map(|l| table::LevelParts {
-            alpha: l.percent / 100.0,
-            ctrl: &l.ctrl,
-            ends: l.ends,
-        })
-        .collect();
-    let parts = TableParts {
-        // (a replan's q may reach the higher factor's feed, or an earlier one's)
-        limits: match &feed_change {
-            Some(f) => Limits {
-                vbar: (f.profile.max()).max(ctrl.iter().fold(0.0f64, |m, &a| m.max(a)).sqrt()),
-                ..cfg.limits
-            },
-            None => cfg.limits,
-        },
-        path_length_mm: length,
-        predicted_time_s,
-        nurbs_degree: curve.degree as u32,
-        nurbs_knots: &curve.knots,
-        nurbs_points: &homogeneous,
-        su_breaks: &su.breaks,
-        su_segments: &su.segments,
-        q_knots: &knots,
-        q_ctrl: &ctrl,
-        ends,
-        levels: &level_parts,
-        pieces: None,
+    let bytes = match cfg.table {
+        true => {
+            let homogeneous = curve.to_homogeneous_table();
+            let level_parts: Vec<table::LevelParts> = levels
+                .iter()
+                .map(|l| table::LevelParts {
+                    alpha: l.percent / 100.0,
+                    ctrl: &l.ctrl,
+                    ends: l.ends,
+                })
+                .collect();
+            encode_table(&TableParts {
+                // (a replan's q may reach the higher factor's feed, or an earlier one's)
+                limits: match &feed_change {
+                    Some(f) => Limits {
+                        vbar: (f.profile.max()).max(ctrl.iter().fold(0.0f64, |m, &a| m.max(a)).sqrt()),
+                        ..cfg.limits
+                    },
+                    None => cfg.limits,
+                },
+                path_length_mm: length,
+                predicted_time_s,
+                nurbs_degree: curve.degree as u32,
+                nurbs_knots: &curve.knots,
+                nurbs_points: &homogeneous,
+                su_breaks: &su.breaks,
+                su_segments: &su.segments,
+                q_knots: &knots,
+                q_ctrl: &ctrl,
+                ends,
+                levels: &level_parts,
+                pieces: None,
+            })?
+        }
+        false => Vec::new(),
     };
-    // The pieces fitted once, on both cores, in fixed ranges of knot-span
-    // groups (the result does not depend on the thread count).
-    let groups = table::piece_groups(&parts);
-    let step = groups.div_ceil(PIECE_RANGES).max(1);
-    let ranges: Vec<(usize, usize)> = (0..groups)
-        .step_by(step)
-        .map(|lo| (lo, (lo + step).min(groups)))
-        .collect();
-    let pieces: Vec<table::FittedPiece> = ranges
-        .par_iter()
-        .map(|&r| {
-            let mut v = Vec::new();
-            table::fit_pieces(&parts, r, |p| v.push(p));
-            v
-        })
-        .collect::<Vec<_>>()
-        .concat();
-    let parts = TableParts {
-        pieces: Some(&pieces),
-        ..parts
-    };
-    let mut bytes = vec![0u8; table::encoded_len(&parts)];
-    let written = table::encode(&parts, &mut bytes).map_err(PlanError::Table)?;
-    bytes.truncate(written);
     dbg_t("table");
 
     Ok(PlanOutput {
@@ -542,6 +527,35 @@ fn plan_curve_inner(
         levels,
         feed_change,
     })
+}
+
+/// The table of `parts`, its pieces fitted once, on both cores, in fixed
+/// ranges of knot-span groups (the result does not depend on the thread
+/// count).
+fn encode_table(parts: &TableParts) -> Result<Vec<u8>, PlanError> {
+    let groups = table::piece_groups(parts);
+    let step = groups.div_ceil(PIECE_RANGES).max(1);
+    let ranges: Vec<(usize, usize)> = (0..groups)
+        .step_by(step)
+        .map(|lo| (lo, (lo + step).min(groups)))
+        .collect();
+    let pieces: Vec<table::FittedPiece> = ranges
+        .par_iter()
+        .map(|&r| {
+            let mut v = Vec::new();
+            table::fit_pieces(parts, r, |p| v.push(p));
+            v
+        })
+        .collect::<Vec<_>>()
+        .concat();
+    let parts = TableParts {
+        pieces: Some(&pieces),
+        ..*parts
+    };
+    let mut bytes = vec![0u8; table::encoded_len(&parts)];
+    let written = table::encode(&parts, &mut bytes).map_err(PlanError::Table)?;
+    bytes.truncate(written);
+    Ok(bytes)
 }
 
 /// The LP stage of a plan on `knots`, `done` of its `steps` finished.

@@ -236,7 +236,10 @@ impl LpStage<'_> {
         let mut stats = WindowStats::default();
         let mut lps: Vec<LpStats> = Vec::new();
         // the committed check points' s (all forced: every row is in every LP)
+        // the committed check points, for the override levels and the
+        // output (a plan without its table keeps nothing of the whole path)
         let mut all_pts: Vec<f64> = Vec::new();
+        let keep_pts = cfg.table || !cfg.override_levels.is_empty();
         let mut rounds = 0;
         let t_all = Instant::now();
         loop {
@@ -450,7 +453,9 @@ impl LpStage<'_> {
             if last {
                 committed[i_l + 1..].copy_from_slice(&plan.ctrl[i_l + 1..]);
                 self.tell_commit(end_rows.as_ref(), &committed, n - 1, true);
-                all_pts.extend(pts.iter().map(|p| p.s));
+                if keep_pts {
+                    all_pts.extend(pts.iter().map(|p| p.s));
+                }
                 stats.windows += 1;
                 if stats.windows == 1 {
                     stats.first_window_s = dt;
@@ -467,7 +472,9 @@ impl LpStage<'_> {
                 .filter(|(p, &f)| f && p.s >= s_commit)
                 .map(|(p, _)| shift(p, false))
                 .collect();
-            all_pts.extend(pts.iter().filter(|p| p.s < s_commit).map(|p| p.s));
+            if keep_pts {
+                all_pts.extend(pts.iter().filter(|p| p.s < s_commit).map(|p| p.s));
+            }
             // the next window's first linearisation point: this plan up to
             // halfway between its commit and its end (before its braking),
             // q̂ beyond
