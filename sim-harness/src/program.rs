@@ -37,6 +37,11 @@ use crate::run::{run_table, SimConfig, SimError};
 /// first, mm.
 pub const JOIN_TOL_MM: f64 = 1e-9;
 
+/// The distance between two positions, mm (a join's gap).
+pub(crate) fn distance_mm(a: [f64; 3], b: [f64; 3]) -> f64 {
+    (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>().sqrt()
+}
+
 /// Why a program could not be run.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
@@ -198,10 +203,7 @@ pub fn run_program(bytes: &[u8], cfg: &SimConfig) -> Result<ProgramRun, ProgramR
         };
         let offset = match (run.ticks.last(), run.paths.last()) {
             (Some(prev), Some(pp)) => {
-                let d = (0..3)
-                    .map(|k| (prev.cmd_mm[k] - first.cmd_mm[k]).powi(2))
-                    .sum::<f64>()
-                    .sqrt();
+                let d = distance_mm(prev.cmd_mm, first.cmd_mm);
                 if d.is_nan() || d > JOIN_TOL_MM {
                     return Err(ProgramRunError::Gap {
                         index,

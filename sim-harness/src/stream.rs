@@ -1231,7 +1231,7 @@ fn stream_through<const Q: usize, const P: usize>(
     // planning). The whole path: planned first, then cut and searched.
     let (out, head, chunks, hp, plan_s, hold_points_s, ready_s) = if cfg.windows.is_some() {
         // (no finished table unless the host replans from it: the plan then
-        // keeps nothing of the whole path but its chunks)
+        // keeps of the whole path only q, the s → u map and the chunks)
         cfg.table = !o.overrides.is_empty();
         let st = plan_and_stream::<Q, P>(curve, &cfg, &opts, &how)?;
         let mut ready: Vec<f64> = st.ready_s.iter().map(|r| r * o.host_slowdown).collect();

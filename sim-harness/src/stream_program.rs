@@ -31,7 +31,7 @@ use planner_host::program::{
 use planner_host::{Machine, Ratios};
 use serde::Serialize;
 
-use crate::program::JOIN_TOL_MM;
+use crate::program::{distance_mm, JOIN_TOL_MM};
 use crate::stream::{stream_curve_with, StreamError, StreamOptions};
 
 /// One path of a streamed program.
@@ -197,12 +197,7 @@ pub fn stream_program(
             source: Box::new(e),
         })?;
         if let Some((end, prev_index, prev_last_line)) = prev_end {
-            let d = rep.ends_mm[0]
-                .iter()
-                .zip(&end)
-                .map(|(a, b)| (a - b) * (a - b))
-                .sum::<f64>()
-                .sqrt();
+            let d = distance_mm(rep.ends_mm[0], end);
             if d.is_nan() || d > JOIN_TOL_MM {
                 return Err(StreamError::Gap {
                     index,

@@ -346,8 +346,6 @@ fn main() -> ExitCode {
     }
 }
 
-/// A curve argument: an existing JSON file, else the name of a built-in
-/// curve ([`planner_host::cli::load_curve`]).
 /// The exit code and message of a failed stream (see [`EXIT_CODES`]).
 fn stream_failure(e: sim_harness::stream::StreamError) -> Failure {
     use sim_harness::stream::StreamError as E;
@@ -379,6 +377,29 @@ fn stream_failure(e: sim_harness::stream::StreamError) -> Failure {
     }
 }
 
+/// A stream's ring and window line: (capacity, peak) of each, the longest
+/// hold lead, (starvation holds, ticks starved).
+fn ring_text(ring: (usize, usize), window: (usize, usize), lead_mm: f64, starved: (u64, u64)) -> String {
+    format!(
+        "  ring {} B (peak {} B), window {} pieces (peak {}), longest hold lead {lead_mm:.1} mm; {} starvation holds, {} ticks starved",
+        ring.0, ring.1, window.0, window.1, starved.0, starved.1
+    )
+}
+
+/// A stream's ratios line.
+fn ratios_text(label: &str, r: &planner_host::Ratios, ok: bool) -> String {
+    format!(
+        "  {label}: vel {:.4} acc {:.4} jerk {:.4} feed {:.4} tacc {:.4} tjerk {:.4}: {}",
+        r.vel,
+        r.acc,
+        r.jerk,
+        r.feed,
+        r.tacc,
+        r.tjerk,
+        if ok { "ok" } else { "over the limits" }
+    )
+}
+
 /// `feedsim stream PART.ngc`: every path streamed in turn.
 fn stream_program_cmd(
     path: &Path,
@@ -399,7 +420,6 @@ fn stream_program_cmd(
     if json {
         outln!("{}", serde_json::to_string(&rep)?);
     } else {
-        let r = &rep.ratios;
         outln!(
             "{}: {} paths, {:.2} mm streamed in {} chunks, {:.1} bytes/mm framed, over uart:{} with {} ms latency",
             path.display(), rep.paths, rep.length_mm, rep.chunks, rep.bytes_per_mm, rep.link_baud, rep.latency_ms
@@ -409,18 +429,21 @@ fn stream_program_cmd(
             rep.plan_s, rep.windows, rep.first_motion_ms, rep.waits_ms, rep.machining_time_s, rep.plan_realtime_factor, rep.planned_time_s
         );
         outln!(
-            "  ring {} B (peak {} B), window {} pieces (peak {}), longest hold lead {:.1} mm; {} starvation holds, {} ticks starved",
-            rep.ring_bytes, rep.ring_peak_bytes, rep.window_pieces, rep.window_peak_pieces, rep.hold_lead_max_mm, rep.starvations, rep.starved_ticks
+            "{}",
+            ring_text(
+                (rep.ring_bytes, rep.ring_peak_bytes),
+                (rep.window_pieces, rep.window_peak_pieces),
+                rep.hold_lead_max_mm,
+                (rep.starvations, rep.starved_ticks)
+            )
         );
         outln!(
-            "  ratios (each path against its own limits): vel {:.4} acc {:.4} jerk {:.4} feed {:.4} tacc {:.4} tjerk {:.4}: {}",
-            r.vel,
-            r.acc,
-            r.jerk,
-            r.feed,
-            r.tacc,
-            r.tjerk,
-            if rep.check_ok { "ok" } else { "over the limits" }
+            "{}",
+            ratios_text(
+                "ratios (each path against its own limits)",
+                &rep.ratios,
+                rep.check_ok
+            )
         );
         for p in rep.path.iter().filter(|p| !p.check_ok) {
             outln!(
@@ -441,6 +464,8 @@ fn stream_program_cmd(
     }
 }
 
+/// A curve argument: an existing JSON file, else the name of a built-in
+/// curve ([`planner_host::cli::load_curve`]).
 fn load_curve(arg: &str) -> Result<Nurbs, Failure> {
     planner_host::cli::load_curve(Path::new(arg)).map_err(Failure::input)
 }
@@ -830,7 +855,6 @@ fn run(cli: Cli) -> Result<(), Failure> {
             if json {
                 outln!("{}", serde_json::to_string(&rep)?);
             } else {
-                let r = &rep.ratios;
                 outln!(
                     "{}: {:.2} mm streamed in {} chunks, {:.1} bytes/mm framed, over uart:{} with {} ms latency",
                     curve, rep.length_mm, rep.chunks, rep.bytes_per_mm, rep.link_baud, rep.latency_ms
@@ -840,19 +864,15 @@ fn run(cli: Cli) -> Result<(), Failure> {
                     rep.plan_s, rep.windows, rep.hold_points_s, rep.first_motion_ms, rep.machining_time_s, rep.plan_realtime_factor, rep.planned_time_s
                 );
                 outln!(
-                    "  ring {} B (peak {} B), window {} pieces (peak {}), longest hold lead {:.1} mm; {} starvation holds, {} ticks starved",
-                    rep.ring_bytes, rep.ring_peak_bytes, rep.window_pieces, rep.window_peak_pieces, rep.hold_lead_max_mm, rep.starvations, rep.starved_ticks
+                    "{}",
+                    ring_text(
+                        (rep.ring_bytes, rep.ring_peak_bytes),
+                        (rep.window_pieces, rep.window_peak_pieces),
+                        rep.hold_lead_max_mm,
+                        (rep.starvations, rep.starved_ticks)
+                    )
                 );
-                outln!(
-                    "  ratios: vel {:.4} acc {:.4} jerk {:.4} feed {:.4} tacc {:.4} tjerk {:.4}: {}",
-                    r.vel,
-                    r.acc,
-                    r.jerk,
-                    r.feed,
-                    r.tacc,
-                    r.tjerk,
-                    if rep.check_ok { "ok" } else { "over the limits" }
-                );
+                outln!("{}", ratios_text("ratios", &rep.ratios, rep.check_ok));
                 for o in &rep.overrides {
                     let at = |t: Option<f64>| t.map_or("never".to_string(), |t| format!("{t:.3} s"));
                     outln!(
