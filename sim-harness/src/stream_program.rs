@@ -22,7 +22,9 @@
 //!   last setpoint (as in [`crate::program`]), its motion after its wait.
 //! - **Not yet.** Feed changes, link stalls and replayed ready times belong
 //!   to one path's stream and are refused for a program
-//!   ([`StreamError::Option`]).
+//!   ([`StreamError::Option`]). Program stops (M0, M1) do not pause the
+//!   stream, and the next path's head and chunks wait for the path before
+//!   it to end instead of filling the ring while it runs.
 
 use planner_host::gcode::Program;
 use planner_host::program::{
@@ -211,7 +213,8 @@ pub fn stream_program(
         prev_end = Some((rep.ends_mm[1], index, p.last_line));
         let wait_s = rep.first_motion_ms * 1e-3;
         let start_s = machine_s + wait_s;
-        host_s += rep.plan_s;
+        // (a slower host's planning: its chunks' ready times are stretched too)
+        host_s += rep.plan_s * if o.windows.is_some() { o.host_slowdown } else { 1.0 };
         machine_s = start_s + rep.machining_time_s + o.period_s;
         if i == 0 {
             sum.first_motion_ms = rep.first_motion_ms;
