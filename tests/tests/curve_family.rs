@@ -393,6 +393,65 @@ fn runs_that_exceeded_or_stalled_now_hold_every_limit() {
     assert!(bad.is_empty(), "{}", bad.join("\n"));
 }
 
+/// A path no longer than a window, streamed (planned whole and told in one
+/// commit), is retried on its sampling bisected where the plan without
+/// commits is: fam1_30_weights PAR 1 (q collapsed between two curvature
+/// caps, above), which plans only on bisected spans, gives the same q in
+/// one last commit as its plan without commits.
+#[test]
+fn a_path_planned_whole_with_commits_is_retried_on_bisected_spans() {
+    let mut retried = 0;
+    let mut bad = Vec::new();
+    for (index, sampling, density) in REGRESSIONS.into_iter().filter(|r| r.0 == 30) {
+        let (case, _, sampling, name) = regression_case(index, sampling, density);
+        let Some(plan) = planned(&case, sampling, density, &name, &mut bad) else {
+            continue;
+        };
+        if plan.knot_bisections == 0 {
+            continue;
+        }
+        retried += 1;
+        let cfg = planner_host::plan::PlanConfig {
+            sampling,
+            density_per_mm: density,
+            windows: Some(planner_host::plan::WindowConfig {
+                window_mm: plan.path_length_mm + 1.0,
+                commit_mm: plan.path_length_mm / 2.0,
+            }),
+            ..planner_host::plan::PlanConfig::default()
+        };
+        let commits = std::sync::Mutex::new(Vec::new());
+        let sink = |c: &planner_host::plan::Commit| {
+            commits.lock().unwrap().push((c.last, c.through, c.ctrl.to_vec()));
+        };
+        match planner_host::plan::plan_curve_committing(&case.curve, &cfg, &sink) {
+            Ok(p) => {
+                let commits = commits.into_inner().unwrap();
+                if p.knot_bisections != plan.knot_bisections || p.q_ctrl != plan.q_ctrl {
+                    bad.push(format!(
+                        "{name}: {} bisection(s) and {} control points streamed, {} and {} without commits",
+                        p.knot_bisections,
+                        p.q_ctrl.len(),
+                        plan.knot_bisections,
+                        plan.q_ctrl.len()
+                    ));
+                }
+                let one = matches!(commits.as_slice(),
+                    [(true, through, ctrl)] if *through + 1 == plan.q_ctrl.len() && *ctrl == plan.q_ctrl);
+                if !one {
+                    bad.push(format!(
+                        "{name}: {} commit(s), not the plan in one",
+                        commits.len()
+                    ));
+                }
+            }
+            Err(e) => bad.push(format!("{name} streamed: {e}")),
+        }
+    }
+    assert!(retried > 0, "no regression needs its spans bisected any more");
+    assert!(bad.is_empty(), "{}", bad.join("\n"));
+}
+
 /// Runs of seed 1 on C1 joins (degree 3, a curvature jump at each C1 knot
 /// with a cap q(s) ≤ q_cap on the feed) whose plans went through the
 /// jumps too fast: at the jumps of fam1_191 (q_cap 9.08 and 1.85 mm²/s²)

@@ -121,7 +121,8 @@ impl Drop for Fill<'_> {
 /// beside the windows, span by span of the toolpath: each commit carries
 /// the map so far, and waits until it reaches as far as q is final. A plan whose windows fail is not
 /// retried on a finer sampling, as [`plan_curve`] does: what was committed
-/// may already have left.
+/// may already have left; a path no longer than a window, planned whole and
+/// told in one commit after it succeeded, is retried as there.
 pub fn plan_curve_committing(
     curve: &Nurbs,
     cfg: &PlanConfig,
@@ -372,7 +373,9 @@ fn plan_curve_inner(
                 Err(PlanError::Stall { .. } | PlanError::Lp(_))
                     if cfg.formulation == Formulation::Certified
                         && bisections < KNOT_RETRIES
-                        && on_commit.is_none()
+                        // (a path planned whole tells its one commit
+                        // only when it succeeded: nothing has left yet)
+                        && (on_commit.is_none() || whole)
                         && resume.is_none() =>
                 {
                     retry_samples = bisect_all(&retry_samples);
