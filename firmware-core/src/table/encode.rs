@@ -48,7 +48,8 @@ fn section_sizes(parts: &TableParts) -> [(Section, usize, usize); N_KNOWN] {
     // fitting the pieces is the costly part of encoding: count them once
     let np = match parts.pieces {
         Some(p) => p.len(),
-        None => n_pieces(&fit_input(parts)),
+        None if fittable(parts) => n_pieces(&fit_input(parts)),
+        None => 0,
     };
     let sz = |s: Section, count: usize| (s, count, count.saturating_mul(s.element_len()));
     [
@@ -130,6 +131,15 @@ pub fn fit_pieces(parts: &TableParts, (lo, hi): (usize, usize), mut f: impl FnMu
             data: piece.copied(),
         })
     });
+}
+
+/// Whether the pieces can be fitted at all: every NURBS weight > 0. A
+/// weight ≤ 0 (or NaN) puts a pole on the path, where the fit bisects each
+/// piece to its depth limit (a minute for one bad weight on a 12-point
+/// line); the table is then written without pieces and the parse-back
+/// names the weight ([`TableError::Weight`](crate::table::TableError)).
+fn fittable(parts: &TableParts) -> bool {
+    parts.nurbs_points.iter().all(|p| p[3] > 0.0)
 }
 
 fn fit_input<'a>(parts: &TableParts<'a>) -> FitInput<'a> {
@@ -377,7 +387,8 @@ pub fn encode(parts: &TableParts, out: &mut [u8]) -> Result<usize, EncodeError> 
                 };
                 match parts.pieces {
                     Some(p) => p.iter().for_each(|fp| put(fp.start, fp.data.as_ref())),
-                    None => all_pieces(&fit_input(parts), |sa, _, piece| put(sa, piece)),
+                    None if fittable(parts) => all_pieces(&fit_input(parts), |sa, _, piece| put(sa, piece)),
+                    None => {}
                 }
                 res?;
                 if let Some(&l) = parts.su_breaks.last() {
