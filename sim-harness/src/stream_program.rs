@@ -22,9 +22,11 @@
 //!   last setpoint (as in [`crate::program`]), its motion after its wait.
 //! - **Not yet.** Feed changes, link stalls and replayed ready times belong
 //!   to one path's stream and are refused for a program
-//!   ([`StreamError::Option`]). Program stops (M0, M1) do not pause the
-//!   stream, and the next path's head and chunks wait for the path before
-//!   it to end instead of filling the ring while it runs.
+//!   ([`StreamError::Option`]). At a program stop (M0, M1) the machine is
+//!   at rest (a path ends there, [`planner_host::program::paths_for`]), but
+//!   the stream does not wait for a cycle start; and the next path's head
+//!   and chunks wait for the path before it to end instead of filling the
+//!   ring while it runs.
 
 use planner_host::gcode::Program;
 use planner_host::program::{

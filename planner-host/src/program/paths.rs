@@ -13,9 +13,13 @@
 //!   `crate::lp::feed_profile`; feeds above the machine's feed limit count
 //!   as the limit, [`paths_for`]);
 //! - the move ending the run is not under G61 (exact stop: the machine
-//!   stops at the end of every move).
+//!   stops at the end of every move);
+//! - no program stop (M0, M1: [`program_stops`]) comes between the two
+//!   moves, on the first one's line or after it (a stop word acts after
+//!   the block's motion): the machine comes to rest where the program
+//!   pauses, as LinuxCNC's does, however smooth the path goes on.
 //!
-//! Anything else — a corner, a rapid, G61 — ends the path: the machine
+//! Anything else — a corner, a rapid, G61, M0 — ends the path: the machine
 //! stops there, except inside a run of chords.
 //!
 //! **Runs of chords under `G64 P tol`.** Consecutive G1 lines under a path
@@ -279,7 +283,12 @@ pub fn paths_for(program: &Program, opts: &PathOptions) -> Result<Paths, PathErr
     let mut warned_curve_corner = false;
     let mut open: Option<Open> = None;
     let mut prev_exact_stop = false;
+    let stops = program_stops(program);
+    let mut prev_line: Option<usize> = None;
     for m in &moves {
+        // a program stop on the previous move's line or between the two
+        let paused = prev_line.is_some_and(|a| stops.iter().any(|&s| a <= s && s < m.line));
+        prev_line = Some(m.line);
         if let PathControl::Continuous {
             tolerance_mm,
             naive_cam_tolerance_mm,
@@ -319,7 +328,7 @@ pub fn paths_for(program: &Program, opts: &PathOptions) -> Result<Paths, PathErr
         // what the open path becomes: None (a stop before m), or its run
         // tolerance after m joins (Some(None): not a run of chords)
         let joined: Option<Option<f64>> = match &open {
-            Some(o) if kind == PathKind::Feed && o.kind == PathKind::Feed && !prev_exact_stop => {
+            Some(o) if kind == PathKind::Feed && o.kind == PathKind::Feed && !prev_exact_stop && !paused => {
                 let turn = match (
                     o.pieces.last().and_then(|p| p.1.end_tangent()),
                     piece.start_tangent(),
@@ -405,6 +414,18 @@ pub fn paths_for(program: &Program, opts: &PathOptions) -> Result<Paths, PathErr
         close_into(o, &mut out)?;
     }
     Ok(out)
+}
+
+/// The lines of the program stops (M0, M1) of `program`, in order: the
+/// machine comes to rest there ([`paths_for`] ends a path at each) and the
+/// program file lists them between its paths.
+pub fn program_stops(program: &Program) -> Vec<usize> {
+    program
+        .program_control
+        .iter()
+        .filter(|n| matches!(n.word.as_str(), "M0" | "M1" | "M00" | "M01"))
+        .map(|n| n.line)
+        .collect()
 }
 
 /// Close an open path: a run of chords is fitted (its corners kept as

@@ -22,7 +22,7 @@ use crate::lp::feed_profile::FeedProfile;
 use crate::machine::Machine;
 use crate::plan::{plan_curve, PlanConfig, PlanError};
 use crate::program::file::{Entry, EntryKind, FilePiece, ProgramFile};
-use crate::program::paths::{paths_for, Path, PathError, PathKind, PathOptions};
+use crate::program::paths::{paths_for, program_stops, Path, PathError, PathKind, PathOptions};
 use crate::program::travel::{check_travel, TravelError};
 
 /// Fewest sampling points of a path.
@@ -165,12 +165,7 @@ pub fn plan_program(
         .map(|(i, p)| plan_path(i + 1, p, machine, opts))
         .collect();
     let paths = planned.into_iter().collect::<Result<Vec<_>, _>>()?;
-    let stops = program
-        .program_control
-        .iter()
-        .filter(|n| n.word == "M0" || n.word == "M1" || n.word == "M00" || n.word == "M01")
-        .map(|n| n.line)
-        .collect();
+    let stops = program_stops(program);
     let mut warnings = program.warnings.clone();
     warnings.extend(made.warnings);
     Ok(PlannedProgram {

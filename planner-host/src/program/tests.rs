@@ -391,6 +391,28 @@ mod planned {
     }
 
     #[test]
+    fn program_stops_end_a_tangent_path_at_rest() {
+        // three collinear lines at one feed: one path without the stops; an
+        // M0 between two blocks, and an M1 on a block's own line (it acts
+        // after the block's motion), each end the path there
+        let smooth = "G21 G17 F600\nG1 X10\nG1 X20\nG1 X30\nM2\n";
+        let (_, p) = super::read(smooth);
+        assert_eq!(p.paths.len(), 1);
+        let text = "G21 G17 F600\nG1 X10\nM0\nG1 X20 M1\nG1 X30\nM2\n";
+        let prog = read_str(text, ReadOptions::default()).unwrap();
+        let machine = Machine::table1();
+        let p = plan_program(&prog, &machine, &ProgramOptions::default()).unwrap();
+        let lines: Vec<(usize, usize)> = p.paths.iter().map(|p| (p.first_line, p.last_line)).collect();
+        assert_eq!(lines, vec![(2, 2), (4, 4), (5, 5)]);
+        assert_eq!(p.stops, vec![3, 4]);
+        let ends: Vec<f64> = p.paths.iter().map(|p| p.length_mm).collect();
+        assert!(ends.iter().all(|l| (l - 10.0).abs() < 1e-9), "{ends:?}");
+        // the program file: path, stop, path, stop, path
+        let kinds: Vec<u8> = p.file().entries.iter().map(|e| e.kind as u8).collect();
+        assert_eq!(kinds, vec![1, 3, 1, 3, 1]);
+    }
+
+    #[test]
     fn feeds_above_the_machine_are_capped_and_rapids_use_the_rapid_velocity() {
         let machine = Machine::from_toml_str(
             "[traj]\nmax_linear_velocity = 50\nrapid_velocity = 120\n",
