@@ -14,12 +14,13 @@
 //!   as the limit, [`paths_for`]);
 //! - the move ending the run is not under G61 (exact stop: the machine
 //!   stops at the end of every move);
-//! - no program stop (M0, M1: [`program_stops`]) comes between the two
-//!   moves, on the first one's line or after it (a stop word acts after
-//!   the block's motion): the machine comes to rest where the program
-//!   pauses, as LinuxCNC's does, however smooth the path goes on.
+//! - no program stop (M0, M1: [`program_stops`]) and no tool change (M6)
+//!   comes between the two moves, on the first one's line or after it (a
+//!   stop word acts after the block's motion): the machine comes to rest
+//!   where the program pauses or changes the tool, as LinuxCNC's does,
+//!   however smoothly the path goes on.
 //!
-//! Anything else — a corner, a rapid, G61, M0 — ends the path: the machine
+//! Anything else — a corner, a rapid, G61, M0, M6 — ends the path: the machine
 //! stops there, except inside a run of chords.
 //!
 //! **Runs of chords under `G64 P tol`.** Consecutive G1 lines under a path
@@ -283,10 +284,12 @@ pub fn paths_for(program: &Program, opts: &PathOptions) -> Result<Paths, PathErr
     let mut warned_curve_corner = false;
     let mut open: Option<Open> = None;
     let mut prev_exact_stop = false;
-    let stops = program_stops(program);
+    let mut stops = program_stops(program);
+    stops.extend(program.tool.iter().filter(|n| n.word == "M6").map(|n| n.line));
     let mut prev_line: Option<usize> = None;
     for m in &moves {
-        // a program stop on the previous move's line or between the two
+        // a program stop or tool change on the previous move's line or
+        // between the two
         let paused = prev_line.is_some_and(|a| stops.iter().any(|&s| a <= s && s < m.line));
         prev_line = Some(m.line);
         if let PathControl::Continuous {

@@ -391,7 +391,7 @@ mod planned {
     }
 
     #[test]
-    fn program_stops_end_a_tangent_path_at_rest() {
+    fn program_stops_and_tool_changes_end_a_tangent_path_at_rest() {
         // three collinear lines at one feed: one path without the stops; an
         // M0 between two blocks, and an M1 on a block's own line (it acts
         // after the block's motion), each end the path there
@@ -410,6 +410,10 @@ mod planned {
         // the program file: path, stop, path, stop, path
         let kinds: Vec<u8> = p.file().entries.iter().map(|e| e.kind as u8).collect();
         assert_eq!(kinds, vec![1, 3, 1, 3, 1]);
+        // a tool change too (no stop in the file: the machine changes the tool at rest)
+        let (_, p) = super::read("G21 G17 F600\nG1 X10\nT2 M6\nG1 X20\nM2\n");
+        let lines: Vec<(usize, usize)> = p.paths.iter().map(|p| (p.first_line, p.last_line)).collect();
+        assert_eq!(lines, vec![(2, 2), (4, 4)]);
     }
 
     #[test]
