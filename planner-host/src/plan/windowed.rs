@@ -615,16 +615,7 @@ mod tests {
                 ..PlanConfig::default()
             };
             let out = plan_curve(&curve, &cfg).unwrap_or_else(|e| panic!("{window_mm}/{commit_mm}: {e}"));
-            let dense = dense_check_ends(
-                &curve,
-                &arc,
-                &out.q_knots,
-                &out.q_ctrl,
-                out.ends.as_ref(),
-                &cfg.limits,
-                None,
-                20,
-            );
+            let dense = out.dense_check(&curve, &arc, 20);
             assert!(
                 dense.ratios.worst() <= 1.005,
                 "{window_mm}/{commit_mm}: {:?}",
