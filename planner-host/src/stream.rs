@@ -82,6 +82,15 @@ pub enum ChunkTableError {
     /// Two chunks decoded one q span differently.
     #[error("q span {0} differs between two chunks")]
     SpanDisagrees(u32),
+    /// A commit told the s → u map from a later segment than the chunks
+    /// had reached: the segments between were never told.
+    #[error("the s -> u map was told from segment {told}, the chunks have it up to segment {have}")]
+    MapGap {
+        /// Segments the chunks have.
+        have: usize,
+        /// The commit's first segment.
+        told: usize,
+    },
 }
 
 /// A table's rows, owned: what the chunks carry and what they must decode to.

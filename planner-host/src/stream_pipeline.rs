@@ -28,30 +28,34 @@ use crate::plan::{plan_curve_committing, Commit, PlanConfig, PlanError, PlanOutp
 use crate::stream::{ChunkCutter, ChunkOptions, ChunkTableError, TableRows};
 use crate::stream_hold::{HoldPointError, HoldPointSearch, HoldPoints, HoldSearch};
 
-/// What the chunks of a plan need besides q: the path and its s → u map.
+/// What the chunks of a plan need besides q: the path and its s → u map
+/// from the first segment a piece still to be fitted reads.
 #[derive(Clone, Debug)]
-pub struct PathParts {
+struct PathParts {
     /// NURBS degree.
-    pub degree: u32,
+    degree: u32,
     /// NURBS knots.
-    pub knots: Vec<f64>,
+    knots: Vec<f64>,
     /// Homogeneous control points (w·x, w·y, w·z, w).
-    pub points: Vec<[f64; 4]>,
-    /// The s → u map's breaks.
-    pub su_breaks: Vec<f64>,
-    /// The s → u map's segments.
-    pub su_segments: Vec<SuSegment>,
+    points: Vec<[f64; 4]>,
+    /// The s → u map's breaks from break `su_first` on.
+    su_breaks: Vec<f64>,
+    /// The s → u map's segments from segment `su_first` on.
+    su_segments: Vec<SuSegment>,
+    /// The map's index of `su_breaks[0]` and `su_segments[0]`: the segments
+    /// before are dropped once the pieces over them are fitted, so that the
+    /// pipeline holds the map of the stretch being planned, not of the path.
+    su_first: usize,
 }
 
 /// Chunks from commits (see the module docs).
 pub struct ChunkPipeline {
     path: PathParts,
     rows: TableRows,
-    /// Each knot-span group's [s₀, s₁), mm, and its first s → u segment, as
-    /// far as the map has come.
-    groups: Vec<(f64, f64, usize)>,
-    /// The next group to fit.
-    next_group: usize,
+    /// Each knot-span group's [s₀, s₁), mm, and its first s → u segment
+    /// (the map's index), from the next to fit on, as far as the map has
+    /// come.
+    groups: std::collections::VecDeque<(f64, f64, usize)>,
     cutter: ChunkCutter,
     /// The end segments as last told.
     ends: Option<EndSegments>,
@@ -71,6 +75,7 @@ impl ChunkPipeline {
             points: curve.to_homogeneous_table(),
             su_breaks: first.su_breaks.to_vec(),
             su_segments: first.su_segments.to_vec(),
+            su_first: first.su_first,
         };
         let rows = TableRows {
             q_knots: first.knots.to_vec(),
@@ -84,30 +89,31 @@ impl ChunkPipeline {
         let mut pipe = ChunkPipeline {
             path,
             rows,
-            groups: vec![],
-            next_group: 0,
+            groups: Default::default(),
             cutter: ChunkCutter::new(opts)?,
             ends: None,
             finished: false,
             taken: 0,
         };
-        pipe.groups_from(0);
+        pipe.groups_from(first.su_first);
         Ok(pipe)
     }
 
-    /// The knot-span groups of the s → u segments from `j` on (the start
-    /// of a knot span of the toolpath: the map comes in whole spans).
+    /// The knot-span groups of the s → u segments from `j` (the map's
+    /// index, at least `su_first`) on (the start of a knot span of the
+    /// toolpath: the map comes in whole spans).
     fn groups_from(&mut self, j: usize) {
         let path = &self.path;
+        let k = j.saturating_sub(path.su_first);
         let mut parts = table_parts(path, &self.rows.q_knots, &self.rows.q_ctrl);
-        parts.su_breaks = &path.su_breaks[j.min(path.su_breaks.len())..];
-        parts.su_segments = &path.su_segments[j.min(path.su_segments.len())..];
-        let breaks = &path.su_breaks;
+        parts.su_breaks = &path.su_breaks[k.min(path.su_breaks.len())..];
+        parts.su_segments = &path.su_segments[k.min(path.su_segments.len())..];
+        let breaks = &path.su_breaks[k.min(path.su_breaks.len())..];
         let groups = &mut self.groups;
         piece_group_bounds(&parts, |s0, s1| {
             // (s₀ is a break of the map: its first segment starts there)
-            let j0 = j + breaks[j..].partition_point(|&b| b < s0);
-            groups.push((s0, s1, j0));
+            let j0 = j + breaks.partition_point(|&b| b < s0);
+            groups.push_back((s0, s1, j0));
         });
     }
 
@@ -116,12 +122,21 @@ impl ChunkPipeline {
         if self.finished {
             return Ok(vec![]);
         }
-        // the s → u map as far as it has come
-        let j = self.path.su_segments.len();
-        if c.su_segments.len() > j && c.su_breaks.len() == c.su_segments.len() + 1 {
-            self.path.su_segments.extend_from_slice(&c.su_segments[j..]);
-            let jb = self.path.su_breaks.len();
-            self.path.su_breaks.extend_from_slice(&c.su_breaks[jb..]);
+        // the s → u map as far as it has come (the commit tells it from
+        // segment c.su_first on: no later than where this copy ends)
+        let path = &mut self.path;
+        let j = path.su_first + path.su_segments.len();
+        if c.su_first > j {
+            return Err(ChunkTableError::MapGap {
+                have: j,
+                told: c.su_first,
+            });
+        }
+        if c.su_first + c.su_segments.len() > j && c.su_breaks.len() == c.su_segments.len() + 1 {
+            path.su_segments
+                .extend_from_slice(&c.su_segments[j - c.su_first..]);
+            let jb = path.su_first + path.su_breaks.len();
+            path.su_breaks.extend_from_slice(&c.su_breaks[jb - c.su_first..]);
             self.groups_from(j);
         }
         let n = self.rows.q_ctrl.len().min(c.ctrl.len());
@@ -139,21 +154,20 @@ impl ChunkPipeline {
         } else {
             self.rows.q_knots.get(through + 1).copied().unwrap_or(0.0)
         };
-        let lo = self.next_group;
-        let mut hi = lo;
+        let mut hi = 0;
         while self.groups.get(hi).is_some_and(|&(_, s1, _)| s1 <= final_to) {
             hi += 1;
         }
-        if hi > lo {
+        if hi > 0 {
             let mut fitted: Vec<FittedPiece> = Vec::new();
             {
-                // the map from group lo's first segment on: the groups
-                // counted from there, not from the path's start
-                let j0 = self.groups[lo].2;
+                // the map from the first group's first segment on: the
+                // groups counted from there, not from the path's start
+                let k0 = self.groups[0].2 - self.path.su_first;
                 let mut parts = table_parts(&self.path, &self.rows.q_knots, &self.rows.q_ctrl);
-                parts.su_breaks = &self.path.su_breaks[j0..];
-                parts.su_segments = &self.path.su_segments[j0..];
-                fit_pieces(&parts, (0, hi - lo), |p| fitted.push(p));
+                parts.su_breaks = &self.path.su_breaks[k0..];
+                parts.su_segments = &self.path.su_segments[k0..];
+                fit_pieces(&parts, (0, hi), |p| fitted.push(p));
             }
             // the breaks: every piece's start, then the end of the last
             self.rows.breaks.pop();
@@ -166,7 +180,17 @@ impl ChunkPipeline {
                     .push(std::array::from_fn(|k| d.f32s.get(k).copied().unwrap_or(0.0)));
             }
             self.rows.breaks.push(self.groups[hi - 1].1);
-            self.next_group = hi;
+            // (the groups fitted and the map before the next group are not
+            // read again)
+            self.groups.drain(..hi);
+            let keep_from = self
+                .groups
+                .front()
+                .map_or(self.path.su_first + self.path.su_segments.len(), |g| g.2);
+            let k = (keep_from - self.path.su_first).min(self.path.su_segments.len());
+            self.path.su_segments.drain(..k);
+            self.path.su_breaks.drain(..k);
+            self.path.su_first += k;
         }
         self.finished = c.last;
         if self.rows.words.is_empty() {
@@ -183,9 +207,11 @@ impl ChunkPipeline {
         self.ends
     }
 
-    /// The path's parts.
-    pub fn path(&self) -> &PathParts {
-        &self.path
+    /// The s → u map this pipeline holds: its first segment's index in the
+    /// map, and how many segments (from the first a piece still to be
+    /// fitted reads, to where the last commit's map ended).
+    pub fn map_held(&self) -> (usize, usize) {
+        (self.path.su_first, self.path.su_segments.len())
     }
 
     /// Chunks cut so far.

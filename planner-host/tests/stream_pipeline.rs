@@ -102,8 +102,9 @@ struct Told {
 
 /// The commits carry the s → u map as far as its thread has fitted it
 /// (whole knot spans of the toolpath, at least as far as q is final): fed
-/// the shortest such prefix at every commit, the pipeline cuts the chunks
-/// the finished table's map gives.
+/// the shortest such prefix at every commit, whole from the start or from
+/// where the commit before ended, the pipeline cuts the chunks the finished
+/// table's map gives, and drops the map behind the pieces it has fitted.
 #[test]
 fn chunks_cut_on_the_map_so_far_equal_the_finished_tables() {
     let curve = planner_host::builtin::butterfly().unwrap();
@@ -140,38 +141,92 @@ fn chunks_cut_on_the_map_so_far_equal_the_finished_tables() {
         max_chunk_bytes: Some(4096),
         ..ChunkOptions::default()
     };
-    let mut pipe: Option<ChunkPipeline> = None;
-    let mut chunks = vec![];
-    let mut partial = 0;
-    for t in &told {
-        let k = match t.last {
-            true => segments.len(),
-            false => prefix(q_knots[t.through + 1]),
-        };
-        partial += usize::from(k < segments.len());
-        let c = Commit {
-            length_mm: plan.path_length_mm,
-            knots: &q_knots,
-            ctrl: &t.ctrl,
-            through: t.through,
-            last: t.last,
-            ends: t.ends,
-            su_breaks: &breaks[..=k],
-            su_segments: &segments[..k],
-        };
-        let p = pipe.get_or_insert_with(|| ChunkPipeline::new(&curve, &c, &opts).unwrap());
-        chunks.extend(p.commit(&c).unwrap());
-    }
-    assert!(
-        partial + 1 >= told.len() && told.len() > 3,
-        "{partial} of {}",
-        told.len()
-    );
     let reference = chunk_table(&table, &opts).unwrap();
-    assert_eq!(chunks.len(), reference.len());
-    for (i, (a, b)) in chunks.iter().zip(&reference).enumerate() {
-        assert_eq!(a, b, "chunk {i} differs");
+    for from_last in [false, true] {
+        let mut pipe: Option<ChunkPipeline> = None;
+        let mut chunks = vec![];
+        let (mut partial, mut dropped) = (0, 0);
+        let mut first = 0;
+        for t in &told {
+            let k = match t.last {
+                true => segments.len(),
+                false => prefix(q_knots[t.through + 1]),
+            };
+            partial += usize::from(k < segments.len());
+            let c = Commit {
+                length_mm: plan.path_length_mm,
+                knots: &q_knots,
+                ctrl: &t.ctrl,
+                through: t.through,
+                last: t.last,
+                ends: t.ends,
+                su_breaks: &breaks[first..=k],
+                su_segments: &segments[first..k],
+                su_first: first,
+            };
+            let p = pipe.get_or_insert_with(|| ChunkPipeline::new(&curve, &c, &opts).unwrap());
+            chunks.extend(p.commit(&c).unwrap());
+            let (held_from, held) = p.map_held();
+            assert_eq!(held_from + held, k, "the map held ends where the commit's does");
+            dropped = dropped.max(held_from);
+            if from_last {
+                first = k;
+            }
+        }
+        assert!(
+            partial + 1 >= told.len() && told.len() > 3,
+            "{partial} of {}",
+            told.len()
+        );
+        assert!(
+            dropped > segments.len() / 2,
+            "dropped {dropped} of {}",
+            segments.len()
+        );
+        assert_eq!(chunks.len(), reference.len());
+        for (i, (a, b)) in chunks.iter().zip(&reference).enumerate() {
+            assert_eq!(a, b, "chunk {i} differs");
+        }
     }
+}
+
+/// A commit that tells the s → u map from past where the chunks have it
+/// (the segments between never told) is refused, naming both.
+#[test]
+fn a_gap_in_the_map_told_is_refused() {
+    let curve = planner_host::builtin::butterfly().unwrap();
+    let cfg = PlanConfig {
+        windows: Some(WindowConfig::default()),
+        ..PlanConfig::default()
+    };
+    let plan = planner_host::plan::plan_curve(&curve, &cfg).unwrap();
+    let table = Table::parse(&plan.table_bytes).unwrap();
+    use firmware_core::path::su_map::SegmentArray;
+    let breaks: Vec<f64> = table.su_breaks().iter().collect();
+    let segs = table.su_segments();
+    let segments: Vec<firmware_core::SuSegment> = (0..segs.len()).filter_map(|j| segs.get(j)).collect();
+    let c = |first: usize, k: usize| Commit {
+        length_mm: plan.path_length_mm,
+        knots: &plan.q_knots,
+        ctrl: &plan.q_ctrl,
+        through: 4,
+        last: false,
+        ends: None,
+        su_breaks: &breaks[first..=k],
+        su_segments: &segments[first..k],
+        su_first: first,
+    };
+    let opts = ChunkOptions::default();
+    let mut p = ChunkPipeline::new(&curve, &c(0, 4), &opts).unwrap();
+    p.commit(&c(0, 4)).unwrap();
+    let e = p.commit(&c(6, 9)).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            planner_host::stream::ChunkTableError::MapGap { have: 4, told: 6 }
+        ),
+        "{e}"
+    );
 }
 
 #[test]

@@ -54,23 +54,32 @@ pub struct Commit<'a> {
     /// commit on, the stop's fields only with the last (before, they
     /// repeat the start's join).
     pub ends: Option<firmware_core::EndSegments>,
-    /// The s → u map's breaks (the table's section 5): the map fitted so
-    /// far, whole knot spans of the toolpath at least as far as q is final
-    /// (a prefix of the finished map, which the last commit carries).
+    /// The s → u map's breaks (the table's section 5) from break
+    /// `su_first` on: the map fitted so far, whole knot spans of the
+    /// toolpath at least as far as q is final (the finished map's, which the
+    /// last commit may carry whole).
     pub su_breaks: &'a [f64],
-    /// The s → u map's segments (sections 6 and 7), as far as `su_breaks`.
+    /// The s → u map's segments (sections 6 and 7) from segment `su_first`
+    /// on, as far as `su_breaks`.
     pub su_segments: &'a [firmware_core::SuSegment],
+    /// The map's index of `su_breaks[0]` and `su_segments[0]`: at most the
+    /// number of segments the commits before told (each commit tells the
+    /// map from where the one before ended, so the map is held once, not
+    /// once per sink), 0 on the first.
+    pub su_first: usize,
 }
 
 /// Told each [`Commit`], in order, on the planning thread.
 pub type CommitSink<'a> = dyn Fn(&Commit) + Sync + 'a;
 
-/// The s → u map as its thread fits it: the prefix fitted so far (whole
-/// knot spans of the toolpath, [`SuMap::fit_within_each`]), then the
-/// finished map or the fit's error.
+/// The s → u map as its thread fits it: the part fitted so far and not yet
+/// told a commit (whole knot spans of the toolpath,
+/// [`SuMap::fit_within_each`]), then the finished map or the fit's error.
 struct SuProgress {
     breaks: Vec<f64>,
     segments: Vec<firmware_core::SuSegment>,
+    /// The map's index of `breaks[0]` and `segments[0]`.
+    first: usize,
     done: Option<Result<SuMap, PlanError>>,
     /// How far the map is wanted: the fit waits once it is past this
     /// ([`SU_LEAD_MM`] beyond the last commit's reach), so that it does not
@@ -83,8 +92,29 @@ impl Default for SuProgress {
         SuProgress {
             breaks: Vec::new(),
             segments: Vec::new(),
+            first: 0,
             done: None,
             demand: SU_LEAD_MM,
+        }
+    }
+}
+
+impl SuProgress {
+    /// Take the segments of `m` (the map being fitted) this part does not
+    /// have yet; unless `keep` (the map is wanted whole, for the table),
+    /// take them out of `m`.
+    fn take(&mut self, m: &mut SuMap, keep: bool) {
+        let k = (self.first + self.segments.len()).saturating_sub(m.first);
+        let kb = (self.first + self.breaks.len()).saturating_sub(m.first);
+        self.segments
+            .extend_from_slice(m.segments.get(k..).unwrap_or(&[]));
+        self.breaks.extend_from_slice(m.breaks.get(kb..).unwrap_or(&[]));
+        if !keep {
+            // (the last break stays: the next segment starts there)
+            let n = m.segments.len();
+            m.segments.drain(..n);
+            m.breaks.drain(..n.min(m.breaks.len().saturating_sub(1)));
+            m.first += n;
         }
     }
 }
@@ -254,18 +284,24 @@ fn plan_curve_inner(
             slot = su_slot.1.wait(slot).unwrap_or_else(|e| e.into_inner());
         }
         match &slot.done {
-            Some(Ok(su)) => f(&Commit {
-                su_breaks: &su.breaks,
-                su_segments: &su.segments,
-                ..*c
-            }),
             // (a failed fit fails the plan after the windows)
             Some(Err(_)) => {}
-            None => f(&Commit {
-                su_breaks: &slot.breaks,
-                su_segments: &slot.segments,
-                ..*c
-            }),
+            // (fitted or not: the slot has the map from where the last
+            // commit's ended, as far as it has come)
+            Some(Ok(_)) | None => {
+                f(&Commit {
+                    su_breaks: &slot.breaks,
+                    su_segments: &slot.segments,
+                    su_first: slot.first,
+                    ..*c
+                });
+                // (told: the next commit tells the map from its end)
+                let k = slot.segments.len();
+                slot.segments.drain(..k);
+                let kb = k.min(slot.breaks.len().saturating_sub(1));
+                slot.breaks.drain(..kb);
+                slot.first += k;
+            }
         }
     };
     let sink: Option<&CommitSink<'_>> = on_commit.map(|_| &sink as &CommitSink<'_>);
@@ -357,6 +393,7 @@ fn plan_curve_inner(
                             ends: base.ends,
                             su_breaks: &[],
                             su_segments: &[],
+                            su_first: 0,
                         });
                     }
                     let change = resume.zip(resumed).map(|(r, at)| FeedChangeAt {
@@ -400,24 +437,29 @@ fn plan_curve_inner(
             scope.spawn(|| {
                 // (filled even if the fit panics: the sink must not wait forever)
                 let fill = Fill(&su_slot);
-                let mut publish = |m: &SuMap| {
+                let mut publish = |m: &mut SuMap| {
                     let mut g = su_slot.0.lock().unwrap_or_else(|e| e.into_inner());
                     let end = m.breaks.last().copied().unwrap_or(0.0);
-                    if m.segments.len() < g.segments.len() + SU_PUBLISH_SEGMENTS && end < g.demand {
+                    if m.first + m.segments.len() < g.first + g.segments.len() + SU_PUBLISH_SEGMENTS
+                        && end < g.demand
+                    {
                         return;
                     }
-                    let (k, kb) = (g.segments.len(), g.breaks.len());
-                    g.segments.extend_from_slice(&m.segments[k..]);
-                    g.breaks.extend_from_slice(&m.breaks[kb..]);
+                    g.take(m, cfg.table);
                     su_slot.1.notify_all();
                     // far enough ahead: wait until a commit wants more
                     while end >= g.demand {
                         g = su_slot.1.wait(g).unwrap_or_else(|e| e.into_inner());
                     }
                 };
-                let su = SuMap::fit_within_each(curve, &arc, cfg.su_tol_mm, Some(&budget), &mut publish);
+                let mut su = SuMap::fit_within_each(curve, &arc, cfg.su_tol_mm, Some(&budget), &mut publish);
                 dbg_t("s-u map");
-                fill.0 .0.lock().unwrap_or_else(|e| e.into_inner()).done = Some(su.map_err(PlanError::from));
+                let mut g = fill.0 .0.lock().unwrap_or_else(|e| e.into_inner());
+                // (the rest of the map into the slot: the commits tell it from there)
+                if let Ok(m) = su.as_mut() {
+                    g.take(m, cfg.table);
+                }
+                g.done = Some(su.map_err(PlanError::from));
             });
             let planned = plan_q();
             // (the map's thread fits the rest, whatever became of the plan)
@@ -514,7 +556,7 @@ fn plan_curve_inner(
         curvature_jumps: jumps,
         predicted_time_s,
         ends,
-        su_segments: su.segments.len(),
+        su_segments: su.first + su.segments.len(),
         su_max_err_mm: su.max_err_mm,
         geometry_time_s,
         total_time_s: t0.elapsed().as_secs_f64(),

@@ -96,6 +96,11 @@ pub struct SuMap {
     pub breaks: Vec<f64>,
     /// M segments.
     pub segments: Vec<SuSegment>,
+    /// The whole map's index of `segments[0]` and `breaks[0]`: 0, unless
+    /// the `each` of [`SuMap::fit_within_each`] took the segments fitted
+    /// so far out as they came (the map then holds the rest: the maxima
+    /// below are still the whole map's).
+    pub first: usize,
     /// Largest |s(u_poly(s)) − s| at the test points, mm.
     pub max_err_mm: f64,
     /// Largest relative feed error |σ(u(s))·u′(s) − 1| at the test points:
@@ -412,13 +417,16 @@ impl SuMap {
     /// every knot span of the toolpath: each span's segments depend on that
     /// span alone, so the map so far is a prefix of the finished map, and
     /// whoever needs u(s) only up to some s (the chunks of a plan streamed
-    /// while it is planned) need not wait for the whole path.
+    /// while it is planned) need not wait for the whole path. `each` may
+    /// take the segments out as they come (draining `segments[..k]` and
+    /// `breaks[..k]`, adding k to `first`), so that the fit holds only the
+    /// span it works on.
     pub fn fit_within_each(
         curve: &Nurbs,
         arc: &ArcLength,
         tol_mm: f64,
         budget: Option<&SetpointBudget>,
-        each: &mut dyn FnMut(&SuMap),
+        each: &mut dyn FnMut(&mut SuMap),
     ) -> Result<SuMap, CurveError> {
         if !(tol_mm > 0.0 && tol_mm.is_finite()) {
             return Err(CurveError::Argument {
@@ -433,6 +441,7 @@ impl SuMap {
         let mut map = SuMap {
             breaks: vec![0.0],
             segments: Vec::new(),
+            first: 0,
             max_err_mm: 0.0,
             max_feed_err: 0.0,
             max_limit_share: 0.0,
@@ -518,7 +527,7 @@ impl SuMap {
                     });
                 }
             }
-            each(&map);
+            each(&mut map);
         }
         // the last break is exactly L (it is the last span's s1 already)
         if let Some(last) = map.breaks.last_mut() {

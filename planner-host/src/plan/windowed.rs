@@ -167,6 +167,7 @@ impl LpStage<'_> {
             }),
             su_breaks: &[],
             su_segments: &[],
+            su_first: 0,
         });
     }
 
