@@ -30,7 +30,7 @@
 
 use planner_host::gcode::Program;
 use planner_host::program::{
-    check_travel, path_config, paths_for, PathKind, PathOptions, ProgramError, ProgramOptions,
+    check_travel, path_config, paths_each, Path, PathKind, PathOptions, ProgramError, ProgramOptions,
 };
 use planner_host::{Machine, Ratios};
 use serde::Serialize;
@@ -141,28 +141,37 @@ pub fn stream_program(
             "feed changes, link stalls and ready times stream one path, not a program".into(),
         ));
     }
-    let made = paths_for(
-        program,
-        &PathOptions {
-            feed_cap_mm_s: machine.limits.vbar,
-            fit_chords: popts.fit_chords,
-        },
-    )
-    .map_err(|e| StreamError::Program(Box::new(e.into())))?;
-    if made.paths.is_empty() {
-        return Err(StreamError::Program(Box::new(ProgramError::Empty)));
+    let path_opts = PathOptions {
+        feed_cap_mm_s: machine.limits.vbar,
+        fit_chords: popts.fit_chords,
+    };
+    let program_error = |e: ProgramError| StreamError::Program(Box::new(e));
+    // Every path within the machine's travel before the first moves; the
+    // paths are made again, one at a time, as they are streamed (the
+    // program's paths are never all held: a long program's would grow
+    // with it).
+    let mut count = 0usize;
+    let mut travel = Ok(());
+    paths_each(program, &path_opts, &mut |p| {
+        count += 1;
+        travel = check_travel(std::slice::from_ref(&p), machine);
+        travel.is_ok()
+    })
+    .map_err(|e| program_error(e.into()))?;
+    travel.map_err(|e| program_error(e.into()))?;
+    if count == 0 {
+        return Err(program_error(ProgramError::Empty));
     }
-    check_travel(&made.paths, machine).map_err(|e| StreamError::Program(Box::new(e.into())))?;
     let machine = Machine {
         servo_period_s: o.period_s,
         ..machine.clone()
     };
     let (mut host_s, mut machine_s) = (0.0f64, 0.0f64);
     let mut prev_end: Option<([f64; 3], usize, usize)> = None;
-    let mut out: Vec<StreamedPath> = Vec::with_capacity(made.paths.len());
+    let mut out: Vec<StreamedPath> = Vec::with_capacity(count);
     let mut sum = ProgramStreamReport {
         schema_version: 1,
-        paths: made.paths.len(),
+        paths: count,
         length_mm: 0.0,
         plan_s: 0.0,
         windows: 0,
@@ -187,9 +196,11 @@ pub fn stream_program(
         path: vec![],
     };
     let mut framed_bytes = 0.0;
-    for (i, p) in made.paths.iter().enumerate() {
+    let mut failed: Option<StreamError> = None;
+    let mut i = 0usize;
+    let mut each = |p: Path| -> Result<(), StreamError> {
         let index = i + 1;
-        let cfg = path_config(index, p, &machine, popts).map_err(|e| StreamError::Program(Box::new(e)))?;
+        let cfg = path_config(index, &p, &machine, popts).map_err(|e| StreamError::Program(Box::new(e)))?;
         let session = StreamOptions {
             host_ahead_s: machine_s - host_s,
             ..o.clone()
@@ -253,6 +264,19 @@ pub fn stream_program(
             ratios: rep.ratios,
             check_ok: rep.check_ok,
         });
+        i += 1;
+        Ok(())
+    };
+    paths_each(program, &path_opts, &mut |p| match each(p) {
+        Ok(()) => true,
+        Err(e) => {
+            failed = Some(e);
+            false
+        }
+    })
+    .map_err(|e| program_error(e.into()))?;
+    if let Some(e) = failed {
+        return Err(e);
     }
     sum.bytes_per_mm = framed_bytes / sum.length_mm;
     sum.plan_realtime_factor = sum.machining_time_s / sum.plan_s;

@@ -184,3 +184,25 @@ fn feedsim_streams_a_program_and_refuses_what_does_not_fit() {
         assert!(out.stdout.is_empty(), "{args:?}");
     }
 }
+
+/// The program's paths are made one at a time as they stream, but every
+/// one is checked against the machine's travel before the first moves: a
+/// path past the travel at the program's end refuses the program (its
+/// line and axis named), nothing streamed.
+#[test]
+fn a_path_past_the_travel_refuses_the_program_before_it_moves() {
+    let text = "G21 G17 G90\nG0 X0 Y0 Z10\nG1 Z0 F600\nG1 X50\nG1 Y50\nG0 Z10\nG0 X1200\nM2\n";
+    let prog = read_str(text, ReadOptions::default()).unwrap();
+    let o = StreamOptions::default();
+    let inside = read_str(&text.replace("X1200", "X900"), ReadOptions::default()).unwrap();
+    let ok = stream_program(&inside, &Machine::table1(), &ProgramOptions::default(), &o).unwrap();
+    assert!(ok.check_ok && ok.paths >= 3, "{} paths", ok.paths);
+    let e = stream_program(&prog, &Machine::table1(), &ProgramOptions::default(), &o).unwrap_err();
+    let msg = e.to_string();
+    assert!(
+        matches!(&e, sim_harness::stream::StreamError::Program(p)
+            if matches!(**p, planner_host::program::ProgramError::Travel(_))),
+        "{msg}"
+    );
+    assert!(msg.contains("LINE 7") && msg.contains('X'), "{msg}");
+}

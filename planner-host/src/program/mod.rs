@@ -25,7 +25,9 @@ pub mod plan;
 pub mod travel;
 
 pub use file::{Entry, EntryKind, FilePiece, ProgramFile, ProgramFileError};
-pub use paths::{paths_for, paths_of, Fitted, Path, PathError, PathKind, PathOptions, PathPiece, Paths};
+pub use paths::{
+    paths_each, paths_for, paths_of, Fitted, Path, PathError, PathKind, PathOptions, PathPiece, Paths,
+};
 pub use plan::{path_config, plan_program, PlannedPath, PlannedProgram, ProgramError, ProgramOptions};
 pub use travel::{check_travel, TravelError};
 

@@ -277,9 +277,53 @@ pub fn paths_of(program: &Program) -> Result<Paths, PathError> {
 
 /// The paths of `program` (see the module docs).
 pub fn paths_for(program: &Program, opts: &PathOptions) -> Result<Paths, PathError> {
+    let mut paths = Vec::new();
+    let mut out = paths_each(program, opts, &mut |p| {
+        paths.push(p);
+        true
+    })?;
+    out.paths = paths;
+    Ok(out)
+}
+
+/// [`paths_for`], each path handed to `each` as soon as it is made, in
+/// order, and not kept: whoever plans or streams a program path by path
+/// then holds one path at a time, not the program's. `each` returns false
+/// to stop (no more paths are made). The [`Paths`] returned has the
+/// warnings and the blended corners of the paths made, and no paths.
+pub fn paths_each(
+    program: &Program,
+    opts: &PathOptions,
+    each: &mut dyn FnMut(Path) -> bool,
+) -> Result<Paths, PathError> {
+    let mut made = Made {
+        out: Paths::default(),
+        each,
+        stopped: false,
+    };
+    paths_into(program, opts, &mut made)?;
+    Ok(made.out)
+}
+
+/// Where the paths go as they are made.
+struct Made<'a> {
+    out: Paths,
+    each: &'a mut dyn FnMut(Path) -> bool,
+    /// `each` asked for no more.
+    stopped: bool,
+}
+
+impl Made<'_> {
+    fn push(&mut self, p: Path) {
+        if !self.stopped {
+            self.stopped = !(self.each)(p);
+        }
+    }
+}
+
+fn paths_into(program: &Program, opts: &PathOptions, out: &mut Made<'_>) -> Result<(), PathError> {
     let cap = |f: Option<f64>| f.map(|f| f.min(opts.feed_cap_mm_s));
-    let mut out = Paths::default();
-    let moves = drop_short(&program.moves, &mut out.warnings)?;
+    let moves = drop_short(&program.moves, &mut out.out.warnings)?;
     let mut warned_tol: Vec<String> = Vec::new();
     let mut warned_curve_corner = false;
     let mut open: Option<Open> = None;
@@ -313,7 +357,7 @@ pub fn paths_for(program: &Program, opts: &PathOptions) -> Result<Paths, PathErr
                     w.push_str(&format!(" Q{q}"));
                 }
                 if !warned_tol.contains(&w) {
-                    out.warnings.push(format!("LINE {}: {w}: {why}", m.line));
+                    out.out.warnings.push(format!("LINE {}: {w}: {why}", m.line));
                     warned_tol.push(w);
                 }
             }
@@ -357,7 +401,7 @@ pub fn paths_for(program: &Program, opts: &PathOptions) -> Result<Paths, PathErr
                 {
                     blended = blend_corner(&last.1, &piece, ta.min(tb));
                     if blended.is_none() && !warned_curve_corner {
-                        out.warnings.push(format!(
+                        out.out.warnings.push(format!(
                             "LINE {}: the corner cannot be blended within G64 P{}: an exact stop",
                             m.line,
                             ta.min(tb)
@@ -383,7 +427,7 @@ pub fn paths_for(program: &Program, opts: &PathOptions) -> Result<Paths, PathErr
                         }
                         o.pieces.push((m.line, bl.blend, bl.blend_mm.max(MIN_MOVE_MM)));
                         o.feeds.push(cap(m.feed_mm_s));
-                        out.blended_corners += 1;
+                        out.out.blended_corners += 1;
                         (bl.after, (len - bl.cut_mm).max(MIN_MOVE_MM))
                     }
                     None => (piece, len),
@@ -399,7 +443,10 @@ pub fn paths_for(program: &Program, opts: &PathOptions) -> Result<Paths, PathErr
             }
             _ => {
                 if let Some(o) = open.take() {
-                    close_into(o, &mut out)?;
+                    close_into(o, out)?;
+                    if out.stopped {
+                        return Ok(());
+                    }
                 }
                 open = Some(Open {
                     kind,
@@ -414,9 +461,9 @@ pub fn paths_for(program: &Program, opts: &PathOptions) -> Result<Paths, PathErr
         prev_exact_stop = m.path_control == PathControl::ExactStop || kind == PathKind::Rapid;
     }
     if let Some(o) = open.take() {
-        close_into(o, &mut out)?;
+        close_into(o, out)?;
     }
-    Ok(out)
+    Ok(())
 }
 
 /// The lines of the program stops (M0, M1) of `program`, in order: the
@@ -433,9 +480,9 @@ pub fn program_stops(program: &Program) -> Vec<usize> {
 
 /// Close an open path: a run of chords is fitted (its corners kept as
 /// exact stops when the fit fails); anything else is joined.
-fn close_into(o: Open, out: &mut Paths) -> Result<(), PathError> {
+fn close_into(o: Open, out: &mut Made<'_>) -> Result<(), PathError> {
     let Some(tol) = o.chords.filter(|_| o.pieces.len() >= 2) else {
-        out.paths.push(close(o)?);
+        out.push(close(o)?);
         return Ok(());
     };
     let mut vertices = Vec::with_capacity(o.pieces.len() + 1);
@@ -466,7 +513,7 @@ fn close_into(o: Open, out: &mut Paths) -> Result<(), PathError> {
                     feed_mm_s: feed,
                 })
                 .collect();
-            out.paths.push(Path {
+            out.push(Path {
                 kind: o.kind,
                 curve,
                 feed_mm_s: o.feed,
@@ -485,11 +532,11 @@ fn close_into(o: Open, out: &mut Paths) -> Result<(), PathError> {
             let why = match e {
                 FitError::NotWithin { .. } | FitError::Degenerate => e.to_string(),
             };
-            out.warnings.push(format!(
+            out.out.warnings.push(format!(
                 "LINE {first}..{last}: the chords are not blended ({why}): their corners are exact stops"
             ));
             for (p, feed) in o.pieces.into_iter().zip(o.feeds) {
-                out.paths.push(close(Open {
+                out.push(close(Open {
                     kind: o.kind,
                     last_tol: None,
                     feed,

@@ -501,3 +501,38 @@ fn a_nurbs_that_stands_still_at_its_start_is_trimmed_onto_its_start() {
         assert!(d < 1e-3, "{d} mm at {i}");
     }
 }
+
+/// The paths handed over one at a time as they are made
+/// ([`crate::program::paths_each`]) are the paths kept
+/// ([`crate::program::paths_for`]), with the same warnings and blended
+/// corners, on every program of ours; asked to stop, it makes no more.
+#[test]
+fn paths_made_one_at_a_time_are_the_paths_kept() {
+    use crate::program::paths::{paths_each, PathOptions};
+    let mut several = 0;
+    for name in planned::own_names() {
+        let prog = read_str(&own(&name), ReadOptions::default()).unwrap();
+        let kept = paths_of(&prog).unwrap();
+        let mut each = Vec::new();
+        let rest = paths_each(&prog, &PathOptions::default(), &mut |p| {
+            each.push(p);
+            true
+        })
+        .unwrap();
+        assert_eq!(each, kept.paths, "{name}");
+        assert!(rest.paths.is_empty(), "{name}");
+        assert_eq!(rest.warnings, kept.warnings, "{name}");
+        assert_eq!(rest.blended_corners, kept.blended_corners, "{name}");
+        if kept.paths.len() >= 3 {
+            several += 1;
+            let mut made = 0;
+            paths_each(&prog, &PathOptions::default(), &mut |_| {
+                made += 1;
+                made < 2
+            })
+            .unwrap();
+            assert_eq!(made, 2, "{name}: made after the stop");
+        }
+    }
+    assert!(several >= 3, "{several} programs of three paths or more");
+}
