@@ -16,6 +16,11 @@
 //! acknowledgements); a slower host makes it wait for the planning too.
 //! Those waits count in the machining time.
 //!
+//! - **Memory.** The paths are made one at a time as they stream
+//!   ([`planner_host::program::paths_each`]), after a first pass that makes
+//!   each, checks it against the machine's travel and drops it (a path past
+//!   the travel refuses the program before anything moves): the host holds
+//!   the program's moves and one path, not every path of a long program.
 //! - **Continuity.** Each path's first setpoint is the previous path's last
 //!   within [`JOIN_TOL_MM`], else [`StreamError::Gap`].
 //! - **Time.** Path k + 1's session opens one servo period after path k's

@@ -62,6 +62,8 @@
 //! arc) is capped by the planner (docs/design.md, "Curvature jumps and
 //! corners").
 
+use std::borrow::Cow;
+
 use crate::gcode::{Move, MoveKind, PathControl, Program};
 use crate::geometry::curve::Nurbs;
 use crate::geometry::junction::CORNER_ANGLE_RAD;
@@ -551,9 +553,10 @@ fn close_into(o: Open, out: &mut Made<'_>) -> Result<(), PathError> {
 }
 
 /// Drop moves under 1 µm, stretching a neighbouring straight move over a
-/// non-zero one.
-fn drop_short(moves: &[Move], warnings: &mut Vec<String>) -> Result<Vec<Move>, PathError> {
-    let mut out: Vec<Move> = Vec::with_capacity(moves.len());
+/// non-zero one (the moves kept are borrowed, those changed copied: the
+/// program's moves are not held twice).
+fn drop_short<'a>(moves: &'a [Move], warnings: &mut Vec<String>) -> Result<Vec<Cow<'a, Move>>, PathError> {
+    let mut out: Vec<Cow<'a, Move>> = Vec::with_capacity(moves.len());
     let mut gap: Option<(usize, [f64; 3], f64)> = None; // line, where the tool should start, length
     let mut i = 0;
     while i < moves.len() {
@@ -570,7 +573,7 @@ fn drop_short(moves: &[Move], warnings: &mut Vec<String>) -> Result<Vec<Move>, P
                     // stretch the previous line unless the next one can take it
                     let next_straight = moves.get(i + 1).is_some_and(|n| straight(n.kind));
                     if !next_straight {
-                        prev.end = m.end;
+                        prev.to_mut().end = m.end;
                     } else {
                         gap = Some((m.line, m.start, len));
                     }
@@ -582,10 +585,10 @@ fn drop_short(moves: &[Move], warnings: &mut Vec<String>) -> Result<Vec<Move>, P
             i += 1;
             continue;
         }
-        let mut m = m.clone();
+        let mut m = Cow::Borrowed(m);
         if let Some((line, origin, length_mm)) = gap.take() {
             if matches!(m.kind, MoveKind::Line | MoveKind::Rapid) {
-                m.start = origin;
+                m.to_mut().start = origin;
             } else {
                 return Err(PathError::ShortMove { line, length_mm });
             }
