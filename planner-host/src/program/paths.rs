@@ -299,17 +299,18 @@ pub fn paths_each(
     each: &mut dyn FnMut(Path) -> bool,
 ) -> Result<Paths, PathError> {
     let mut made = Made {
-        out: Paths::default(),
+        notes: Paths::default(),
         each,
         stopped: false,
     };
     paths_into(program, opts, &mut made)?;
-    Ok(made.out)
+    Ok(made.notes)
 }
 
 /// Where the paths go as they are made.
 struct Made<'a> {
-    out: Paths,
+    /// The warnings and blended corners (its paths stay empty).
+    notes: Paths,
     each: &'a mut dyn FnMut(Path) -> bool,
     /// `each` asked for no more.
     stopped: bool,
@@ -323,9 +324,9 @@ impl Made<'_> {
     }
 }
 
-fn paths_into(program: &Program, opts: &PathOptions, out: &mut Made<'_>) -> Result<(), PathError> {
+fn paths_into(program: &Program, opts: &PathOptions, made: &mut Made<'_>) -> Result<(), PathError> {
     let cap = |f: Option<f64>| f.map(|f| f.min(opts.feed_cap_mm_s));
-    let moves = drop_short(&program.moves, &mut out.out.warnings)?;
+    let moves = drop_short(&program.moves, &mut made.notes.warnings)?;
     let mut warned_tol: Vec<String> = Vec::new();
     let mut warned_curve_corner = false;
     let mut open: Option<Open> = None;
@@ -359,7 +360,7 @@ fn paths_into(program: &Program, opts: &PathOptions, out: &mut Made<'_>) -> Resu
                     w.push_str(&format!(" Q{q}"));
                 }
                 if !warned_tol.contains(&w) {
-                    out.out.warnings.push(format!("LINE {}: {w}: {why}", m.line));
+                    made.notes.warnings.push(format!("LINE {}: {w}: {why}", m.line));
                     warned_tol.push(w);
                 }
             }
@@ -403,7 +404,7 @@ fn paths_into(program: &Program, opts: &PathOptions, out: &mut Made<'_>) -> Resu
                 {
                     blended = blend_corner(&last.1, &piece, ta.min(tb));
                     if blended.is_none() && !warned_curve_corner {
-                        out.out.warnings.push(format!(
+                        made.notes.warnings.push(format!(
                             "LINE {}: the corner cannot be blended within G64 P{}: an exact stop",
                             m.line,
                             ta.min(tb)
@@ -429,7 +430,7 @@ fn paths_into(program: &Program, opts: &PathOptions, out: &mut Made<'_>) -> Resu
                         }
                         o.pieces.push((m.line, bl.blend, bl.blend_mm.max(MIN_MOVE_MM)));
                         o.feeds.push(cap(m.feed_mm_s));
-                        out.out.blended_corners += 1;
+                        made.notes.blended_corners += 1;
                         (bl.after, (len - bl.cut_mm).max(MIN_MOVE_MM))
                     }
                     None => (piece, len),
@@ -445,8 +446,8 @@ fn paths_into(program: &Program, opts: &PathOptions, out: &mut Made<'_>) -> Resu
             }
             _ => {
                 if let Some(o) = open.take() {
-                    close_into(o, out)?;
-                    if out.stopped {
+                    close_into(o, made)?;
+                    if made.stopped {
                         return Ok(());
                     }
                 }
@@ -463,7 +464,7 @@ fn paths_into(program: &Program, opts: &PathOptions, out: &mut Made<'_>) -> Resu
         prev_exact_stop = m.path_control == PathControl::ExactStop || kind == PathKind::Rapid;
     }
     if let Some(o) = open.take() {
-        close_into(o, out)?;
+        close_into(o, made)?;
     }
     Ok(())
 }
@@ -482,9 +483,9 @@ pub fn program_stops(program: &Program) -> Vec<usize> {
 
 /// Close an open path: a run of chords is fitted (its corners kept as
 /// exact stops when the fit fails); anything else is joined.
-fn close_into(o: Open, out: &mut Made<'_>) -> Result<(), PathError> {
+fn close_into(o: Open, made: &mut Made<'_>) -> Result<(), PathError> {
     let Some(tol) = o.chords.filter(|_| o.pieces.len() >= 2) else {
-        out.push(close(o)?);
+        made.push(close(o)?);
         return Ok(());
     };
     let mut vertices = Vec::with_capacity(o.pieces.len() + 1);
@@ -515,7 +516,7 @@ fn close_into(o: Open, out: &mut Made<'_>) -> Result<(), PathError> {
                     feed_mm_s: feed,
                 })
                 .collect();
-            out.push(Path {
+            made.push(Path {
                 kind: o.kind,
                 curve,
                 feed_mm_s: o.feed,
@@ -534,11 +535,11 @@ fn close_into(o: Open, out: &mut Made<'_>) -> Result<(), PathError> {
             let why = match e {
                 FitError::NotWithin { .. } | FitError::Degenerate => e.to_string(),
             };
-            out.out.warnings.push(format!(
+            made.notes.warnings.push(format!(
                 "LINE {first}..{last}: the chords are not blended ({why}): their corners are exact stops"
             ));
             for (p, feed) in o.pieces.into_iter().zip(o.feeds) {
-                out.push(close(Open {
+                made.push(close(Open {
                     kind: o.kind,
                     last_tol: None,
                     feed,
