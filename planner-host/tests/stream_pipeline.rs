@@ -199,7 +199,7 @@ fn a_gap_in_the_map_told_is_refused() {
         windows: Some(WindowConfig::default()),
         ..PlanConfig::default()
     };
-    let plan = planner_host::plan::plan_curve(&curve, &cfg).unwrap();
+    let plan = plan_curve(&curve, &cfg).unwrap();
     let table = Table::parse(&plan.table_bytes).unwrap();
     use firmware_core::path::su_map::SegmentArray;
     let breaks: Vec<f64> = table.su_breaks().iter().collect();
