@@ -77,12 +77,42 @@ pub const NOT_ALONE_MM: f64 = -1.0;
 /// ticks the rows passed are freed and the next chunks of those at hand
 /// pushed into the window as they fit, the plan's stop segment with the
 /// last ([`StreamedRun::step`]). Ticks are those of the whole table.
-#[derive(Clone)]
 pub struct StreamedRun<const NQ: usize, const NP: usize> {
     /// The interpolator (the window is its rows).
     pub ip: Interpolator<'static, 0, 0, PlanWindow<NQ, NP>>,
     ends: Option<EndSegments>,
     next: usize,
+}
+
+impl<const NQ: usize, const NP: usize> Clone for StreamedRun<NQ, NP> {
+    fn clone(&self) -> Self {
+        StreamedRun {
+            ip: self.ip.clone(),
+            ends: self.ends,
+            next: self.next,
+        }
+    }
+
+    /// The window's rows held copied, not its arrays: what the dry run's
+    /// many copies into kept ones cost ([`PlanWindow`]'s `clone_from`).
+    fn clone_from(&mut self, src: &Self) {
+        self.ip.clone_from(&src.ip);
+        (self.ends, self.next) = (src.ends, src.next);
+    }
+}
+
+/// The interpolator of a dry run, boxed (a host-sized window is megabytes).
+type DryIp<const NQ: usize, const NP: usize> = Box<Interpolator<'static, 0, 0, PlanWindow<NQ, NP>>>;
+
+/// `src` copied into `slot`, reusing the box there ([`Clone::clone_from`]).
+fn copy_into<'s, T: Clone>(slot: &'s mut Option<Box<T>>, src: &T) -> &'s mut T {
+    match slot {
+        Some(b) => {
+            b.as_mut().clone_from(src);
+            b
+        }
+        None => slot.insert(Box::new(src.clone())),
+    }
 }
 
 impl<const NQ: usize, const NP: usize> StreamedRun<NQ, NP> {
@@ -389,6 +419,11 @@ pub struct HoldPointSearch<const NQ: usize, const NP: usize> {
     entering: bool,
     /// Hold points given for the first chunks ([`hold_points_given`]).
     pub(crate) given: Vec<f64>,
+    /// The copies a test cuts back and ticks, and a kept dry run tested
+    /// again, reused from test to test (a fresh copy of a host-sized
+    /// window is megabytes; into these only the rows held are copied).
+    scratch: Option<DryIp<NQ, NP>>,
+    trial: Option<Box<StreamedRun<NQ, NP>>>,
 }
 
 /// Coarse tests the search keeps the dry run of, to look back from a
@@ -425,6 +460,8 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
             history: Default::default(),
             entering: false,
             given: vec![],
+            scratch: None,
+            trial: None,
         }
     }
 
@@ -492,10 +529,15 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                 // tests cut back: as if they had been there at it)
                 run.push(chunks)?;
                 if self.history.back().map(|h| h.1) != Some(s) {
-                    if self.history.len() == HISTORY {
-                        self.history.pop_front();
+                    // (into the oldest's box once the history is full)
+                    let mut kept = match self.history.len() == HISTORY {
+                        true => self.history.pop_front().map(|h| h.0),
+                        false => None,
+                    };
+                    copy_into(&mut kept, &**run);
+                    if let Some(b) = kept {
+                        self.history.push_back((b, s));
                     }
-                    self.history.push_back((run.clone(), s));
                 }
                 // Chunk i at this tick; on failure its hold point from the
                 // tests before, and chunk i + 1 at this tick.
@@ -531,7 +573,13 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                         continue;
                     }
                     self.tests += 1;
-                    if stops_before(&run.ip, end, &parse(self.i + 1, next)?, &self.how) {
+                    if stops_before(
+                        &run.ip,
+                        &mut self.scratch,
+                        end,
+                        &parse(self.i + 1, next)?,
+                        &self.how,
+                    ) {
                         self.last_pass = Some(s);
                         break;
                     }
@@ -577,14 +625,14 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                 found = Some(k);
                 break;
             }
-            let mut t = self.history[k].0.clone();
+            let t = copy_into(&mut self.trial, &*self.history[k].0);
             t.push(chunks)?;
-            if !holds_i(&t) {
+            if !holds_i(t) {
                 // (chunk i did not fit the window yet: nor the firmware's)
                 break;
             }
             self.tests += 1;
-            if stops_before(&t.ip, end, next, &self.how) {
+            if stops_before(&t.ip, &mut self.scratch, end, next, &self.how) {
                 found = Some(k);
                 break;
             }
@@ -595,28 +643,22 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                 // Every `step_mm` from the coarse test before the one that
                 // passed (where chunk i is held then) to the one after: the
                 // passing runs between failures.
-                let before = match k.checked_sub(1).and_then(|k0| self.history.get(k0)) {
-                    Some((h, _)) => {
-                        let mut t = h.clone();
-                        t.push(chunks)?;
-                        holds_i(&t).then_some(t)
+                let mut from = k;
+                if let Some(k0) = k.checked_sub(1) {
+                    let t = copy_into(&mut self.trial, &*self.history[k0].0);
+                    t.push(chunks)?;
+                    if holds_i(t) {
+                        from = k0;
                     }
-                    None => None,
-                };
-                let mut t = match before {
-                    Some(t) => t,
-                    None => {
-                        let mut t = self.history[k].0.clone();
-                        t.push(chunks)?;
-                        t
-                    }
-                };
+                }
+                let t = copy_into(&mut self.trial, &*self.history[from].0);
+                t.push(chunks)?;
                 let until = self.history[k + 1].1;
                 let mut tests = vec![];
                 let mut at = t.ip.s_mm();
                 loop {
                     self.tests += 1;
-                    tests.push((at, stops_before(&t.ip, end, next, &self.how)));
+                    tests.push((at, stops_before(&t.ip, &mut self.scratch, end, next, &self.how)));
                     let goal = at + self.how.step_mm;
                     while !t.ip.is_done() && t.ip.s_mm() < goal {
                         t.step(chunks)?;
@@ -700,11 +742,12 @@ fn hold_point_of_runs(tests: &[(f64, bool)], backoff_mm: f64) -> f64 {
 /// room then for the chunk `next`?
 fn stops_before<const NQ: usize, const NP: usize>(
     ip: &Interpolator<'static, 0, 0, PlanWindow<NQ, NP>>,
+    scratch: &mut Option<DryIp<NQ, NP>>,
     s_end: i64,
     next: &Chunk<'_>,
     how: &HoldSearch,
 ) -> bool {
-    let mut t = ip.clone();
+    let t = copy_into(scratch, ip);
     if t.window().held_end() > s_end && !t.truncate_window(s_end) {
         return false;
     }

@@ -8,7 +8,7 @@
 
 use firmware_core::interp::Interpolator;
 use firmware_core::stream::{Chunk, PlanWindow, WindowError, JOIN_TOL_FX};
-use firmware_core::{F64Array, Setpoint, Table};
+use firmware_core::{F64Array, HoldState, Setpoint, Table};
 use planner_host::builtin;
 use planner_host::plan::{plan_curve, PlanConfig};
 use planner_host::stream::{chunk_rows, chunk_table, ChunkOptions, TableRows};
@@ -425,6 +425,58 @@ fn hold_alike() {
         );
         println!("pressed at {press_mm} mm: {k} setpoints equal, held 400 ticks, resumed");
     }
+}
+
+/// A dry run copied into one that holds other rows (`clone_from` copies
+/// only the rows held, not the window's arrays) ticks on as a whole copy
+/// of it, bit for bit, moving or holding: the rows it leaves stale are
+/// never read.
+#[test]
+fn a_run_copied_into_one_holding_other_rows_ticks_as_a_whole_copy() {
+    let (bytes, chunks) = butterfly_in_chunks(4.0);
+    let table = Table::parse(&bytes).unwrap();
+    let mut run = StreamedRun::<NQ, NP>::start(&table, &chunks, T).unwrap();
+    // further on, its window holding rows of later chunks in the slots
+    let mut ahead = run.clone();
+    for _ in 0..9000 {
+        ahead.step(&chunks).unwrap();
+    }
+    let (mut k, mut copies) = (0usize, 0usize);
+    while !run.ip.is_done() {
+        if k % 4000 == 1234 {
+            let mut copy = ahead.clone();
+            copy.clone_from(&run);
+            let mut whole = run.clone();
+            let hold = copies % 2 == 1;
+            if hold {
+                assert!(whole.ip.hold().is_ok() && copy.ip.hold().is_ok());
+            }
+            let mut n = 0;
+            while !(whole.ip.is_done() || (hold && whole.ip.hold_state() == HoldState::Held)) {
+                // (a hold the rows held cannot stop in faults: alike)
+                match (whole.step(&chunks), copy.step(&chunks)) {
+                    (Ok(a), Ok(b)) => assert_eq!(bits(&a), bits(&b), "copy at tick {k}, setpoint {n} after"),
+                    (a, b) => {
+                        assert_eq!(a, b, "copy at tick {k}, setpoint {n} after");
+                        break;
+                    }
+                }
+                n += 1;
+            }
+            assert_eq!(
+                (copy.ip.is_done(), copy.ip.hold_state()),
+                (whole.ip.is_done(), whole.ip.hold_state())
+            );
+            println!(
+                "copy at tick {k}{}: {n} setpoints alike",
+                if hold { ", held" } else { "" }
+            );
+            copies += 1;
+        }
+        run.step(&chunks).unwrap();
+        k += 1;
+    }
+    assert!(copies >= 4, "{copies} copies over {k} ticks");
 }
 
 /// The Butterfly's table and its chunks of about `chunk_mm`.

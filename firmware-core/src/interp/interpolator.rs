@@ -68,7 +68,7 @@ pub const OVERRIDE_W: usize = 64;
 /// with up to `W` control points (RAM: `Q + 1` windows of ~68·W bytes).
 // repr(C), override storage last: the tick's fields stay at small offsets
 // (Thumb-2 loads reach 4 KiB from a base register; the windows are ~13 KiB).
-#[derive(Clone, Debug)]
+#[derive(Debug)]
 #[repr(C)]
 pub struct Interpolator<'a, const Q: usize = 0, const W: usize = 0, R = Views<'a>> {
     pub(crate) period_s: f64,
@@ -126,6 +126,138 @@ pub struct Interpolator<'a, const Q: usize = 0, const W: usize = 0, R = Views<'a
     pub(crate) views: R,
     /// Override profiles: the queue and the active one.
     pub(crate) ov: Overrides<'a, Q, W>,
+}
+
+impl<'a, const Q: usize, const W: usize, R: Clone> Clone for Interpolator<'a, Q, W, R> {
+    fn clone(&self) -> Self {
+        let Interpolator {
+            period_s,
+            h,
+            period_parts,
+            tk,
+            length_mm,
+            len_fx,
+            qc,
+            pc,
+            first,
+            last,
+            k,
+            s,
+            qs,
+            stall_q,
+            stall_ds,
+            end_tol,
+            ends,
+            stop_at,
+            k_join,
+            h_join,
+            join_s,
+            tk_join,
+            join,
+            seg,
+            segk,
+            phase,
+            fh,
+            views,
+            ov,
+        } = self;
+        Interpolator {
+            period_s: *period_s,
+            h: *h,
+            period_parts: *period_parts,
+            tk: *tk,
+            length_mm: *length_mm,
+            len_fx: *len_fx,
+            qc: *qc,
+            pc: *pc,
+            first: *first,
+            last: *last,
+            k: *k,
+            s: *s,
+            qs: *qs,
+            stall_q: *stall_q,
+            stall_ds: *stall_ds,
+            end_tol: *end_tol,
+            ends: *ends,
+            stop_at: *stop_at,
+            k_join: *k_join,
+            h_join: *h_join,
+            join_s: *join_s,
+            tk_join: *tk_join,
+            join: *join,
+            seg: *seg,
+            segk: *segk,
+            phase: *phase,
+            fh: *fh,
+            views: views.clone(),
+            ov: ov.clone(),
+        }
+    }
+
+    /// Field by field, so that the rows' own `clone_from` copies what they
+    /// hold ([`crate::stream::PlanWindow`]: its rows held, not its arrays).
+    fn clone_from(&mut self, src: &Self) {
+        let Interpolator {
+            period_s,
+            h,
+            period_parts,
+            tk,
+            length_mm,
+            len_fx,
+            qc,
+            pc,
+            first,
+            last,
+            k,
+            s,
+            qs,
+            stall_q,
+            stall_ds,
+            end_tol,
+            ends,
+            stop_at,
+            k_join,
+            h_join,
+            join_s,
+            tk_join,
+            join,
+            seg,
+            segk,
+            phase,
+            fh,
+            views,
+            ov,
+        } = src;
+        self.period_s = *period_s;
+        self.h = *h;
+        self.period_parts = *period_parts;
+        self.tk = *tk;
+        self.length_mm = *length_mm;
+        self.len_fx = *len_fx;
+        self.qc = *qc;
+        self.pc = *pc;
+        self.first = *first;
+        self.last = *last;
+        self.k = *k;
+        self.s = *s;
+        self.qs = *qs;
+        self.stall_q = *stall_q;
+        self.stall_ds = *stall_ds;
+        self.end_tol = *end_tol;
+        self.ends = *ends;
+        self.stop_at = *stop_at;
+        self.k_join = *k_join;
+        self.h_join = *h_join;
+        self.join_s = *join_s;
+        self.tk_join = *tk_join;
+        self.join = *join;
+        self.seg = *seg;
+        self.segk = *segk;
+        self.phase = *phase;
+        self.fh = *fh;
+        self.views.clone_from(views);
+        self.ov.clone_from(ov);
+    }
 }
 
 impl<'a> Interpolator<'a> {

@@ -265,7 +265,7 @@ fn step_between(a: [i64; 3], b: [i64; 3]) -> i64 {
 
 /// The q spans and pieces of a streamed plan held for the tick: up to `NQ`
 /// q spans and `NP` pieces, in order, from the oldest not yet released.
-#[derive(Clone, Debug)]
+#[derive(Debug)]
 pub struct PlanWindow<const NQ: usize, const NP: usize> {
     q: [QRow; NQ],
     p: [PRow; NP],
@@ -298,6 +298,61 @@ pub struct PlanWindow<const NQ: usize, const NP: usize> {
     /// The start and stop segments' joins (s, Q40 mm; q, q′, q″) q must
     /// meet, once told ([`PlanWindow::expect_join`]).
     joins: [Option<(i64, [f64; 3])>; 2],
+}
+
+impl<const NQ: usize, const NP: usize> Clone for PlanWindow<NQ, NP> {
+    fn clone(&self) -> Self {
+        PlanWindow {
+            q: self.q,
+            p: self.p,
+            ..*self
+        }
+    }
+
+    /// The rows held copied, not the whole arrays: the others are never
+    /// read (every row is read through the held range, `qrow`, `prow`), so
+    /// the copy behaves as a whole one. A host that copies a large window
+    /// for every test of a dry run copies kilobytes, not megabytes.
+    fn clone_from(&mut self, src: &Self) {
+        let PlanWindow {
+            q,
+            p,
+            q_lo,
+            q_n,
+            p_lo,
+            p_n,
+            q_last,
+            p_last,
+            plan_id,
+            held_end,
+            next_span,
+            hold_at,
+            starved,
+            end_pos,
+            ends_pos,
+            joins,
+        } = src;
+        for idx in *q_lo..q_lo.wrapping_add(*q_n) {
+            if let (Some(to), Some(from)) = (
+                idx.checked_rem(NQ).and_then(|k| self.q.get_mut(k)),
+                idx.checked_rem(NQ).and_then(|k| q.get(k)),
+            ) {
+                *to = *from;
+            }
+        }
+        for idx in *p_lo..p_lo.wrapping_add(*p_n) {
+            if let (Some(to), Some(from)) = (
+                idx.checked_rem(NP).and_then(|k| self.p.get_mut(k)),
+                idx.checked_rem(NP).and_then(|k| p.get(k)),
+            ) {
+                *to = *from;
+            }
+        }
+        (self.q_lo, self.q_n, self.p_lo, self.p_n) = (*q_lo, *q_n, *p_lo, *p_n);
+        (self.q_last, self.p_last, self.plan_id) = (*q_last, *p_last, *plan_id);
+        (self.held_end, self.next_span, self.hold_at) = (*held_end, *next_span, *hold_at);
+        (self.starved, self.end_pos, self.ends_pos, self.joins) = (*starved, *end_pos, *ends_pos, *joins);
+    }
 }
 
 impl<const NQ: usize, const NP: usize> Default for PlanWindow<NQ, NP> {
