@@ -24,6 +24,7 @@ use firmware_core::{EndSegments, SuSegment};
 
 use crate::geometry::curve::Nurbs;
 use crate::plan::replan::{replan_committing, FeedChange};
+use crate::plan::su_fit::drop_front;
 use crate::plan::{plan_curve_committing, Commit, PlanConfig, PlanError, PlanOutput};
 use crate::stream::{ChunkCutter, ChunkOptions, ChunkTableError, TableRows};
 use crate::stream_hold::{HoldPointError, HoldPointSearch, HoldPoints, HoldSearch};
@@ -187,10 +188,9 @@ impl ChunkPipeline {
                 .groups
                 .front()
                 .map_or(self.path.su_first + self.path.su_segments.len(), |g| g.2);
-            let k = (keep_from - self.path.su_first).min(self.path.su_segments.len());
-            self.path.su_segments.drain(..k);
-            self.path.su_breaks.drain(..k);
-            self.path.su_first += k;
+            let p = &mut self.path;
+            let k = keep_from - p.su_first;
+            drop_front(&mut p.su_breaks, &mut p.su_segments, &mut p.su_first, k);
         }
         self.finished = c.last;
         if self.rows.words.is_empty() {

@@ -20,7 +20,7 @@ use crate::plan::knots::{end_room, refine_turning, with_breaks, with_feed_breaks
 use crate::plan::levels::validate_levels;
 use crate::plan::lp_stage::{check_points, LpStage, Refine, Solved};
 use crate::plan::output::PlanOutput;
-use crate::plan::su_fit::{SetpointBudget, SuMap};
+use crate::plan::su_fit::{drop_front, SetpointBudget, SuMap};
 use crate::plan::windowed::WindowStart;
 use crate::sampling;
 use firmware_core::Limits;
@@ -110,11 +110,8 @@ impl SuProgress {
             .extend_from_slice(m.segments.get(k..).unwrap_or(&[]));
         self.breaks.extend_from_slice(m.breaks.get(kb..).unwrap_or(&[]));
         if !keep {
-            // (the last break stays: the next segment starts there)
             let n = m.segments.len();
-            m.segments.drain(..n);
-            m.breaks.drain(..n.min(m.breaks.len().saturating_sub(1)));
-            m.first += n;
+            drop_front(&mut m.breaks, &mut m.segments, &mut m.first, n);
         }
     }
 }
@@ -296,11 +293,9 @@ fn plan_curve_inner(
                     ..*c
                 });
                 // (told: the next commit tells the map from its end)
+                let slot = &mut *slot;
                 let k = slot.segments.len();
-                slot.segments.drain(..k);
-                let kb = k.min(slot.breaks.len().saturating_sub(1));
-                slot.breaks.drain(..kb);
-                slot.first += k;
+                drop_front(&mut slot.breaks, &mut slot.segments, &mut slot.first, k);
             }
         }
     };

@@ -393,6 +393,18 @@ fn deriv_share(
     worst.min(sampled) / b.share
 }
 
+/// Drop the first `k` segments (at most all) of a stretch of the map —
+/// `segments` from segment `first` on, `breaks` from break `first` on —
+/// and the breaks they start at; the break the next segment starts at
+/// stays, and `first` moves on by the segments dropped. How a map told or
+/// fitted in parts lets go of what it has passed on.
+pub fn drop_front(breaks: &mut Vec<f64>, segments: &mut Vec<SuSegment>, first: &mut usize, k: usize) {
+    let k = k.min(segments.len());
+    segments.drain(..k);
+    breaks.drain(..k.min(breaks.len().saturating_sub(1)));
+    *first += k;
+}
+
 impl SuMap {
     /// Fit the map to `tol_mm` (> 0, mm): see the module docs. Errors: a bad
     /// tolerance, a point where the curve stands still (`ZeroSpeed`: u(s)
