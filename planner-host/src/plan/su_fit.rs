@@ -398,7 +398,7 @@ fn deriv_share(
 /// and the breaks they start at; the break the next segment starts at
 /// stays, and `first` moves on by the segments dropped. How a map told or
 /// fitted in parts lets go of what it has passed on.
-pub fn drop_front(breaks: &mut Vec<f64>, segments: &mut Vec<SuSegment>, first: &mut usize, k: usize) {
+pub(crate) fn drop_front(breaks: &mut Vec<f64>, segments: &mut Vec<SuSegment>, first: &mut usize, k: usize) {
     let k = k.min(segments.len());
     segments.drain(..k);
     breaks.drain(..k.min(breaks.len().saturating_sub(1)));
