@@ -130,16 +130,105 @@ fn chol_solve(l: &[[f64; W]], x: &mut [f64]) {
     }
 }
 
-/// Largest α ≤ 1 with v + α·dv ≥ 0.
-fn max_step(v: &[f64], dv: &[f64]) -> f64 {
-    let mut a: f64 = 1.0;
-    for (&x, &d) in v.iter().zip(dv) {
-        // x + a d ≥ 0 ⇔ a ≤ −x/d for d < 0; compare without dividing
-        if x + a * d < 0.0 {
-            a = -x / d;
+/// A chunk's sums of the pass over the rows that opens an iteration: its
+/// terms of Aᵀy and of AᵀDA over its variables lo..hi, and its ‖rp‖∞.
+struct RowSums {
+    aty: Vec<f64>,
+    normal: Vec<[f64; W]>,
+    rp_n: f64,
+}
+
+/// What a Newton direction reads: the rows, their chunks, the residuals,
+/// 1/s, s, y and the factorised normal matrix of this iteration.
+struct Newton<'a> {
+    rows: &'a [BandRow],
+    chunks: &'a [Chunk],
+    chunk: usize,
+    n: usize,
+    rp: &'a [f64],
+    rd: &'a [f64],
+    inv_s: &'a [f64],
+    s: &'a [f64],
+    y: &'a [f64],
+    band: &'a [[f64; W]],
+}
+
+impl Newton<'_> {
+    /// The Newton direction for the complementarity target
+    /// rc_i = −s_i y_i + e_i (e from `extra`) into dx, ds, dy, and the
+    /// largest steps α ≤ 1 with s + α ds ≥ 0 and y + α dy ≥ 0 (each chunk's,
+    /// the least of them), found in the pass that makes ds, dy.
+    fn direction(
+        &self,
+        extra: impl Fn(usize) -> f64 + Sync,
+        dx: &mut [f64],
+        ds: &mut [f64],
+        dy: &mut [f64],
+        tmp_n: &mut [f64],
+    ) -> (f64, f64) {
+        let (rows, chunks, chunk, n) = (self.rows, self.chunks, self.chunk, self.n);
+        let (rp, rd, inv_s, s, y) = (self.rp, self.rd, self.inv_s, self.s, self.y);
+        let m = rows.len();
+        tmp_n.iter_mut().for_each(|v| *v = 0.0);
+        let parts: Vec<Vec<f64>> = chunks
+            .par_iter()
+            .map(|c| {
+                let mut acc = vec![0.0; c.hi - c.lo];
+                for i in c.start..(c.start + chunk).min(m) {
+                    let r = &rows[i];
+                    // (rc + y rp)/s with rc = −s y + e
+                    let t = (extra(i) + y[i] * rp[i]) * inv_s[i] - y[i];
+                    let w = &mut acc[r.first - c.lo..r.first - c.lo + W];
+                    for j in 0..W {
+                        w[j] += r.val[j] * t;
+                    }
+                }
+                acc
+            })
+            .collect();
+        add_parts(chunks, parts, tmp_n, |a, b| *a += b);
+        for j in 0..dx.len() {
+            dx[j] = if j < n { -rd[j] - tmp_n[j] } else { 0.0 };
+        }
+        chol_solve(self.band, dx);
+        let dx = &*dx;
+        let steps: Vec<(f64, f64)> = ds
+            .par_chunks_mut(chunk)
+            .zip(dy.par_chunks_mut(chunk))
+            .zip(chunks)
+            .map(|((ds, dy), c)| {
+                let (mut a_s, mut a_y) = (1.0f64, 1.0f64);
+                for (k, (dsk, dyk)) in ds.iter_mut().zip(dy.iter_mut()).enumerate() {
+                    let i = c.start + k;
+                    let dsi = -rp[i] - row_dot(&rows[i], dx);
+                    let dyi = (extra(i) - y[i] * (s[i] + dsi)) * inv_s[i];
+                    *dsk = dsi;
+                    *dyk = dyi;
+                    // (x + α d ≥ 0 ⇔ α ≤ −x/d for d < 0: compared
+                    // without dividing, divided only when it binds)
+                    if s[i] + a_s * dsi < 0.0 {
+                        a_s = -s[i] / dsi;
+                    }
+                    if y[i] + a_y * dyi < 0.0 {
+                        a_y = -y[i] / dyi;
+                    }
+                }
+                (a_s, a_y)
+            })
+            .collect();
+        match steps[..] {
+            [one] => one,
+            _ => steps
+                .iter()
+                .fold((1.0, 1.0), |(a, b), &(c, d)| (f64::min(a, c), f64::min(b, d))),
         }
     }
-    a
+}
+
+/// Row `r` times `v` (four entries from `r.first`).
+fn row_dot(r: &BandRow, v: &[f64]) -> f64 {
+    let w = &v[r.first..r.first + W];
+    r.val[0] * w[0] + r.val[1] * w[1] + r.val[2] * w[2] + r.val[3] * w[3]
 }
 
 /// Minimise gᵀx subject to A x ≤ b, from x = `x0` when given (a warm start:
@@ -184,10 +273,6 @@ fn solve_in_chunks(
     if let Some(x0) = x0 {
         x[..n].copy_from_slice(&x0[..n]);
     }
-    let row_dot = |r: &BandRow, v: &[f64]| -> f64 {
-        let w = &v[r.first..r.first + W];
-        r.val[0] * w[0] + r.val[1] * w[1] + r.val[2] * w[2] + r.val[3] * w[3]
-    };
     let mut s: Vec<f64> = Vec::with_capacity(m);
     let mut y: Vec<f64> = Vec::with_capacity(m);
     if x0.is_some() {
@@ -227,39 +312,60 @@ fn solve_in_chunks(
             Chunk { start: a, lo, hi }
         })
         .collect();
-    // the largest step (`max_step`) by chunks: the least of theirs
-    let step = |v: &[f64], dv: &[f64]| -> f64 {
-        if chunks.len() <= 1 {
-            return max_step(v, dv);
-        }
-        let parts: Vec<f64> = v
-            .par_chunks(chunk)
-            .zip(dv.par_chunks(chunk))
-            .map(|(v, dv)| max_step(v, dv))
-            .collect();
-        parts.into_iter().fold(1.0, f64::min)
-    };
     for it in 0..max_iter {
-        // residuals rp = A x + s − b, rd = Aᵀ y + g
+        // One pass over the rows: the residuals rp = A x + s − b and
+        // rd = Aᵀ y + g, ‖rp‖∞, and the normal matrix AᵀDA, D = y/s (made
+        // before the stopping test; the last iteration's goes unused): the
+        // rows and s, y are read once, not once for each.
         rd.iter_mut().for_each(|v| *v = 0.0);
-        let parts: Vec<Vec<f64>> = rp
+        band.iter_mut().for_each(|r| *r = [0.0; W]);
+        let parts: Vec<RowSums> = rp
             .par_chunks_mut(chunk)
+            .zip(inv_s.par_chunks_mut(chunk))
             .zip(&chunks)
-            .map(|(rp, c)| {
-                let mut acc = vec![0.0; c.hi - c.lo];
-                for (k, rpi) in rp.iter_mut().enumerate() {
+            .map(|((rp, inv_s), c)| {
+                let mut aty = vec![0.0; c.hi - c.lo];
+                let mut normal = vec![[0.0; W]; c.hi - c.lo];
+                let mut rp_n = 0.0f64;
+                for (k, (rpi, is)) in rp.iter_mut().zip(inv_s.iter_mut()).enumerate() {
                     let i = c.start + k;
                     let r = &rows[i];
                     *rpi = row_dot(r, &x) + s[i] - b[i];
-                    let w = &mut acc[r.first - c.lo..r.first - c.lo + W];
+                    rp_n = rp_n.max(rpi.abs());
+                    let f = r.first - c.lo;
+                    let w = &mut aty[f..f + W];
                     for j in 0..W {
                         w[j] += r.val[j] * y[i];
                     }
+                    *is = 1.0 / s[i];
+                    let d = y[i] * *is;
+                    let v = r.val;
+                    for p in 0..W {
+                        let dp = d * v[p];
+                        let br = &mut normal[f + p];
+                        for q in 0..=p {
+                            br[p - q] += dp * v[q];
+                        }
+                    }
                 }
-                acc
+                RowSums { aty, normal, rp_n }
             })
             .collect();
-        add_parts(&chunks, parts, &mut rd, |a, b| *a += b);
+        let mut rp_n = 0.0f64;
+        for (c, part) in chunks.iter().zip(&parts) {
+            for (o, v) in rd[c.lo..c.hi].iter_mut().zip(&part.aty) {
+                *o += v;
+            }
+            rp_n = rp_n.max(part.rp_n);
+        }
+        for (c, part) in chunks.iter().zip(&parts) {
+            for (o, v) in band[c.lo..c.hi].iter_mut().zip(&part.normal) {
+                for k in 0..W {
+                    o[k] += v[k];
+                }
+            }
+        }
+        drop(parts);
         let sy: f64 = s.iter().zip(&y).map(|(a, b)| a * b).sum();
         // scale of the dual residual: the terms it is the difference of (as Clarabel does)
         let aty_n = rd[..n].iter().fold(0.0f64, |a, v| a.max(v.abs()));
@@ -268,7 +374,6 @@ fn solve_in_chunks(
         }
         let mu = sy / m as f64;
         let pobj: f64 = g.iter().zip(&x).map(|(a, b)| a * b).sum();
-        let rp_n = rp.iter().fold(0.0f64, |a, v| a.max(v.abs()));
         let rd_n = rd[..n].iter().fold(0.0f64, |a, v| a.max(v.abs()));
         if !(mu.is_finite() && rp_n.is_finite() && rd_n.is_finite()) {
             return almost.ok_or(IpmFail::Numerical(it));
@@ -291,87 +396,27 @@ fn solve_in_chunks(
                 return Ok(almost.take().unwrap_or_default());
             }
         }
-        // normal matrix AᵀDA, D = y/s (padding rows: identity)
-        band.iter_mut().for_each(|r| *r = [0.0; W]);
-        let parts: Vec<Vec<[f64; W]>> = inv_s
-            .par_chunks_mut(chunk)
-            .zip(&chunks)
-            .map(|(inv_s, c)| {
-                let mut acc = vec![[0.0; W]; c.hi - c.lo];
-                for (k, is) in inv_s.iter_mut().enumerate() {
-                    let i = c.start + k;
-                    let r = &rows[i];
-                    *is = 1.0 / s[i];
-                    let d = y[i] * *is;
-                    let v = r.val;
-                    let f = r.first - c.lo;
-                    for p in 0..W {
-                        let dp = d * v[p];
-                        let br = &mut acc[f + p];
-                        for q in 0..=p {
-                            br[p - q] += dp * v[q];
-                        }
-                    }
-                }
-                acc
-            })
-            .collect();
-        add_parts(&chunks, parts, &mut band, |a, b| {
-            for k in 0..W {
-                a[k] += b[k];
-            }
-        });
+        // (padding rows of the normal matrix: identity)
         for r in band[n..].iter_mut() {
             *r = [1.0, 0.0, 0.0, 0.0];
         }
         if !cholesky(&mut band) {
             return almost.ok_or(IpmFail::Numerical(it));
         }
-        // Newton direction for the complementarity target rc_i = −s_i y_i + e_i
-        // (e from `extra`): dx, ds, dy.
-        let direction = |extra: &(dyn Fn(usize) -> f64 + Sync),
-                         dx: &mut [f64],
-                         ds: &mut [f64],
-                         dy: &mut [f64],
-                         tmp_n: &mut [f64]| {
-            tmp_n.iter_mut().for_each(|v| *v = 0.0);
-            let parts: Vec<Vec<f64>> = chunks
-                .par_iter()
-                .map(|c| {
-                    let mut acc = vec![0.0; c.hi - c.lo];
-                    for i in c.start..(c.start + chunk).min(m) {
-                        let r = &rows[i];
-                        // (rc + y rp)/s with rc = −s y + e
-                        let t = (extra(i) + y[i] * rp[i]) * inv_s[i] - y[i];
-                        let w = &mut acc[r.first - c.lo..r.first - c.lo + W];
-                        for j in 0..W {
-                            w[j] += r.val[j] * t;
-                        }
-                    }
-                    acc
-                })
-                .collect();
-            add_parts(&chunks, parts, tmp_n, |a, b| *a += b);
-            for j in 0..np {
-                dx[j] = if j < n { -rd[j] - tmp_n[j] } else { 0.0 };
-            }
-            chol_solve(&band, dx);
-            let dx = &*dx;
-            ds.par_chunks_mut(chunk)
-                .zip(dy.par_chunks_mut(chunk))
-                .zip(&chunks)
-                .for_each(|((ds, dy), c)| {
-                    for (k, (dsk, dyk)) in ds.iter_mut().zip(dy.iter_mut()).enumerate() {
-                        let i = c.start + k;
-                        let dsi = -rp[i] - row_dot(&rows[i], dx);
-                        *dsk = dsi;
-                        *dyk = (extra(i) - y[i] * (s[i] + dsi)) * inv_s[i];
-                    }
-                });
+        let sys = Newton {
+            rows,
+            chunks: &chunks,
+            chunk,
+            n,
+            rp: &rp,
+            rd: &rd,
+            inv_s: &inv_s,
+            s: &s,
+            y: &y,
+            band: &band,
         };
         // predictor
-        direction(&|_| 0.0, &mut dx, &mut ds_a, &mut dy_a, &mut tmp_n);
-        let (ap, ad) = (step(&s, &ds_a), step(&y, &dy_a));
+        let (ap, ad) = sys.direction(|_| 0.0, &mut dx, &mut ds_a, &mut dy_a, &mut tmp_n);
         let aff = |i: usize| (s[i] + ap * ds_a[i]) * (y[i] + ad * dy_a[i]);
         let mu_aff = if chunks.len() <= 1 {
             (0..m).map(aff).sum::<f64>()
@@ -385,15 +430,10 @@ fn solve_in_chunks(
         let sigma = (mu_aff / mu).clamp(0.0, 1.0).powi(3);
         // corrector
         let smu = sigma * mu;
-        direction(
-            &|i| smu - ds_a[i] * dy_a[i],
-            &mut dx,
-            &mut ds,
-            &mut dy,
-            &mut tmp_n,
-        );
-        let ap = (0.99 * step(&s, &ds)).min(1.0);
-        let ad = (0.99 * step(&y, &dy)).min(1.0);
+        let (ds_a, dy_a) = (&ds_a, &dy_a);
+        let (ap, ad) = sys.direction(|i| smu - ds_a[i] * dy_a[i], &mut dx, &mut ds, &mut dy, &mut tmp_n);
+        let ap = (0.99 * ap).min(1.0);
+        let ad = (0.99 * ad).min(1.0);
         stalled = ap.max(ad) < 1e-6;
         if debug {
             eprintln!("    sigma {sigma:.2e} ap {ap:.2e} ad {ad:.2e}");
