@@ -512,7 +512,11 @@ impl<'a> FeedLp<'a> {
             }
             t.1 = col_new[t.1];
         }
-        trip.sort_unstable_by_key(|&(r, c, _)| (r, c));
+        // (in row order, and within a row in column order, unless a join's
+        // substitution moved a column: sorted only then)
+        if !trip.is_sorted_by_key(|&(r, c, _)| (r, c)) {
+            trip.sort_unstable_by_key(|&(r, c, _)| (r, c));
+        }
         trip.dedup_by(|later, first| {
             let same = later.0 == first.0 && later.1 == first.1;
             if same {
