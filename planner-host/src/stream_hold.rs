@@ -428,8 +428,15 @@ pub struct HoldPointSearch<const NQ: usize, const NP: usize> {
 
 /// Coarse tests the search keeps the dry run of, to look back from a
 /// failing one: a chunk's hold point is searched this many coarse steps
-/// back at most (else it has none: [`NOT_ALONE_MM`]).
-const HISTORY: usize = 24;
+/// back at most (else it has none: [`NOT_ALONE_MM`], the firmware then
+/// waits for the next chunk: fewer kept can only cost availability).
+/// Measured, the passing test was at most 6 steps back (the 1 m meander
+/// in 60/20 mm windows and 4 mm chunks; 3 on the 11 m meander in 8 and
+/// 32 mm chunks, the Butterfly, Fan and Star in 2–32 mm chunks and
+/// 64:128–2048:4096 windows), so twice that is kept: each is a copy of the
+/// whole run (1.35 MB at the simulated firmware's window), its first
+/// allocation on the first motion's path (page faults, ~0.8 ms each).
+const HISTORY: usize = 12;
 
 impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
     /// A search on the plan of `head` with end segments `ends` (the stop's
