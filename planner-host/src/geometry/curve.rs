@@ -486,9 +486,37 @@ impl SpanPolys {
         c
     }
 
-    /// Parametric speed |C′(u)| in span `span`, mm per unit u.
+    /// Parametric speed |C′(u)| in span `span`, mm per unit u: the norm of
+    /// [`SpanPolys::derivs_in_span`]'s first derivative, its orders 0 and 1
+    /// only, by the same operations in the same order (the same bits; the
+    /// arc-length quadrature calls this most of all).
+    #[allow(clippy::needless_range_loop)] // coordinates by index, as above
     pub fn speed_in_span(&self, span: usize, u: f64) -> f64 {
-        norm(self.derivs_in_span(span, u, 1)[1])
+        let Some(Some(sp)) = self.polys.get(span) else {
+            return norm(self.curve.derivs_in_span(span, u, 1)[1]);
+        };
+        let t = (u - sp.c) * sp.inv_h;
+        // A(u) and A′(u) = inv_h Σ_{m ≥ 1} m a_m t^{m−1}, by Horner
+        let (mut a0, mut a1) = ([0.0; 4], [0.0; 4]);
+        for m in (0..=self.p).rev() {
+            for d in 0..4 {
+                a0[d] = a0[d] * t + sp.a[m][d];
+            }
+            if m >= 1 {
+                let f = m as f64;
+                for d in 0..4 {
+                    a1[d] = a1[d] * t + f * sp.a[m][d];
+                }
+            }
+        }
+        let w0 = a0[3];
+        let h1: [f64; 4] = std::array::from_fn(|d| a1[d] * sp.inv_h);
+        let c0 = [a0[0] / w0, a0[1] / w0, a0[2] / w0];
+        let mut v = [h1[0], h1[1], h1[2]];
+        for d in 0..3 {
+            v[d] -= h1[3] * c0[d];
+        }
+        norm([v[0] / w0, v[1] / w0, v[2] / w0])
     }
 }
 
