@@ -653,16 +653,14 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                 // Every `step_mm` from the coarse test before the one that
                 // passed (where chunk i is held then) to the one after: the
                 // passing runs between failures.
-                let mut from = k;
-                if let Some(k0) = k.checked_sub(1) {
-                    let t = copy_into(&mut self.trial, &*self.history[k0].0);
-                    t.push(chunks)?;
-                    if holds_i(t) {
-                        from = k0;
-                    }
-                }
-                let t = copy_into(&mut self.trial, &*self.history[from].0);
+                // (the one before copied once: kept as the start if it holds chunk i)
+                let k0 = k.saturating_sub(1);
+                let mut t = copy_into(&mut self.trial, &*self.history[k0].0);
                 t.push(chunks)?;
+                if k0 != k && !holds_i(t) {
+                    t = copy_into(&mut self.trial, &*self.history[k].0);
+                    t.push(chunks)?;
+                }
                 let until = self.history[k + 1].1;
                 let mut tests = vec![];
                 let mut at = t.ip.s_mm();
