@@ -180,7 +180,16 @@ impl<'a, const Q: usize, const W: usize> Overrides<'a, Q, W> {
             return None;
         }
         let run = w.run;
-        self.queue.remove(0);
+        // (the front out by swaps to the back: a `remove` links the 1.5 KB
+        // memmove routine into the firmware for a queue of a few ids)
+        let mut ids = self.queue.iter_mut();
+        if let Some(mut prev) = ids.next() {
+            for id in ids {
+                core::mem::swap(prev, id);
+                prev = id;
+            }
+        }
+        self.queue.pop();
         self.active = Some(id);
         self.update_range();
         Some(run)

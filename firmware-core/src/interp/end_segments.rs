@@ -2,7 +2,7 @@
 //! cubics in the tick index, run by exact forward differences in Q80.
 
 use crate::limits::EndSegments;
-use crate::servo_forms::fixed::{f64_to_fixed, to_fx};
+use crate::servo_forms::fixed::{f64_to_fixed, to_fx_outlined};
 
 /// An end segment as a cubic in the tick index, run by forward differences
 /// in Q80 (i128): s_{j+1} = s_j + d₁, d₁ += d₂, d₂ += d₃ — integer
@@ -92,7 +92,7 @@ impl SegConsts {
             inv_t: 1.0 / t,
             stop_v: (0.5 * j2) as f32,
             fast: t2 >= 20.0 * t,
-            s2_fx: to_fx(length - j2 * t2 * t2 * t2 / 6.0),
+            s2_fx: to_fx_outlined(length - j2 * t2 * t2 * t2 / 6.0),
             d1_nom: to_q80(j2 / 6.0 * (3.0 * t2 * t2 * t - 3.0 * t2 * t * t + t * t * t)),
             d2_nom: to_q80(j2 * t * t * (t - t2)),
             kd1: j2 * t * t2 - 0.5 * j2 * t * t,

@@ -12,7 +12,7 @@ use crate::interp::setpoint::{Fault, InterpError, Setpoint};
 use crate::limits::{EndSegments, Limits};
 use crate::log;
 use crate::math::source::{F64Array, Point4Array};
-use crate::servo_forms::fixed::{fx_to_f64, step_scale, to_fx};
+use crate::servo_forms::fixed::{fx_to_f64, step_scale, to_fx_outlined};
 use crate::servo_forms::piece::piece_f32_len;
 use crate::servo_forms::q_span::Q_LOCAL_LEN;
 use crate::table::layout::MATCH_TOL_REL;
@@ -409,16 +409,16 @@ impl<'a, const Q: usize, const W: usize, R: PlanRows<'a>> Interpolator<'a, Q, W,
         };
         let (stop_at, join) = match ends {
             Some(e) => {
-                let s1 = to_fx(e.s_start);
+                let s1 = to_fx_outlined(e.s_start);
                 let guess = q_state_at(&views, s1, 0.0).ok_or(bad)?.v;
                 let stop_at = if head.stop_known {
-                    to_fx(e.s_stop)
+                    to_fx_outlined(e.s_stop)
                 } else {
                     i64::MAX
                 };
                 (stop_at, q_state_at(&views, s1, guess).ok_or(bad)?)
             }
-            None if head.stop_known => (to_fx(length_mm), QState::default()),
+            None if head.stop_known => (to_fx_outlined(length_mm), QState::default()),
             None => (i64::MAX, QState::default()),
         };
         Ok(Interpolator {
@@ -427,7 +427,7 @@ impl<'a, const Q: usize, const W: usize, R: PlanRows<'a>> Interpolator<'a, Q, W,
             stop_at,
             k_join,
             h_join: h_join as f32,
-            join_s: ends.map(|e| to_fx(e.s_start)).unwrap_or(0),
+            join_s: ends.map(|e| to_fx_outlined(e.s_start)).unwrap_or(0),
             tk_join: step_scale(h_join),
             join,
             seg: SegRun {
@@ -453,7 +453,7 @@ impl<'a, const Q: usize, const W: usize, R: PlanRows<'a>> Interpolator<'a, Q, W,
             },
             tk: step_scale(period_s),
             length_mm,
-            len_fx: to_fx(length_mm),
+            len_fx: to_fx_outlined(length_mm),
             qc,
             pc,
             first,

@@ -25,7 +25,7 @@ use crate::interp::rows::PlanRows;
 use crate::interp::setpoint::InterpError;
 use crate::limits::EndSegments;
 use crate::math::source::{LeF32, LeF64};
-use crate::servo_forms::fixed::to_fx;
+use crate::servo_forms::fixed::to_fx_outlined;
 use crate::stream::chunk::Chunk;
 use crate::stream::head::StreamHead;
 use crate::stream::window::{PlanWindow, WindowError, WindowOf};
@@ -220,7 +220,7 @@ where
     /// a state no hold point was found for.
     pub fn can_go_on(&self) -> bool {
         let hp = self.views.window_ref().hold_point();
-        let room = to_fx(f64::from(RESUME_ROOM * self.fh.stop_distance(self.qs.v)));
+        let room = to_fx_outlined(f64::from(RESUME_ROOM * self.fh.stop_distance(self.qs.v)));
         hp == i64::MAX || self.s.saturating_add(room) < hp
     }
 
@@ -291,7 +291,7 @@ where
         }
         // (ahead by the room a starved motion resumes with: taken with less,
         // the motion would starve at once, before the chunks after it come)
-        let room = to_fx(f64::from(RESUME_ROOM * self.fh.stop_distance(self.qs.v)));
+        let room = to_fx_outlined(f64::from(RESUME_ROOM * self.fh.stop_distance(self.qs.v)));
         let m = if at_rest {
             0
         } else {
@@ -349,7 +349,7 @@ where
         if self.stop_at != i64::MAX {
             return Err(StopError::NotExpected);
         }
-        let s2 = to_fx(stop.s_stop);
+        let s2 = to_fx_outlined(stop.s_stop);
         if self.s >= s2 || matches!(self.phase, Phase::Done | Phase::Faulted(_)) {
             return Err(StopError::TooLate);
         }

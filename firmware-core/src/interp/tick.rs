@@ -108,7 +108,10 @@ impl<'a, const Q: usize, const W: usize, R: PlanRows<'a>> Interpolator<'a, Q, W,
         Setpoint { t_s, ..self.last }
     }
 
-    #[cfg_attr(feature = "defmt", inline(never))]
+    // (cold and out of line: reached only on a fault, from some fifteen
+    // places of the tick, each of which would otherwise carry a copy)
+    #[cold]
+    #[inline(never)]
     pub(crate) fn fault(&mut self, f: Fault) -> Result<Setpoint, Fault> {
         self.phase = Phase::Faulted(f);
         log::error!("fault: {} on tick {=u64} (sticky until reset)", f, self.k);
@@ -452,7 +455,9 @@ impl<'a, const Q: usize, const W: usize, R: PlanRows<'a>> Interpolator<'a, Q, W,
     /// (integer compares on Q40); the piece-local t and the q-local t (f32,
     /// for u and q′, q″, q‴) and the q span's f32 form. Entering a piece or a
     /// span converts its breaks to Q40 and reads its words.
-    #[inline]
+    // (out of line: three callers carried a copy each, ~0.7 KB of flash;
+    // the worst hold and resume ticks of the sweeps moved by a few instructions)
+    #[inline(never)]
     pub(crate) fn seek(&mut self, s: i64) -> Option<(f32, f32, QLocal)> {
         let v = &self.views;
         while self.pc.idx < v.p_last() && s >= self.pc.next {

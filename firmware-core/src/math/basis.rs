@@ -102,20 +102,37 @@ pub fn ders_basis(win: &[f64], p: usize, x: f64, n: usize, ders: &mut BasisDeriv
         left[j] = x - u_at(1 - j as isize);
         right[j] = u_at(j as isize) - x;
         let mut saved = 0.0;
+        // (row r and column r of ndu both: no one iterator walks them)
+        #[allow(clippy::needless_range_loop)]
         for r in 0..j {
-            // lower triangle: knot differences
-            ndu[j][r] = right[r + 1] + left[j - r];
+            // lower triangle: knot differences (r + 1 ≤ j, j − r ≤ j: `get`
+            // only because the compiler cannot see it)
+            let (rr, lj) = (right.get(r + 1).copied(), left.get(j - r).copied());
+            let (rr, lj) = (rr.unwrap_or(0.0), lj.unwrap_or(0.0));
+            ndu[j][r] = rr + lj;
             let temp = ndu[r][j - 1] / ndu[j][r];
             // upper triangle: basis functions
-            ndu[r][j] = saved + right[r + 1] * temp;
-            saved = left[j - r] * temp;
+            ndu[r][j] = saved + rr * temp;
+            saved = lj * temp;
         }
         ndu[j][j] = saved;
     }
     for j in 0..=p {
         ders[0][j] = ndu[j][p];
     }
+    // (the derivatives' indices are computed, not loop bounds: read and
+    // written through `get`, in range by the algorithm, so that no
+    // bounds-check panic is linked into the firmware)
+    let nd = |i: usize, j: usize| ndu.get(i).and_then(|row| row.get(j)).copied().unwrap_or(0.0);
     let mut a = [[0.0f64; MAX_DEGREE + 1]; 2];
+    let at = |a: &[[f64; MAX_DEGREE + 1]; 2], s: usize, j: usize| {
+        a.get(s).and_then(|row| row.get(j)).copied().unwrap_or(0.0)
+    };
+    let put = |a: &mut [[f64; MAX_DEGREE + 1]; 2], s: usize, j: usize, v: f64| {
+        if let Some(x) = a.get_mut(s).and_then(|row| row.get_mut(j)) {
+            *x = v;
+        }
+    };
     for r in 0..=p {
         let (mut s1, mut s2) = (0usize, 1usize);
         a[0] = [0.0; MAX_DEGREE + 1];
@@ -125,8 +142,9 @@ pub fn ders_basis(win: &[f64], p: usize, x: f64, n: usize, ders: &mut BasisDeriv
             let rk = r as isize - k as isize;
             let pk = p - k;
             if r >= k {
-                a[s2][0] = a[s1][0] / ndu[pk + 1][rk as usize];
-                d = a[s2][0] * ndu[rk as usize][pk];
+                let v = at(&a, s1, 0) / nd(pk + 1, rk as usize);
+                put(&mut a, s2, 0, v);
+                d = v * nd(rk as usize, pk);
             }
             let j1 = if rk >= -1 { 1 } else { (-rk) as usize };
             let j2 = if (r as isize - 1) <= pk as isize {
@@ -136,14 +154,18 @@ pub fn ders_basis(win: &[f64], p: usize, x: f64, n: usize, ders: &mut BasisDeriv
             };
             for j in j1..=j2 {
                 let col = (rk + j as isize) as usize;
-                a[s2][j] = (a[s1][j] - a[s1][j - 1]) / ndu[pk + 1][col];
-                d += a[s2][j] * ndu[col][pk];
+                let v = (at(&a, s1, j) - at(&a, s1, j.wrapping_sub(1))) / nd(pk + 1, col);
+                put(&mut a, s2, j, v);
+                d += v * nd(col, pk);
             }
             if r <= pk {
-                a[s2][k] = -a[s1][k - 1] / ndu[pk + 1][r];
-                d += a[s2][k] * ndu[r][pk];
+                let v = -at(&a, s1, k - 1) / nd(pk + 1, r);
+                put(&mut a, s2, k, v);
+                d += v * nd(r, pk);
             }
-            ders[k][r] = d;
+            if let Some(x) = ders.get_mut(k).and_then(|row| row.get_mut(r)) {
+                *x = d;
+            }
             core::mem::swap(&mut s1, &mut s2);
         }
     }

@@ -39,7 +39,7 @@ pub fn mul_hi(a: i64, b: i64) -> i64 {
 /// x · 2^frac truncated toward zero, from the bit pattern (integer
 /// instructions only: no soft-float call, no saturation compares);
 /// saturates at ±2¹²⁶, NaN gives 0.
-#[inline]
+#[inline(never)]
 pub fn f64_to_fixed(x: f64, frac: i32) -> i128 {
     let b = x.to_bits();
     let e = ((b >> 52) & 0x7ff) as i32;
@@ -129,6 +129,15 @@ pub fn u128_to_f64_pow2(a: u128, e2: i32) -> f64 {
     let lz = a.leading_zeros();
     let m = a << lz;
     round_to_f64((m >> 64) as u64, m as u64 != 0, 127 - lz as i32 + e2)
+}
+
+/// [`to_fx`] out of line, for code off the servo tick (chunk decoding, the
+/// plan window's pushes, the interpolator's construction): inlined, each
+/// copy is ~200 bytes of 64-bit shifts on the M4, and those copies were
+/// ~2.5 KB of a streaming image. The tick keeps the inlined one.
+#[inline(never)]
+pub fn to_fx_outlined(x: f64) -> i64 {
+    to_fx(x)
 }
 
 /// Q40 mm → mm: exact for |x| < 2⁵³ (8192 mm), else correctly rounded. The

@@ -2,9 +2,10 @@
 //! that turn its payload into the forms the tick reads: [`QSpanForm`]
 //! (sections 10 and 15 of a table) and [`PieceForm`] (sections 11, 12, 13).
 
+use crate::math::div_rem_small;
 use crate::path::qspline::QSpline;
 use crate::servo_forms::fit::BREAK_FRAC;
-use crate::servo_forms::fixed::{ceil_log2, mul_tau, piece_tau, split_tau, to_fx, TAU_SHIFT_BASE};
+use crate::servo_forms::fixed::{ceil_log2, mul_tau, piece_tau, split_tau, to_fx_outlined, TAU_SHIFT_BASE};
 use crate::servo_forms::piece::{piece_shift_mask, PIECE_F64_LEN, PIECE_HEAD_LEN, POS_COEFFS, POS_DEG};
 use crate::servo_forms::q_span::{q_fixed, q_local, Q_FX_LEN, Q_LOCAL_LEN};
 use crate::stream::error::{ChunkError, Malformed};
@@ -182,10 +183,10 @@ impl<'a> Chunk<'a> {
                 return Err(Malformed::Knots.into());
             }
             if j == first_at {
-                q_start = to_fx(k);
+                q_start = to_fx_outlined(k);
             }
             if j == end_at {
-                q_end = to_fx(k);
+                q_end = to_fx_outlined(k);
             }
             prev2 = prev_val;
             prev_val = k;
@@ -279,7 +280,7 @@ impl<'a> Chunk<'a> {
         if !start.is_finite() {
             return Err(Malformed::Breaks);
         }
-        if to_fx(start) != self.info.s_a {
+        if to_fx_outlined(start) != self.info.s_a {
             return Err(Malformed::StartNotSa);
         }
         Ok(PieceDecoder {
@@ -314,7 +315,7 @@ pub struct QSpanForm {
 impl QSpanForm {
     /// U_i in Q40 mm, as the tick forms it (`to_fx`, truncated).
     pub fn start_fx(&self) -> i64 {
-        to_fx(self.start)
+        to_fx_outlined(self.start)
     }
 }
 
@@ -411,11 +412,11 @@ pub struct PieceForm {
 impl PieceForm {
     /// Start, Q40 mm.
     pub fn start_fx(&self) -> i64 {
-        to_fx(self.start)
+        to_fx_outlined(self.start)
     }
     /// End, Q40 mm.
     pub fn end_fx(&self) -> i64 {
-        to_fx(self.end)
+        to_fx_outlined(self.end)
     }
     /// The centre c, Q40 mm.
     pub fn centre(&self) -> i64 {
@@ -513,12 +514,20 @@ pub(crate) fn predict_bm(cur: &PieceForm, prev: Option<&PieceForm>, a: usize, m:
         *x = 0;
     }
     let base = deriv(&z, m, ts);
-    let fact: i64 = match m {
+    // ÷ m!, truncated toward zero (as `/`; without the 64-bit division
+    // routine on the M4)
+    let x = target.saturating_sub(base);
+    let fact = match m {
         2 => 2,
         3 => 6,
-        _ => 1,
+        _ => return x,
     };
-    target.saturating_sub(base) / fact
+    let q = div_rem_small(x.unsigned_abs(), fact).map_or(0, |(q, _)| q) as i64;
+    if x < 0 {
+        -q
+    } else {
+        q
+    }
 }
 
 /// b₀ of axis `a` of `cur` that makes it start where `prev` ends (the

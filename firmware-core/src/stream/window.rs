@@ -29,7 +29,7 @@
 
 use crate::interp::cursor::{tau_of, PCur, QCur};
 use crate::interp::rows::{PlanRows, Rows};
-use crate::servo_forms::fixed::to_fx;
+use crate::servo_forms::fixed::{to_fx, to_fx_outlined};
 use crate::servo_forms::piece::{
     piece_shift_mask, pos_derivs, pos_eval, PieceU, PIECE_F64_LEN, PIECE_HEAD_LEN, POS_BYTES,
 };
@@ -437,7 +437,7 @@ impl<const NQ: usize, const NP: usize> PlanWindow<NQ, NP> {
     /// [`WindowError::EndJoin`] and nothing changed. A splice forgets the
     /// stop's (its plan may end otherwise: the stop is told again).
     pub fn expect_join(&mut self, stop: bool, s_mm: f64, q: [f64; 3]) -> Result<(), WindowError> {
-        let join = (to_fx(s_mm), q);
+        let join = (to_fx_outlined(s_mm), q);
         let held = (0..self.q_n)
             .filter_map(|k| self.qrow(self.q_lo + k))
             .find(|r| Self::holds_join(r, join.0, stop));
@@ -454,7 +454,7 @@ impl<const NQ: usize, const NP: usize> PlanWindow<NQ, NP> {
     /// in [start, end), the stop join in (start, end] (the q spline may
     /// break at s₂: past it the stop segment runs, not q).
     fn holds_join(r: &QRow, s: i64, stop: bool) -> bool {
-        let (a, b) = (to_fx(r.start), to_fx(r.end));
+        let (a, b) = (to_fx_outlined(r.start), to_fx_outlined(r.end));
         if stop {
             a < s && s <= b
         } else {
@@ -493,9 +493,13 @@ impl<const NQ: usize, const NP: usize> PlanWindow<NQ, NP> {
         last_mm: [f64; 3],
         length_mm: f64,
     ) -> Result<(), WindowError> {
-        let ends = (first_mm.map(to_fx), last_mm.map(to_fx), to_fx(length_mm));
+        let ends = (
+            first_mm.map(to_fx_outlined),
+            last_mm.map(to_fx_outlined),
+            to_fx_outlined(length_mm),
+        );
         if self.p_lo == 0 && self.p_n > 0 {
-            let at = self.prow(0).and_then(|r| r.pos(to_fx(r.start)));
+            let at = self.prow(0).and_then(|r| r.pos(to_fx_outlined(r.start)));
             let step = step_between(at.ok_or(WindowError::Undecodable)?, ends.0);
             if step > JOIN_TOL_FX {
                 return Err(WindowError::Ends { s: 0, step });
@@ -632,7 +636,7 @@ impl<const NQ: usize, const NP: usize> PlanWindow<NQ, NP> {
         // (the first chunk's first piece starts the path: nothing to meet)
         let mut end_pos = if first_chunk { None } else { self.end_pos };
         for form in chunk.pieces() {
-            if to_fx(form.start) != end {
+            if to_fx_outlined(form.start) != end {
                 return Err(WindowError::Undecodable);
             }
             let idx = p_at + np;
@@ -644,7 +648,7 @@ impl<const NQ: usize, const NP: usize> PlanWindow<NQ, NP> {
                     return Err(WindowError::Step { s: end, step });
                 }
             }
-            end = to_fx(form.end);
+            end = to_fx_outlined(form.end);
             end_pos = Some(new.pos(end).ok_or(WindowError::Undecodable)?);
             let Some(row) = idx.checked_rem(NP).and_then(|slot| self.p.get_mut(slot)) else {
                 return Err(WindowError::Undecodable);
@@ -773,12 +777,12 @@ impl<const NQ: usize, const NP: usize> PlanWindow<NQ, NP> {
         let (mut s_at, mut at) = (0, from);
         for form in run.iter().flat_map(|c| c.pieces()) {
             let row = Self::p_row(0, &form);
-            let s = to_fx(form.start);
+            let s = to_fx_outlined(form.start);
             let step = step_between(at, row.pos(s).ok_or(WindowError::Undecodable)?);
             if step > JOIN_TOL_FX {
                 return Err(WindowError::Step { s, step });
             }
-            s_at = to_fx(form.end);
+            s_at = to_fx_outlined(form.end);
             at = row.pos(s_at).ok_or(WindowError::Undecodable)?;
         }
         Ok((s_at, at))
@@ -807,13 +811,15 @@ impl<const NQ: usize, const NP: usize> PlanWindow<NQ, NP> {
     /// `s_end` (Q40 mm): the pieces up to the one ending there, the q spans
     /// starting before it; `None` if no held piece ends there.
     fn kept_through(&self, s_end: i64) -> Option<(usize, usize)> {
-        let np =
-            (0..self.p_n).find(|&k| self.prow(self.p_lo + k).is_some_and(|r| to_fx(r.end) == s_end))? + 1;
+        let np = (0..self.p_n).find(|&k| {
+            self.prow(self.p_lo + k)
+                .is_some_and(|r| to_fx_outlined(r.end) == s_end)
+        })? + 1;
         let mut nq = self.q_n;
         while nq > 0
             && self
                 .qrow(self.q_lo + nq - 1)
-                .is_some_and(|r| to_fx(r.start) >= s_end)
+                .is_some_and(|r| to_fx_outlined(r.start) >= s_end)
         {
             nq -= 1;
         }

@@ -2,7 +2,17 @@
 
 use crate::table::layout::CRC_LEN;
 
-pub(crate) const CRC: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
+/// How the CRC is computed: byte by byte through a 256-entry table on the
+/// host; bit by bit on a bare-metal target, where that table would take
+/// 1 KiB of flash (of a streaming image's 64 KiB) for what runs once per
+/// chunk on arrival and once over a table at start, never on the servo tick.
+/// The same CRC either way (the `crc` crate's implementations).
+#[cfg(not(target_os = "none"))]
+type CrcImpl = crc::Table<1>;
+#[cfg(target_os = "none")]
+type CrcImpl = crc::NoTable;
+
+pub(crate) const CRC: crc::Crc<u32, CrcImpl> = crc::Crc::<u32, CrcImpl>::new(&crc::CRC_32_ISO_HDLC);
 
 /// The CRC-32 (ISO-HDLC) a table stores over `body` (every byte before the CRC).
 pub fn crc32(body: &[u8]) -> u32 {

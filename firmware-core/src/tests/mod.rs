@@ -9,6 +9,7 @@ mod fixtures;
 mod forms;
 mod knots;
 mod levels;
+mod math;
 #[cfg(feature = "embedded-hal")]
 mod output;
 mod parse;

@@ -87,8 +87,11 @@ impl Uart {
 
 fn ack(uart: &Uart, seq: u32, free: usize) {
     let mut buf = [0u8; 32];
-    if let Ok(n) = encode_ack(seq, free as u32, &mut buf) {
-        uart.tx(&buf[..n]);
+    if let Some(frame) = encode_ack(seq, free as u32, &mut buf)
+        .ok()
+        .and_then(|n| buf.get(..n))
+    {
+        uart.tx(frame);
     }
 }
 
@@ -157,8 +160,11 @@ fn main() -> ! {
                     Err(_) => {
                         refused += 1;
                         let mut buf = [0u8; 32];
-                        if let Ok(n) = encode_nak(last_seq.wrapping_add(1), &mut buf) {
-                            uart.tx(&buf[..n]);
+                        if let Some(frame) = encode_nak(last_seq.wrapping_add(1), &mut buf)
+                            .ok()
+                            .and_then(|n| buf.get(..n))
+                        {
+                            uart.tx(frame);
                         }
                     }
                 },
@@ -195,8 +201,8 @@ fn main() -> ! {
             if let Some(seq) = ring.refuse_head() {
                 last_seq = seq.wrapping_sub(1);
                 let mut buf = [0u8; 32];
-                if let Ok(n) = encode_nak(seq, &mut buf) {
-                    uart.tx(&buf[..n]);
+                if let Some(frame) = encode_nak(seq, &mut buf).ok().and_then(|n| buf.get(..n)) {
+                    uart.tx(frame);
                 }
             }
         }
