@@ -29,6 +29,11 @@ fn main() {
         manifest.join("memory-mps2-an386.x")
     };
     fs::copy(&layout, out.join("memory.x")).unwrap_or_else(|e| panic!("copying {}: {e}", layout.display()));
+    // cortex-m-rt's "device" feature INCLUDEs device.x (a device crate's
+    // weak handler aliases): none here, the vectors are in
+    // `firmware_mcu::__INTERRUPTS`, all on `DefaultHandler`
+    fs::write(out.join("device.x"), "/* no device-specific handlers */\n")
+        .unwrap_or_else(|e| panic!("writing device.x: {e}"));
     println!("cargo:rustc-link-search={}", out.display());
     println!("cargo:rerun-if-changed={}", layout.display());
     println!("cargo:rerun-if-changed=build.rs");

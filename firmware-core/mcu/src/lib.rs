@@ -63,6 +63,29 @@ unsafe fn HardFault(ef: &ExceptionFrame) -> ! {
     exit(false)
 }
 
+/// External interrupt lines of the board the image is linked for: QEMU's
+/// mps2-an386 sets its NVIC to 32 (`num-irq` in `hw/arm/mps2.c`), the
+/// STM32F407 has 82. The vector table holds that many, not cortex-m-rt's
+/// generic 240 (960 bytes of flash, 830 more than the board's 32).
+#[cfg(not(feature = "stm32f407"))]
+pub const EXTERNAL_IRQS: usize = 32;
+/// External interrupt lines of the board the image is linked for (the
+/// STM32F407's 82, reference manual RM0090).
+#[cfg(feature = "stm32f407")]
+pub const EXTERNAL_IRQS: usize = 82;
+
+extern "C" {
+    // cortex-m-rt's, the `#[exception]` below
+    fn DefaultHandler();
+}
+
+/// The interrupt vectors, every one on the default handler: the images poll
+/// their UART and take no interrupt.
+#[link_section = ".vector_table.interrupts"]
+#[no_mangle]
+#[used]
+pub static __INTERRUPTS: [unsafe extern "C" fn(); EXTERNAL_IRQS] = [DefaultHandler; EXTERNAL_IRQS];
+
 #[exception]
 unsafe fn DefaultHandler(irqn: i16) {
     Line::new()
