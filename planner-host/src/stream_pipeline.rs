@@ -398,6 +398,9 @@ pub fn plan_and_stream_from<const NQ: usize, const NP: usize>(
     let given: Vec<f64> = change.map_or_else(Vec::new, |c| c.1.to_vec());
     let t0 = Instant::now();
     let (tx, rx) = mpsc::channel::<Planned>();
+    // (the search tells how many messages it has taken in: the first
+    // motion's gate below)
+    let (taken_tx, taken_rx) = mpsc::channel::<usize>();
     let (plan, searched) = std::thread::scope(|scope| {
         // (the window and the dry run's copies of it live on this stack)
         let searcher = std::thread::Builder::new()
@@ -406,7 +409,7 @@ pub fn plan_and_stream_from<const NQ: usize, const NP: usize>(
                 let mut chunks: Vec<Vec<u8>> = vec![];
                 let mut search: Option<HoldPointSearch<NQ, NP>> = None;
                 let mut head: Option<StreamHead> = None;
-                for m in rx {
+                for (k, m) in rx.into_iter().enumerate() {
                     match m {
                         Planned::Head(h) => {
                             let mut s = HoldPointSearch::new(&h, h.ends, *how, t0);
@@ -425,12 +428,27 @@ pub fn plan_and_stream_from<const NQ: usize, const NP: usize>(
                     if let Some(s) = search.as_mut() {
                         s.advance(&chunks)?;
                     }
+                    let _ = taken_tx.send(k + 1);
                 }
                 let hp = search.ok_or(PipelineError::Head)?.finish()?;
                 let head = head.ok_or(PipelineError::Head)?;
                 Ok((chunks, hp, t0.elapsed().as_secs_f64(), head))
             });
         let tx = Mutex::new(tx);
+        // The first motion's gate: a plan from rest waits, after its first
+        // chunks, until the search has gone as far as they allow (the first
+        // hold points, which the machine waits for) before it plans the
+        // next window, which would share the cores with the search. Its
+        // chunks are needed only once the motion nears the end of the
+        // first's (planning runs several times faster than the machine).
+        // Measured on the 11 m meander at 200/150 mm (2 cores): the search
+        // to chunk 1's hold point took 27–90 ms beside the second window
+        // (the longer with other work on the machine), 21–27 ms alone
+        // (docs/streaming-design.md, "first motion"). Not for a replan:
+        // the machine is moving then, and the search first runs through
+        // the running plan's chunks.
+        let gate = Mutex::new((change.is_none(), taken_rx));
+        let sent = std::sync::atomic::AtomicUsize::new(0);
         let plan = plan_in_chunks_from(curve, cfg, opts, change.map(|c| c.0), &|m| {
             if std::env::var_os("FEEDLP_TIME_DEBUG").is_some() {
                 if let Planned::Chunks(c) = &m {
@@ -441,7 +459,20 @@ pub fn plan_and_stream_from<const NQ: usize, const NP: usize>(
                     );
                 }
             }
+            let (chunks, stop) = (matches!(m, Planned::Chunks(_)), matches!(m, Planned::Stop(_)));
             let _ = tx.lock().unwrap_or_else(|e| e.into_inner()).send(m);
+            let n = sent.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+            let mut gate = gate.lock().unwrap_or_else(|e| e.into_inner());
+            // (nothing is planned after the last commit: its chunks, after
+            // the stop, do not wait)
+            if stop {
+                gate.0 = false;
+            }
+            if gate.0 && chunks {
+                gate.0 = false;
+                // (until the search has taken the n messages sent, or ended)
+                while gate.1.recv().is_ok_and(|k| k < n) {}
+            }
         });
         // (the sender goes: the search ends with the chunks it has)
         drop(tx);
