@@ -107,8 +107,8 @@ pub fn ders_basis(win: &[f64], p: usize, x: f64, n: usize, ders: &mut BasisDeriv
         for r in 0..j {
             // lower triangle: knot differences (r + 1 ≤ j, j − r ≤ j: `get`
             // only because the compiler cannot see it)
-            let (rr, lj) = (right.get(r + 1).copied(), left.get(j - r).copied());
-            let (rr, lj) = (rr.unwrap_or(0.0), lj.unwrap_or(0.0));
+            let rr = right.get(r + 1).copied().unwrap_or(0.0);
+            let lj = left.get(j - r).copied().unwrap_or(0.0);
             ndu[j][r] = rr + lj;
             let temp = ndu[r][j - 1] / ndu[j][r];
             // upper triangle: basis functions

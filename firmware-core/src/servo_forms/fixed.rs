@@ -131,13 +131,28 @@ pub fn u128_to_f64_pow2(a: u128, e2: i32) -> f64 {
     round_to_f64((m >> 64) as u64, m as u64 != 0, 127 - lz as i32 + e2)
 }
 
-/// [`to_fx`] out of line, for code off the servo tick (chunk decoding, the
-/// plan window's pushes, the interpolator's construction): inlined, each
-/// copy is ~200 bytes of 64-bit shifts on the M4, and those copies were
-/// ~2.5 KB of a streaming image. The tick keeps the inlined one.
+// The tick's helpers out of line, for code off the servo tick (chunk
+// decoding, the plan window's pushes, the interpolator's construction):
+// inlined, each copy is 80–200 bytes of 64-bit arithmetic on the M4, and
+// those copies were ~3 KB of a streaming image. The tick keeps the inlined
+// ones.
+
+/// [`to_fx`] out of line (see above).
 #[inline(never)]
 pub fn to_fx_outlined(x: f64) -> i64 {
     to_fx(x)
+}
+
+/// [`piece_tau`] out of line (see above).
+#[inline(never)]
+pub fn piece_tau_outlined(s: i64, c: i64, shift: u32) -> Option<i64> {
+    piece_tau(s, c, shift)
+}
+
+/// [`mul_tau`] out of line (see above).
+#[inline(never)]
+pub fn mul_tau_outlined(a: i64, t: (i32, i32)) -> i64 {
+    mul_tau(a, t)
 }
 
 /// Q40 mm → mm: exact for |x| < 2⁵³ (8192 mm), else correctly rounded. The

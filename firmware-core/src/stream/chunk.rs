@@ -5,7 +5,9 @@
 use crate::math::div_rem_small;
 use crate::path::qspline::QSpline;
 use crate::servo_forms::fit::BREAK_FRAC;
-use crate::servo_forms::fixed::{ceil_log2, mul_tau, piece_tau, split_tau, to_fx_outlined, TAU_SHIFT_BASE};
+use crate::servo_forms::fixed::{
+    ceil_log2, mul_tau_outlined, piece_tau_outlined, split_tau, to_fx_outlined, TAU_SHIFT_BASE,
+};
 use crate::servo_forms::piece::{piece_shift_mask, PIECE_F64_LEN, PIECE_HEAD_LEN, POS_COEFFS, POS_DEG};
 use crate::servo_forms::q_span::{q_fixed, q_local, Q_FX_LEN, Q_LOCAL_LEN};
 use crate::stream::error::{ChunkError, Malformed};
@@ -463,17 +465,10 @@ impl PieceForm {
         let t = split_tau(tau);
         let mut acc = b[POS_DEG];
         for k in (0..POS_DEG).rev() {
-            acc = horner_step(acc, t).wrapping_add(b[k]);
+            acc = mul_tau_outlined(acc, t).wrapping_add(b[k]);
         }
         acc
     }
-}
-
-/// The tick's `mul_tau`, out of line for the decoder's two Horner loops
-/// (off the tick: chunk arrival; flash).
-#[inline(never)]
-fn horner_step(acc: i64, t: (i32, i32)) -> i64 {
-    mul_tau(acc, t)
 }
 
 /// The m-th τ-derivative (m = 1, 2, 3) of one axis at τ (Q61):
@@ -484,7 +479,7 @@ fn deriv(b: &[i64; POS_COEFFS], m: usize, tau: i64) -> i64 {
     let f = |k: usize| ((k + 1).saturating_sub(m)..=k).product::<usize>() as i64;
     let mut acc = f(POS_DEG).wrapping_mul(b[POS_DEG]);
     for k in (m..POS_DEG).rev() {
-        acc = horner_step(acc, t).wrapping_add(f(k).wrapping_mul(b.get(k).copied().unwrap_or(0)));
+        acc = mul_tau_outlined(acc, t).wrapping_add(f(k).wrapping_mul(b.get(k).copied().unwrap_or(0)));
     }
     acc
 }
@@ -495,8 +490,8 @@ fn deriv(b: &[i64; POS_COEFFS], m: usize, tau: i64) -> i64 {
 pub(crate) fn predict_bm(cur: &PieceForm, prev: Option<&PieceForm>, a: usize, m: usize) -> i64 {
     let Some(p) = prev else { return 0 };
     let (Some(ts), Some(te)) = (
-        join_tau(cur.start_fx(), cur.centre(), cur.shift()),
-        join_tau(p.end_fx(), p.centre(), p.shift()),
+        piece_tau_outlined(cur.start_fx(), cur.centre(), cur.shift()),
+        piece_tau_outlined(p.end_fx(), p.centre(), p.shift()),
     ) else {
         return 0;
     };
@@ -542,21 +537,14 @@ pub(crate) fn predict_bm(cur: &PieceForm, prev: Option<&PieceForm>, a: usize, m:
 pub(crate) fn predict_b0(cur: &PieceForm, prev: Option<&PieceForm>, a: usize) -> i64 {
     let Some(p) = prev else { return 0 };
     let (Some(ts), Some(te)) = (
-        join_tau(cur.start_fx(), cur.centre(), cur.shift()),
-        join_tau(p.end_fx(), p.centre(), p.shift()),
+        piece_tau_outlined(cur.start_fx(), cur.centre(), cur.shift()),
+        piece_tau_outlined(p.end_fx(), p.centre(), p.shift()),
     ) else {
         return 0;
     };
     let mut z = *cur;
     z.set(a, 0, 0);
     p.eval_axis(a, te).wrapping_sub(z.eval_axis(a, ts))
-}
-
-/// [`piece_tau`] at a join, out of line: the predictions take four, each
-/// inlined copy ~150 bytes of the decoder (off the tick: chunk arrival).
-#[inline(never)]
-fn join_tau(s: i64, c: i64, shift: u32) -> Option<i64> {
-    piece_tau(s, c, shift)
 }
 
 /// Centre predicted from the breaks: the midpoint in Q40.
