@@ -307,3 +307,30 @@ fn hold_points_alike() {
     assert_eq!(bare.head, st.head);
     assert_eq!(bare.plan.predicted_time_s, st.plan.predicted_time_s);
 }
+
+#[test]
+fn a_sink_that_panics_ends_the_planning_instead_of_hanging_it() {
+    // The s → u map is fitted on a thread of its own that waits until a
+    // commit wants more of it; a planning that unwinds must still let it
+    // finish, or the scope around both would wait for it forever. Watched
+    // from here: the call must come back (with the sink's panic).
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        // (longer than the map's lead: the map's thread waits for a demand)
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/curves/long/meander-1m.json");
+        let curve = planner_host::cli::load_curve(std::path::Path::new(path)).unwrap();
+        let cfg = PlanConfig {
+            windows: Some(WindowConfig::default()),
+            ..PlanConfig::default()
+        };
+        let r = std::panic::catch_unwind(|| {
+            plan_curve_committing(&curve, &cfg, &|_: &Commit| panic!("the sink gives up")).is_ok()
+        });
+        let _ = tx.send(r.is_err());
+    });
+    // (a watchdog, not a timing: the planning takes about a second)
+    let panicked = rx
+        .recv_timeout(std::time::Duration::from_secs(300))
+        .expect("the planning hung after its sink panicked");
+    assert!(panicked, "the sink's panic did not reach the caller");
+}

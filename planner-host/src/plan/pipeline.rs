@@ -131,6 +131,17 @@ const SU_PUBLISH_SEGMENTS: usize = 64;
 /// wakes whoever waits on it.
 struct Fill<'a>(&'a SuSlot);
 
+/// On drop, lets the map's thread fit the rest of the map (its demand
+/// unbounded) and wakes it.
+struct Release<'a>(&'a SuSlot);
+
+impl Drop for Release<'_> {
+    fn drop(&mut self) {
+        self.0 .0.lock().unwrap_or_else(|e| e.into_inner()).demand = f64::INFINITY;
+        self.0 .1.notify_all();
+    }
+}
+
 impl Drop for Fill<'_> {
     fn drop(&mut self) {
         let mut g = self.0 .0.lock().unwrap_or_else(|e| e.into_inner());
@@ -456,11 +467,11 @@ fn plan_curve_inner(
                 }
                 g.done = Some(su.map_err(PlanError::from));
             });
-            let planned = plan_q();
-            // (the map's thread fits the rest, whatever became of the plan)
-            su_slot.0.lock().unwrap_or_else(|e| e.into_inner()).demand = f64::INFINITY;
-            su_slot.1.notify_all();
-            (None, planned)
+            // (the map's thread fits the rest, whatever became of the plan:
+            // also when the planning unwinds, else the scope would wait for
+            // a thread that waits for a demand never raised)
+            let _release = Release(&su_slot);
+            (None, plan_q())
         }),
         None => {
             let (su, planned) = rayon::join(fit_su, plan_q);
