@@ -7,7 +7,9 @@
 #   WCET_FULL=1 bash .ci/wcet.sh     # 1,000 hold points and ~100 override points per curve
 #   bash .ci/wcet.sh --enforce       # exit 1 when a tick kind is over the budget
 #
-# Environment: WCET_CURVES (default "butterfly fan star"), WCET_HOLDS (hold points per
+# Environment: WCET_CURVES (default "butterfly fan star long/meander-1m": the three planar
+# built-in curves and a 3-D path, whose z rows the hold and resume ticks then work through;
+# any curve of planner-host/curves/), WCET_HOLDS (hold points per
 # curve), WCET_OVERRIDES and WCET_CHAINS (override points per chain, chains per curve),
 # WCET_BUDGET (default 4000), WCET_OUT (keep tables, profiles and images here).
 # Exit code: 0 (with --enforce: 1 when over budget), 2 on a measurement error.
@@ -23,7 +25,7 @@ for a in "$@"; do
 done
 if [ -n "${WCET_FULL:-}" ]; then holds=1000 ovr=25 chains=4; else holds=6 ovr=8 chains=1; fi
 holds=${WCET_HOLDS:-$holds}; ovr=${WCET_OVERRIDES:-$ovr}; chains=${WCET_CHAINS:-$chains}
-curves=${WCET_CURVES:-butterfly fan star}
+curves=${WCET_CURVES:-butterfly fan star long/meander-1m}
 
 # Tools: QEMU with TCG plugin support (Debian's qemu-system-arm has it; the plugin declares
 # the few API calls it uses, so no plugin header package is needed), arm-none-eabi-nm, cc.
@@ -40,8 +42,10 @@ feedplan=$root/target/release/feedplan
 out=${WCET_OUT:-$(mktemp -d)}
 mkdir -p "$out"
 images=()
-for c in $curves; do
-  python3 "$mcu/wcet.py" profiles "$root/planner-host/curves/$c.json" --table "$out/$c.bin" \
+for path in $curves; do
+  # (a curve of planner-host/curves/, its name without the folder: long/meander-1m)
+  c=$(basename "$path")
+  python3 "$mcu/wcet.py" profiles "$root/planner-host/curves/$path.json" --table "$out/$c.bin" \
     --feedplan "$feedplan" --count "$ovr" --chains "$chains" -o "$out/$c.ovr"
   (cd "$mcu" && MCU_TABLE="$out/$c.bin" MCU_OVERRIDES="$out/$c.ovr" MCU_HOLDS="$holds" \
     cargo build --release -q --bin firmware-mcu >&2)

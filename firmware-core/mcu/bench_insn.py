@@ -108,6 +108,8 @@ def run_plugin(a, begin, end, tmp):
     out = os.path.join(tmp, "windows.txt")
     prof = os.path.join(tmp, "prof.txt")
     popt = f",prof={prof}" if a.profile else ""
+    if a.profile and getattr(a, "window", None) is not None:
+        popt += f",pwin={a.window}"
     cmd = [a.qemu, *qemu_args(a), "-plugin", f"{so},begin=0x{begin:x},end=0x{end:x},out={out}{popt}",
            "-kernel", a.elf]
     try:

@@ -17,7 +17,11 @@ Two subcommands (`.ci/wcet.sh` drives both):
   count over all images and where the worst happened, per image the same,
   the calls that start a hold, a resume or an override, and the kinds over
   the budget. Exit 0, or 1 with `--enforce` when a kind is over the budget,
-  2 on a measurement error.
+  2 on a measurement error. Each worst tick's `window` is its index among
+  the image's windows, for `profile`.
+* `profile ELF --window K [--top N]`: runs the image once more and prints
+  window K's instructions by function (the block's function, inlined code
+  counted where it was inlined): where a worst tick spends them.
 """
 import argparse
 import json
@@ -116,7 +120,7 @@ def measure(name, elf, a):
             first, ss = int(f[1]), f[2:]
             if len(ss) != n:
                 sys.exit(f"wcet: {name}: group {label} of {n} windows with {len(ss)} arc lengths")
-            k = kinds.setdefault(label, {"max": -1, "sum": 0, "n": 0, "where": ""})
+            k = kinds.setdefault(label, {"max": -1, "sum": 0, "n": 0, "where": "", "window": -1})
             for j in range(n):
                 v = w[at + j] - base
                 s_mm = int(ss[j]) / 1000
@@ -126,7 +130,7 @@ def measure(name, elf, a):
                 k["sum"] += v
                 k["n"] += 1
                 if v > k["max"]:
-                    k["max"] = v
+                    k["max"], k["window"] = v, at + j
                     where = f"{pas}, tick {first + j}, s = {s_mm:.3f} mm"
                     if label in HOLD_KINDS and hold_at is not None:
                         where += f" (hold pressed at {hold_at:.3f} mm)"
@@ -142,7 +146,8 @@ def measure(name, elf, a):
         sys.exit(f"wcet: {name}: {len(w)} windows, {i} announced, errors {result['errors'][:3]}")
     out = {}
     for label, k in kinds.items():
-        out[label] = {"max": k["max"], "mean": round(k["sum"] / k["n"], 1), "n": k["n"], "where": k["where"]}
+        out[label] = {"max": k["max"], "mean": round(k["sum"] / k["n"], 1), "n": k["n"], "where": k["where"],
+                      "window": k["window"]}
     return out, info
 
 
@@ -162,7 +167,7 @@ def cmd_measure(a):
             cur["n"] += k["n"]
             cur["mean"] = round(tot / cur["n"], 1)
             if k["max"] > cur["max"]:
-                cur.update(max=k["max"], curve=name, where=k["where"])
+                cur.update(max=k["max"], curve=name, where=k["where"], window=k["window"])
     order = lambda d, keys: {x: d[x] for x in keys if x in d}
     kinds = order(kinds, TICK_KINDS)
     over = [x for x, k in kinds.items() if k["max"] > a.budget]
@@ -178,6 +183,25 @@ def cmd_measure(a):
     }
     print(json.dumps(doc, separators=(",", ":")))
     return 1 if a.enforce and over else 0
+
+
+def cmd_profile(a):
+    nm = shutil.which("arm-none-eabi-nm") or "nm"
+    begin = bench_insn.symbol_addr(a.elf, nm, "firmware_mcu::mark_begin")
+    end = bench_insn.symbol_addr(a.elf, nm, "firmware_mcu::mark_end")
+    ns = argparse.Namespace(cc=a.cc, qemu=a.qemu, elf=a.elf, profile=a.top, window=a.window, timeout=a.timeout)
+    tmp = tempfile.mkdtemp(prefix="wcet-")
+    try:
+        p, result = bench_insn.run_plugin(ns, begin, end, tmp)
+    finally:
+        shutil.rmtree(tmp)
+    if p is None or p.returncode != 0:
+        sys.exit(f"wcet: {a.elf}: QEMU timed out or the firmware failed")
+    if not 0 <= a.window < len(result["windows"]):
+        sys.exit(f"wcet: window {a.window} of {len(result['windows'])}")
+    print(f"window {a.window}: {result['windows'][a.window]} instructions (the marker overhead included)")
+    bench_insn.print_profile(a.elf, nm, result["prof"], a.top)
+    return 0
 
 
 def main():
@@ -199,8 +223,15 @@ def main():
     me.add_argument("--cc", default=os.environ.get("CC", "cc"))
     me.add_argument("--qemu", default="qemu-system-arm")
     me.add_argument("--timeout", type=float, default=7200)
+    pf = sub.add_parser("profile", help="one window's instructions by function (a worst tick's `window`)")
+    pf.add_argument("elf")
+    pf.add_argument("--window", type=int, required=True)
+    pf.add_argument("--top", type=int, default=25, help="functions listed")
+    pf.add_argument("--cc", default=os.environ.get("CC", "cc"))
+    pf.add_argument("--qemu", default="qemu-system-arm")
+    pf.add_argument("--timeout", type=float, default=7200)
     a = ap.parse_args()
-    return cmd_profiles(a) if a.cmd == "profiles" else cmd_measure(a)
+    return {"profiles": cmd_profiles, "measure": cmd_measure, "profile": cmd_profile}[a.cmd](a)
 
 
 if __name__ == "__main__":

@@ -13,6 +13,8 @@
  * Optional `prof=FILE`: a flat profile of the instructions executed inside
  * windows, one line per translated block, "<start address hex> <insns> <times
  * executed in a window>" (bench_insn.py --profile maps them to symbols).
+ * With `pwin=K` as well, of window K alone (from 0, in execution order): one
+ * tick's instructions by function (wcet.py profile).
  *
  * Counting: every translated block adds its instruction count to a counter
  * when it starts (an inline op, cheap); the marker instructions get a callback
@@ -78,11 +80,13 @@ struct block {
     struct block *next;
 };
 static struct block *blocks;
+/* the window profiled (-1: all) and the index of the one open */
+static long long pwin = -1, nwin = -1;
 
 static void on_block(unsigned int vcpu, void *ud)
 {
     (void)vcpu;
-    if (win_open) {
+    if (win_open && (pwin < 0 || nwin == pwin)) {
         ((struct block *)ud)->in_window++;
     }
 }
@@ -93,6 +97,7 @@ static void on_begin(unsigned int vcpu, void *ud)
     (void)vcpu;
     win_start = executed - (uint64_t)(uintptr_t)ud;
     win_open = true;
+    nwin++;
 }
 
 static void on_end(unsigned int vcpu, void *ud)
@@ -159,6 +164,8 @@ EXPORT int qemu_plugin_install(qemu_plugin_id_t id, const qemu_info_t *info, int
             end_addr = strtoull(argv[i] + 4, NULL, 0);
         } else if (strncmp(argv[i], "out=", 4) == 0) {
             path = argv[i] + 4;
+        } else if (strncmp(argv[i], "pwin=", 5) == 0) {
+            pwin = strtoll(argv[i] + 5, NULL, 0);
         } else if (strncmp(argv[i], "prof=", 5) == 0) {
             prof_path = argv[i] + 5;
         } else {

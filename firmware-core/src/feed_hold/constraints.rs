@@ -170,6 +170,9 @@ pub(crate) fn interval(cons: &[Lin]) -> Interval {
     }
 }
 
+/// 1.0f32's bits.
+const ONE_BITS: u32 = 0x3f80_0000;
+
 /// [`interval`] for constraints that all come normalised (c = 1) or that
 /// ν cannot change (c = 0, passed over), known to be empty at r = 1 (the
 /// tick's common infeasible case): the relaxation directly, without the
@@ -187,11 +190,13 @@ pub(crate) fn interval_plain(cons: &[Lin], warm: (u8, u8)) -> (Interval, (u8, u8
         _ => 1.0,
     };
     // (c = 1 is the only test needed: a NaN d or m never wins a compare
-    // in the relaxation, an m of ∞ never binds, and the limits are > 0)
+    // in the relaxation, an m of ∞ never binds, and the limits are > 0;
+    // tested on the bits, 1.0's only encoding: an integer compare, without
+    // the FPU's compare and flag transfer on each row of each pass)
     let (r, nu, pair) = relax(
         (0u8..)
             .zip(cons.iter())
-            .filter(|(_, k)| k.c == 1.0)
+            .filter(|(_, k)| k.c.to_bits() == ONE_BITS)
             .map(|(i, k)| (i, (k.d, k.m))),
         r0,
     );

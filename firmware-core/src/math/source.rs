@@ -136,13 +136,15 @@ impl<'a> LeF32<'a> {
     pub fn get_array<const N: usize>(&self, start: usize) -> Option<[f32; N]> {
         let b0 = start.checked_mul(4)?;
         let bytes = self.bytes.get(b0..b0.checked_add(N.checked_mul(4)?)?)?;
-        let mut out = [0.0f32; N];
-        for (o, c) in out.iter_mut().zip(bytes.chunks_exact(4)) {
+        // (element by element, not into a zeroed array first: the zeroing
+        // was a `memclr` call on every tick entering a piece or q span)
+        Some(core::array::from_fn(|k| {
             let mut b = [0u8; 4];
-            b.copy_from_slice(c);
-            *o = f32::from_le_bytes(b);
-        }
-        Some(out)
+            if let Some(c) = bytes.get(4 * k..4 * k + 4) {
+                b.copy_from_slice(c);
+            }
+            f32::from_le_bytes(b)
+        }))
     }
     /// The values, in order.
     pub fn iter(&self) -> impl Iterator<Item = f32> + 'a {

@@ -125,11 +125,13 @@ pub fn pos_derivs(b: &[u8; POS_BYTES], tau: i64, shift: u32, constant: u32) -> [
         let Some(blk) = b.get(8 * POS_COEFFS * a + 8..8 * POS_COEFFS * (a + 1)) else {
             continue;
         };
-        let mut c = [0.0f32; POS_DEG];
-        for (o, w) in c.iter_mut().zip(blk.chunks_exact(8)) {
-            *o = i64_f32(i64::from_le_bytes(<[u8; 8]>::try_from(w).unwrap_or([0; 8]))) * unit;
-        }
-        let [c1, c2, c3, c4, c5, c6, c7] = c;
+        // (taken one by one, not into a zeroed array: the zeroing was a
+        // `memclr` call per axis on the hold tick, ~36 instructions each)
+        let mut bk = blk
+            .chunks_exact(8)
+            .map(|w| i64_f32(i64::from_le_bytes(<[u8; 8]>::try_from(w).unwrap_or([0; 8]))) * unit);
+        let mut next = || bk.next().unwrap_or(0.0);
+        let (c1, c2, c3, c4, c5, c6, c7) = (next(), next(), next(), next(), next(), next(), next());
         // Horner on k b_k, k(k − 1) b_k, k(k − 1)(k − 2) b_k.
         let d1 = ((((((7.0 * c7 * t + 6.0 * c6) * t + 5.0 * c5) * t + 4.0 * c4) * t + 3.0 * c3) * t
             + 2.0 * c2)
