@@ -121,17 +121,12 @@ pub fn pos_derivs(b: &[u8; POS_BYTES], tau: i64, shift: u32, constant: u32) -> [
         if constant & (1 << a) != 0 {
             continue;
         }
-        // b₁ … b₇ of the axis (b₀ does not enter the derivatives).
-        let Some(blk) = b.get(8 * POS_COEFFS * a + 8..8 * POS_COEFFS * (a + 1)) else {
-            continue;
-        };
-        // (taken one by one, not into a zeroed array: the zeroing was a
+        // b₁ … b₇ of the axis (b₀ does not enter the derivatives), read as
+        // `pos_eval` reads them (not into a zeroed array: that was a
         // `memclr` call per axis on the hold tick, ~36 instructions each)
-        let mut bk = blk
-            .chunks_exact(8)
-            .map(|w| i64_f32(i64::from_le_bytes(<[u8; 8]>::try_from(w).unwrap_or([0; 8]))) * unit);
-        let mut next = || bk.next().unwrap_or(0.0);
-        let (c1, c2, c3, c4, c5, c6, c7) = (next(), next(), next(), next(), next(), next(), next());
+        let base = 8 * POS_COEFFS * a;
+        let c = |k: usize| i64_f32(rd_i64(b, base + 8 * k)) * unit;
+        let (c1, c2, c3, c4, c5, c6, c7) = (c(1), c(2), c(3), c(4), c(5), c(6), c(7));
         // Horner on k b_k, k(k − 1) b_k, k(k − 1)(k − 2) b_k.
         let d1 = ((((((7.0 * c7 * t + 6.0 * c6) * t + 5.0 * c5) * t + 4.0 * c4) * t + 3.0 * c3) * t
             + 2.0 * c2)
