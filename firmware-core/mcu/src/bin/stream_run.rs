@@ -85,12 +85,21 @@ impl Uart {
     }
 }
 
+/// An ACK of `seq` with the ring's `free` bytes (the host's credit).
 fn ack(uart: &Uart, seq: u32, free: usize) {
     let mut buf = [0u8; 32];
     if let Some(frame) = encode_ack(seq, free as u32, &mut buf)
         .ok()
         .and_then(|n| buf.get(..n))
     {
+        uart.tx(frame);
+    }
+}
+
+/// A NAK naming the seq `expected`: the host resends from there.
+fn nak(uart: &Uart, expected: u32) {
+    let mut buf = [0u8; 32];
+    if let Some(frame) = encode_nak(expected, &mut buf).ok().and_then(|n| buf.get(..n)) {
         uart.tx(frame);
     }
 }
@@ -224,13 +233,7 @@ fn main() -> ! {
                     Err(StreamError::Duplicate { .. }) => ack(&uart, last_seq, ring.free()),
                     Err(_) => {
                         refused += 1;
-                        let mut buf = [0u8; 32];
-                        if let Some(frame) = encode_nak(last_seq.wrapping_add(1), &mut buf)
-                            .ok()
-                            .and_then(|n| buf.get(..n))
-                        {
-                            uart.tx(frame);
-                        }
+                        nak(&uart, last_seq.wrapping_add(1));
                     }
                 },
                 _ => frames_bad += 1,
@@ -265,10 +268,7 @@ fn main() -> ! {
             refused += 1;
             if let Some(seq) = io::refuse_head(&mut ring) {
                 last_seq = seq.wrapping_sub(1);
-                let mut buf = [0u8; 32];
-                if let Some(frame) = encode_nak(seq, &mut buf).ok().and_then(|n| buf.get(..n)) {
-                    uart.tx(frame);
-                }
+                nak(&uart, seq);
             }
         }
         if moved {
