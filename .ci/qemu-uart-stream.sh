@@ -12,6 +12,10 @@
 # With WINDOW_MM:COMMIT_MM the host plans in windows and sends each chunk as soon as it is
 # final, while the rest is planned (the head first without its stop segment, which follows).
 #
+# FAULTS=corrupt:N,drop:N,duplicate:N,reorder:N loses every Nth DATA frame so on the way
+# (stream_send --faults): the firmware must refuse the bad and the out-of-order frames, NAK
+# what it expects, and still run the host's setpoints; the run must show refusals.
+#
 # (the example must be built: cargo build --release -p planner-host --example stream_send)
 set -euo pipefail
 curve=$1
@@ -26,7 +30,7 @@ d=$(mktemp -d)
 trap 'rm -rf "$d"' EXIT
 mkfifo "$d/link.in" "$d/link.out"
 "$root/target/release/examples/stream_send" "$curve" --pipe "$d/link" --chunk-mm "$chunk_mm" \
-  --latency-ms 50 --digest "${windows[@]}" >"$d/host.txt" 2>&1 &
+  --latency-ms 50 --digest ${FAULTS:+--faults "$FAULTS"} "${windows[@]}" >"$d/host.txt" 2>&1 &
 host_pid=$!
 set +e
 timeout -k 5 "${TIMEOUT:-900}" qemu-system-arm -cpu cortex-m4 -machine mps2-an386 -nographic -monitor none \
@@ -42,10 +46,17 @@ read -r text data bss _ < <(arm-none-eabi-size "$elf" | tail -1) || true
 echo "  stream-run image: flash (text) ${text:-?} bytes, static RAM (data + bss) $(( ${data:-0} + ${bss:-0} )) bytes of 131072"
 host_digest=$(sed -n 's/^.*digest: fnv1a64-pos-le=\([0-9a-f]*\)$/\1/p' "$d/host.txt")
 mcu_digest=$(sed -n 's/^digest: fnv1a64-pos-le=\([0-9a-f]*\)$/\1/p' "$d/mcu.txt")
-echo "$(basename "$curve") over the UART in $chunk_mm mm chunks${3:+, planned in windows $3 while sending}: host ${host_digest:-none}, QEMU Cortex-M4 ${mcu_digest:-none}"
+echo "$(basename "$curve") over the UART in $chunk_mm mm chunks${3:+, planned in windows $3 while sending}${FAULTS:+, frames lost ($FAULTS)}: host ${host_digest:-none}, QEMU Cortex-M4 ${mcu_digest:-none}"
 if [ "$rc" -ne 0 ] || [ "$host_rc" -ne 0 ]; then
   echo "QEMU exit $rc, host exit $host_rc" >&2; exit 1
 fi
 if [ -z "$host_digest" ] || [ "$host_digest" != "$mcu_digest" ]; then
   echo "the streamed runs differ" >&2; exit 1
+fi
+if [ -n "${FAULTS:-}" ]; then
+  # (refused: out of order or dropped from the window; bad: a frame or chunk that failed its checks)
+  read -r refused bad < <(sed -n 's/^.*refused \([0-9]*\), bad frames \([0-9]*\),.*$/\1 \2/p' "$d/mcu.txt")
+  if [ $(( ${refused:-0} + ${bad:-0} )) -eq 0 ]; then
+    echo "frames were lost on the way ($FAULTS) but the firmware refused none" >&2; exit 1
+  fi
 fi

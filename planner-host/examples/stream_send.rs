@@ -16,6 +16,15 @@
 //! firmware waits for it before the last rows). Without it the whole path
 //! is planned first.
 //!
+//! `--faults corrupt:N,drop:N,duplicate:N,reorder:N` makes the link lose
+//! frames: every Nth DATA frame sent (counted over every transmission,
+//! resends included) has a bit flipped, is not sent, is sent twice, or is
+//! held back and sent after the next. The firmware must refuse what is
+//! wrong, NAK the seq it expects and run the same setpoints; a frame lost
+//! with nothing after it to show the gap is sent again once the firmware
+//! has been quiet for two round trips and 3 s with chunks
+//! unacknowledged.
+//!
 //! `--digest` prints the host's own streamed run's digest at the end (the same
 //! chunks through `PlanWindow` and the streamed interpolator, FNV-1a over
 //! the setpoints' positions, as the firmware prints it): `.ci/qemu-uart-stream.sh`
@@ -23,7 +32,8 @@
 //!
 //! ```text
 //! cargo run --release -p planner-host --example stream_send -- CURVE --pipe PATH
-//!     [--chunk-mm 8] [--ring-bytes 16384] [--latency-ms 50] [--windows W:C] [--digest]
+//!     [--chunk-mm 8] [--ring-bytes 16384] [--latency-ms 50] [--windows W:C]
+//!     [--faults corrupt:N,drop:N,duplicate:N,reorder:N] [--digest]
 //! ```
 
 use std::collections::VecDeque;
@@ -55,6 +65,39 @@ struct Args {
     digest: bool,
     /// Plan in windows (window, commit mm) and send while planning.
     windows: Option<(f64, f64)>,
+    faults: Faults,
+}
+
+/// Every this many DATA transmissions a frame is lost so (0: never).
+#[derive(Clone, Copy, Default)]
+struct Faults {
+    corrupt: usize,
+    drop: usize,
+    duplicate: usize,
+    reorder: usize,
+}
+
+impl Faults {
+    fn parse(v: &str) -> Result<Self, String> {
+        let mut f = Faults::default();
+        for part in v.split(',').filter(|p| !p.is_empty()) {
+            let (k, n) = part.split_once(':').ok_or(format!("--faults: {part}: KIND:N"))?;
+            let n: usize = n.parse().map_err(|e| format!("--faults: {part}: {e}"))?;
+            match k {
+                "corrupt" => f.corrupt = n,
+                "drop" => f.drop = n,
+                "duplicate" => f.duplicate = n,
+                "reorder" => f.reorder = n,
+                _ => return Err(format!("--faults: {k}: not corrupt, drop, duplicate or reorder")),
+            }
+        }
+        Ok(f)
+    }
+
+    /// Whether the `tx`th transmission (from 1) is lost by the fault of period `n`.
+    fn hits(n: usize, tx: usize) -> bool {
+        n > 0 && tx.is_multiple_of(n)
+    }
 }
 
 fn args() -> Result<Args, String> {
@@ -66,6 +109,7 @@ fn args() -> Result<Args, String> {
         latency: Duration::from_millis(50),
         digest: false,
         windows: None,
+        faults: Faults::default(),
     };
     let mut it = std::env::args().skip(1);
     while let Some(x) = it.next() {
@@ -97,12 +141,13 @@ fn args() -> Result<Args, String> {
                     c.parse().map_err(|e| format!("--windows: {e}"))?,
                 ));
             }
+            "--faults" => a.faults = Faults::parse(&val("--faults")?)?,
             _ if a.curve.is_empty() => a.curve = x,
             _ => return Err(format!("unexpected argument {x}")),
         }
     }
     if a.curve.is_empty() || a.pipe.is_empty() {
-        return Err("usage: stream_send CURVE --pipe PATH [--chunk-mm 8] [--ring-bytes 16384] [--latency-ms 50] [--windows W:C] [--digest]".into());
+        return Err("usage: stream_send CURVE --pipe PATH [--chunk-mm 8] [--ring-bytes 16384] [--latency-ms 50] [--windows W:C] [--faults corrupt:N,drop:N,duplicate:N,reorder:N] [--digest]".into());
     }
     Ok(a)
 }
@@ -233,6 +278,15 @@ fn run() -> Result<(), String> {
     let mut frame = vec![0u8; encoded_max_len(a.ring_bytes + 1)];
     let (mut next, mut acked, mut free) = (0usize, None::<usize>, None::<usize>);
     let (mut sent_frames, mut sent_bytes, mut resends) = (0usize, 0usize, 0usize);
+    // (a frame held back by a reorder, sent after the next one)
+    let mut held_back: Option<Vec<u8>> = None;
+    let mut lost = 0usize;
+    // the last rewind to a NAK's seq: when, and to which
+    let mut rewound: Option<(Instant, usize)> = None;
+    // chunks unacknowledged and the firmware quiet this long: resend (the
+    // firmware under QEMU takes its UART's bytes one per pass of its loop,
+    // a tick between: measured, a second and more without a word)
+    let resend_after = 2 * rtt + Duration::from_secs(3);
     let mut quiet_since = Instant::now();
     // what planning handed over so far
     let mut chunks: Vec<Vec<u8>> = Vec::new();
@@ -278,7 +332,9 @@ fn run() -> Result<(), String> {
             .front()
             .is_some_and(|(at, _)| now.duration_since(*at) >= rtt)
         {
-            let Some((_, m)) = waiting.pop_front() else { break };
+            let Some((came, m)) = waiting.pop_front() else {
+                break;
+            };
             quiet_since = now;
             match m {
                 Up::Ack { seq, free: f } => {
@@ -287,13 +343,23 @@ fn run() -> Result<(), String> {
                     }
                     free = Some(f as usize);
                     if seq != u32::MAX {
+                        // (the firmware has every chunk through seq: after
+                        // a NAK's rewind, those need not go again)
                         acked = Some(seq as usize);
+                        next = next.max(seq as usize + 1);
                     }
                 }
                 Up::Nak { expected } => {
-                    resends += next.saturating_sub(expected as usize);
-                    next = next.min(expected as usize);
-                    acked = (expected as usize).checked_sub(1);
+                    let e = expected as usize;
+                    // (every frame after a gap is NAKed: those that came
+                    // before the last rewind, from its seq on, are answered)
+                    let answered = rewound.is_some_and(|(at, to)| came <= at && e >= to);
+                    if !answered {
+                        resends += next.saturating_sub(e);
+                        next = next.min(e);
+                        acked = e.checked_sub(1);
+                        rewound = Some((now, e));
+                    }
                 }
             }
         }
@@ -301,15 +367,48 @@ fn run() -> Result<(), String> {
             .iter()
             .map(Vec::len)
             .sum();
+        let first_unacked = acked.map_or(0, |k| k + 1);
+        if next > first_unacked && quiet_since.elapsed() > resend_after {
+            resends += next - first_unacked;
+            next = first_unacked;
+            quiet_since = Instant::now();
+            rewound = Some((quiet_since, next));
+        }
         match free {
             Some(f) if head_sent && next < n && f.saturating_sub(pending) >= chunks[next].len() => {
                 let k = encode_data(&chunks[next], &mut frame).map_err(|e| format!("{e:?}"))?;
-                tx.write_all(&frame[..k]).map_err(|e| e.to_string())?;
                 sent_frames += 1;
                 sent_bytes += k;
                 next += 1;
+                let bytes = &mut frame[..k];
+                let fl = a.faults;
+                if Faults::hits(fl.corrupt, sent_frames) {
+                    // (a bit of the body: the frame's CRC fails)
+                    bytes[k / 2] ^= 0x10;
+                }
+                if Faults::hits(fl.drop, sent_frames) {
+                    lost += 1;
+                    continue;
+                }
+                if Faults::hits(fl.reorder, sent_frames) && held_back.is_none() {
+                    held_back = Some(bytes.to_vec());
+                    continue;
+                }
+                tx.write_all(bytes).map_err(|e| e.to_string())?;
+                if Faults::hits(fl.duplicate, sent_frames) {
+                    tx.write_all(bytes).map_err(|e| e.to_string())?;
+                }
+                if let Some(b) = held_back.take() {
+                    tx.write_all(&b).map_err(|e| e.to_string())?;
+                }
             }
-            _ => std::thread::sleep(Duration::from_micros(200)),
+            _ => {
+                // (a frame held back with none to follow goes now)
+                if let Some(b) = held_back.take() {
+                    tx.write_all(&b).map_err(|e| e.to_string())?;
+                }
+                std::thread::sleep(Duration::from_micros(200))
+            }
         }
         if quiet_since.elapsed() > Duration::from_secs(120) {
             return Err(format!(
@@ -318,7 +417,7 @@ fn run() -> Result<(), String> {
         }
     }
     println!(
-        "sent {sent_frames} DATA frames ({sent_bytes} bytes, {resends} resent) in {:.2} s with {} ms one-way latency, the first chunk ready after {:.1} ms",
+        "sent {sent_frames} DATA frames ({sent_bytes} bytes, {resends} resent, {lost} lost on the way) in {:.2} s with {} ms one-way latency, the first chunk ready after {:.1} ms",
         started.elapsed().as_secs_f64(),
         a.latency.as_millis(),
         first_chunk_s.unwrap_or(f64::NAN) * 1e3
