@@ -12,9 +12,10 @@
 # With WINDOW_MM:COMMIT_MM the host plans in windows and sends each chunk as soon as it is
 # final, while the rest is planned (the head first without its stop segment, which follows).
 #
-# FAULTS=corrupt:N,drop:N,duplicate:N,reorder:N loses every Nth DATA frame so on the way
-# (stream_send --faults): the firmware must refuse the bad and the out-of-order frames, NAK
-# what it expects, and still run the host's setpoints; the run must show refusals.
+# FAULTS=corrupt:N,drop:N,duplicate:N,reorder:N,restart:N loses every Nth DATA frame so on the
+# way, and restarts the host after the Nth (stream_send --faults): the firmware must refuse the
+# bad and the out-of-order frames, NAK what it expects, ACK what it has, and still run the
+# host's setpoints; with frames corrupted, dropped or swapped the run must show refusals.
 #
 # (the example must be built: cargo build --release -p planner-host --example stream_send)
 set -euo pipefail
@@ -53,8 +54,9 @@ fi
 if [ -z "$host_digest" ] || [ "$host_digest" != "$mcu_digest" ]; then
   echo "the streamed runs differ" >&2; exit 1
 fi
-if [ -n "${FAULTS:-}" ]; then
-  # (refused: out of order or dropped from the window; bad: a frame or chunk that failed its checks)
+if [[ "${FAULTS:-}" =~ corrupt|drop|reorder ]]; then
+  # (refused: a chunk that failed its checks or came out of order; bad: a frame that failed its
+  # framing; a duplicate is ACKed again, a restarted host's chunks are duplicates)
   read -r refused bad < <(sed -n 's/^.*refused \([0-9]*\), bad frames \([0-9]*\),.*$/\1 \2/p' "$d/mcu.txt")
   if [ $(( ${refused:-0} + ${bad:-0} )) -eq 0 ]; then
     echo "frames were lost on the way ($FAULTS) but the firmware refused none" >&2; exit 1

@@ -16,10 +16,14 @@
 //! firmware waits for it before the last rows). Without it the whole path
 //! is planned first.
 //!
-//! `--faults corrupt:N,drop:N,duplicate:N,reorder:N` makes the link lose
-//! frames: every Nth DATA frame sent (counted over every transmission,
-//! resends included) has a bit flipped, is not sent, is sent twice, or is
-//! held back and sent after the next. The firmware must refuse what is
+//! `--faults corrupt:N,drop:N,duplicate:N,reorder:N,restart:N` makes the
+//! link lose frames: every Nth DATA frame sent (counted over every
+//! transmission, resends included) has a bit flipped, is not sent, is sent
+//! twice, or is held back and sent after the next; and after the Nth the
+//! host restarts once (it forgets what it sent and what came back, sends
+//! the head and the chunks from the first again, with the ring's whole
+//! size as its credit: the firmware ACKs each chunk it has already, and the
+//! host goes on after the last it ACKed). The firmware must refuse what is
 //! wrong, NAK the seq it expects and run the same setpoints; a frame lost
 //! with nothing after it to show the gap is sent again once the firmware
 //! has been quiet for two round trips and 3 s with chunks
@@ -33,7 +37,7 @@
 //! ```text
 //! cargo run --release -p planner-host --example stream_send -- CURVE --pipe PATH
 //!     [--chunk-mm 8] [--ring-bytes 16384] [--latency-ms 50] [--windows W:C]
-//!     [--faults corrupt:N,drop:N,duplicate:N,reorder:N] [--digest]
+//!     [--faults corrupt:N,drop:N,duplicate:N,reorder:N,restart:N] [--digest]
 //! ```
 
 use std::collections::VecDeque;
@@ -75,6 +79,7 @@ struct Faults {
     drop: usize,
     duplicate: usize,
     reorder: usize,
+    restart: usize,
 }
 
 impl Faults {
@@ -88,7 +93,12 @@ impl Faults {
                 "drop" => f.drop = n,
                 "duplicate" => f.duplicate = n,
                 "reorder" => f.reorder = n,
-                _ => return Err(format!("--faults: {k}: not corrupt, drop, duplicate or reorder")),
+                "restart" => f.restart = n,
+                _ => {
+                    return Err(format!(
+                        "--faults: {k}: not corrupt, drop, duplicate, reorder or restart"
+                    ))
+                }
             }
         }
         Ok(f)
@@ -147,7 +157,7 @@ fn args() -> Result<Args, String> {
         }
     }
     if a.curve.is_empty() || a.pipe.is_empty() {
-        return Err("usage: stream_send CURVE --pipe PATH [--chunk-mm 8] [--ring-bytes 16384] [--latency-ms 50] [--windows W:C] [--faults corrupt:N,drop:N,duplicate:N,reorder:N] [--digest]".into());
+        return Err("usage: stream_send CURVE --pipe PATH [--chunk-mm 8] [--ring-bytes 16384] [--latency-ms 50] [--windows W:C] [--faults corrupt:N,drop:N,duplicate:N,reorder:N,restart:N] [--digest]".into());
     }
     Ok(a)
 }
@@ -280,7 +290,7 @@ fn run() -> Result<(), String> {
     let (mut sent_frames, mut sent_bytes, mut resends) = (0usize, 0usize, 0usize);
     // (a frame held back by a reorder, sent after the next one)
     let mut held_back: Option<Vec<u8>> = None;
-    let mut lost = 0usize;
+    let (mut lost, mut restarts) = (0usize, 0usize);
     // the last rewind to a NAK's seq: when, and to which
     let mut rewound: Option<(Instant, usize)> = None;
     // chunks unacknowledged and the firmware quiet this long: resend (the
@@ -367,6 +377,16 @@ fn run() -> Result<(), String> {
             .iter()
             .map(Vec::len)
             .sum();
+        if a.faults.restart > 0 && sent_frames == a.faults.restart && restarts == 0 {
+            // (a restarted host: it planned the same chunks again)
+            restarts += 1;
+            (next, acked, free, head_sent) = (0, None, Some(a.ring_bytes), false);
+            (rewound, held_back) = (None, None);
+            waiting.clear();
+            while up.try_recv().is_ok() {}
+            quiet_since = Instant::now();
+            continue;
+        }
         let first_unacked = acked.map_or(0, |k| k + 1);
         if next > first_unacked && quiet_since.elapsed() > resend_after {
             resends += next - first_unacked;
@@ -417,7 +437,7 @@ fn run() -> Result<(), String> {
         }
     }
     println!(
-        "sent {sent_frames} DATA frames ({sent_bytes} bytes, {resends} resent, {lost} lost on the way) in {:.2} s with {} ms one-way latency, the first chunk ready after {:.1} ms",
+        "sent {sent_frames} DATA frames ({sent_bytes} bytes, {resends} resent, {lost} lost on the way, {restarts} host restarts) in {:.2} s with {} ms one-way latency, the first chunk ready after {:.1} ms",
         started.elapsed().as_secs_f64(),
         a.latency.as_millis(),
         first_chunk_s.unwrap_or(f64::NAN) * 1e3
