@@ -17,6 +17,11 @@
 # bad and the out-of-order frames, NAK what it expects, ACK what it has, and still run the
 # host's setpoints; with frames corrupted, dropped or swapped the run must show refusals.
 #
+# TICK_COUNT=1 runs the image built with the feature `tick-count` (its own target directory)
+# under bench_insn.py's counting plugin: every servo tick's Thumb instructions, by kind (start,
+# normal, stop), the streamed tick reading its rows from the plan window (docs/wcet.md); exit 1
+# when a kind's worst is over TICK_BUDGET (default 4000).
+#
 # (the example must be built: cargo build --release -p planner-host --example stream_send)
 set -euo pipefail
 curve=$1
@@ -25,8 +30,13 @@ windows=()
 if [ -n "${3:-}" ]; then windows=(--windows "$3"); fi
 root=$(cd "$(dirname "$0")/.." && pwd)
 mcu=$root/firmware-core/mcu
-(cd "$mcu" && cargo build --release -q --bin stream-run 2>/dev/null)
-elf=$mcu/target/thumbv7em-none-eabihf/release/stream-run
+if [ -n "${TICK_COUNT:-}" ]; then
+  (cd "$mcu" && CARGO_TARGET_DIR="$mcu/target/tick-count" cargo build --release -q --bin stream-run --features tick-count 2>/dev/null)
+  elf=$mcu/target/tick-count/thumbv7em-none-eabihf/release/stream-run
+else
+  (cd "$mcu" && cargo build --release -q --bin stream-run 2>/dev/null)
+  elf=$mcu/target/thumbv7em-none-eabihf/release/stream-run
+fi
 d=$(mktemp -d)
 trap 'rm -rf "$d"' EXIT
 mkfifo "$d/link.in" "$d/link.out"
@@ -34,15 +44,35 @@ mkfifo "$d/link.in" "$d/link.out"
   --latency-ms 50 --digest ${FAULTS:+--faults "$FAULTS"} "${windows[@]}" >"$d/host.txt" 2>&1 &
 host_pid=$!
 set +e
-timeout -k 5 "${TIMEOUT:-900}" qemu-system-arm -cpu cortex-m4 -machine mps2-an386 -nographic -monitor none \
-  -chardev pipe,id=link,path="$d/link" -serial chardev:link \
-  -semihosting-config enable=on,target=native -kernel "$elf" >"$d/mcu.txt" 2>&1
+if [ -n "${TICK_COUNT:-}" ]; then
+  timeout -k 5 "${TIMEOUT:-900}" python3 "$mcu/bench_insn.py" "$elf" --timeout "${TIMEOUT:-900}" \
+    --qemu-arg=-monitor --qemu-arg=none --qemu-arg=-chardev --qemu-arg="pipe,id=link,path=$d/link" \
+    --qemu-arg=-serial --qemu-arg=chardev:link >"$d/mcu.txt" 2>&1
+else
+  timeout -k 5 "${TIMEOUT:-900}" qemu-system-arm -cpu cortex-m4 -machine mps2-an386 -nographic -monitor none \
+    -chardev pipe,id=link,path="$d/link" -serial chardev:link \
+    -semihosting-config enable=on,target=native -kernel "$elf" >"$d/mcu.txt" 2>&1
+fi
 rc=$?
 wait "$host_pid"
 host_rc=$?
 set -e
 sed 's/^/  host /' "$d/host.txt"
-sed 's/^/  qemu /' "$d/mcu.txt"
+grep -v '^BENCH-' "$d/mcu.txt" | sed 's/^/  qemu /'
+if [ -n "${TICK_COUNT:-}" ]; then
+  # the worst tick of each kind over the groups bench_insn.py printed (marker overhead subtracted)
+  worst=$(awk '$1=="==" {t=1; next} t && $1 ~ /^(start|normal|stop)$/ && NF >= 6 {
+      if ($6 > m[$1]) m[$1] = $6; n[$1] += $2 }
+    END { for (k in m) printf "%s %d %d\n", k, m[k], n[k] }' "$d/mcu.txt" | sort)
+  echo "$worst" | while read -r kind max n; do
+    echo "  streamed tick, $kind: worst $max Thumb instructions over $n ticks (budget ${TICK_BUDGET:-4000})"
+  done
+  over=$(echo "$worst" | awk -v b="${TICK_BUDGET:-4000}" '$2 > b {print $1}')
+  [ -z "$worst" ] && { echo "no tick counted" >&2; exit 1; }
+  # (the image with the counting windows is not the one whose flash is measured)
+  (cd "$mcu" && cargo build --release -q --bin stream-run 2>/dev/null)
+  elf=$mcu/target/thumbv7em-none-eabihf/release/stream-run
+fi
 read -r text data bss _ < <(arm-none-eabi-size "$elf" | tail -1) || true
 echo "  stream-run image: flash (text) ${text:-?} bytes, static RAM (data + bss) $(( ${data:-0} + ${bss:-0} )) bytes of 131072"
 host_digest=$(sed -n 's/^.*digest: fnv1a64-pos-le=\([0-9a-f]*\)$/\1/p' "$d/host.txt")
@@ -53,6 +83,9 @@ if [ "$rc" -ne 0 ] || [ "$host_rc" -ne 0 ]; then
 fi
 if [ -z "$host_digest" ] || [ "$host_digest" != "$mcu_digest" ]; then
   echo "the streamed runs differ" >&2; exit 1
+fi
+if [ -n "${over:-}" ]; then
+  echo "streamed ticks over the budget: $over" >&2; exit 1
 fi
 if [[ "${FAULTS:-}" =~ corrupt|drop|reorder ]]; then
   # (refused: a chunk that failed its checks or came out of order; bad: a frame that failed its

@@ -23,6 +23,12 @@
 //! then equals the host's streamed run's, and the whole table's.
 //! Prints ticks, chunks, the peak ring and window use, the stack's
 //! high-water mark and the digest; exit 0 when the path ran to its end.
+//!
+//! With the feature `tick-count`, every tick is an instruction-count window
+//! (`firmware_mcu::mark_begin`/`mark_end`, logged by kind: start, normal,
+//! stop) for `bench_insn.py` (`.ci/qemu-uart-stream.sh` with `TICK_COUNT=1`):
+//! the streamed tick, reading its rows from the plan window, counted as the
+//! table image's is by `.ci/wcet.sh`. Without it, none of this is linked.
 #![no_std]
 #![no_main]
 
@@ -197,6 +203,12 @@ fn main() -> ! {
         .u(NP as u64)
         .s(" pieces, waiting on UART0")
         .put();
+    #[cfg(feature = "tick-count")]
+    let mut log = {
+        // (the marker overhead first, as bench_insn.py expects)
+        firmware_mcu::calibrate(64);
+        firmware_mcu::TickLog::new()
+    };
     ack(&uart, u32::MAX, ring.free());
     loop {
         // the bytes that arrived
@@ -307,7 +319,28 @@ fn main() -> ! {
             waits += 1;
             continue;
         }
-        match ipr.tick() {
+        #[cfg(feature = "tick-count")]
+        let kind = match head.and_then(|(h, _)| h.ends) {
+            Some(e) if ipr.ticks() == 0 || ipr.s_mm() < e.s_start => "start",
+            None if ipr.ticks() == 0 => "start",
+            _ => "normal",
+        };
+        #[cfg(feature = "tick-count")]
+        let tick = ipr.ticks();
+        #[cfg(feature = "tick-count")]
+        firmware_mcu::mark_begin();
+        let r = ipr.tick();
+        #[cfg(feature = "tick-count")]
+        {
+            firmware_mcu::mark_end();
+            let s_stop = head.and_then(|(h, _)| h.ends).map_or(f64::INFINITY, |e| e.s_stop);
+            let kind = match kind {
+                "normal" if ipr.s_mm() >= s_stop || ipr.is_done() => "stop",
+                k => k,
+            };
+            log.push(kind, tick, ipr.s_mm());
+        }
+        match r {
             Ok(sp) => digest.setpoint(&sp),
             Err(_) => {
                 Line::new().s("fault at tick ").u(ipr.ticks()).put();
@@ -318,6 +351,8 @@ fn main() -> ! {
             break;
         }
     }
+    #[cfg(feature = "tick-count")]
+    log.flush();
     let ticks = ip.as_ref().map_or(0, |i| i.ticks());
     Line::new()
         .s("ticks ")
