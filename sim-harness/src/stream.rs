@@ -1003,6 +1003,9 @@ pub struct StreamOptions {
     /// path of a program, planned while the paths before it ran): each
     /// chunk is ready that much earlier, none before the start.
     pub host_ahead_s: f64,
+    /// Frames damaged, lost, doubled or reordered on the link, and a host
+    /// restart ([`LinkFaults`]).
+    pub faults: LinkFaults,
 }
 
 /// The plan windows the simulation has (q spans, pieces): three MCU sizes
@@ -1028,6 +1031,7 @@ impl Default for StreamOptions {
             overrides: vec![],
             host_replan_s: None,
             host_ahead_s: 0.0,
+            faults: LinkFaults::default(),
         }
     }
 }
@@ -1096,9 +1100,52 @@ pub struct StreamReport {
     /// Largest feed over the changed feed limit, once each change's new feed
     /// holds (until the next change takes effect); 0 without changes.
     pub override_feed_ratio: f64,
+    /// What the link carried and the firmware refused (with `--faults`,
+    /// the damage it met).
+    pub link: LinkCounts,
     /// The first and the last setpoint's position, mm.
     #[serde(skip)]
     pub ends_mm: [[f64; 3]; 2],
+}
+
+/// DATA frames on the link and what the firmware made of them
+/// ([`StreamReport::link`]).
+#[derive(Clone, Copy, Debug, PartialEq, Default, serde::Serialize)]
+pub struct LinkCounts {
+    /// DATA frames sent, resends included (one per chunk on a clean link).
+    pub transmissions: usize,
+    /// Refused as damaged (CRC, framing) or without room: a NAK each.
+    pub refused_crc: usize,
+    /// Duplicates (ACKed again).
+    pub refused_duplicate: usize,
+    /// Out of order (a NAK each).
+    pub refused_order: usize,
+    /// Taken by the ring but refused by the plan window (dropped, NAKed).
+    pub refused_window: usize,
+}
+
+impl LinkFaults {
+    /// `KIND:N,...` with KIND `corrupt`, `drop`, `duplicate` or `reorder`
+    /// (every Nth DATA frame, resends counted) and `restart:SECONDS` (the
+    /// host restarts then); `None` if malformed.
+    pub fn parse(text: &str) -> Option<Self> {
+        let mut f = LinkFaults::default();
+        for part in text.split(',').filter(|p| !p.is_empty()) {
+            let (kind, v) = part.split_once(':')?;
+            let every = || v.parse::<usize>().ok().filter(|&n| n > 0);
+            match kind {
+                "corrupt" => f.corrupt_every = every()?,
+                "drop" => f.drop_every = every()?,
+                "duplicate" => f.duplicate_every = every()?,
+                "reorder" => f.reorder_every = every()?,
+                "restart" => {
+                    f.host_restart_s = Some(v.parse::<f64>().ok().filter(|t| t.is_finite() && *t >= 0.0)?)
+                }
+                _ => return None,
+            }
+        }
+        Some(f)
+    }
 }
 
 /// Why `feedsim stream` failed.
@@ -1280,7 +1327,7 @@ fn stream_through<const Q: usize, const P: usize>(
         latency_s: o.latency_s,
         stalls: o.stalls.clone(),
         period_s: o.period_s,
-        faults: LinkFaults::default(),
+        faults: o.faults,
         // (fixed host times: the plan's chunks all at hand from the start)
         ready_s: match o.host_replan_s {
             Some(_) => vec![],
@@ -1396,6 +1443,13 @@ fn stream_through<const Q: usize, const P: usize>(
         check_ok: rep.ok && override_feed_ratio <= 1.0 + o.tol,
         overrides: run.overrides,
         override_feed_ratio,
+        link: LinkCounts {
+            transmissions: run.transmissions,
+            refused_crc: run.refused_crc,
+            refused_duplicate: run.refused_duplicate,
+            refused_order: run.refused_order,
+            refused_window: run.refused_window,
+        },
         ends_mm: ends_mm.unwrap_or_default(),
     })
 }

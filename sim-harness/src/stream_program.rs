@@ -25,7 +25,7 @@
 //!   within [`JOIN_TOL_MM`], else [`StreamError::Gap`].
 //! - **Time.** Path k + 1's session opens one servo period after path k's
 //!   last setpoint (as in [`crate::program`]), its motion after its wait.
-//! - **Not yet.** Feed changes, link stalls and replayed ready times belong
+//! - **Not yet.** Feed changes, link stalls and faults and replayed ready times belong
 //!   to one path's stream and are refused for a program
 //!   ([`StreamError::Option`]). At a program stop (M0, M1) the machine is
 //!   at rest (a path ends there, [`planner_host::program::paths_for`]), but
@@ -41,7 +41,7 @@ use planner_host::{Machine, Ratios};
 use serde::Serialize;
 
 use crate::program::{distance_mm, JOIN_TOL_MM};
-use crate::stream::{stream_curve_with, StreamError, StreamOptions};
+use crate::stream::{stream_curve_with, LinkFaults, StreamError, StreamOptions};
 
 /// One path of a streamed program.
 #[derive(Debug, Clone, Serialize)]
@@ -140,10 +140,14 @@ pub fn stream_program(
     popts: &ProgramOptions,
     o: &StreamOptions,
 ) -> Result<ProgramStreamReport, StreamError> {
-    if !o.overrides.is_empty() || !o.stalls.is_empty() || o.ready_times.is_some() || o.host_replan_s.is_some()
+    if !o.overrides.is_empty()
+        || !o.stalls.is_empty()
+        || o.ready_times.is_some()
+        || o.host_replan_s.is_some()
+        || o.faults != LinkFaults::default()
     {
         return Err(StreamError::Option(
-            "feed changes, link stalls and ready times stream one path, not a program".into(),
+            "feed changes, link stalls, link faults and ready times stream one path, not a program".into(),
         ));
     }
     let path_opts = PathOptions {

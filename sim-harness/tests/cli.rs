@@ -502,10 +502,44 @@ fn stream_reports_the_streamed_run_as_json_and_refuses_bad_options() {
         (&["stream", "star", "--window-rows", "100:100"][..], "64:128"),
         (&["stream", "star", "--window-rows", "many"][..], "Q:P"),
         (&["stream", "nowhere.json"][..], "nowhere"),
+        (&["stream", "star", "--faults", "drop:0"][..], "KIND:N"),
+        (&["stream", "star", "--faults", "lose:3"][..], "KIND:N"),
     ] {
         let out = feedsim().args(args).output().unwrap();
         assert_eq!(out.status.code(), Some(3), "{args:?}");
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(err.contains(what), "{args:?}: {err}");
     }
+}
+
+#[test]
+fn stream_over_a_lossy_link_refuses_resends_and_runs_the_same_setpoints() {
+    let run = |faults: Option<&str>| -> serde_json::Value {
+        let mut args = vec!["stream", "star", "--json"];
+        if let Some(f) = faults {
+            args.extend(["--faults", f]);
+        }
+        let out = feedsim().args(&args).output().unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        serde_json::from_slice(&out.stdout).unwrap()
+    };
+    let clean = run(None);
+    let lossy = run(Some("corrupt:7,drop:11,duplicate:5,reorder:13,restart:0.5"));
+    let n = |v: &serde_json::Value, k: &str| v["link"][k].as_u64().unwrap();
+    // every kind of damage met and answered: more frames than chunks
+    // (resends), damaged and out-of-order frames refused, duplicates (the
+    // doubled frames and the restarted host's) ACKed again
+    assert!(
+        n(&lossy, "transmissions") > clean["chunks"].as_u64().unwrap(),
+        "{lossy}"
+    );
+    for k in ["refused_crc", "refused_duplicate", "refused_order"] {
+        assert!(n(&lossy, k) > 0, "{k}: {lossy}");
+    }
+    // nothing lost: the same machining time, every limit held, no starvation
+    // (the ring holds seconds of motion ahead of the losses)
+    assert_eq!(lossy["check_ok"], true, "{lossy}");
+    assert_eq!(lossy["machining_time_s"], clean["machining_time_s"]);
+    assert_eq!(lossy["starved_ticks"], 0, "{lossy}");
+    assert_eq!(lossy["ratios"], clean["ratios"]);
 }

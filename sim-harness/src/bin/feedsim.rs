@@ -11,6 +11,7 @@
 //! feedsim override [SCENARIOS...] [--latency-ms 5] [--out DIR]
 //! feedsim stream CURVE [--link uart:BAUD] [--latency-ms 5] [--ring-bytes 16384] [--chunk-mm 8]
 //!                      [--window-mm W --commit-mm C] [--stall T:D]... [--override T:PCT]...
+//!                      [--faults corrupt:N,drop:N,duplicate:N,reorder:N,restart:S]
 //!                      [--tol 0.01] [--json]
 //! feedsim completions SHELL
 //! ```
@@ -255,6 +256,13 @@ enum Cmd {
         /// if FILE exists, read them from it (a run replayed with the same timing).
         #[arg(long, requires = "window_mm")]
         ready_times: Option<PathBuf>,
+        /// Damage on the link: KIND:N,... with KIND corrupt, drop, duplicate or reorder
+        /// (every Nth DATA frame sent, resends counted: a bit flipped, lost, sent twice,
+        /// after the next one) and restart:SECONDS (the host restarts then, sending from
+        /// the first chunk again). The firmware refuses and NAKs, the host resends; the
+        /// report's "link" counts what was sent and refused. One path, not a program.
+        #[arg(long)]
+        faults: Option<String>,
         /// Servo period, microseconds (default: the machine file's; the built-in machine's is 250).
         #[arg(long)]
         period_us: Option<f64>,
@@ -775,6 +783,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
             host_replan_ms,
             host_slowdown,
             ready_times,
+            faults,
             period_us,
             tol,
             json,
@@ -824,6 +833,15 @@ fn run(cli: Cli) -> Result<(), Failure> {
                         "--override: expected T:PCT (seconds, percent > 0), in time order, e.g. 1.5:50",
                     )
                 })?;
+            let faults = match &faults {
+                None => Default::default(),
+                Some(f) => sim_harness::stream::LinkFaults::parse(f).ok_or_else(|| {
+                    Failure::input(format!(
+                        "--faults {f}: expected KIND:N,... (corrupt, drop, duplicate, reorder: every N ≥ 1 \
+                         frames; restart:SECONDS), e.g. corrupt:17,drop:23,restart:1.5"
+                    ))
+                })?,
+            };
             if host_replan_ms.is_some_and(|h| !(h.is_finite() && h >= 0.0)) {
                 return Err(Failure::input("--host-replan-ms: expected a time ≥ 0"));
             }
@@ -842,6 +860,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
                 host_slowdown,
                 ready_times,
                 host_ahead_s: 0.0,
+                faults,
             };
             if planner_host::cli::is_gcode_program(Path::new(&curve)) {
                 return stream_program_cmd(Path::new(&curve), &machine, &opts, json);
