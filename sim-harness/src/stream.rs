@@ -479,6 +479,14 @@ pub fn run_stream_head<const CAP: usize, const NQ: usize, const NP: usize>(
     // and up (seen by the host at, message)
     let (mut next, mut acked, mut free) = (0usize, None::<usize>, CAP);
     let mut last_word = 0.0f64;
+    // when the oldest frame still unacknowledged was sent: the resend's
+    // timeout runs from it or from the firmware's last word, the later
+    // (from the last word alone, a first frame sent long after the start
+    // went again at once)
+    let mut unacked_since = 0.0f64;
+    // the last rewind to a NAK's seq: until when NAKs from before it can
+    // come (its first frame's round trip), and the seq
+    let mut rewound: Option<(f64, usize)> = None;
     let mut link_free_at = 0.0f64;
     let mut down: Vec<(f64, Vec<u8>, bool)> = Vec::new();
     let mut up: std::collections::VecDeque<(f64, Up)> = std::collections::VecDeque::new();
@@ -526,6 +534,7 @@ pub fn run_stream_head<const CAP: usize, const NQ: usize, const NP: usize>(
                 restarted = true;
                 (next, acked, free) = (0, None, CAP);
                 up.clear();
+                rewound = None;
             }
         }
         // host: what came up
@@ -543,7 +552,20 @@ pub fn run_stream_head<const CAP: usize, const NQ: usize, const NP: usize>(
                         next = next.max(s + 1);
                     }
                 }
-                Up::Nak { expected } => next = next.min(expected as usize),
+                Up::Nak { expected } => {
+                    // (every frame after a gap is NAKed; a NAK from before a
+                    // rewind's first frame could reach the firmware, of that
+                    // seq or a later one, is answered by the rewind already)
+                    let e = expected as usize;
+                    let answered = rewound.is_some_and(|(by, to)| t < by && e >= to);
+                    if !answered {
+                        if e < next {
+                            let dur = sent.framed.get(e).map_or(0.0, |&b| b as f64 / link.bytes_per_s);
+                            rewound = Some((t + 2.0 * link.latency_s + dur, e));
+                        }
+                        next = next.min(e);
+                    }
+                }
                 Up::Taken { seq } => {
                     if let Some((_, rec)) = in_flight.filter(|&(sq, _)| sq == seq) {
                         in_flight = None;
@@ -649,7 +671,7 @@ pub fn run_stream_head<const CAP: usize, const NQ: usize, const NP: usize>(
             }
         }
         let first_unacked = acked.map_or(0, |a| a + 1);
-        if next > first_unacked && t - last_word > timeout {
+        if next > first_unacked && t - last_word.max(unacked_since) > timeout {
             next = first_unacked;
             last_word = t;
         }
@@ -676,6 +698,9 @@ pub fn run_stream_head<const CAP: usize, const NQ: usize, const NP: usize>(
                 }
             }
             link_free_at = end;
+            if next <= first_unacked {
+                unacked_since = t;
+            }
             run.transmissions += 1;
             let tx = run.transmissions;
             let arrive = end + link.latency_s;
