@@ -365,8 +365,10 @@ fn run() -> Result<(), String> {
                     // before the last rewind, from its seq on, are answered)
                     let answered = rewound.is_some_and(|(at, to)| came <= at && e >= to);
                     if !answered {
+                        // (the firmware has every chunk before e: back to
+                        // it, or on to it after a restart)
                         resends += next.saturating_sub(e);
-                        next = next.min(e);
+                        next = e;
                         acked = e.checked_sub(1);
                         rewound = Some((now, e));
                     }
