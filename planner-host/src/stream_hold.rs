@@ -683,7 +683,9 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
         self.s_c[self.i] = s_c;
         (self.last_pass, self.last_found) = (None, Some(s_c));
         self.known[self.i] = self.started.elapsed().as_secs_f64();
-        if self.i < 3 && std::env::var_os("FEEDLP_TIME_DEBUG").is_some() {
+        // (and the first hold point: what the first motion waits for)
+        let first = |s_c_before: &[f64]| s_c >= 0.0 && s_c_before.iter().all(|&x| x < 0.0);
+        if std::env::var_os("FEEDLP_TIME_DEBUG").is_some() && (self.i < 3 || first(&self.s_c[..self.i])) {
             eprintln!(
                 "  hold point of chunk {}: {:.1} ms, s_c {:.2} mm",
                 self.i,

@@ -608,7 +608,8 @@ pub fn solve_window(
 /// knot) when given, instead of over all its spans, and then run until the
 /// trust region has shrunk to ρ_min as the whole path's sequence is (a
 /// window of [`crate::plan::windowed`] starts from q̂ beyond the window
-/// before, further from its optimum than an override window starts).
+/// before, further from its optimum than an override window starts), or
+/// until an accepted iterate at ρ ≤ ρ₀·shrink² is no better than the best.
 pub(crate) fn solve_window_until(
     lp: &FeedLp,
     caps: &[JumpCap],
@@ -818,6 +819,9 @@ fn solve_with(
     // UNSETTLED (see there), up to three times as many; if none held every
     // limit then, one more with every row.
     let mut unsettled = false;
+    // the trust region small enough for a window's sequence to end at an
+    // iterate no better than the best (see below)
+    let settle_rho = cfg.rho0 * cfg.rho_shrink * cfg.rho_shrink * 1.0001;
     for it in 0..=3 * cfg.max_lps {
         if it >= cfg.max_lps && best.is_some() && !unsettled {
             break;
@@ -1132,6 +1136,17 @@ fn solve_with(
             // whole path's sequence does: its start point is poorer)
             done = gain < stop_rel
                 && (win.as_ref().is_some_and(|w| w.judge_hi.is_none()) || rho <= cfg.rho_min * 1.0001);
+            // a window judged up to its judge_hi, from scratch, has passed
+            // its best once an accepted iterate at a small trust region
+            // (from the third LP on) is no better: the later LPs rarely come
+            // back, and by little (the 11 m meander at 200/150 mm: 670 →
+            // 327 LPs, machining time +0.03 %; the Butterfly and the Fan
+            // unchanged: their dips come at ρ = 0.25 and the sequence climbs
+            // on)
+            done |= !better
+                && start.is_none()
+                && rho <= settle_rho
+                && win.as_ref().is_some_and(|w| w.judge_hi.is_some());
             // a refinement round: done at the first accepted iterate within
             // WARM_SLACK of the plan it started from, if the sequence before
             // had settled (see `solve_from`)
