@@ -17,6 +17,9 @@
 # bad and the out-of-order frames, NAK what it expects, ACK what it has, and still run the
 # host's setpoints; with frames corrupted, dropped or swapped the run must show refusals.
 #
+# NO_U_FORM=1 sends the chunks without the u form (stream_send --no-u-form): a smaller stream,
+# the same positions (the setpoints' u reads 0), so the same digest.
+#
 # TICK_COUNT=1 runs the image built with the feature `tick-count` (its own target directory)
 # under bench_insn.py's counting plugin: every servo tick's Thumb instructions, by kind (start,
 # normal, stop), the streamed tick reading its rows from the plan window (docs/wcet.md); exit 1
@@ -41,7 +44,8 @@ d=$(mktemp -d)
 trap 'rm -rf "$d"' EXIT
 mkfifo "$d/link.in" "$d/link.out"
 "$root/target/release/examples/stream_send" "$curve" --pipe "$d/link" --chunk-mm "$chunk_mm" \
-  --latency-ms 50 --digest ${FAULTS:+--faults "$FAULTS"} "${windows[@]}" >"$d/host.txt" 2>&1 &
+  --latency-ms 50 --digest ${FAULTS:+--faults "$FAULTS"} ${NO_U_FORM:+--no-u-form} "${windows[@]}" \
+  >"$d/host.txt" 2>&1 &
 host_pid=$!
 set +e
 if [ -n "${TICK_COUNT:-}" ]; then

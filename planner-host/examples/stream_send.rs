@@ -29,6 +29,10 @@
 //! has been quiet for two round trips and 3 s with chunks
 //! unacknowledged.
 //!
+//! `--no-u-form` sends the chunks without the u form (each piece's u(s)):
+//! the setpoints' u then reads 0 along the path, their positions (and the
+//! digest) are the same.
+//!
 //! `--digest` prints the host's own streamed run's digest at the end (the same
 //! chunks through `PlanWindow` and the streamed interpolator, FNV-1a over
 //! the setpoints' positions, as the firmware prints it): `.ci/qemu-uart-stream.sh`
@@ -37,7 +41,8 @@
 //! ```text
 //! cargo run --release -p planner-host --example stream_send -- CURVE --pipe PATH
 //!     [--chunk-mm 8] [--ring-bytes 16384] [--latency-ms 50] [--windows W:C]
-//!     [--faults corrupt:N,drop:N,duplicate:N,reorder:N,restart:N] [--digest]
+//!     [--faults corrupt:N,drop:N,duplicate:N,reorder:N,restart:N] [--no-u-form]
+//!     [--digest]
 //! ```
 
 use std::collections::VecDeque;
@@ -70,6 +75,8 @@ struct Args {
     /// Plan in windows (window, commit mm) and send while planning.
     windows: Option<(f64, f64)>,
     faults: Faults,
+    /// The chunks carry the u form.
+    u_form: bool,
 }
 
 /// Every this many DATA transmissions a frame is lost so (0: never).
@@ -120,6 +127,7 @@ fn args() -> Result<Args, String> {
         digest: false,
         windows: None,
         faults: Faults::default(),
+        u_form: true,
     };
     let mut it = std::env::args().skip(1);
     while let Some(x) = it.next() {
@@ -143,6 +151,7 @@ fn args() -> Result<Args, String> {
                 a.latency = Duration::from_secs_f64(ms.max(0.0) * 1e-3);
             }
             "--digest" => a.digest = true,
+            "--no-u-form" => a.u_form = false,
             "--windows" => {
                 let v = val("--windows")?;
                 let (w, c) = v.split_once(':').ok_or("--windows WINDOW_MM:COMMIT_MM")?;
@@ -157,7 +166,7 @@ fn args() -> Result<Args, String> {
         }
     }
     if a.curve.is_empty() || a.pipe.is_empty() {
-        return Err("usage: stream_send CURVE --pipe PATH [--chunk-mm 8] [--ring-bytes 16384] [--latency-ms 50] [--windows W:C] [--faults corrupt:N,drop:N,duplicate:N,reorder:N,restart:N] [--digest]".into());
+        return Err("usage: stream_send CURVE --pipe PATH [--chunk-mm 8] [--ring-bytes 16384] [--latency-ms 50] [--windows W:C] [--faults corrupt:N,drop:N,duplicate:N,reorder:N,restart:N] [--no-u-form] [--digest]".into());
     }
     Ok(a)
 }
@@ -238,7 +247,7 @@ fn run() -> Result<(), String> {
     let curve = planner_host::cli::load_curve(std::path::Path::new(&a.curve)).map_err(|e| e.to_string())?;
     let opts = ChunkOptions {
         chunk_mm: a.chunk_mm,
-        u_form: true,
+        u_form: a.u_form,
         max_chunk_bytes: Some(a.ring_bytes / 4),
         ..ChunkOptions::default()
     };

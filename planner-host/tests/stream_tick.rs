@@ -85,6 +85,61 @@ fn streamed_ticks_equal_the_whole_table_bit_for_bit_through_a_bounded_window() {
     }
 }
 
+/// Chunks without the u form (`ChunkOptions::u_form` false: each piece's
+/// u(s), six f32, left out) are smaller and tick the same setpoints as the
+/// whole table's but for u, which reads 0 along the path (the end point's
+/// u at the end, from the head): the positions, s, the feed and the time
+/// are the same bits.
+#[test]
+fn chunks_without_the_u_form_tick_the_same_positions_and_report_u_zero() {
+    for name in ["butterfly", "trident"] {
+        let curve = builtin::by_name(name).unwrap().unwrap();
+        let out = plan_curve(&curve, &PlanConfig::default()).unwrap();
+        let table = Table::parse(&out.table_bytes).unwrap();
+        let mut ip = Interpolator::new(table, T).unwrap();
+        let mut whole = Vec::new();
+        while !ip.is_done() {
+            whole.push(ip.tick().unwrap());
+        }
+        let cut = |u_form| {
+            let opts = ChunkOptions {
+                chunk_mm: 4.0,
+                u_form,
+                ..ChunkOptions::default()
+            };
+            chunk_table(&table, &opts).unwrap()
+        };
+        let (with_u, without_u) = (cut(true), cut(false));
+        let bytes = |c: &[Vec<u8>]| c.iter().map(Vec::len).sum::<usize>();
+        assert!(
+            bytes(&without_u) * 10 < bytes(&with_u) * 8,
+            "{name}: {} bytes without the u form, {} with it",
+            bytes(&without_u),
+            bytes(&with_u)
+        );
+        let (streamed, _) = run_streamed(&table, &without_u);
+        assert_eq!(streamed.len(), whole.len(), "{name}: setpoint count");
+        let end = whole.last().unwrap().s_mm;
+        for (k, (a, b)) in whole.iter().zip(&streamed).enumerate() {
+            let mut want = bits(a);
+            // (at the path's end the tick reports the end point's u, from
+            // the head; along the path the pieces' u form, here zeros)
+            if a.s_mm < end {
+                want[2] = 0.0f64.to_bits();
+            }
+            assert_eq!(want, bits(b), "{name}: setpoint {k}: table {a:?}, streamed {b:?}");
+        }
+        // (the table's u moves: the comparison above is not of zeros)
+        assert!(whole.iter().any(|sp| sp.u > 0.5), "{name}");
+        println!(
+            "{name:9}: {} setpoints, positions equal without the u form; {} bytes of chunks, {} with it",
+            whole.len(),
+            bytes(&without_u),
+            bytes(&with_u)
+        );
+    }
+}
+
 #[test]
 fn a_chunk_that_does_not_continue_the_window_is_refused_with_nothing_changed() {
     let curve = builtin::by_name("star").unwrap().unwrap();

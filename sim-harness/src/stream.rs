@@ -1028,6 +1028,11 @@ pub struct StreamOptions {
     /// path of a program, planned while the paths before it ran): each
     /// chunk is ready that much earlier, none before the start.
     pub host_ahead_s: f64,
+    /// The chunks carry the u form (each piece's u(s), for the setpoints'
+    /// u); without it a stream is smaller and the setpoints' u reads 0
+    /// along the path (the end point's at the end; the positions are the
+    /// same bits).
+    pub u_form: bool,
     /// Frames damaged, lost, doubled or reordered on the link, and a host
     /// restart ([`LinkFaults`]).
     pub faults: LinkFaults,
@@ -1056,6 +1061,7 @@ impl Default for StreamOptions {
             overrides: vec![],
             host_replan_s: None,
             host_ahead_s: 0.0,
+            u_form: true,
             faults: LinkFaults::default(),
         }
     }
@@ -1092,6 +1098,8 @@ pub struct StreamReport {
     pub chunks: usize,
     /// Framed bytes per mm of path.
     pub bytes_per_mm: f64,
+    /// The chunks carried the u form ([`StreamOptions::u_form`]).
+    pub u_form: bool,
     /// Link rate, baud.
     pub link_baud: f64,
     /// One-way latency, ms.
@@ -1290,7 +1298,7 @@ fn stream_through<const Q: usize, const P: usize>(
     }
     let opts = ChunkOptions {
         chunk_mm: o.chunk_mm,
-        u_form: true,
+        u_form: o.u_form,
         max_chunk_bytes: Some(o.ring_bytes / 4),
         ..ChunkOptions::default()
     };
@@ -1446,6 +1454,7 @@ fn stream_through<const Q: usize, const P: usize>(
         plan_realtime_factor: machining_time_s / plan_s,
         chunks: run.chunks,
         bytes_per_mm: run.framed_bytes as f64 / out.path_length_mm,
+        u_form: o.u_form,
         link_baud: o.baud,
         latency_ms: o.latency_s * 1e3,
         ring_bytes: o.ring_bytes,

@@ -101,6 +101,8 @@ pub struct ProgramStreamReport {
     pub chunks: usize,
     /// Framed bytes per mm of path.
     pub bytes_per_mm: f64,
+    /// The chunks carried the u form ([`StreamOptions::u_form`]).
+    pub u_form: bool,
     /// Link rate, baud.
     pub link_baud: f64,
     /// One-way latency, ms.
@@ -189,6 +191,7 @@ pub fn stream_program(
         plan_realtime_factor: 0.0,
         chunks: 0,
         bytes_per_mm: 0.0,
+        u_form: o.u_form,
         link_baud: o.baud,
         latency_ms: o.latency_s * 1e3,
         ring_bytes: o.ring_bytes,

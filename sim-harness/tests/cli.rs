@@ -512,6 +512,36 @@ fn stream_reports_the_streamed_run_as_json_and_refuses_bad_options() {
     }
 }
 
+/// `feedsim stream --no-u-form`: the Butterfly's stream under 100 bytes per
+/// mm (the u form, each piece's u(s), is most of the rest), and the same
+/// run: machining time, ratios, no starvation.
+#[test]
+fn stream_without_the_u_form_is_under_100_bytes_per_mm_on_the_butterfly() {
+    let run = |extra: &[&str]| -> serde_json::Value {
+        let mut args = vec!["stream", "butterfly", "--json"];
+        args.extend(extra);
+        let out = feedsim().args(&args).output().unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        serde_json::from_slice(&out.stdout).unwrap()
+    };
+    let with_u = run(&[]);
+    let without_u = run(&["--no-u-form"]);
+    let bpm = |v: &serde_json::Value| v["bytes_per_mm"].as_f64().unwrap();
+    assert_eq!(with_u["u_form"], true);
+    assert_eq!(without_u["u_form"], false);
+    assert!(bpm(&without_u) < 100.0, "{without_u}");
+    assert!(
+        bpm(&without_u) < 0.7 * bpm(&with_u),
+        "{} against {}",
+        bpm(&without_u),
+        bpm(&with_u)
+    );
+    assert_eq!(without_u["check_ok"], true, "{without_u}");
+    assert_eq!(without_u["machining_time_s"], with_u["machining_time_s"]);
+    assert_eq!(without_u["ratios"], with_u["ratios"]);
+    assert_eq!(without_u["starved_ticks"], 0, "{without_u}");
+}
+
 #[test]
 fn stream_over_a_lossy_link_refuses_resends_and_runs_the_same_setpoints() {
     let run = |faults: Option<&str>| -> serde_json::Value {

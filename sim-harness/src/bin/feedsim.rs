@@ -12,7 +12,7 @@
 //! feedsim stream CURVE [--link uart:BAUD] [--latency-ms 5] [--ring-bytes 16384] [--chunk-mm 8]
 //!                      [--window-mm W --commit-mm C] [--stall T:D]... [--override T:PCT]...
 //!                      [--faults corrupt:N,drop:N,duplicate:N,reorder:N,restart:S]
-//!                      [--tol 0.01] [--json]
+//!                      [--no-u-form] [--tol 0.01] [--json]
 //! feedsim completions SHELL
 //! ```
 
@@ -263,6 +263,11 @@ enum Cmd {
         /// report's "link" counts what was sent and refused. One path, not a program.
         #[arg(long)]
         faults: Option<String>,
+        /// Chunks without the u form (each piece's u(s), six f32: about a third of the
+        /// Butterfly's stream): the setpoints' u then reads 0 along the path (the end
+        /// point's at the end); their positions are the same.
+        #[arg(long)]
+        no_u_form: bool,
         /// Servo period, microseconds (default: the machine file's; the built-in machine's is 250).
         #[arg(long)]
         period_us: Option<f64>,
@@ -429,8 +434,9 @@ fn stream_program_cmd(
         outln!("{}", serde_json::to_string(&rep)?);
     } else {
         outln!(
-            "{}: {} paths, {:.2} mm streamed in {} chunks, {:.1} bytes/mm framed, over uart:{} with {} ms latency",
-            path.display(), rep.paths, rep.length_mm, rep.chunks, rep.bytes_per_mm, rep.link_baud, rep.latency_ms
+            "{}: {} paths, {:.2} mm streamed in {} chunks, {:.1} bytes/mm framed{}, over uart:{} with {} ms latency",
+            path.display(), rep.paths, rep.length_mm, rep.chunks, rep.bytes_per_mm,
+            if rep.u_form { "" } else { " (no u form)" }, rep.link_baud, rep.latency_ms
         );
         outln!(
             "  planning {:.3} s ({} windows), first motion after {:.1} ms, at rest between paths {:.1} ms in all; machining {:.3} s ({:.0}x the planning time), the plans' own {:.3} s",
@@ -784,6 +790,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
             host_slowdown,
             ready_times,
             faults,
+            no_u_form,
             period_us,
             tol,
             json,
@@ -860,6 +867,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
                 host_slowdown,
                 ready_times,
                 host_ahead_s: 0.0,
+                u_form: !no_u_form,
                 faults,
             };
             if planner_host::cli::is_gcode_program(Path::new(&curve)) {
@@ -875,8 +883,9 @@ fn run(cli: Cli) -> Result<(), Failure> {
                 outln!("{}", serde_json::to_string(&rep)?);
             } else {
                 outln!(
-                    "{}: {:.2} mm streamed in {} chunks, {:.1} bytes/mm framed, over uart:{} with {} ms latency",
-                    curve, rep.length_mm, rep.chunks, rep.bytes_per_mm, rep.link_baud, rep.latency_ms
+                    "{}: {:.2} mm streamed in {} chunks, {:.1} bytes/mm framed{}, over uart:{} with {} ms latency",
+                    curve, rep.length_mm, rep.chunks, rep.bytes_per_mm,
+                    if rep.u_form { "" } else { " (no u form)" }, rep.link_baud, rep.latency_ms
                 );
                 outln!(
                     "  planning {:.3} s ({} windows), hold points {:.3} s, first motion after {:.1} ms; machining {:.3} s ({:.0}x the planning time), the plan's own {:.3} s",
