@@ -46,17 +46,28 @@ fn run_streamed(table: &Table, chunks: &[Vec<u8>]) -> (Vec<Setpoint>, usize) {
     (out, most)
 }
 
+/// A built-in curve's table, planned with the defaults.
+fn table_of(name: &str) -> Vec<u8> {
+    let curve = builtin::by_name(name).unwrap().unwrap();
+    plan_curve(&curve, &PlanConfig::default()).unwrap().table_bytes
+}
+
+/// The tick over the whole table, start to end.
+fn run_whole(table: &Table) -> Vec<Setpoint> {
+    let mut ip = Interpolator::new(*table, T).unwrap();
+    let mut whole = Vec::new();
+    while !ip.is_done() {
+        whole.push(ip.tick().unwrap());
+    }
+    whole
+}
+
 #[test]
 fn streamed_ticks_equal_the_whole_table_bit_for_bit_through_a_bounded_window() {
     for name in ["butterfly", "trident", "star"] {
-        let curve = builtin::by_name(name).unwrap().unwrap();
-        let out = plan_curve(&curve, &PlanConfig::default()).unwrap();
-        let table = Table::parse(&out.table_bytes).unwrap();
-        let mut ip = Interpolator::new(table, T).unwrap();
-        let mut whole = Vec::new();
-        while !ip.is_done() {
-            whole.push(ip.tick().unwrap());
-        }
+        let bytes = table_of(name);
+        let table = Table::parse(&bytes).unwrap();
+        let whole = run_whole(&table);
         let pieces = table.piece_breaks().len() - 1;
         let opts = ChunkOptions {
             chunk_mm: 4.0,
@@ -93,14 +104,9 @@ fn streamed_ticks_equal_the_whole_table_bit_for_bit_through_a_bounded_window() {
 #[test]
 fn chunks_without_the_u_form_tick_the_same_positions_and_report_u_zero() {
     for name in ["butterfly", "trident"] {
-        let curve = builtin::by_name(name).unwrap().unwrap();
-        let out = plan_curve(&curve, &PlanConfig::default()).unwrap();
-        let table = Table::parse(&out.table_bytes).unwrap();
-        let mut ip = Interpolator::new(table, T).unwrap();
-        let mut whole = Vec::new();
-        while !ip.is_done() {
-            whole.push(ip.tick().unwrap());
-        }
+        let bytes = table_of(name);
+        let table = Table::parse(&bytes).unwrap();
+        let whole = run_whole(&table);
         let cut = |u_form| {
             let opts = ChunkOptions {
                 chunk_mm: 4.0,
@@ -110,12 +116,12 @@ fn chunks_without_the_u_form_tick_the_same_positions_and_report_u_zero() {
             chunk_table(&table, &opts).unwrap()
         };
         let (with_u, without_u) = (cut(true), cut(false));
-        let bytes = |c: &[Vec<u8>]| c.iter().map(Vec::len).sum::<usize>();
+        let size = |c: &[Vec<u8>]| c.iter().map(Vec::len).sum::<usize>();
         assert!(
-            bytes(&without_u) * 10 < bytes(&with_u) * 8,
+            size(&without_u) * 10 < size(&with_u) * 8,
             "{name}: {} bytes without the u form, {} with it",
-            bytes(&without_u),
-            bytes(&with_u)
+            size(&without_u),
+            size(&with_u)
         );
         let (streamed, _) = run_streamed(&table, &without_u);
         assert_eq!(streamed.len(), whole.len(), "{name}: setpoint count");
@@ -134,8 +140,8 @@ fn chunks_without_the_u_form_tick_the_same_positions_and_report_u_zero() {
         println!(
             "{name:9}: {} setpoints, positions equal without the u form; {} bytes of chunks, {} with it",
             whole.len(),
-            bytes(&without_u),
-            bytes(&with_u)
+            size(&without_u),
+            size(&with_u)
         );
     }
 }
