@@ -31,9 +31,10 @@
 //! third LP on is no better than the best (the sequence has passed its
 //! optimum: on the 11 m meander at 200/150 mm this halves the LPs for
 //! +0.03 % of machining time; stopping so from the second LP on cost the
-//! Butterfly 4.4 %, its LP 1 dipping before the climb). Rows entering by activity as in the
-//! whole path's sequence would cost 12 % of machining time on the Butterfly
-//! at 120/40 mm; every row is in every LP, as in an override window. Refinement
+//! Butterfly 4.4 %, its LP 1 dipping before the climb). Rows entering by
+//! activity as in the whole path's sequence would cost 12 % of machining
+//! time on the Butterfly at 120/40 mm; every row is in every LP, as in an
+//! override window. Refinement
 //! rounds run on the window's own dense re-evaluation points as the whole
 //! plan's do (points over [`REFINE_TRIGGER`], the peaks beside them and the
 //! hidden peaks become check points; the forced points past the commit carry
