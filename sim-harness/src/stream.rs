@@ -101,19 +101,8 @@ pub struct StreamRun {
     /// The largest s reached while each starvation hold was on, and the end
     /// of the rows held then (mm): the motion never passes the rows.
     pub starved_reach_mm: Vec<(f64, f64)>,
-    /// DATA frames sent, retransmissions included.
-    pub transmissions: usize,
-    /// Frames the ring refused as damaged (bad CRC, malformed) or without
-    /// room: a NAK each.
-    pub refused_crc: usize,
-    /// Duplicates refused.
-    pub refused_duplicate: usize,
-    /// Out of order refused (a NAK each).
-    pub refused_order: usize,
-    /// Chunks the plan window refused after the ring took them (dropped and
-    /// NAKed; a splice's run: dropped, the host told as for a late one; the
-    /// motion went on, on the rows held).
-    pub refused_window: usize,
+    /// DATA frames sent and what the firmware refused of them.
+    pub link: LinkCounts,
     /// Feed changes asked for, in order, and what became of each.
     pub overrides: Vec<OverrideRun>,
 }
@@ -512,11 +501,7 @@ pub fn run_stream_head<const CAP: usize, const NQ: usize, const NP: usize>(
         chunks: sent.len(),
         framed_bytes: sent.framed.iter().sum(),
         starved_reach_mm: vec![],
-        transmissions: 0,
-        refused_crc: 0,
-        refused_duplicate: 0,
-        refused_order: 0,
-        refused_window: 0,
+        link: LinkCounts::default(),
         overrides: vec![],
     };
     let mut stop_set = false;
@@ -701,8 +686,8 @@ pub fn run_stream_head<const CAP: usize, const NQ: usize, const NP: usize>(
             if next <= first_unacked {
                 unacked_since = t;
             }
-            run.transmissions += 1;
-            let tx = run.transmissions;
+            run.link.transmissions += 1;
+            let tx = run.link.transmissions;
             let arrive = end + link.latency_s;
             if !every(f.drop_every, tx) {
                 let late = if every(f.reorder_every, tx) {
@@ -746,7 +731,7 @@ pub fn run_stream_head<const CAP: usize, const NQ: usize, const NP: usize>(
                     }
                 }
                 Err(firmware_core::stream::StreamError::Duplicate { .. }) => {
-                    run.refused_duplicate += 1;
+                    run.link.refused_duplicate += 1;
                     Up::Ack {
                         seq: last_seq,
                         free: ring.free(),
@@ -754,8 +739,8 @@ pub fn run_stream_head<const CAP: usize, const NQ: usize, const NP: usize>(
                 }
                 Err(e) => {
                     match e {
-                        firmware_core::stream::StreamError::OutOfOrder { .. } => run.refused_order += 1,
-                        _ => run.refused_crc += 1,
+                        firmware_core::stream::StreamError::OutOfOrder { .. } => run.link.refused_order += 1,
+                        _ => run.link.refused_crc += 1,
                     }
                     Up::Nak {
                         expected: ring.expected_seq().unwrap_or(0),
@@ -799,7 +784,7 @@ pub fn run_stream_head<const CAP: usize, const NQ: usize, const NP: usize>(
                         // a late one (it resends the running plan from the
                         // rows' end and asks again); the motion goes on
                         if !matches!(e, SpliceError::Late { .. }) {
-                            run.refused_window += 1;
+                            run.link.refused_window += 1;
                         }
                         ring.refuse_splice();
                         changed = true;
@@ -854,7 +839,7 @@ pub fn run_stream_head<const CAP: usize, const NQ: usize, const NP: usize>(
                 // (it parsed and continued the ring, not the rows held:
                 // dropped with what followed, its seq NAKed; the motion goes
                 // on, on the rows held, and holds if they run out)
-                run.refused_window += 1;
+                run.link.refused_window += 1;
                 if let Some(seq) = ring.refuse_head() {
                     up.push_back((t + link.latency_s, Up::Nak { expected: seq }));
                 }
@@ -1147,13 +1132,16 @@ pub struct StreamReport {
 pub struct LinkCounts {
     /// DATA frames sent, resends included (one per chunk on a clean link).
     pub transmissions: usize,
-    /// Refused as damaged (CRC, framing) or without room: a NAK each.
+    /// Refused by the ring as damaged (bad CRC, malformed) or without room:
+    /// a NAK each.
     pub refused_crc: usize,
     /// Duplicates (ACKed again).
     pub refused_duplicate: usize,
     /// Out of order (a NAK each).
     pub refused_order: usize,
-    /// Taken by the ring but refused by the plan window (dropped, NAKed).
+    /// Taken by the ring but refused by the plan window (dropped and
+    /// NAKed; a splice's run: dropped, the host told as for a late one; the
+    /// motion went on, on the rows held).
     pub refused_window: usize,
 }
 
@@ -1477,13 +1465,7 @@ fn stream_through<const Q: usize, const P: usize>(
         check_ok: rep.ok && override_feed_ratio <= 1.0 + o.tol,
         overrides: run.overrides,
         override_feed_ratio,
-        link: LinkCounts {
-            transmissions: run.transmissions,
-            refused_crc: run.refused_crc,
-            refused_duplicate: run.refused_duplicate,
-            refused_order: run.refused_order,
-            refused_window: run.refused_window,
-        },
+        link: run.link,
         ends_mm: ends_mm.unwrap_or_default(),
     })
 }

@@ -63,7 +63,7 @@ fn damaged_lost_repeated_and_reordered_chunks_and_a_host_restart_lose_nothing() 
         let (bytes, _, chunks) = star_in_chunks();
         let table = Table::parse(&bytes).unwrap();
         let clean = run(&table, &chunks, LinkFaults::default());
-        assert_eq!(clean.transmissions, chunks.len());
+        assert_eq!(clean.link.transmissions, chunks.len());
         let cases = [
             (
                 "corrupted",
@@ -113,18 +113,18 @@ fn damaged_lost_repeated_and_reordered_chunks_and_a_host_restart_lose_nothing() 
         ];
         for (what, faults) in cases {
             let r = run(&table, &chunks, faults);
-            let refused = r.refused_crc + r.refused_duplicate + r.refused_order;
+            let refused = r.link.refused_crc + r.link.refused_duplicate + r.link.refused_order;
             println!(
                 "{what:13}: {} transmissions for {} chunks; refused {} damaged, {} duplicates, {} out of order; {} starvations",
-                r.transmissions,
+                r.link.transmissions,
                 chunks.len(),
-                r.refused_crc,
-                r.refused_duplicate,
-                r.refused_order,
+                r.link.refused_crc,
+                r.link.refused_duplicate,
+                r.link.refused_order,
                 r.starvations
             );
             assert!(
-                r.transmissions > chunks.len() || refused > 0,
+                r.link.transmissions > chunks.len() || refused > 0,
                 "{what}: no fault happened"
             );
             assert_eq!(r.starvations, 0, "{what}");
@@ -166,13 +166,13 @@ fn a_chunk_of_another_path_is_refused_by_the_window_and_the_right_one_resent() {
         let r = run_with(&table, &chunks, LinkFaults::default(), substitute);
         println!(
             "another path's chunk: refused {} by the window, {} transmissions for {} chunks, {} starvations",
-            r.refused_window,
-            r.transmissions,
+            r.link.refused_window,
+            r.link.transmissions,
             chunks.len(),
             r.starvations
         );
-        assert_eq!(r.refused_window, 1);
-        assert!(r.transmissions > chunks.len());
+        assert_eq!(r.link.refused_window, 1);
+        assert!(r.link.transmissions > chunks.len());
         assert_eq!(r.setpoints.len(), clean.setpoints.len());
         for (k, (a, b)) in clean.setpoints.iter().zip(&r.setpoints).enumerate() {
             assert_eq!(bits(a), bits(b), "setpoint {k}");

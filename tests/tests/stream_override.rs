@@ -319,10 +319,10 @@ fn a_splice_of_another_path_is_refused_and_the_change_made_again() {
         let ov = &r.overrides[0];
         eprintln!(
             "a splice of another path: refused {} by the window; the change asked at {:.3} s, late {}, spliced at {:.2} mm, {:?}",
-            r.refused_window, ov.asked_s, ov.late, ov.splice_mm, ov.outcome
+            r.link.refused_window, ov.asked_s, ov.late, ov.splice_mm, ov.outcome
         );
         assert!(host.spoiled);
-        assert_eq!(r.refused_window, 1);
+        assert_eq!(r.link.refused_window, 1);
         assert!(ov.late >= 1);
         assert_eq!(ov.outcome, OverrideOutcome::Effective);
         let end = setpoints.last().unwrap();
