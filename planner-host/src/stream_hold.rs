@@ -10,11 +10,13 @@
 //! own stopping distance, `docs/override-design.md`). So the host finds s_c
 //! by running the firmware's code: the streamed interpolator it would run,
 //! fed as the firmware feeds it ([`Interpolator::keep_fed`] aside), and, every
-//! `coarse_mm` of the way, a copy of it cut back to the chunks up to chunk i
-//! ([`PlanWindow::truncate`]) with the hold pressed, ticked to rest. Where
-//! chunk i fails, the search looks back through the copies kept at the
-//! earlier coarse tests for the latest where it passes and tests every
-//! `step_mm` around it ([`HoldPointSearch`]). A test passes when the stop
+//! `coarse_mm` of the way (further while the holds rest far before the
+//! chunk's end, up to `coarse_max_mm`), a copy of it cut back to the chunks
+//! up to chunk i ([`PlanWindow::truncate`]) with the hold pressed, ticked to
+//! rest. Where chunk i fails, the search looks back through the copies kept
+//! at the earlier coarse tests for the latest where it passes and tests
+//! every `step_mm` around it, from the failure back as far as the hold
+//! point needs ([`HoldPointSearch`]). A test passes when the stop
 //! rests `margin_mm` and `margin_frac` of its length before chunk i's end;
 //! s_c is a passing test `backoff_mm` before the last one of the latest
 //! run of passing tests.
@@ -278,6 +280,16 @@ pub struct HoldSearch {
     /// coarse steps are most of the saving; equal to `step_mm`: every test
     /// at the fine step).
     pub coarse_mm: f64,
+    /// While a chunk's tests pass with room to spare, the next comes
+    /// further on: half the room the last left (from where its hold came
+    /// to rest to the furthest it may), at least `coarse_mm` and at most
+    /// this, mm (equal to `coarse_mm`: a test every `coarse_mm`). A test
+    /// costs a hold ticked to rest and, the first dozen, a fresh copy of
+    /// the dry run; near the start a chunk's holds rest far before its
+    /// end. Hold points still come only from tests that passed with their
+    /// chunk the last one held: the spacing costs or gains availability,
+    /// never safety.
+    pub coarse_max_mm: f64,
     /// The hold must come to rest at least this far before the chunk's end, mm.
     pub margin_mm: f64,
     /// And besides, this fraction of its own stopping distance: the
@@ -299,6 +311,7 @@ impl Default for HoldSearch {
             period_s: 250e-6,
             step_mm: 0.25,
             coarse_mm: 2.0,
+            coarse_max_mm: 8.0,
             margin_mm: 0.05,
             margin_frac: 0.01,
             backoff_mm: 1.0,
@@ -501,10 +514,11 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
     /// Run the search as far as `chunks` (the plan's chunks at hand, from
     /// its first) allow.
     ///
-    /// The dry run tests chunk i every `coarse_mm`. Where it fails, the
-    /// search looks back through the dry runs kept at the earlier coarse
-    /// tests for the latest at which chunk i passes, and tests every
-    /// `step_mm` from there to the next coarse test.
+    /// The dry run tests chunk i every `coarse_mm`, or up to
+    /// `coarse_max_mm` apart where the last test's hold left room. Where it
+    /// fails, the search looks back through the dry runs kept at the
+    /// earlier coarse tests for the latest at which chunk i passes, and
+    /// tests every `step_mm` from there to the failure.
     /// Each chunk's hold point comes from tests with that chunk as the
     /// last one held: a stop's look-ahead reads every row held, so with
     /// more rows it can run longer, and another chunk's hold point does
@@ -551,6 +565,8 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                 }
                 // Chunk i at this tick; on failure its hold point from the
                 // tests before, and chunk i + 1 at this tick.
+                let coarse = self.how.coarse_mm.max(self.how.step_mm);
+                let mut gap = coarse;
                 while !self.chunk_last.get(self.i).copied().unwrap_or(false) {
                     // (chunk i and the next are yet to come: the test needs
                     // the next's size)
@@ -583,7 +599,7 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                         continue;
                     }
                     self.tests += 1;
-                    if stops_before(
+                    if let Some(room) = hold_room(
                         &run.ip,
                         &mut self.scratch,
                         end,
@@ -591,12 +607,14 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                         &self.how,
                     ) {
                         self.last_pass = Some(s);
+                        gap = (0.5 * room).min(self.how.coarse_max_mm).max(coarse);
                         break;
                     }
+                    gap = coarse;
                     self.resolve(chunks, end, &parse(self.i + 1, next)?)?;
                 }
                 self.testing = None;
-                self.next_test = s + self.how.coarse_mm.max(self.how.step_mm);
+                self.next_test = s + gap;
             }
             let Some(run) = self.run.as_mut() else {
                 return Ok(());
@@ -622,9 +640,10 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
 
     /// Chunk i, ending at `end` and followed by `next`, failed at the
     /// latest coarse test: the latest kept coarse test at which it passes
-    /// is looked for back through the dry runs kept, and from the one
-    /// before that to the one after, it is tested every `step_mm`; its hold
-    /// point from those ([`hold_point_of_runs`]).
+    /// is looked for back through the dry runs kept, and from a coarse
+    /// step before that to the failure after it, it is tested every
+    /// `step_mm` (from the failure back, as far as needed); its hold point
+    /// from those ([`hold_point_of_runs`]).
     fn resolve(&mut self, chunks: &[Vec<u8>], end: i64, next: &Chunk<'_>) -> Result<(), HoldPointError> {
         let n = self.history.len();
         let holds_i = |t: &StreamedRun<NQ, NP>| t.ip.window().held_end() >= end;
@@ -642,7 +661,7 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                 break;
             }
             self.tests += 1;
-            if stops_before(&t.ip, &mut self.scratch, end, next, &self.how) {
+            if hold_room(&t.ip, &mut self.scratch, end, next, &self.how).is_some() {
                 found = Some(k);
                 break;
             }
@@ -650,33 +669,84 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
         let s_c = match found {
             None => NOT_ALONE_MM,
             Some(k) => {
-                // Every `step_mm` from the coarse test before the one that
-                // passed (where chunk i is held then) to the one after: the
-                // passing runs between failures.
-                // (the one before copied once: kept as the start if it holds chunk i)
-                let k0 = k.saturating_sub(1);
-                let mut t = copy_into(&mut self.trial, &*self.history[k0].0);
-                t.push(chunks)?;
-                if k0 != k && !holds_i(t) {
-                    t = copy_into(&mut self.trial, &*self.history[k].0);
+                // Where the tests turn between coarse test k (passed) and
+                // k + 1 (failed): further apart than a coarse step
+                // (`coarse_max_mm`), coarse tests between them first.
+                let (step, coarse) = (self.how.step_mm, self.how.coarse_mm.max(self.how.step_mm));
+                let (mut pass_s, mut fail_s) = (self.history[k].1, self.history[k + 1].1);
+                if fail_s - pass_s > coarse + step {
+                    let t = copy_into(&mut self.trial, &*self.history[k].0);
                     t.push(chunks)?;
+                    loop {
+                        let goal = t.ip.s_mm() + coarse;
+                        while !t.ip.is_done() && t.ip.s_mm() < goal {
+                            t.step(chunks)?;
+                        }
+                        t.push(chunks)?;
+                        if t.ip.is_done() || t.ip.s_mm() >= fail_s {
+                            break;
+                        }
+                        self.tests += 1;
+                        if hold_room(&t.ip, &mut self.scratch, end, next, &self.how).is_none() {
+                            fail_s = t.ip.s_mm();
+                            break;
+                        }
+                        pass_s = t.ip.s_mm();
+                    }
                 }
-                let until = self.history[k + 1].1;
-                let mut tests = vec![];
-                let mut at = t.ip.s_mm();
+                // Then every `step_mm` from a coarse step before the last
+                // that passed (where chunk i is held then) to the failure:
+                // the passing runs between failures. The positions come
+                // from the run kept before k (if it holds chunk i, else
+                // k's) ticked on untested; the tests from the last
+                // position back, only as far as the hold point needs
+                // (`hold_point_of_runs` reads the latest run of passes and
+                // `backoff_mm` of it), each on a copy ticked to its
+                // position the same way.
+                let k0 = k.saturating_sub(1);
+                let t = copy_into(&mut self.trial, &*self.history[k0].0);
+                t.push(chunks)?;
+                let k0 = if k0 != k && !holds_i(t) { k } else { k0 };
+                let t = copy_into(&mut self.trial, &*self.history[k0].0);
+                t.push(chunks)?;
+                let from = pass_s - coarse - step;
+                let mut n = 0usize;
+                while !t.ip.is_done() && t.ip.s_mm() < from {
+                    t.step(chunks)?;
+                    n += 1;
+                }
+                let mut marks = vec![(n, t.ip.s_mm())];
                 loop {
-                    self.tests += 1;
-                    tests.push((at, stops_before(&t.ip, &mut self.scratch, end, next, &self.how)));
-                    let goal = at + self.how.step_mm;
+                    let goal = marks[marks.len() - 1].1 + step;
                     while !t.ip.is_done() && t.ip.s_mm() < goal {
+                        t.step(chunks)?;
+                        n += 1;
+                    }
+                    if t.ip.is_done() || t.ip.s_mm() >= fail_s {
+                        break;
+                    }
+                    marks.push((n, t.ip.s_mm()));
+                }
+                let mut tests = vec![];
+                let mut last_pass = None;
+                for &(n, at) in marks.iter().rev() {
+                    let t = copy_into(&mut self.trial, &*self.history[k0].0);
+                    t.push(chunks)?;
+                    for _ in 0..n {
                         t.step(chunks)?;
                     }
                     t.push(chunks)?;
-                    at = t.ip.s_mm();
-                    if t.ip.is_done() || at >= until {
-                        break;
+                    self.tests += 1;
+                    let passed = hold_room(&t.ip, &mut self.scratch, end, next, &self.how).is_some();
+                    tests.push((at, passed));
+                    match last_pass {
+                        None if passed => last_pass = Some(at),
+                        None => {}
+                        Some(l) if !passed || at <= l - self.how.backoff_mm => break,
+                        Some(_) => {}
                     }
                 }
+                tests.reverse();
                 hold_point_of_runs(&tests, self.how.backoff_mm)
             }
         };
@@ -749,42 +819,43 @@ fn hold_point_of_runs(tests: &[(f64, bool)], backoff_mm: f64) -> f64 {
 /// A copy of `ip` cut back to the chunks ending at `s_end` (Q40; those it
 /// holds, if fewer), the hold pressed: does it come to rest, without a
 /// fault, at least `margin_mm` before the end of the rows it holds, with
-/// room then for the chunk `next`?
-fn stops_before<const NQ: usize, const NP: usize>(
+/// room then for the chunk `next`? If so, how far before the furthest it
+/// may rest it came to rest, mm.
+fn hold_room<const NQ: usize, const NP: usize>(
     ip: &Interpolator<'static, 0, 0, PlanWindow<NQ, NP>>,
     scratch: &mut Option<DryIp<NQ, NP>>,
     s_end: i64,
     next: &Chunk<'_>,
     how: &HoldSearch,
-) -> bool {
+) -> Option<f64> {
     let t = copy_into(scratch, ip);
     if t.window().held_end() > s_end && !t.truncate_window(s_end) {
-        return false;
+        return None;
     }
     // rest ≤ end − margin − frac·(rest − press)
     let end_mm = t.window().held_end() as f64 / (1u64 << 40) as f64;
     let limit_mm = (end_mm - how.margin_mm + how.margin_frac * t.s_mm()) / (1.0 + how.margin_frac);
     if t.hold().is_err() {
-        return false;
+        return None;
     }
     // (a hold at full feed takes well under a minute)
     for _ in 0..(240.0 / t.period_s()) as u64 {
-        match t.tick() {
-            Ok(sp) if sp.s_mm > limit_mm => return false,
-            Ok(_) => {}
-            Err(_) => return false,
-        }
+        let rest = match t.tick() {
+            Ok(sp) if sp.s_mm > limit_mm => return None,
+            Ok(sp) => sp.s_mm,
+            Err(_) => return None,
+        };
         if t.hold_state() == HoldState::Held {
             // and at rest, with the rows passed freed, the next chunk fits:
             // else a firmware starved here would wait for it forever
             t.release_passed();
-            return t.window().fits(next);
+            return t.window().fits(next).then_some(limit_mm - rest);
         }
         if t.is_done() {
-            return false;
+            return None;
         }
     }
-    false
+    None
 }
 
 /// [`hold_points`], written into the chunks' commit fields (CRC renewed).

@@ -117,3 +117,80 @@ fn starved_motion() {
     let ahead = with_hold_point(&chunks[j + 1], s + 1.0);
     assert!(!run.ip.holds_back(&Chunk::parse(&ahead).unwrap()));
 }
+
+#[test]
+fn every_hold_point_found_stops_the_starved_motion_inside_its_rows() {
+    on_big_stack(every_hold_point_holds).unwrap();
+}
+
+/// Every chunk's hold point, found by the search spaced by the room its
+/// holds leave (the default) and by one testing every `coarse_mm`: a
+/// motion fed the chunks up to it only presses the hold there and comes to
+/// rest inside them. The spaced search runs fewer tests.
+fn every_hold_point_holds() {
+    let curve = builtin::by_name("butterfly").unwrap().unwrap();
+    let out = plan_curve(&curve, &PlanConfig::default()).unwrap();
+    let table = Table::parse(&out.table_bytes).unwrap();
+    let opts = ChunkOptions {
+        chunk_mm: 16.0,
+        u_form: false,
+        ..ChunkOptions::default()
+    };
+    let spaced = HoldSearch::default();
+    let every = HoldSearch {
+        coarse_max_mm: spaced.coarse_mm,
+        ..spaced
+    };
+    assert!(spaced.coarse_max_mm > spaced.coarse_mm);
+    let mut tests = vec![];
+    for how in [spaced, every] {
+        let mut chunks = chunk_table(&table, &opts).unwrap();
+        let hp = set_hold_points::<NQ, NP>(&table, &mut chunks, &how).unwrap();
+        tests.push(hp.tests);
+        let mut starved = 0;
+        for k in 1..chunks.len() {
+            let s_c = hp.s_c_mm[k - 1];
+            if s_c < 0.0 {
+                continue;
+            }
+            // The first k chunks only: starved at chunk k − 1's hold point.
+            let mut run = StreamedRun::<NQ, NP>::start(&table, &chunks[..k], T).unwrap();
+            let held_end = fx(run.ip.window().held_end());
+            let mut pressed = None;
+            for _ in 0..400_000 {
+                run.ip.release_passed();
+                if run.ip.keep_fed().unwrap() == Feeding::Starving {
+                    pressed.get_or_insert(run.ip.s_mm());
+                }
+                if run.ip.hold_state() == HoldState::Held {
+                    break;
+                }
+                run.ip.tick().unwrap();
+            }
+            let pressed = pressed.unwrap_or_else(|| panic!("chunk {}: no hold pressed", k - 1));
+            let rest = run.ip.s_mm();
+            assert_eq!(run.ip.hold_state(), HoldState::Held, "chunk {}", k - 1);
+            assert!(
+                pressed >= s_c && rest < held_end,
+                "chunk {}: hold point {s_c:.3} mm, pressed at {pressed:.3}, rest at {rest:.3}, rows to {held_end:.3}",
+                k - 1
+            );
+            starved += 1;
+        }
+        println!(
+            "{how:?}: {} tests, {starved} starved stops inside their rows",
+            hp.tests
+        );
+        assert!(
+            starved >= chunks.len() / 2,
+            "{starved} of {} chunks",
+            chunks.len()
+        );
+    }
+    assert!(
+        tests[0] < tests[1],
+        "tests: spaced {}, every coarse step {}",
+        tests[0],
+        tests[1]
+    );
+}
