@@ -42,7 +42,12 @@
 //! [`WindowConfig::commit_mm`] past the join are committed. The geometry
 //! (check points, dense points) is evaluated per window, only for the spans
 //! the window touches, on both cores; the sampling, the knot vector and the
-//! curvature jumps are still the whole path's. The window's LPs are built
+//! curvature jumps are still the whole path's. Where a window reaches and
+//! what it commits follow from the knots and the curvature jumps alone, not
+//! from the plan before, so the next window's geometry is evaluated on the
+//! other core while a window's LPs are solved (from the second window on:
+//! the first one's chunks are what the first motion waits for); the plan
+//! is the same, bit for bit. The window's LPs are built
 //! on its own control points and the knots they span, never on all n of
 //! the path, so that a window costs as much on a 600 m path as on an 11 m
 //! one; they stop at a looser duality gap ([`WINDOW_GAP_LOOSENING`]).
@@ -92,6 +97,22 @@ pub(crate) struct WindowStart<'a> {
 /// Butterfly at 120/40 mm: 1.04 s and 5.8099 s at 1, 0.92 s and 5.8151 s at
 /// 3,000 (docs/streaming-design.md).
 pub const WINDOW_GAP_LOOSENING: f64 = 3000.0;
+
+/// What a window evaluates of the path before its LPs
+/// ([`LpStage::solve_windowed`]): its reach in knots, its commit and the
+/// points its rows and its dense check are evaluated at.
+struct WindowGeometry {
+    s_join: f64,
+    i_m: usize,
+    last: bool,
+    i_c: usize,
+    lo_s: f64,
+    hi_s: f64,
+    /// Check points, and whether each is a knot (rows from the first LP).
+    checks: Vec<(EvalPoint, bool)>,
+    win_caps: Vec<crate::lp::JumpCap>,
+    dense: Vec<EvalPoint>,
+}
 
 impl LpStage<'_> {
     /// The re-evaluation points of the knot spans of q in [lo, hi] (as
@@ -248,8 +269,11 @@ impl LpStage<'_> {
         let keep_pts = cfg.table || !cfg.override_levels.is_empty();
         let mut rounds = 0;
         let t_all = Instant::now();
-        loop {
-            let t = Instant::now();
+        // A window's geometry: its knots' reach, commit and judge point, its
+        // check points and dense points. It depends on where the window
+        // before committed only (not on its plan), so the next window's is
+        // evaluated on the other core while this one's LPs are solved.
+        let geometry = |i_l: usize| -> WindowGeometry {
             let s_join = knots[i_l + ORDER - 1];
             let mut i_m = knot_at(s_join + wc.window_mm).max(i_l + 3 * ORDER);
             // the last window when the next would reach the stop join
@@ -282,19 +306,56 @@ impl LpStage<'_> {
             };
             let floor = (i_l + 1).max(start_last).max((i_l + i_c) / 2).min(i_c);
             let i_c = (floor..=i_c).rev().find(|&i| !meets_cap(i)).unwrap_or(i_c);
-            // the window is judged by its time up to halfway between its
-            // commit and its end (q vanishes at its end: ∫ds/√q is infinite)
-            let judge_hi = (!last).then(|| knots[(i_c + i_m) / 2]);
             // check points of the spans that touch a free control point
             let (lo_s, hi_s) = (knots[i_l + 1], knots[(i_m + ORDER - 1).min(knots.len() - 1)]);
             let a = knot_at(lo_s).saturating_sub(1);
             let b = (knots.partition_point(|&u| u <= hi_s)).min(knots.len());
-            // (a knot's rows, and a forced point's, from the first LP on)
-            let mut cand: Vec<(EvalPoint, bool)> = check_points(&knots[a..b], cfg.certified.checks_per_span)
+            // (a knot's rows from the first LP on)
+            let checks: Vec<(EvalPoint, bool)> = check_points(&knots[a..b], cfg.certified.checks_per_span)
                 .into_iter()
                 .filter(|&(s, _)| s >= lo_s && s <= hi_s)
                 .filter_map(|(s, k)| Some((self.eval(s)?, k)))
                 .collect();
+            let win_caps: Vec<crate::lp::JumpCap> = caps
+                .iter()
+                .copied()
+                .filter(|&(s, _, r)| s + r > lo_s && s - r < hi_s)
+                .collect();
+            let dense = self.dense_between(lo_s, hi_s, &win_caps);
+            WindowGeometry {
+                s_join,
+                i_m,
+                last,
+                i_c,
+                lo_s,
+                hi_s,
+                checks,
+                win_caps,
+                dense,
+            }
+        };
+        let mut ahead: Option<WindowGeometry> = None;
+        loop {
+            let t = Instant::now();
+            let g = match ahead.take() {
+                Some(g) => g,
+                None => geometry(i_l),
+            };
+            let WindowGeometry {
+                s_join,
+                i_m,
+                last,
+                i_c,
+                lo_s,
+                hi_s,
+                checks: mut cand,
+                win_caps,
+                dense,
+            } = g;
+            // the window is judged by its time up to halfway between its
+            // commit and its end (q vanishes at its end: ∫ds/√q is infinite)
+            let judge_hi = (!last).then(|| knots[(i_c + i_m) / 2]);
+            // (a forced point's rows from the first LP on)
             cand.extend(
                 carried
                     .iter()
@@ -304,12 +365,6 @@ impl LpStage<'_> {
             cand.sort_by(|a, b| a.0.s.total_cmp(&b.0.s));
             cand.dedup_by(|a, b| a.0.s == b.0.s);
             let (pts, mut at_knot): (Vec<EvalPoint>, Vec<bool>) = cand.into_iter().unzip();
-            let win_caps: Vec<crate::lp::JumpCap> = caps
-                .iter()
-                .copied()
-                .filter(|&(s, _, r)| s + r > lo_s && s - r < hi_s)
-                .collect();
-            let dense = self.dense_between(lo_s, hi_s, &win_caps);
             // The window's LP on its own columns c0 ..= c1 and the knots
             // they span, so that its cost follows the window, not the path:
             // every control point outside is fixed, and a row reaches one
@@ -404,61 +459,84 @@ impl LpStage<'_> {
                 s_mm: s_join,
                 source: e,
             };
-            let mut plan = solve(&pts).map_err(window_err)?;
-            let t_lp1 = t.elapsed().as_secs_f64();
-            lps.extend(plan.lps.iter().cloned());
-            for _ in 0..REFINE_ROUNDS {
-                let lp = FeedLp {
-                    points: &pts,
-                    ..base_lp.clone()
-                };
-                // the excess once at every dense point (both cores): the
-                // points over the trigger, the peaks beside them, and the
-                // peaks between points that read under it (as the whole plan)
-                let e: Vec<f64> = dense
-                    .par_iter()
-                    .map(|p| trust_region::excess(&lp, &plan.ctrl, p, &win_caps))
-                    .collect();
-                let bad: Vec<usize> = (0..e.len()).filter(|&i| e[i] > REFINE_TRIGGER).collect();
-                let look: Vec<usize> = (0..e.len())
-                    .filter(|&i| {
-                        let left = if i > 0 { e[i - 1] } else { f64::NEG_INFINITY };
-                        let right = e.get(i + 1).copied().unwrap_or(f64::NEG_INFINITY);
-                        e[i] >= PEAK_LOOK && e[i] >= left && e[i] >= right
-                    })
-                    .collect();
-                let peaks: Vec<EvalPoint> = look
-                    .par_iter()
-                    .filter_map(|&i| {
-                        // between its neighbours
-                        let at = |k: usize| dense[k.min(dense.len() - 1)].s;
-                        let p =
-                            self.peak(&lp, &plan.ctrl, &win_caps, at(i.saturating_sub(1)), at(i + 1), c0)?;
-                        (e[i] > REFINE_TRIGGER
-                            || trust_region::excess(&lp, &plan.ctrl, &p, &win_caps) > REFINE_TRIGGER)
-                            .then_some(p)
-                    })
-                    .collect();
-                if bad.is_empty() && peaks.is_empty() {
-                    break;
-                }
-                let hidden = peaks;
-                let mut merged: Vec<(EvalPoint, bool)> = pts.drain(..).zip(at_knot.drain(..)).collect();
-                merged.extend(bad.iter().map(|&k| (dense[k], true)));
-                merged.extend(hidden.into_iter().map(|p| (p, true)));
-                merged.sort_by(|a, b| a.0.s.total_cmp(&b.0.s));
-                merged.dedup_by(|a, b| a.0.s == b.0.s);
-                (pts, at_knot) = merged.into_iter().unzip();
-                rounds += 1;
-                match solve(&pts) {
-                    Ok(p) => {
-                        lps.extend(p.lps.iter().cloned());
-                        plan = p;
+            // (the next window's geometry on the other core meanwhile; not
+            // beside the first window, whose chunks the first motion waits
+            // for, and the search for their hold points after them)
+            let mut t_lp1 = 0.0;
+            // (rayon's join, not a thread of its own: a plan may run on
+            // the pool's threads, and one blocked joining a thread whose
+            // evaluation waits for the pool deadlocks a 2-thread pool)
+            let ahead_now = !last && stats.windows > 0;
+            let (solved, next) = rayon::join(
+                || -> Result<_, PlanError> {
+                    let mut plan = solve(&pts).map_err(window_err)?;
+                    t_lp1 = t.elapsed().as_secs_f64();
+                    lps.extend(plan.lps.iter().cloned());
+                    for _ in 0..REFINE_ROUNDS {
+                        let lp = FeedLp {
+                            points: &pts,
+                            ..base_lp.clone()
+                        };
+                        // the excess once at every dense point (both cores): the
+                        // points over the trigger, the peaks beside them, and the
+                        // peaks between points that read under it (as the whole plan)
+                        let e: Vec<f64> = dense
+                            .par_iter()
+                            .map(|p| trust_region::excess(&lp, &plan.ctrl, p, &win_caps))
+                            .collect();
+                        let bad: Vec<usize> = (0..e.len()).filter(|&i| e[i] > REFINE_TRIGGER).collect();
+                        let look: Vec<usize> = (0..e.len())
+                            .filter(|&i| {
+                                let left = if i > 0 { e[i - 1] } else { f64::NEG_INFINITY };
+                                let right = e.get(i + 1).copied().unwrap_or(f64::NEG_INFINITY);
+                                e[i] >= PEAK_LOOK && e[i] >= left && e[i] >= right
+                            })
+                            .collect();
+                        let peaks: Vec<EvalPoint> = look
+                            .par_iter()
+                            .filter_map(|&i| {
+                                // between its neighbours
+                                let at = |k: usize| dense[k.min(dense.len() - 1)].s;
+                                let p = self.peak(
+                                    &lp,
+                                    &plan.ctrl,
+                                    &win_caps,
+                                    at(i.saturating_sub(1)),
+                                    at(i + 1),
+                                    c0,
+                                )?;
+                                (e[i] > REFINE_TRIGGER
+                                    || trust_region::excess(&lp, &plan.ctrl, &p, &win_caps) > REFINE_TRIGGER)
+                                    .then_some(p)
+                            })
+                            .collect();
+                        if bad.is_empty() && peaks.is_empty() {
+                            break;
+                        }
+                        let hidden = peaks;
+                        let mut merged: Vec<(EvalPoint, bool)> =
+                            pts.drain(..).zip(at_knot.drain(..)).collect();
+                        merged.extend(bad.iter().map(|&k| (dense[k], true)));
+                        merged.extend(hidden.into_iter().map(|p| (p, true)));
+                        merged.sort_by(|a, b| a.0.s.total_cmp(&b.0.s));
+                        merged.dedup_by(|a, b| a.0.s == b.0.s);
+                        (pts, at_knot) = merged.into_iter().unzip();
+                        rounds += 1;
+                        match solve(&pts) {
+                            Ok(p) => {
+                                lps.extend(p.lps.iter().cloned());
+                                plan = p;
+                            }
+                            // a round whose LP fails keeps the plan before it
+                            Err(_) => break,
+                        }
                     }
-                    // a round whose LP fails keeps the plan before it
-                    Err(_) => break,
-                }
-            }
+                    Ok(plan)
+                },
+                || ahead_now.then(|| geometry(i_c)),
+            );
+            let plan = solved?;
+            ahead = next;
             let dt = t.elapsed().as_secs_f64();
             if std::env::var_os("FEEDLP_WIN_DEBUG").is_some() {
                 eprintln!(
