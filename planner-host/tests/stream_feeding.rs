@@ -30,28 +30,9 @@ fn with_hold_point(bytes: &[u8], s_c: f64) -> Vec<u8> {
     b
 }
 
-#[test]
-fn a_starved_motion_waits_for_a_chunk_whose_hold_point_lies_ahead() {
-    on_big_stack(starved_motion).unwrap();
-}
-
-fn starved_motion() {
-    let curve = builtin::by_name("butterfly").unwrap().unwrap();
-    let out = plan_curve(&curve, &PlanConfig::default()).unwrap();
-    let table = Table::parse(&out.table_bytes).unwrap();
-    let opts = ChunkOptions {
-        chunk_mm: 8.0,
-        u_form: true,
-        ..ChunkOptions::default()
-    };
-    let mut chunks = chunk_table(&table, &opts).unwrap();
-    set_hold_points::<NQ, NP>(&table, &mut chunks, &HoldSearch::default()).unwrap();
-    // The first k chunks only: the motion starves at chunk k − 1's hold point.
-    let k = 12;
-    let mut run = StreamedRun::<NQ, NP>::start(&table, &chunks[..k], T).unwrap();
-    assert!(run.ip.window().ready());
-    let held_end = fx(run.ip.window().held_end());
-    let hold_at = fx(run.ip.window().hold_point());
+/// Tick `run`, fed only what it holds, until it is held (or 100 s): where
+/// it pressed the hold for want of chunks.
+fn run_starved(run: &mut StreamedRun<NQ, NP>) -> Option<f64> {
     let mut pressed = None;
     for _ in 0..400_000 {
         run.ip.release_passed();
@@ -65,7 +46,42 @@ fn starved_motion() {
         }
         run.ip.tick().unwrap();
     }
-    let pressed = pressed.expect("no hold pressed");
+    pressed
+}
+
+#[test]
+fn a_starved_motion_waits_for_a_chunk_whose_hold_point_lies_ahead() {
+    on_big_stack(starved_motion).unwrap();
+}
+
+/// The Butterfly's table, planned whole.
+fn butterfly_table() -> Vec<u8> {
+    let curve = builtin::by_name("butterfly").unwrap().unwrap();
+    plan_curve(&curve, &PlanConfig::default()).unwrap().table_bytes
+}
+
+/// `table` cut into chunks of `chunk_mm`, with or without the u form.
+fn chunks_of(table: &Table, chunk_mm: f64, u_form: bool) -> Vec<Vec<u8>> {
+    let opts = ChunkOptions {
+        chunk_mm,
+        u_form,
+        ..ChunkOptions::default()
+    };
+    chunk_table(table, &opts).unwrap()
+}
+
+fn starved_motion() {
+    let bytes = butterfly_table();
+    let table = Table::parse(&bytes).unwrap();
+    let mut chunks = chunks_of(&table, 8.0, true);
+    set_hold_points::<NQ, NP>(&table, &mut chunks, &HoldSearch::default()).unwrap();
+    // The first k chunks only: the motion starves at chunk k − 1's hold point.
+    let k = 12;
+    let mut run = StreamedRun::<NQ, NP>::start(&table, &chunks[..k], T).unwrap();
+    assert!(run.ip.window().ready());
+    let held_end = fx(run.ip.window().held_end());
+    let hold_at = fx(run.ip.window().hold_point());
+    let pressed = run_starved(&mut run).expect("no hold pressed");
     let rest = run.ip.s_mm();
     println!(
         "hold point {hold_at:.3} mm, pressed at {pressed:.3}, at rest at {rest:.3}, rows to {held_end:.3}"
@@ -128,14 +144,8 @@ fn every_hold_point_found_stops_the_starved_motion_inside_its_rows() {
 /// motion fed the chunks up to it only presses the hold there and comes to
 /// rest inside them. The spaced search runs fewer tests.
 fn every_hold_point_holds() {
-    let curve = builtin::by_name("butterfly").unwrap().unwrap();
-    let out = plan_curve(&curve, &PlanConfig::default()).unwrap();
-    let table = Table::parse(&out.table_bytes).unwrap();
-    let opts = ChunkOptions {
-        chunk_mm: 16.0,
-        u_form: false,
-        ..ChunkOptions::default()
-    };
+    let bytes = butterfly_table();
+    let table = Table::parse(&bytes).unwrap();
     let spaced = HoldSearch::default();
     let every = HoldSearch {
         coarse_max_mm: spaced.coarse_mm,
@@ -144,7 +154,7 @@ fn every_hold_point_holds() {
     assert!(spaced.coarse_max_mm > spaced.coarse_mm);
     let mut tests = vec![];
     for how in [spaced, every] {
-        let mut chunks = chunk_table(&table, &opts).unwrap();
+        let mut chunks = chunks_of(&table, 16.0, false);
         let hp = set_hold_points::<NQ, NP>(&table, &mut chunks, &how).unwrap();
         tests.push(hp.tests);
         let mut starved = 0;
@@ -156,18 +166,7 @@ fn every_hold_point_holds() {
             // The first k chunks only: starved at chunk k − 1's hold point.
             let mut run = StreamedRun::<NQ, NP>::start(&table, &chunks[..k], T).unwrap();
             let held_end = fx(run.ip.window().held_end());
-            let mut pressed = None;
-            for _ in 0..400_000 {
-                run.ip.release_passed();
-                if run.ip.keep_fed().unwrap() == Feeding::Starving {
-                    pressed.get_or_insert(run.ip.s_mm());
-                }
-                if run.ip.hold_state() == HoldState::Held {
-                    break;
-                }
-                run.ip.tick().unwrap();
-            }
-            let pressed = pressed.unwrap_or_else(|| panic!("chunk {}: no hold pressed", k - 1));
+            let pressed = run_starved(&mut run).unwrap_or_else(|| panic!("chunk {}: no hold pressed", k - 1));
             let rest = run.ip.s_mm();
             assert_eq!(run.ip.hold_state(), HoldState::Held, "chunk {}", k - 1);
             assert!(
