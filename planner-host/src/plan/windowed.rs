@@ -269,7 +269,7 @@ impl LpStage<'_> {
         let keep_pts = cfg.table || !cfg.override_levels.is_empty();
         let mut rounds = 0;
         let t_all = Instant::now();
-        // A window's geometry: its knots' reach, commit and judge point, its
+        // A window's geometry: its reach in knots and its commit, its
         // check points and dense points. It depends on where the window
         // before committed only (not on its plan), so the next window's is
         // evaluated on the other core while this one's LPs are solved.
