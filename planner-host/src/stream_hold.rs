@@ -703,12 +703,14 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                 // (`hold_point_of_runs` reads the latest run of passes and
                 // `backoff_mm` of it), each on a copy ticked to its
                 // position the same way.
-                let k0 = k.saturating_sub(1);
-                let t = copy_into(&mut self.trial, &*self.history[k0].0);
+                let mut k0 = k.saturating_sub(1);
+                let mut t = copy_into(&mut self.trial, &*self.history[k0].0);
                 t.push(chunks)?;
-                let k0 = if k0 != k && !holds_i(t) { k } else { k0 };
-                let t = copy_into(&mut self.trial, &*self.history[k0].0);
-                t.push(chunks)?;
+                if k0 != k && !holds_i(t) {
+                    k0 = k;
+                    t = copy_into(&mut self.trial, &*self.history[k0].0);
+                    t.push(chunks)?;
+                }
                 let from = pass_s - coarse - step;
                 let mut n = 0usize;
                 while !t.ip.is_done() && t.ip.s_mm() < from {

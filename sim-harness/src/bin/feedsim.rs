@@ -413,6 +413,15 @@ fn ratios_text(label: &str, r: &planner_host::Ratios, ok: bool) -> String {
     )
 }
 
+/// What the summary line says of a stream sent without the u form.
+fn no_u_form_note(u_form: bool) -> &'static str {
+    if u_form {
+        ""
+    } else {
+        " (no u form)"
+    }
+}
+
 /// `feedsim stream PART.ngc`: every path streamed in turn.
 fn stream_program_cmd(
     path: &Path,
@@ -436,7 +445,7 @@ fn stream_program_cmd(
         outln!(
             "{}: {} paths, {:.2} mm streamed in {} chunks, {:.1} bytes/mm framed{}, over uart:{} with {} ms latency",
             path.display(), rep.paths, rep.length_mm, rep.chunks, rep.bytes_per_mm,
-            if rep.u_form { "" } else { " (no u form)" }, rep.link_baud, rep.latency_ms
+            no_u_form_note(rep.u_form), rep.link_baud, rep.latency_ms
         );
         outln!(
             "  planning {:.3} s ({} windows), first motion after {:.1} ms, at rest between paths {:.1} ms in all; machining {:.3} s ({:.0}x the planning time), the plans' own {:.3} s",
@@ -885,7 +894,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
                 outln!(
                     "{}: {:.2} mm streamed in {} chunks, {:.1} bytes/mm framed{}, over uart:{} with {} ms latency",
                     curve, rep.length_mm, rep.chunks, rep.bytes_per_mm,
-                    if rep.u_form { "" } else { " (no u form)" }, rep.link_baud, rep.latency_ms
+                    no_u_form_note(rep.u_form), rep.link_baud, rep.latency_ms
                 );
                 outln!(
                     "  planning {:.3} s ({} windows), hold points {:.3} s, first motion after {:.1} ms; machining {:.3} s ({:.0}x the planning time), the plan's own {:.3} s",
