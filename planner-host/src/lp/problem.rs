@@ -545,34 +545,41 @@ impl<'a> FeedLp<'a> {
             .collect();
         let mut banded = None;
         if self.settings.banded {
-            banded = Some(band_rows(&trip, m, nv)).and_then(|rows| {
-                // a warm start: the control points of a previous plan, as variables
-                let x0 = warm.map(|a| match fixed {
-                    None => (0..nv)
-                        .map(|v| a.get(v + 1).copied().unwrap_or(0.0) / scale)
-                        .collect::<Vec<_>>(),
-                    // the kept columns by their control points
-                    Some(_) => (0..full_nv)
-                        .filter(|&v| col_new[v] != usize::MAX)
-                        .map(|v| a.get(v + 1).copied().unwrap_or(0.0) / scale)
-                        .collect(),
-                });
-                let r = crate::lp::banded_ipm::solve(
-                    nv,
-                    &rows,
-                    &b,
-                    &q,
-                    self.settings.banded_max_iter.unwrap_or(self.settings.max_iter),
-                    self.settings.tol_gap,
-                    x0.as_deref(),
-                );
-                if std::env::var_os("FEEDLP_SLP_DEBUG").is_some() {
-                    if let Err(e) = &r {
-                        eprintln!("banded IPM failed: {e:?}");
-                    }
-                }
-                r.ok()
+            let rows = band_rows(&trip, m, nv);
+            // a warm start: the control points of a previous plan, as variables
+            let x0 = warm.map(|a| match fixed {
+                None => (0..nv)
+                    .map(|v| a.get(v + 1).copied().unwrap_or(0.0) / scale)
+                    .collect::<Vec<_>>(),
+                // the kept columns by their control points
+                Some(_) => (0..full_nv)
+                    .filter(|&v| col_new[v] != usize::MAX)
+                    .map(|v| a.get(v + 1).copied().unwrap_or(0.0) / scale)
+                    .collect(),
             });
+            let r = crate::lp::banded_ipm::solve(
+                nv,
+                &rows,
+                &b,
+                &q,
+                self.settings.banded_max_iter.unwrap_or(self.settings.max_iter),
+                self.settings.tol_gap,
+                x0.as_deref(),
+            );
+            if std::env::var_os("FEEDLP_SLP_DEBUG").is_some() {
+                if let Err(e) = &r {
+                    eprintln!("banded IPM failed: {e:?}");
+                }
+            }
+            match r {
+                // an infeasibility certificate ends the LP (Clarabel says the
+                // same, after hundreds of milliseconds on a window's rows)
+                Err(crate::lp::banded_ipm::IpmFail::Infeasible(it)) => {
+                    return Err(fail("PrimalInfeasible", it));
+                }
+                // any other failure goes to Clarabel
+                r => banded = r.ok(),
+            }
         }
         let (x, iterations, status) = match banded {
             Some((x, it)) => (x, it, "Solved".to_string()),
