@@ -226,7 +226,7 @@ fn plan_windows(
     to: &mpsc::Sender<Planned>,
 ) {
     let cfg = PlanConfig {
-        windows: Some(WindowConfig { window_mm, commit_mm }),
+        windows: Some(WindowConfig::new(window_mm, commit_mm)),
         ..PlanConfig::default()
     };
     let to_m = Mutex::new(to.clone());

@@ -72,10 +72,7 @@ fn a_path_no_longer_than_a_window_is_planned_whole_in_one_commit() {
     let curve = planner_host::builtin::by_name("star").unwrap().unwrap();
     let whole = plan_curve(&curve, &PlanConfig::default()).unwrap();
     let cfg = PlanConfig {
-        windows: Some(WindowConfig {
-            window_mm: 500.0,
-            commit_mm: 150.0,
-        }),
+        windows: Some(WindowConfig::new(500.0, 150.0)),
         ..PlanConfig::default()
     };
     let windowed = plan_curve(&curve, &cfg).unwrap();

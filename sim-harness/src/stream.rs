@@ -982,8 +982,8 @@ pub struct StreamOptions {
     pub ring_bytes: usize,
     /// Chunk length, mm (chunks are also halved until four fit the ring).
     pub chunk_mm: f64,
-    /// Plan in windows of this much path, committing that much (mm).
-    pub windows: Option<(f64, f64)>,
+    /// Plan in windows.
+    pub windows: Option<planner_host::plan::WindowConfig>,
     /// Link stalls (start, duration), s.
     pub stalls: Vec<(f64, f64)>,
     /// Servo period, s.
@@ -1264,7 +1264,7 @@ fn stream_through<const Q: usize, const P: usize>(
     base: &planner_host::plan::PlanConfig,
     o: &StreamOptions,
 ) -> Result<StreamReport, StreamError> {
-    use planner_host::plan::{plan_curve, PlanConfig, WindowConfig};
+    use planner_host::plan::{plan_curve, PlanConfig};
     use planner_host::stream::{chunk_table, ChunkOptions};
     use planner_host::stream_hold::{set_hold_points, HoldSearch};
     use planner_host::stream_pipeline::plan_and_stream;
@@ -1277,12 +1277,23 @@ fn stream_through<const Q: usize, const P: usize>(
     if !o.ring_bytes.is_power_of_two() || !(4096..=1 << 20).contains(&o.ring_bytes) {
         return Err(StreamError::RingBytes(o.ring_bytes));
     }
+    if let Some(w) = o.windows.filter(|w| !w.is_valid()) {
+        return Err(StreamError::Option(format!(
+            "windows of {} mm committing {} mm{}: a window must commit more than 0 and less than its length",
+            w.window_mm,
+            w.commit_mm,
+            w.first.map_or(String::new(), |f| format!(
+                ", the first {} mm committing {} mm",
+                f.window_mm, f.commit_mm
+            ))
+        )));
+    }
     let mut cfg = PlanConfig {
         servo_period_s: o.period_s,
         ..base.clone()
     };
-    if let Some((window_mm, commit_mm)) = o.windows {
-        cfg.windows = Some(WindowConfig { window_mm, commit_mm });
+    if let Some(wc) = o.windows {
+        cfg.windows = Some(wc);
     }
     let opts = ChunkOptions {
         chunk_mm: o.chunk_mm,

@@ -100,10 +100,7 @@ pub const LEAD_MARGIN: f64 = 1.25;
 /// The replan's windows when the stream was planned whole: 300 mm
 /// committing 200 (the Butterfly's rest replanned in 0.15–0.3 s, against
 /// 0.8–1.3 s in windows of 120 committing 40, on this 2-core machine).
-pub const REPLAN_WINDOWS: WindowConfig = WindowConfig {
-    window_mm: 300.0,
-    commit_mm: 200.0,
-};
+pub const REPLAN_WINDOWS: WindowConfig = WindowConfig::new(300.0, 200.0);
 
 /// A host that replans a curve's plan at each feed change asked for.
 pub struct ReplanHost<'a, const Q: usize, const P: usize> {

@@ -94,7 +94,7 @@ fn streamed(name: &str, windows: Option<(f64, f64)>) -> ProgramStreamReport {
     let text = std::fs::read_to_string(own(name)).unwrap();
     let prog = read_str(&text, ReadOptions::default()).unwrap();
     let o = StreamOptions {
-        windows,
+        windows: windows.map(|(w, c)| planner_host::plan::WindowConfig::new(w, c)),
         chunk_mm: 16.0,
         ..StreamOptions::default()
     };

@@ -414,10 +414,10 @@ fn a_path_planned_whole_with_commits_is_retried_on_bisected_spans() {
         let cfg = planner_host::plan::PlanConfig {
             sampling,
             density_per_mm: density,
-            windows: Some(planner_host::plan::WindowConfig {
-                window_mm: plan.path_length_mm + 1.0,
-                commit_mm: plan.path_length_mm / 2.0,
-            }),
+            windows: Some(planner_host::plan::WindowConfig::new(
+                plan.path_length_mm + 1.0,
+                plan.path_length_mm / 2.0,
+            )),
             ..planner_host::plan::PlanConfig::default()
         };
         let commits = std::sync::Mutex::new(Vec::new());

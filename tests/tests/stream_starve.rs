@@ -177,7 +177,7 @@ fn slower_host() {
     std::fs::create_dir_all(&dir).unwrap();
     let times = dir.join("ready.txt");
     let mut o = sim_harness::stream::StreamOptions {
-        windows: Some((120.0, 40.0)),
+        windows: Some(planner_host::plan::WindowConfig::new(120.0, 40.0)),
         ..Default::default()
     };
     // (how many chunks: from a run that keeps up)

@@ -129,6 +129,11 @@ enum Cmd {
         /// With --window-mm: path each window commits, mm (default a third of the window).
         #[arg(long, requires = "window_mm")]
         commit_mm: Option<f64>,
+        /// With --window-mm: the first window shorter, WINDOW_MM:COMMIT_MM (the machine
+        /// waits for it alone; its commit must reach past where a feed hold pressed while
+        /// accelerating from rest comes to rest).
+        #[arg(long, requires = "window_mm")]
+        first_window: Option<planner_host::plan::FirstWindow>,
     },
     /// Compute one feedrate-override transition profile (paper §4) for inspection: the table's
     /// plan (or level --from) overridden at --at to level --to; the table must hold that level
@@ -337,6 +342,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
             override_levels,
             window_mm,
             commit_mm,
+            first_window,
         } => {
             if formulation != Formulation::Paper && (objective.is_some() || qhat_bound.is_some()) {
                 return Err(Failure::new(
@@ -389,18 +395,17 @@ fn run(cli: Cli) -> Result<(), Failure> {
             }
             if let Some(w) = window_mm {
                 let c = commit_mm.unwrap_or(w / 3.0);
-                if !(w.is_finite() && c.is_finite() && c > 0.0 && c < w)
-                    || formulation != Formulation::Certified
-                {
+                let wc = planner_host::plan::WindowConfig {
+                    first: first_window,
+                    ..planner_host::plan::WindowConfig::new(w, c)
+                };
+                if !wc.is_valid() || formulation != Formulation::Certified {
                     return Err(Failure::new(
                         EXIT_USAGE,
-                        format!("--window-mm {w} --commit-mm {c}: a window must commit more than 0 and less than its length, with the certified formulation"),
+                        format!("--window-mm {w} --commit-mm {c}{}: a window must commit more than 0 and less than its length, with the certified formulation", first_window.map_or(String::new(), |f| format!(" --first-window {}:{}", f.window_mm, f.commit_mm))),
                     ));
                 }
-                cfg.windows = Some(planner_host::plan::WindowConfig {
-                    window_mm: w,
-                    commit_mm: c,
-                });
+                cfg.windows = Some(wc);
             }
             let pb = progress_bar(quiet);
             pb.set_message(format!("planning {}", curve.name));

@@ -141,13 +141,88 @@ pub struct WindowConfig {
     /// Path a window commits past its join, mm (less than `window_mm` by at
     /// least the braking distance at full feed).
     pub commit_mm: f64,
+    /// The first window of a plan from rest, when it is to be shorter than
+    /// the others (`None`: as long): the machine waits for it alone.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub first: Option<FirstWindow>,
+}
+
+impl WindowConfig {
+    /// Windows of `window_mm` committing `commit_mm`, the first as the others.
+    pub const fn new(window_mm: f64, commit_mm: f64) -> Self {
+        WindowConfig {
+            window_mm,
+            commit_mm,
+            first: None,
+        }
+    }
+
+    /// A window that commits more than 0 and less than its length (the
+    /// first one's too), all finite.
+    pub fn is_valid(&self) -> bool {
+        let ok = |w: f64, c: f64| w.is_finite() && c.is_finite() && c > 0.0 && c < w;
+        ok(self.window_mm, self.commit_mm) && self.first.is_none_or(|f| ok(f.window_mm, f.commit_mm))
+    }
+}
+
+/// The first window of a windowed plan from rest ([`WindowConfig::first`]).
+/// A shorter first window starts the machine sooner: what it waits for is
+/// the first window's LPs and the hold points of the chunks they commit
+/// (docs/streaming-design.md, "A shorter first window"). Its commit must
+/// still reach past where a feed hold pressed while accelerating from rest
+/// comes to rest, or the first motion waits for the second window too.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct FirstWindow {
+    /// Path the first window plans, mm.
+    pub window_mm: f64,
+    /// Path it commits, mm.
+    pub commit_mm: f64,
+}
+
+/// `WINDOW_MM:COMMIT_MM`, as the command lines take it.
+impl std::str::FromStr for FirstWindow {
+    type Err = String;
+    fn from_str(text: &str) -> Result<Self, String> {
+        let bad = || format!("{text:?}: expected WINDOW_MM:COMMIT_MM, e.g. 100:80");
+        let (w, c) = text.split_once(':').ok_or_else(bad)?;
+        let (window_mm, commit_mm) = (
+            w.trim().parse().map_err(|_| bad())?,
+            c.trim().parse().map_err(|_| bad())?,
+        );
+        Ok(FirstWindow { window_mm, commit_mm })
+    }
 }
 
 impl Default for WindowConfig {
     fn default() -> Self {
-        WindowConfig {
-            window_mm: 120.0,
-            commit_mm: 40.0,
+        WindowConfig::new(120.0, 40.0)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `WINDOW_MM:COMMIT_MM` parsed, anything else refused with the text it
+    /// was given; a first window that commits nothing or past its end makes
+    /// the windows invalid.
+    #[test]
+    fn a_first_window_is_parsed_and_checked() {
+        let f: FirstWindow = "100:80".parse().unwrap();
+        assert_eq!((f.window_mm, f.commit_mm), (100.0, 80.0));
+        for bad in ["100", "100:", ":80", "a:b", "100;80"] {
+            let e = bad.parse::<FirstWindow>().unwrap_err();
+            assert!(e.contains(bad) && e.contains("WINDOW_MM:COMMIT_MM"), "{e}");
         }
+        let with = |window_mm, commit_mm| WindowConfig {
+            first: Some(FirstWindow { window_mm, commit_mm }),
+            ..WindowConfig::new(200.0, 150.0)
+        };
+        assert!(WindowConfig::new(200.0, 150.0).is_valid());
+        assert!(with(100.0, 80.0).is_valid());
+        assert!(!with(100.0, 100.0).is_valid());
+        assert!(!with(100.0, 0.0).is_valid());
+        assert!(!with(f64::NAN, 80.0).is_valid());
+        assert!(!WindowConfig::new(100.0, 150.0).is_valid());
     }
 }

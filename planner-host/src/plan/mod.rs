@@ -33,7 +33,7 @@ pub mod windowed;
 
 pub use crate::lp::machining_time::machining_time;
 pub use atomic_write::{write_atomic, write_file_atomic};
-pub use config::{Formulation, PlanConfig, WindowConfig};
+pub use config::{FirstWindow, Formulation, PlanConfig, WindowConfig};
 pub use error::PlanError;
 pub use output::{LevelPlan, PlanOutput, WindowStats};
 pub use pipeline::{plan_curve, plan_curve_committing, plan_curve_with_progress, Commit, CommitSink};

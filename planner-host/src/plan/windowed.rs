@@ -275,7 +275,12 @@ impl LpStage<'_> {
         // evaluated on the other core while this one's LPs are solved.
         let geometry = |i_l: usize| -> WindowGeometry {
             let s_join = knots[i_l + ORDER - 1];
-            let mut i_m = knot_at(s_join + wc.window_mm).max(i_l + 3 * ORDER);
+            // (the first window from rest as asked for, the others alike)
+            let (window_mm, commit_mm) = match wc.first {
+                Some(f) if i_l == 0 && start.is_none() => (f.window_mm, f.commit_mm),
+                _ => (wc.window_mm, wc.commit_mm),
+            };
+            let mut i_m = knot_at(s_join + window_mm).max(i_l + 3 * ORDER);
             // the last window when the next would reach the stop join
             let last = i_m + ORDER >= stop_first;
             if last {
@@ -283,7 +288,7 @@ impl LpStage<'_> {
             }
             // what this window commits: about commit_mm past the join, the
             // start join whole, never into the window's braking
-            let i_c = knot_at(s_join + wc.commit_mm)
+            let i_c = knot_at(s_join + commit_mm)
                 .max(start_last)
                 .min(i_m.saturating_sub(2 * ORDER))
                 .max(i_l + 1);
@@ -635,18 +640,23 @@ mod tests {
     /// The Butterfly planned window by window: within 1 % of the whole
     /// plan's machining time, every limit held on the dense re-evaluation
     /// (joins included), the first window committed before the rest are
-    /// planned. Printed: `cargo test --release -p planner-host windowed -- --nocapture`.
+    /// planned; a shorter first window commits what it was asked to (up to
+    /// a knot span) and holds the same. Printed: `cargo test --release -p planner-host windowed -- --nocapture`.
     #[test]
     fn windows_plan_the_butterfly_as_the_whole_path_does() {
         let curve = crate::geometry::builtin::butterfly().unwrap();
         let arc = ArcLength::new(&curve);
         let whole = plan_curve(&curve, &PlanConfig::default()).unwrap();
         for w in [
-            WindowConfig {
-                window_mm: 60.0,
-                commit_mm: 20.0,
-            },
+            WindowConfig::new(60.0, 20.0),
             WindowConfig::default(),
+            WindowConfig {
+                first: Some(crate::plan::config::FirstWindow {
+                    window_mm: 60.0,
+                    commit_mm: 30.0,
+                }),
+                ..WindowConfig::default()
+            },
         ] {
             let cfg = PlanConfig {
                 windows: Some(w),
@@ -680,6 +690,12 @@ mod tests {
             );
             assert!(st.windows > 2);
             assert!(st.first_commit_mm < out.path_length_mm / 2.0);
+            let first_commit = w.first.map_or(w.commit_mm, |f| f.commit_mm);
+            assert!(
+                (st.first_commit_mm - first_commit).abs() < 5.0,
+                "first commit {} mm, asked {first_commit}",
+                st.first_commit_mm
+            );
             assert!(out.predicted_time_s <= whole.predicted_time_s * 1.01);
             assert!(dense.ratios.worst() <= 1.005, "{:?}", dense.ratios);
         }
@@ -696,7 +712,7 @@ mod tests {
         let arc = ArcLength::new(&curve);
         for (window_mm, commit_mm) in [(150.0, 100.0), (300.0, 100.0), (350.0, 100.0), (150.0, 30.0)] {
             let cfg = PlanConfig {
-                windows: Some(WindowConfig { window_mm, commit_mm }),
+                windows: Some(WindowConfig::new(window_mm, commit_mm)),
                 ..PlanConfig::default()
             };
             let out = plan_curve(&curve, &cfg).unwrap_or_else(|e| panic!("{window_mm}/{commit_mm}: {e}"));

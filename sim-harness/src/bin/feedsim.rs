@@ -235,6 +235,12 @@ enum Cmd {
         /// Path each window commits, mm.
         #[arg(long, requires = "window_mm")]
         commit_mm: Option<f64>,
+        /// The first window shorter, WINDOW_MM:COMMIT_MM: the machine waits for it alone.
+        /// Its commit must reach past where a feed hold pressed while accelerating from
+        /// rest comes to rest (and a chunk beyond), or the first motion waits for the
+        /// second window too.
+        #[arg(long, requires = "window_mm")]
+        first_window: Option<planner_host::plan::FirstWindow>,
         /// A link stall: START:DURATION in seconds from the start of sending (repeatable).
         #[arg(long)]
         stall: Vec<String>,
@@ -793,6 +799,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
             window_rows,
             window_mm,
             commit_mm,
+            first_window,
             stall,
             overrides,
             host_replan_ms,
@@ -868,7 +875,12 @@ fn run(cli: Cli) -> Result<(), Failure> {
                 latency_s: latency_ms * 1e-3,
                 ring_bytes,
                 chunk_mm,
-                windows: window_mm.zip(commit_mm),
+                windows: window_mm
+                    .zip(commit_mm)
+                    .map(|(w, c)| planner_host::plan::WindowConfig {
+                        first: first_window,
+                        ..planner_host::plan::WindowConfig::new(w, c)
+                    }),
                 stalls,
                 window_rows,
                 period_s: period_us * 1e-6,
