@@ -18,7 +18,9 @@
 //!   what has been planned;
 //! - the last window frees everything to the path's end, with the stop join
 //!   of the end segments (`crate::lp::end_rows`); the first frees the start
-//!   join. A join is never split between fixed and free control points.
+//!   join, and from rest may be shorter than the others
+//!   ([`WindowConfig::first`]: the machine waits for it alone). A join is
+//!   never split between fixed and free control points.
 //!
 //! Each window is the certified sequence on its fixed control points
 //! ([`trust_region::solve_window_until`]: a pseudo-jerk LP, then linearised
