@@ -164,6 +164,23 @@ fn exit_codes_follow_the_help() {
         run(&["plan", "circle", "-o", t, "--override-levels", "50,50"]).0,
         Some(2)
     );
+    // a first window that commits past its end, or not as W:C
+    for first in ["60:80", "60"] {
+        let (code, _, err) = run(&[
+            "plan",
+            "circle",
+            "-o",
+            t,
+            "--window-mm",
+            "120",
+            "--commit-mm",
+            "40",
+            "--first-window",
+            first,
+        ]);
+        assert_eq!(code, Some(2), "{err}");
+        assert!(err.contains("first-window"), "{err}");
+    }
     // 3: bad input
     let (code, _, err) = run(&["plan", "spiral", "-o", t]);
     assert_eq!(code, Some(3), "{err}");

@@ -504,6 +504,19 @@ fn stream_reports_the_streamed_run_as_json_and_refuses_bad_options() {
         (&["stream", "nowhere.json"][..], "nowhere"),
         (&["stream", "star", "--faults", "drop:0"][..], "KIND:N"),
         (&["stream", "star", "--faults", "lose:3"][..], "KIND:N"),
+        (
+            &[
+                "stream",
+                "star",
+                "--window-mm",
+                "40",
+                "--commit-mm",
+                "15",
+                "--first-window",
+                "30:40",
+            ][..],
+            "the first 30 mm committing 40 mm",
+        ),
     ] {
         let out = feedsim().args(args).output().unwrap();
         assert_eq!(out.status.code(), Some(3), "{args:?}");
