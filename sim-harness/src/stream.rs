@@ -1013,6 +1013,13 @@ pub struct StreamOptions {
     /// path of a program, planned while the paths before it ran): each
     /// chunk is ready that much earlier, none before the start.
     pub host_ahead_s: f64,
+    /// The host sends no chunk until the hold points it has found reach
+    /// this far along the path, mm (or the whole plan is known): the machine
+    /// then starts with that much path whose stops are known, later but
+    /// without running out of chunks on a start the planning has not yet
+    /// got ahead of ([`start_after_runway`]). 0: each chunk as soon as it is
+    /// ready.
+    pub start_runway_mm: f64,
     /// The chunks carry the u form (each piece's u(s), for the setpoints'
     /// u); without it a stream is smaller and the setpoints' u reads 0
     /// along the path (the end point's at the end; the positions are the
@@ -1046,10 +1053,35 @@ impl Default for StreamOptions {
             overrides: vec![],
             host_replan_s: None,
             host_ahead_s: 0.0,
+            start_runway_mm: 0.0,
             u_form: true,
             faults: LinkFaults::default(),
         }
     }
+}
+
+/// The chunks' ready times (s, in order) of a host that sends none before
+/// the hold points it has found reach `runway_mm` along the path: chunk i
+/// carries its hold point `s_c_mm[i]` (known when it is ready), so the
+/// first chunk goes when the largest hold point ready reaches the runway,
+/// or when the last chunk is ready; every chunk ready before then goes then.
+/// A runway of 0 changes nothing.
+pub fn start_after_runway(ready_s: &[f64], s_c_mm: &[f64], runway_mm: f64) -> Vec<f64> {
+    if runway_mm <= 0.0 {
+        return ready_s.to_vec();
+    }
+    let mut reach = f64::NEG_INFINITY;
+    let start = ready_s
+        .iter()
+        .zip(s_c_mm)
+        .find(|&(_, &s_c)| {
+            reach = reach.max(s_c);
+            reach >= runway_mm
+        })
+        .map(|(&r, _)| r)
+        .or(ready_s.last().copied())
+        .unwrap_or(0.0);
+    ready_s.iter().map(|&r| r.max(start)).collect()
 }
 
 /// The window of the simulated firmware: q spans, pieces (a host's; an
@@ -1277,6 +1309,12 @@ fn stream_through<const Q: usize, const P: usize>(
     if !o.ring_bytes.is_power_of_two() || !(4096..=1 << 20).contains(&o.ring_bytes) {
         return Err(StreamError::RingBytes(o.ring_bytes));
     }
+    if !(o.start_runway_mm.is_finite() && o.start_runway_mm >= 0.0) {
+        return Err(StreamError::Option(format!(
+            "start runway {} mm: expected a length ≥ 0",
+            o.start_runway_mm
+        )));
+    }
     if let Some(w) = o.windows.filter(|w| !w.is_valid()) {
         return Err(StreamError::Option(format!(
             "windows of {} mm committing {} mm{}: a window must commit more than 0 and less than its length",
@@ -1353,6 +1391,7 @@ fn stream_through<const Q: usize, const P: usize>(
             .ok_or_else(|| StreamError::Table("the table has no start or end point".into()))?;
         (out, head, chunks, hp, plan_s, hold_points_s, ready)
     };
+    let ready_s = start_after_runway(&ready_s, &hp.s_c_mm, o.start_runway_mm);
     let ready_s: Vec<f64> = ready_s.iter().map(|r| (r - o.host_ahead_s).max(0.0)).collect();
     let link = StreamLink {
         bytes_per_s: o.baud / 10.0,

@@ -11,7 +11,7 @@ use firmware_core::{Interpolator, Table};
 use planner_host::plan::{plan_curve, PlanConfig};
 use planner_host::stream::{chunk_table, ChunkOptions};
 use planner_host::stream_hold::{set_hold_points, HoldSearch};
-use sim_harness::stream::{run_stream, StreamLink, StreamRun};
+use sim_harness::stream::{run_stream, start_after_runway, StreamLink, StreamRun};
 
 const T: f64 = 250e-6;
 /// Ring bytes, window q spans and pieces of a host-sized window (the
@@ -25,6 +25,8 @@ const TOL: f64 = 0.01;
 struct Planned {
     bytes: Vec<u8>,
     chunks: Vec<Vec<u8>>,
+    /// Each chunk's hold point, mm.
+    s_c_mm: Vec<f64>,
 }
 
 fn planned(name: &str) -> Planned {
@@ -53,6 +55,7 @@ fn planned_for<const Q: usize, const P: usize>(name: &str) -> Planned {
     Planned {
         bytes: out.table_bytes,
         chunks,
+        s_c_mm: hp.s_c_mm,
     }
 }
 
@@ -197,4 +200,49 @@ fn slower_host() {
     // (the last chunk is ready 0.05 + 0.3·(n − 1) s after the start: the
     // path ends after it)
     assert!(rep.first_motion_ms * 1e-3 + rep.machining_time_s > 0.05 + 0.3 * (n - 1) as f64);
+}
+
+/// A host whose first chunks come at once and the rest only after a gap (a
+/// second window slower than the machine's start) starves the start; one
+/// that sends nothing until the hold points it has found reach a runway
+/// starts later, no earlier than it has them, and runs through within
+/// every limit.
+#[test]
+fn a_host_that_waits_for_a_runway_does_not_starve_the_start() {
+    big_stack(runway);
+}
+
+fn runway() {
+    let p = planned("butterfly");
+    let table = Table::parse(&p.bytes).unwrap();
+    // the first six chunks (48 mm) at 0.1 s, the rest from 1.5 s on
+    let ready: Vec<f64> = (0..p.chunks.len())
+        .map(|i| if i < 6 { 0.1 } else { 1.5 + 0.01 * (i - 6) as f64 })
+        .collect();
+    let run_with = |ready_s: Vec<f64>| {
+        let l = StreamLink {
+            ready_s,
+            ..link(2e6, vec![])
+        };
+        run_stream::<CAP, NQ, NP>(&table, &p.chunks, &l).unwrap()
+    };
+    let eager = run_with(ready.clone());
+    assert!(eager.starvations > 0, "the gap did not starve the eager start");
+    let runway_mm = 60.0;
+    let k = p.s_c_mm.iter().position(|&s| s >= runway_mm).unwrap();
+    let waited = run_with(start_after_runway(&ready, &p.s_c_mm, runway_mm));
+    println!(
+        "eager: first motion {:.1} ms, {} starvations, {} ticks; with a {runway_mm} mm runway: {:.1} ms, {} starvations",
+        eager.first_motion_s * 1e3,
+        eager.starvations,
+        eager.starved_ticks,
+        waited.first_motion_s * 1e3,
+        waited.starvations
+    );
+    assert_eq!(waited.starvations, 0);
+    assert!(waited.first_motion_s >= ready[k]);
+    let rep = check(&table, &waited.setpoints, TOL);
+    assert!(rep.ok, "{}", rep.text());
+    // a runway of 0 sends each chunk as it is ready
+    assert_eq!(start_after_runway(&ready, &p.s_c_mm, 0.0), ready);
 }

@@ -241,6 +241,11 @@ enum Cmd {
         /// second window too.
         #[arg(long, requires = "window_mm")]
         first_window: Option<planner_host::plan::FirstWindow>,
+        /// The host sends no chunk until the hold points it has found reach this far along
+        /// the path, mm (or the plan is complete): a later first motion, but no stop for
+        /// want of chunks while the planning has not yet got ahead of the machine.
+        #[arg(long, default_value_t = 0.0)]
+        start_runway_mm: f64,
         /// A link stall: START:DURATION in seconds from the start of sending (repeatable).
         #[arg(long)]
         stall: Vec<String>,
@@ -800,6 +805,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
             window_mm,
             commit_mm,
             first_window,
+            start_runway_mm,
             stall,
             overrides,
             host_replan_ms,
@@ -888,6 +894,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
                 host_slowdown,
                 ready_times,
                 host_ahead_s: 0.0,
+                start_runway_mm,
                 u_form: !no_u_form,
                 faults,
             };
