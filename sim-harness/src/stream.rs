@@ -1311,7 +1311,7 @@ fn stream_through<const Q: usize, const P: usize>(
     }
     if !(o.start_runway_mm.is_finite() && o.start_runway_mm >= 0.0) {
         return Err(StreamError::Option(format!(
-            "start runway {} mm: expected a length ≥ 0",
+            "--start-runway-mm {}: expected a length ≥ 0 mm",
             o.start_runway_mm
         )));
     }
