@@ -505,6 +505,10 @@ fn stream_reports_the_streamed_run_as_json_and_refuses_bad_options() {
         (&["stream", "star", "--faults", "drop:0"][..], "KIND:N"),
         (&["stream", "star", "--faults", "lose:3"][..], "KIND:N"),
         (
+            &["stream", "star", "--start-runway-mm=-1"][..],
+            "--start-runway-mm",
+        ),
+        (
             &[
                 "stream",
                 "star",
