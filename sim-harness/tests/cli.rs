@@ -495,6 +495,10 @@ fn stream_reports_the_streamed_run_as_json_and_refuses_bad_options() {
     assert_eq!(v["check_ok"], true);
     // the machining time is the plan's, plus what the stall's hold cost
     assert!(v["machining_time_s"].as_f64().unwrap() >= v["planned_time_s"].as_f64().unwrap() - 1e-3);
+    // (a first window that commits past its end)
+    let first_window: Vec<&str> = "stream star --window-mm 40 --commit-mm 15 --first-window 30:40"
+        .split(' ')
+        .collect();
     for (args, what) in [
         (&["stream", "star", "--link", "tcp:9"][..], "uart:BAUD"),
         (&["stream", "star", "--ring-bytes", "10000"][..], "power of two"),
@@ -508,19 +512,7 @@ fn stream_reports_the_streamed_run_as_json_and_refuses_bad_options() {
             &["stream", "star", "--start-runway-mm=-1"][..],
             "--start-runway-mm",
         ),
-        (
-            &[
-                "stream",
-                "star",
-                "--window-mm",
-                "40",
-                "--commit-mm",
-                "15",
-                "--first-window",
-                "30:40",
-            ][..],
-            "the first 30 mm committing 40 mm",
-        ),
+        (&first_window[..], "the first 30 mm committing 40 mm"),
     ] {
         let out = feedsim().args(args).output().unwrap();
         assert_eq!(out.status.code(), Some(3), "{args:?}");
