@@ -53,9 +53,10 @@ pub(crate) enum IpmFail {
 }
 
 /// Infeasibility test: ‖Aᵀy‖∞ at most this fraction of ‖y‖∞ (on the
-/// meander's infeasible window LP the ratio fell from 1e-4 to 1e-8 in four
-/// iterations, then stayed near 1e-11; on its feasible LPs y stays bounded
-/// and the ratio does not fall below 1e-3 with bᵀy < 0).
+/// meander's infeasible window LP the ratio fell from 2e-4 to 6e-9 in five
+/// iterations, then stayed near 1e-11). No feasible LP was taken for
+/// infeasible: the plans of the built-in curves and the meanders, whole and
+/// in windows, are the same bytes with the test as without it.
 pub(crate) const INFEASIBLE_ATY: f64 = 1e-8;
 
 /// Infeasibility test: bᵀy at most −this × ‖y‖∞ (rows normalised to right
