@@ -1211,9 +1211,17 @@ pub enum StreamError {
     /// The window size is not one the simulation has.
     #[error("--window-rows {0}:{1}: use 64:128, 128:256, 256:512 or 2048:4096")]
     WindowRows(usize, usize),
-    /// Link rate, latency, chunk length or period unusable.
+    /// An option's value unusable (link rate, latency, chunk length,
+    /// period, windows, start runway), or an option that does not fit.
     #[error("{0}")]
     Option(String),
+    /// The ready-times file could not be read or written, or does not hold
+    /// one time for each chunk.
+    #[error("{0}")]
+    ReadyTimes(String),
+    /// The run's thread failed to start or panicked.
+    #[error("the run's thread failed to start or panicked")]
+    Thread,
     /// Planning failed.
     #[error(transparent)]
     Plan(#[from] planner_host::PlanError),
@@ -1355,14 +1363,14 @@ fn stream_through<const Q: usize, const P: usize>(
         match &o.ready_times {
             Some(f) if f.exists() => {
                 let text = std::fs::read_to_string(f)
-                    .map_err(|e| StreamError::Option(format!("{}: {e}", f.display())))?;
+                    .map_err(|e| StreamError::ReadyTimes(format!("{}: {e}", f.display())))?;
                 ready = text
                     .lines()
                     .map(|l| l.trim().parse::<f64>().ok().filter(|r| r.is_finite()))
                     .collect::<Option<Vec<f64>>>()
                     .filter(|r| r.len() == st.chunks.len())
                     .ok_or_else(|| {
-                        StreamError::Option(format!(
+                        StreamError::ReadyTimes(format!(
                             "{}: expected {} ready times in seconds, one a line",
                             f.display(),
                             st.chunks.len()
@@ -1371,7 +1379,8 @@ fn stream_through<const Q: usize, const P: usize>(
             }
             Some(f) => {
                 let text: String = ready.iter().map(|r| format!("{r}\n")).collect();
-                std::fs::write(f, text).map_err(|e| StreamError::Option(format!("{}: {e}", f.display())))?;
+                std::fs::write(f, text)
+                    .map_err(|e| StreamError::ReadyTimes(format!("{}: {e}", f.display())))?;
             }
             None => {}
         }
@@ -1460,7 +1469,7 @@ fn stream_through<const Q: usize, const P: usize>(
             }
         })
     })
-    .ok_or_else(|| StreamError::Option("the run's thread failed to start or panicked".into()))??;
+    .ok_or(StreamError::Thread)??;
     // each change's feed limit from where it holds to where the next that
     // took effect spliced (in s: the setpoints' clock starts with the motion)
     let mut override_feed_ratio = 0.0f64;

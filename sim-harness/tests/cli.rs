@@ -369,16 +369,18 @@ fn stream_on_a_slower_host_replays_with_its_ready_times() {
     }
     assert_eq!(again["check_ok"], true);
     std::fs::write(&times, "0.5\n").unwrap();
-    for (args, what) in [
-        (vec!["--ready-times", t], "ready times"),
-        (vec!["--host-slowdown", "0"], "--host-slowdown"),
+    // a ready-times file that does not fit the chunks is bad input (3), a
+    // factor of 0 a bad option value (2)
+    for (args, what, code) in [
+        (vec!["--ready-times", t], "ready times", 3),
+        (vec!["--host-slowdown", "0"], "--host-slowdown", 2),
     ] {
         let out = feedsim()
             .args(["stream", "star", "--window-mm", "40", "--commit-mm", "15"])
             .args(&args)
             .output()
             .unwrap();
-        assert_eq!(out.status.code(), Some(3), "{args:?}");
+        assert_eq!(out.status.code(), Some(code), "{args:?}");
         assert!(String::from_utf8_lossy(&out.stderr).contains(what), "{args:?}");
     }
     std::fs::remove_dir_all(&dir).unwrap();
@@ -499,23 +501,31 @@ fn stream_reports_the_streamed_run_as_json_and_refuses_bad_options() {
     let first_window: Vec<&str> = "stream star --window-mm 40 --commit-mm 15 --first-window 30:40"
         .split(' ')
         .collect();
-    for (args, what) in [
-        (&["stream", "star", "--link", "tcp:9"][..], "uart:BAUD"),
-        (&["stream", "star", "--ring-bytes", "10000"][..], "power of two"),
-        (&["stream", "star", "--stall", "soon"][..], "START:DURATION"),
-        (&["stream", "star", "--window-rows", "100:100"][..], "64:128"),
-        (&["stream", "star", "--window-rows", "many"][..], "Q:P"),
-        (&["stream", "nowhere.json"][..], "nowhere"),
-        (&["stream", "star", "--faults", "drop:0"][..], "KIND:N"),
-        (&["stream", "star", "--faults", "lose:3"][..], "KIND:N"),
+    // bad option values and options that do not fit: usage (2); a curve
+    // that is not there: bad input (3)
+    for (args, what, code) in [
+        (&["stream", "star", "--link", "tcp:9"][..], "uart:BAUD", 2),
+        (
+            &["stream", "star", "--ring-bytes", "10000"][..],
+            "power of two",
+            2,
+        ),
+        (&["stream", "star", "--stall", "soon"][..], "START:DURATION", 2),
+        (&["stream", "star", "--window-rows", "100:100"][..], "64:128", 2),
+        (&["stream", "star", "--window-rows", "many"][..], "Q:P", 2),
+        (&["stream", "nowhere.json"][..], "nowhere", 3),
+        (&["stream", "star", "--faults", "drop:0"][..], "KIND:N", 2),
+        (&["stream", "star", "--faults", "lose:3"][..], "KIND:N", 2),
         (
             &["stream", "star", "--start-runway-mm=-1"][..],
             "--start-runway-mm",
+            2,
         ),
-        (&first_window[..], "the first 30 mm committing 40 mm"),
+        (&first_window[..], "the first 30 mm committing 40 mm", 2),
+        (&["stream", "star", "--period-us", "0"][..], "--period-us", 2),
     ] {
         let out = feedsim().args(args).output().unwrap();
-        assert_eq!(out.status.code(), Some(3), "{args:?}");
+        assert_eq!(out.status.code(), Some(code), "{args:?}");
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(err.contains(what), "{args:?}: {err}");
     }

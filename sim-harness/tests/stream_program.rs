@@ -164,12 +164,12 @@ fn feedsim_streams_a_program_and_refuses_what_does_not_fit() {
         (vec![refused.to_str().unwrap(), "--json"], 3, "LINE"),
         (
             vec![quarter.to_str().unwrap(), "--stall", "1.0:0.5"],
-            3,
+            2,
             "not a program",
         ),
         (
             vec![quarter.to_str().unwrap(), "--override", "1.0:50"],
-            3,
+            2,
             "not a program",
         ),
     ] {

@@ -320,6 +320,13 @@ impl Failure {
             message: e.to_string(),
         }
     }
+    /// 2: an option's value is unusable, or the option does not fit.
+    fn usage(e: impl Display) -> Failure {
+        Failure {
+            code: planner_host::cli::EXIT_USAGE,
+            message: e.to_string(),
+        }
+    }
     /// 5: a limit is exceeded.
     fn limit(e: impl Display) -> Failure {
         Failure {
@@ -375,7 +382,8 @@ fn stream_failure(e: sim_harness::stream::StreamError) -> Failure {
     use sim_harness::stream::StreamError as E;
     match e {
         E::Plan(p) | E::Pipeline(planner_host::stream_pipeline::PipelineError::Plan(p)) => plan_failure(p),
-        e @ (E::RingBytes(_) | E::WindowRows(..) | E::Option(_)) => Failure::input(e),
+        e @ (E::RingBytes(_) | E::WindowRows(..) | E::Option(_)) => Failure::usage(e),
+        e @ E::ReadyTimes(_) => Failure::input(e),
         // (an option that does not fit the plan)
         e @ E::Run(
             sim_harness::stream::StreamRunError::WindowTooSmall { .. }
@@ -550,7 +558,7 @@ fn check_period(period_us: f64) -> Result<(), Failure> {
     if period_us.is_finite() && period_us > 0.0 {
         Ok(())
     } else {
-        Err(Failure::input(format!(
+        Err(Failure::usage(format!(
             "--period-us must be a positive number, got {period_us}"
         )))
     }
@@ -760,7 +768,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
             json,
         } => {
             if !(tol.is_finite() && tol >= 0.0 && contour_tol.is_finite() && contour_tol > 0.0) {
-                return Err(Failure::input(format!(
+                return Err(Failure::usage(format!(
                     "--tol must be >= 0 and --contour-tol > 0, got {tol} and {contour_tol}"
                 )));
             }
@@ -822,7 +830,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
             let period_us = period_us.unwrap_or(machine.servo_period_s * 1e6);
             check_period(period_us)?;
             if !(host_slowdown.is_finite() && host_slowdown > 0.0) {
-                return Err(Failure::input(format!(
+                return Err(Failure::usage(format!(
                     "--host-slowdown {host_slowdown}: expected a factor > 0"
                 )));
             }
@@ -830,14 +838,14 @@ fn run(cli: Cli) -> Result<(), Failure> {
                 .split_once(':')
                 .and_then(|(q, p)| Some((q.parse::<usize>().ok()?, p.parse::<usize>().ok()?)))
                 .ok_or_else(|| {
-                    Failure::input(format!("--window-rows {window_rows}: expected Q:P, e.g. 128:256"))
+                    Failure::usage(format!("--window-rows {window_rows}: expected Q:P, e.g. 128:256"))
                 })?;
             let baud = link
                 .strip_prefix("uart:")
                 .and_then(|b| b.parse::<f64>().ok())
                 .filter(|b| b.is_finite() && *b > 0.0)
                 .ok_or_else(|| {
-                    Failure::input(format!("--link {link}: expected uart:BAUD, e.g. uart:115200"))
+                    Failure::usage(format!("--link {link}: expected uart:BAUD, e.g. uart:115200"))
                 })?;
             let stalls = stall
                 .iter()
@@ -847,7 +855,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
                     (a >= 0.0 && d > 0.0).then_some((a, d))
                 })
                 .collect::<Option<Vec<_>>>()
-                .ok_or_else(|| Failure::input("--stall: expected START:DURATION in seconds, e.g. 1.0:0.5"))?;
+                .ok_or_else(|| Failure::usage("--stall: expected START:DURATION in seconds, e.g. 1.0:0.5"))?;
             let overrides = overrides
                 .iter()
                 .map(|s| {
@@ -858,21 +866,21 @@ fn run(cli: Cli) -> Result<(), Failure> {
                 .collect::<Option<Vec<_>>>()
                 .filter(|v| v.windows(2).all(|w| w[0].0 <= w[1].0))
                 .ok_or_else(|| {
-                    Failure::input(
+                    Failure::usage(
                         "--override: expected T:PCT (seconds, percent > 0), in time order, e.g. 1.5:50",
                     )
                 })?;
             let faults = match &faults {
                 None => Default::default(),
                 Some(f) => sim_harness::stream::LinkFaults::parse(f).ok_or_else(|| {
-                    Failure::input(format!(
+                    Failure::usage(format!(
                         "--faults {f}: expected KIND:N,... (corrupt, drop, duplicate, reorder: every N ≥ 1 \
                          frames; restart:SECONDS), e.g. corrupt:17,drop:23,restart:1.5"
                     ))
                 })?,
             };
             if host_replan_ms.is_some_and(|h| !(h.is_finite() && h >= 0.0)) {
-                return Err(Failure::input("--host-replan-ms: expected a time ≥ 0"));
+                return Err(Failure::usage("--host-replan-ms: expected a time ≥ 0"));
             }
             let opts = sim_harness::stream::StreamOptions {
                 overrides,
@@ -996,7 +1004,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
             let (curves, _tmp) = report_curve_files(&curves)?;
             let formulations = if qhat_bound.is_empty() {
                 if objective.is_some() {
-                    return Err(Failure::input(
+                    return Err(Failure::usage(
                         "--objective goes with --qhat-bound (or use --formulations BOUND/OBJECTIVE)",
                     ));
                 }
@@ -1398,7 +1406,7 @@ fn override_report(
     let all = orep::catalogue(&butterfly, Some(&trident), link);
     for n in names {
         if !all.iter().any(|s| s.name == n) {
-            return Err(Failure::input(format!(
+            return Err(Failure::usage(format!(
                 "unknown scenario {n:?} (known: {})",
                 all.iter().map(|s| s.name).collect::<Vec<_>>().join(", ")
             )));
