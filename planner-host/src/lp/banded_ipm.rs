@@ -64,16 +64,25 @@ pub(crate) const INFEASIBLE_ATY: f64 = 1e-8;
 pub(crate) const INFEASIBLE_BY: f64 = 1e-4;
 
 /// LPs with at least this many rows run their passes over the rows on
-/// rayon's pool, by chunks of [`CHUNK_ROWS`] rows: each chunk sums its
-/// rows' terms of Aᵀy, AᵀDA and Aᵀt onto its own span of variables, and
-/// the chunks' sums are added in order (the step lengths are the least of
-/// the chunks', μ_aff the sum of theirs in order), so the result does not
-/// depend on the threads (the 10,000-chord surfacing path: 157,000 rows,
-/// two cores). Smaller LPs keep one chunk: the sums in row order, as they
-/// always were.
-const PAR_ROWS: usize = 1 << 15;
+/// rayon's pool (`SolverSettings::parallel_rows`), by chunks of
+/// [`CHUNK_ROWS`] rows or in two halves, whichever are smaller: each chunk
+/// sums its rows' terms of Aᵀy, AᵀDA and Aᵀt onto its own span of
+/// variables, and the chunks' sums are added in order (the step lengths are
+/// the least of the chunks', μ_aff the sum of theirs in order), so the
+/// result does not depend on the threads (the 10,000-chord surfacing path:
+/// 157,000 rows, two cores). Smaller LPs keep one chunk: the sums in row
+/// order, as they always were.
+pub(crate) const PAR_ROWS: usize = 1 << 15;
 
-/// Rows of a chunk (see [`PAR_ROWS`]).
+/// [`PAR_ROWS`] for the windows of windowed planning: their LPs take their
+/// rows lazily, 2,000–8,000 of them, and ran on one core at [`PAR_ROWS`].
+/// In halves from 2,048 rows (`feedplan plan`, three interleaved runs each
+/// on a loaded machine): the 11 m meander at 200/150 mm 1.78–1.93 →
+/// 1.67–1.77 s, the Butterfly at 60/20 mm 0.59–0.63 → 0.43–0.59 s; the
+/// plans the same within the solver's tolerance (the sums' order changed).
+pub(crate) const PAR_ROWS_SMALL: usize = 1 << 11;
+
+/// Rows of a chunk at most (see [`PAR_ROWS`]).
 const CHUNK_ROWS: usize = 1 << 13;
 
 /// A chunk of rows: the first row, and the variables its rows touch, lo..hi.
@@ -253,8 +262,10 @@ fn row_dot(r: &BandRow, v: &[f64]) -> f64 {
 }
 
 /// Minimise gᵀx subject to A x ≤ b, from x = `x0` when given (a warm start:
-/// the slacks and multipliers are reset around it), else from x = 0.
-/// Returns x and the iterations spent.
+/// the slacks and multipliers are reset around it), else from x = 0, its
+/// passes over the rows on both cores from `parallel_rows` rows on
+/// ([`PAR_ROWS`]). Returns x and the iterations spent.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn solve(
     n: usize,
     rows: &[BandRow],
@@ -263,11 +274,12 @@ pub(crate) fn solve(
     max_iter: u32,
     tol: f64,
     x0: Option<&[f64]>,
+    parallel_rows: usize,
 ) -> Result<(Vec<f64>, u32), IpmFail> {
-    let chunk = if rows.len() < PAR_ROWS {
+    let chunk = if rows.len() < parallel_rows.max(1) {
         rows.len()
     } else {
-        CHUNK_ROWS
+        rows.len().div_ceil(2).min(CHUNK_ROWS)
     };
     solve_in_chunks(n, rows, b, g, max_iter, tol, x0, chunk)
 }
@@ -636,7 +648,7 @@ mod tests {
             );
             let x0 = vec![0.5; n];
             for start in [None, Some(&x0[..])] {
-                match solve(n, &rows, &b, &g, 200, 1e-9, start) {
+                match solve(n, &rows, &b, &g, 200, 1e-9, start, PAR_ROWS) {
                     Err(IpmFail::Infeasible(it)) => assert!(it < 200),
                     other => panic!("seed {seed} (n {n}, m {m}): {other:?}"),
                 }
@@ -655,7 +667,7 @@ mod tests {
             let mut r = Lcg(seed + 1000);
             let x0: Vec<f64> = (0..n).map(|_| 2.0 * r.next()).collect();
             for start in [None, Some(&x0[..])] {
-                let (x, _) = solve(n, &rows, &b, &g, 200, 1e-9, start).unwrap();
+                let (x, _) = solve(n, &rows, &b, &g, 200, 1e-9, start, PAR_ROWS).unwrap();
                 let got: f64 = g.iter().zip(&x).map(|(a, b)| a * b).sum();
                 assert!(
                     (got - want).abs() <= 1e-6 * (1.0 + want.abs()),
@@ -720,7 +732,17 @@ mod tests {
                 val: [-1.0, 0.0, 0.0, 0.0],
             },
         ];
-        let (x, _) = solve(2, &rows, &[4.0, 6.0, 0.0, 0.0], &[-1.0, -1.0], 100, 1e-10, None).unwrap();
+        let (x, _) = solve(
+            2,
+            &rows,
+            &[4.0, 6.0, 0.0, 0.0],
+            &[-1.0, -1.0],
+            100,
+            1e-10,
+            None,
+            PAR_ROWS,
+        )
+        .unwrap();
         assert!((x[0] - 1.6).abs() < 1e-7 && (x[1] - 1.2).abs() < 1e-7, "{x:?}");
     }
 }

@@ -250,6 +250,12 @@ pub struct SolverSettings {
     /// certified sequence checks every iterate exactly). 1 everywhere but
     /// the windows of windowed planning (`crate::plan::windowed`).
     pub gap_loosening: f64,
+    /// LPs of at least this many rows run the banded solver's passes over
+    /// the rows on both cores ([`crate::lp::banded_ipm::PAR_ROWS`] but in
+    /// the windows of windowed planning, whose lazily taken rows are fewer:
+    /// [`crate::lp::banded_ipm::PAR_ROWS_SMALL`]). The sums' order depends
+    /// on it, not on the threads.
+    pub parallel_rows: usize,
 }
 
 impl Default for SolverSettings {
@@ -263,6 +269,7 @@ impl Default for SolverSettings {
             banded: false,
             banded_max_iter: None,
             gap_loosening: 1.0,
+            parallel_rows: crate::lp::banded_ipm::PAR_ROWS,
         }
     }
 }
@@ -565,6 +572,7 @@ impl<'a> FeedLp<'a> {
                 self.settings.banded_max_iter.unwrap_or(self.settings.max_iter),
                 self.settings.tol_gap,
                 x0.as_deref(),
+                self.settings.parallel_rows,
             );
             if std::env::var_os("FEEDLP_SLP_DEBUG").is_some() {
                 if let Err(e) = &r {

@@ -46,6 +46,9 @@
 //! kinematics (eqs. 1–6 as in [`crate::plan::verify`]) are evaluated at every check
 //! point; the best iterate with every exact ratio ≤ 1 + `tol` is the plan.
 //! This keeps the LPs at a few thousand banded rows (≤ 4 non-zeros each).
+//! A window's LPs ([`solve_window`]) hold every row at every check point
+//! instead, solved on the rows that matter by cutting planes (`LazyRows`):
+//! the same LP, its solution holding every row.
 //!
 //! **A lower trust region.** The trust region above bounds q from above
 //! only. Once an iterate collapses at a knot between higher ones (between
@@ -69,7 +72,9 @@ use std::time::Instant;
 
 use crate::limits::Ratios;
 use crate::lp::basis_rows::ORDER;
-use crate::lp::problem::{EvalPoint, FeedLp, LpError, LpStats, Row, RowKind, SolverSettings, Stage};
+use crate::lp::problem::{
+    EvalPoint, FeedLp, LpError, LpSolution, LpStats, Row, RowKind, SolverSettings, Stage,
+};
 
 /// Objective of each LP of the sequence.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
@@ -557,6 +562,8 @@ pub(crate) fn solve_from(
 /// linearisation point q̄₀ at each check point.
 struct Window<'w> {
     fixed: &'w [Option<f64>],
+    /// The rows each check point's first LP starts with (see [`LazyRows`]).
+    seed: Vec<u32>,
     qbar0: Vec<f64>,
     /// Σ N_j over the free control points j at each check point: how much
     /// of q the LP can move there.
@@ -621,17 +628,20 @@ pub(crate) fn solve_window_until(
     let t0 = Instant::now();
     let relaxed = relaxed(lp);
     let lp = &relaxed;
-    let mut rows = Vec::with_capacity(lp.points.len() * 11);
-    for p in lp.points {
+    let mut rows = Vec::with_capacity(lp.points.len() * 9);
+    let mut tags = Vec::with_capacity(lp.points.len() * 9);
+    for (i, p) in lp.points.iter().enumerate() {
         rows.push(Row::q_at(&p.basis, lp.q_max(p)));
-        for kind in [RowKind::Acc(0), RowKind::Acc(1), RowKind::Acc(2), RowKind::TAcc] {
+        tags.push((i as u32, Q_ROW));
+        for (k, kind) in KINDS[..4].iter().enumerate() {
             let start = rows.len();
-            lp.kind_rows(p, kind, 1.0, &mut rows);
+            lp.kind_rows(p, *kind, 1.0, &mut rows);
             let r = rows[start];
             rows.push(Row {
                 val: r.val.map(|c| -c),
                 ..r
             });
+            tags.extend([(i as u32, 1 << (2 * k)), (i as u32, 2 << (2 * k))]);
         }
     }
     rows.extend(
@@ -639,16 +649,33 @@ pub(crate) fn solve_window_until(
             Some(Row::q_at(&crate::lp::basis_rows::BasisRow::at(lp.knots, s)?, cap))
         }),
     );
+    tags.resize(rows.len(), (u32::MAX, 0));
     let upper = control_upper(lp);
-    let pseudo = lp.solve_rows(
-        Stage::PseudoJerk,
-        &rows,
-        Some(&upper),
-        &lp.weights(),
-        t0,
-        None,
-        Some(fixed),
-    )?;
+    let weights = lp.weights();
+    let solve_all = |rows: &[Row], warm: Option<&[f64]>| {
+        lp.solve_rows(
+            Stage::PseudoJerk,
+            rows,
+            Some(&upper),
+            &weights,
+            t0,
+            warm,
+            Some(fixed),
+        )
+    };
+    // the pseudo-jerk LP's rows lazily too; the acceleration rows it took in
+    // are where the sequence's LPs start
+    let mut lazy = LazyRows {
+        points: lp.points.len(),
+        taken: tags.iter().map(|&(_, bit)| bit == Q_ROW || bit == 0).collect(),
+    };
+    let pseudo = lazy.solve(&rows, &tags, None, &solve_all)?;
+    let mut seed = vec![Q_ROW; lp.points.len()];
+    for (&(i, bit), _) in tags.iter().zip(&lazy.taken).filter(|(_, &t)| t) {
+        if let Some(m) = seed.get_mut(i as usize) {
+            *m |= bit;
+        }
+    }
     let qbar0: Vec<f64> = lp
         .points
         .iter()
@@ -679,6 +706,7 @@ pub(crate) fn solve_window_until(
         cfg,
         Some(Window {
             fixed,
+            seed,
             qbar0,
             free_weight,
             judge_hi,
@@ -689,6 +717,106 @@ pub(crate) fn solve_window_until(
     plan.lps.insert(0, pseudo.stats);
     plan.chosen += 1;
     Ok(plan)
+}
+
+/// Solves an LP on the given rows, from a warm start when given.
+type SolveRows<'a> = dyn Fn(&[Row], Option<&[f64]>) -> Result<LpSolution, LpError> + 'a;
+
+/// A row left out of a window's LP joins it when the LP's solution comes
+/// within this fraction of its right-hand side (or breaks it).
+const LAZY_MARGIN: f64 = 0.05;
+
+/// A row that joins a window's LP brings the rows of its kind and sign at
+/// this many check points on either side (the solution moves along the
+/// path between solves: fewer solves).
+const LAZY_SPREAD: usize = 10;
+
+/// Solves after which a window's LP takes every row it has not yet taken.
+const LAZY_ROUNDS: usize = 8;
+
+/// A window's LP over every row at every check point, solved on the rows
+/// that matter (cutting planes): it starts with the rows it took in before
+/// (at first the q ≤ q̄ rows and the acceleration rows the pseudo-jerk LP
+/// took in), and the rows its solution comes near or breaks
+/// ([`LAZY_MARGIN`], [`LAZY_SPREAD`]) join it before it is solved again
+/// from that solution, until its solution holds every row. A subset of rows
+/// relaxes the LP, so the solution that holds them all is the whole LP's
+/// (to the solver's tolerance), and an infeasible subset means an
+/// infeasible LP. A window of the 11 m meander at 200/150 mm holds ~26,000
+/// rows (both signs of eight kinds at ~1,550 check points) of which its LPs
+/// take in ~5,000–7,000, the first LP in 3–5 solves, the later ones mostly
+/// in one.
+struct LazyRows {
+    /// `taken[r]`: row r of the LP is in the solved subset.
+    taken: Vec<bool>,
+    /// Check points.
+    points: usize,
+}
+
+impl LazyRows {
+    /// Solve the LP of `rows` (`tags[r]`: its check point and mask bit, see
+    /// `solve_with`) by `solve` on the rows taken, taking in more until the
+    /// solution holds every row.
+    fn solve(
+        &mut self,
+        rows: &[Row],
+        tags: &[(u32, u32)],
+        warm: Option<&[f64]>,
+        solve: &SolveRows,
+    ) -> Result<LpSolution, LpError> {
+        self.taken.resize(rows.len(), true);
+        let mut warm = warm.map(<[f64]>::to_vec);
+        let mut iterations = 0;
+        let mut round = 0;
+        loop {
+            if round == LAZY_ROUNDS {
+                self.taken.iter_mut().for_each(|t| *t = true);
+            }
+            round += 1;
+            let sub: Vec<Row> = rows
+                .iter()
+                .zip(&self.taken)
+                .filter(|(_, &t)| t)
+                .map(|(r, _)| *r)
+                .collect();
+            let mut sol = solve(&sub, warm.as_deref()).map_err(|mut e| {
+                e.iterations += iterations;
+                e
+            })?;
+            iterations += sol.stats.iterations;
+            // the rows to take in, as mask bits by check point
+            let mut want = vec![0u32; self.points];
+            let mut added = false;
+            for ((r, t), &(i, bit)) in rows.iter().zip(&self.taken).zip(tags) {
+                if !*t && row_value(r, &sol.ctrl) >= r.rhs - LAZY_MARGIN * r.rhs.abs() {
+                    added = true;
+                    let i = i as usize;
+                    let near = i.saturating_sub(LAZY_SPREAD)..(i + LAZY_SPREAD + 1).min(self.points);
+                    if let Some(w) = want.get_mut(near) {
+                        w.iter_mut().for_each(|w| *w |= bit);
+                    }
+                }
+            }
+            if !added {
+                sol.stats.iterations = iterations;
+                return Ok(sol);
+            }
+            // (the rows tagged with no check point are taken from the start)
+            for (t, &(i, bit)) in self.taken.iter_mut().zip(tags) {
+                *t |= want.get(i as usize).is_some_and(|w| w & bit != 0);
+            }
+            warm = Some(sol.ctrl);
+        }
+    }
+}
+
+/// Σ val·ctrl of a row.
+fn row_value(r: &Row, ctrl: &[f64]) -> f64 {
+    r.idx
+        .iter()
+        .zip(&r.val)
+        .map(|(&i, &v)| v * ctrl.get(i).copied().unwrap_or(0.0))
+        .sum()
 }
 
 /// ∫ds/√q of `ctrl` over the knot spans holding the check points of `lp`.
@@ -737,10 +865,15 @@ fn solve_with(
         Some(w) => w.qbar0.iter().zip(&qmax).map(|(&q, &m)| q.min(m)).collect(),
     };
     // Row masks: bit 2k = +row of KINDS[k], bit 2k+1 = −row, bit 16 = the q ≤ q̄ row.
+    // A window's LPs hold every row (see `LazyRows`): its mask is the rows
+    // each LP starts with, the q ≤ q̄ rows at first.
+    let lazy = win.is_some();
     let mut mask: Vec<u32> = match &win {
         None => is_knot.iter().map(|&k| if k { KNOT_ROWS } else { 0 }).collect(),
-        Some(_) => vec![Q_ROW | 0xffff; pts.len()],
+        Some(w) => w.seed.clone(),
     };
+    // which row of `rows` is which: (check point, mask bit); the caps' rows (u32::MAX, 0)
+    let mut tags: Vec<(u32, u32)> = Vec::new();
     // the control-point bound a_i ≤ v̄² makes the feed (11) hold everywhere (convex hull)
     let upper = control_upper(lp);
     let floor = (FLOOR_FEED_REL * lim.vbar).powi(2);
@@ -844,26 +977,32 @@ fn solve_with(
         }
         let t0 = Instant::now();
         rows.clear();
+        tags.clear();
         rows.extend(cap_rows.iter().zip(&cap_margin).map(|(r, &m)| Row {
             rhs: r.rhs * (1.0 - m),
             ..*r
         }));
+        tags.resize(rows.len(), (u32::MAX, 0));
         for (i, p) in pts.iter().enumerate() {
+            let tag = |bit: u32| (i as u32, bit);
             if !executed[i] {
                 // q inside an end segment is not executed, but it is in the
                 // table: keep it under the feed limit at the knots
                 if is_knot[i] {
                     rows.push(Row::q_at(&p.basis, qmax[i]));
+                    tags.push((u32::MAX, 0));
                 }
                 continue;
             }
-            if mask[i] == 0 {
+            let built = if lazy { Q_ROW | 0xffff } else { mask[i] };
+            if built == 0 {
                 continue;
             }
             rows.push(Row::q_at(&p.basis, qbar[i]));
+            tags.push(tag(Q_ROW));
             let sq = qbar[i].sqrt();
             for (k, &kind) in KINDS.iter().enumerate() {
-                let m = (mask[i] >> (2 * k)) & 3;
+                let m = (built >> (2 * k)) & 3;
                 if m == 0 || (matches!(kind, RowKind::Jerk(_) | RowKind::TJerk) && sq <= 0.0) {
                     continue;
                 }
@@ -892,6 +1031,7 @@ fn solve_with(
                             idx: r.idx,
                             rhs,
                         });
+                        tags.push(tag(1 << (2 * k)));
                     }
                     if m & 2 != 0 {
                         rows.push(Row {
@@ -899,17 +1039,20 @@ fn solve_with(
                             idx: r.idx,
                             rhs,
                         });
+                        tags.push(tag(2 << (2 * k)));
                     }
                     continue;
                 }
                 if m & 1 != 0 {
                     rows.push(r);
+                    tags.push(tag(1 << (2 * k)));
                 }
                 if m & 2 != 0 {
                     rows.push(Row {
                         val: r.val.map(|c| -c),
                         ..r
                     });
+                    tags.push(tag(2 << (2 * k)));
                 }
             }
         }
@@ -986,7 +1129,7 @@ fn solve_with(
         let mut retries = 0;
         let mut retry_its = 0;
         let mut broken: Option<crate::lp::problem::LpSolution> = None;
-        let solve = |rows: &[Row], warm: Option<&[f64]>| {
+        let solve_all = |rows: &[Row], warm: Option<&[f64]>| {
             lp.solve_rows(
                 Stage::Linearised,
                 rows,
@@ -996,6 +1139,17 @@ fn solve_with(
                 warm,
                 win.as_ref().map(|w| w.fixed),
             )
+        };
+        let mut lazy_rows = LazyRows {
+            points: pts.len(),
+            taken: tags
+                .iter()
+                .map(|&(i, bit)| !lazy || mask.get(i as usize).is_none_or(|m| m & bit != 0))
+                .collect(),
+        };
+        let mut solve = |rows: &[Row], warm: Option<&[f64]>| match lazy {
+            true => lazy_rows.solve(rows, &tags, warm, &solve_all),
+            false => solve_all(rows, warm),
         };
         let sol = loop {
             let sol = solve(&rows, warm.as_deref());
@@ -1039,6 +1193,12 @@ fn solve_with(
                 other => break other,
             }
         };
+        // the rows a window's LP took in stay for the next LPs
+        for (&(i, bit), _) in tags.iter().zip(&lazy_rows.taken).filter(|(_, &t)| lazy && t) {
+            if let Some(m) = mask.get_mut(i as usize) {
+                *m |= bit;
+            }
+        }
         let sol = sol.map(|mut s| {
             s.stats.iterations += retry_its;
             // retries spent: the next LP holds the caps this one still breaks tighter

@@ -36,7 +36,8 @@
 //! Butterfly 4.4 %, its LP 1 dipping before the climb). Rows entering by
 //! activity as in the whole path's sequence would cost 12 % of machining
 //! time on the Butterfly at 120/40 mm; every row is in every LP, as in an
-//! override window. Refinement
+//! override window, solved on the rows that matter (`trust_region`'s lazy
+//! rows: the same LP). Refinement
 //! rounds run on the window's own dense re-evaluation points as the whole
 //! plan's do (points over [`REFINE_TRIGGER`], the peaks beside them and the
 //! hidden peaks become check points; the forced points past the commit carry
@@ -92,13 +93,23 @@ pub(crate) struct WindowStart<'a> {
 }
 
 /// The windows' LPs stop at a duality gap this many times looser
-/// (`SolverSettings::gap_loosening`): on the 11 m meander at 200/150 mm,
+/// (`SolverSettings::gap_loosening`). With every row in every LP (before
+/// the windows took their rows lazily), on the 11 m meander at 200/150 mm:
 /// 1 → 8.7 s of windows and 73.118 s of machining, 1,000 → 6.3 s and
 /// 73.125 s, 3,000 → 5.2 s and 73.151 s, 10,000 → 4.4 s and 73.232 s,
-/// 100,000 → 2.9 s and 74.44 s (+1.8 % on the whole path's plan); the
-/// Butterfly at 120/40 mm: 1.04 s and 5.8099 s at 1, 0.92 s and 5.8151 s at
-/// 3,000 (docs/streaming-design.md).
-pub const WINDOW_GAP_LOOSENING: f64 = 3000.0;
+/// 100,000 → 2.9 s and 74.44 s (docs/streaming-design.md). With lazy rows
+/// (`crate::lp::trust_region`) a tighter gap costs less: the meander took
+/// 1.19 s at 100, 1.28 s at 300, 1.39 s at 1,000, 1.51 s at 3,000 (73.147,
+/// 73.152, 73.160, 73.201 s of machining). The committed state a tighter
+/// LP leaves sits closer to the limits, and the next window's first LP can
+/// then find no plan: on the five built-in curves in windows of 40–400 mm
+/// committing 15–150 mm (165 plans), 10 failed at 100 and 300, 8 at 1,000,
+/// 6 at 3,000 (every failure in windows of 40 or 60 mm; before the lazy
+/// rows, at 3,000, 6 failed, one of them at 100/60). At 3,000 the
+/// Butterfly at 60/20 mm came out 3.2 % slower than its whole plan and 20
+/// plans more than 1 % slower than before; at 1,000 two (by 1.4 and 2.0 %),
+/// and the machining times 0.4 % shorter in the geometric mean.
+pub const WINDOW_GAP_LOOSENING: f64 = 1000.0;
 
 /// What a window evaluates of the path before its LPs
 /// ([`LpStage::solve_windowed`]): its reach in knots, its commit and the
@@ -434,6 +445,7 @@ impl LpStage<'_> {
                     crate::feed_override::config::WINDOW_BANDED_MAX_ITER.min(cfg.solver.max_iter),
                 ),
                 gap_loosening: WINDOW_GAP_LOOSENING,
+                parallel_rows: crate::lp::banded_ipm::PAR_ROWS_SMALL,
                 ..cfg.solver
             };
             let base_lp = FeedLp {
