@@ -1334,13 +1334,12 @@ fn stream_through<const Q: usize, const P: usize>(
             ))
         )));
     }
+    // the windows asked for, else the base configuration's
     let mut cfg = PlanConfig {
         servo_period_s: o.period_s,
+        windows: o.windows.or(base.windows),
         ..base.clone()
     };
-    if let Some(wc) = o.windows {
-        cfg.windows = Some(wc);
-    }
     let opts = ChunkOptions {
         chunk_mm: o.chunk_mm,
         u_form: o.u_form,
