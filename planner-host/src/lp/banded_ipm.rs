@@ -166,6 +166,9 @@ struct RowSums {
     aty: Vec<f64>,
     normal: Vec<[f64; W]>,
     rp_n: f64,
+    /// ‖y‖∞ and bᵀy over the chunk's rows (the Farkas test).
+    y_n: f64,
+    by: f64,
 }
 
 /// What a Newton direction reads: the rows, their chunks, the residuals,
@@ -362,11 +365,14 @@ fn solve_in_chunks(
                 let mut aty = vec![0.0; c.hi - c.lo];
                 let mut normal = vec![[0.0; W]; c.hi - c.lo];
                 let mut rp_n = 0.0f64;
+                let (mut y_n, mut by) = (0.0f64, 0.0);
                 for (k, (rpi, is)) in rp.iter_mut().zip(inv_s.iter_mut()).enumerate() {
                     let i = c.start + k;
                     let r = &rows[i];
                     *rpi = row_dot(r, &x) + s[i] - b[i];
                     rp_n = rp_n.max(rpi.abs());
+                    y_n = y_n.max(y[i].abs());
+                    by += b[i] * y[i];
                     let f = r.first - c.lo;
                     let w = &mut aty[f..f + W];
                     for j in 0..W {
@@ -383,15 +389,24 @@ fn solve_in_chunks(
                         }
                     }
                 }
-                RowSums { aty, normal, rp_n }
+                RowSums {
+                    aty,
+                    normal,
+                    rp_n,
+                    y_n,
+                    by,
+                }
             })
             .collect();
         let mut rp_n = 0.0f64;
+        let (mut y_n, mut by) = (0.0f64, 0.0);
         for (c, part) in chunks.iter().zip(&parts) {
             for (o, v) in rd[c.lo..c.hi].iter_mut().zip(&part.aty) {
                 *o += v;
             }
             rp_n = rp_n.max(part.rp_n);
+            y_n = y_n.max(part.y_n);
+            by += part.by;
         }
         for (c, part) in chunks.iter().zip(&parts) {
             for (o, v) in band[c.lo..c.hi].iter_mut().zip(&part.normal) {
@@ -415,8 +430,6 @@ fn solve_in_chunks(
         }
         let gap = mu * m as f64;
         // a Farkas certificate: y ≥ 0 (always, in the interior), Aᵀy ≈ 0, bᵀy < 0
-        let y_n = y.iter().fold(0.0f64, |a, v| a.max(v.abs()));
-        let by: f64 = b.iter().zip(&y).map(|(a, b)| a * b).sum();
         if debug {
             eprintln!(
                 "  it {it}: rp {rp_n:.2e} rd {rd_n:.2e} aty {aty_n:.2e} gap {gap:.2e} pobj {pobj:.6e} |y| {y_n:.2e} by/|y| {:.2e}",
