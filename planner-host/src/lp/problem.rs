@@ -251,10 +251,10 @@ pub struct SolverSettings {
     /// the windows of windowed planning (`crate::plan::windowed`).
     pub gap_loosening: f64,
     /// LPs of at least this many rows run the banded solver's passes over
-    /// the rows on both cores ([`crate::lp::banded_ipm::PAR_ROWS`] but in
-    /// the windows of windowed planning, whose lazily taken rows are fewer:
-    /// [`crate::lp::banded_ipm::PAR_ROWS_SMALL`]). The sums' order depends
-    /// on it, not on the threads.
+    /// the rows on both cores (32,768, `banded_ipm::PAR_ROWS`, but in the
+    /// windows of windowed planning, whose lazily taken rows are fewer:
+    /// 2,048, `banded_ipm::PAR_ROWS_SMALL`). The sums' order depends on it,
+    /// not on the threads.
     pub parallel_rows: usize,
 }
 
