@@ -207,6 +207,16 @@ impl Row {
             rhs,
         }
     }
+
+    /// Σ val·ctrl, the row's left-hand side at the control points `ctrl`
+    /// (one past its end counts as 0).
+    pub(crate) fn value(&self, ctrl: &[f64]) -> f64 {
+        self.idx
+            .iter()
+            .zip(&self.val)
+            .map(|(&i, &v)| v * ctrl.get(i).copied().unwrap_or(0.0))
+            .sum()
+    }
 }
 
 /// One kind of linear limit row at a point (one sign; the caller negates).

@@ -430,12 +430,7 @@ const ROW_VIOLATION: f64 = 1e-2;
 fn row_violation(rows: &[Row], ctrl: &[f64]) -> f64 {
     rows.iter()
         .map(|r| {
-            let v: f64 = r
-                .idx
-                .iter()
-                .zip(&r.val)
-                .map(|(&i, &v)| v * ctrl.get(i).copied().unwrap_or(0.0))
-                .sum();
+            let v = r.value(ctrl);
             let norm = if r.rhs != 0.0 { r.rhs.abs() } else { 1.0 };
             (v - r.rhs) / norm
         })
@@ -444,13 +439,7 @@ fn row_violation(rows: &[Row], ctrl: &[f64]) -> f64 {
 
 /// q(s)/q_cap of the plan `ctrl` at the row q(s) ≤ q_cap `r` of a curvature jump.
 fn cap_ratio_at(r: &Row, ctrl: &[f64]) -> f64 {
-    let q: f64 = r
-        .idx
-        .iter()
-        .zip(&r.val)
-        .map(|(&i, &v)| v * ctrl.get(i).copied().unwrap_or(0.0))
-        .sum();
-    q / r.rhs
+    r.value(ctrl) / r.rhs
 }
 
 /// The largest q(s)/q_cap of the plan `ctrl` over the rows q(s) ≤ q_cap of
@@ -788,7 +777,7 @@ impl LazyRows {
             let mut want = vec![0u32; self.points];
             let mut added = false;
             for ((r, t), &(i, bit)) in rows.iter().zip(&self.taken).zip(tags) {
-                if !*t && row_value(r, &sol.ctrl) >= r.rhs - LAZY_MARGIN * r.rhs.abs() {
+                if !*t && r.value(&sol.ctrl) >= r.rhs - LAZY_MARGIN * r.rhs.abs() {
                     added = true;
                     let i = i as usize;
                     let near = i.saturating_sub(LAZY_SPREAD)..(i + LAZY_SPREAD + 1).min(self.points);
@@ -808,15 +797,6 @@ impl LazyRows {
             warm = Some(sol.ctrl);
         }
     }
-}
-
-/// Σ val·ctrl of a row.
-fn row_value(r: &Row, ctrl: &[f64]) -> f64 {
-    r.idx
-        .iter()
-        .zip(&r.val)
-        .map(|(&i, &v)| v * ctrl.get(i).copied().unwrap_or(0.0))
-        .sum()
 }
 
 /// ∫ds/√q of `ctrl` over the knot spans holding the check points of `lp`.
