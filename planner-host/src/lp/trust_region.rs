@@ -586,7 +586,8 @@ struct Window<'w> {
 /// min(q̂, q_ref) removed all of those failures. Every row is in every LP
 /// (a window is small), the trust region grows each point's q̄ by its free
 /// weight Σ_{j free} N_j only, and an LP that fails after an accepted
-/// iterate ends the sequence. A window is judged by its own time (∫ds/√q over
+/// iterate is solved again in a trust region shrunk around the same
+/// iterate, down to ρ_min, after which the sequence ends. A window is judged by its own time (∫ds/√q over
 /// its spans) and stops at the first accepted iterate that gains less than
 /// `stop_rel` on the best. Errors: the pseudo-jerk LP (the window cannot be
 /// feasible) or no iterate held every limit at every check point to 1 + `tol`.
@@ -597,7 +598,27 @@ pub fn solve_window(
     fixed: &[Option<f64>],
     reference: Option<&[f64]>,
 ) -> Result<CertifiedPlan, LpError> {
-    solve_window_until(lp, caps, cfg, fixed, reference, None)
+    solve_window_until(lp, caps, cfg, fixed, WindowStart::Pseudo(reference), None)
+}
+
+/// Where a window's first LP is linearised ([`solve_window_until`]).
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum WindowStart<'a> {
+    /// At q̄₀ = min(q̂, q_ref): the pseudo-jerk LP's plan q̂, capped by the
+    /// spline q_ref of these control points when given (see
+    /// [`solve_window`]).
+    Pseudo(Option<&'a [f64]>),
+    /// At a plan P (control points on the window's columns) that holds
+    /// every limit and meets the window's fixed control points: the window
+    /// before's plan, brake to rest included. q̄₀ = (1 + ρ_min)·P where P > 0
+    /// (at least ρ_min/20 of q_max: the tangent rows of J/√q̄ stay bounded
+    /// where P comes to rest), q̂ where P vanishes (past its end). The tangent
+    /// jerk rows lose only to second order in q̄/P − 1 at q = P (their bound
+    /// (3/2 − q/(2q̄))/√q̄ is largest at q̄ = q), so P, where its jerk binds
+    /// to a part in 10⁴, is a point of the first LP: a window whose first LP
+    /// at min(q̂, q_ref) has no solution is solved from here
+    /// ([`crate::plan::windowed`]).
+    Through(&'a [f64]),
 }
 
 /// [`solve_window`], the window judged by its time up to `judge_hi` (a
@@ -611,7 +632,7 @@ pub(crate) fn solve_window_until(
     caps: &[JumpCap],
     cfg: &CertifiedConfig,
     fixed: &[Option<f64>],
-    reference: Option<&[f64]>,
+    start: WindowStart<'_>,
     judge_hi: Option<f64>,
 ) -> Result<CertifiedPlan, LpError> {
     let t0 = Instant::now();
@@ -659,7 +680,17 @@ pub(crate) fn solve_window_until(
         taken: tags.iter().map(|&(_, bit)| bit == Q_ROW || bit == 0).collect(),
     };
     let pseudo = lazy.solve(&rows, &tags, None, &solve_all)?;
-    let mut seed = vec![Q_ROW; lp.points.len()];
+    // and the jerk rows at the knots, where a window's jerk rows bind most
+    // (the 11 m meander at 200/150 mm: its windows' LPs 1.39–1.48 →
+    // 1.04–1.10 s, fewer solves as the rows come in)
+    let mut seed: Vec<u32> = lp
+        .points
+        .iter()
+        .map(|p| match lp.knots.binary_search_by(|k| k.total_cmp(&p.s)) {
+            Ok(_) => KNOT_ROWS,
+            Err(_) => Q_ROW,
+        })
+        .collect();
     for (&(i, bit), _) in tags.iter().zip(&lazy.taken).filter(|(_, &t)| t) {
         if let Some(m) = seed.get_mut(i as usize) {
             *m |= bit;
@@ -670,9 +701,13 @@ pub(crate) fn solve_window_until(
         .iter()
         .map(|p| {
             let qh = p.basis.apply(0, &pseudo.ctrl).max(0.0);
-            match reference {
-                Some(r) => qh.min(p.basis.apply(0, r).max(0.0)),
-                _ => qh,
+            match start {
+                WindowStart::Pseudo(Some(r)) => qh.min(p.basis.apply(0, r).max(0.0)),
+                WindowStart::Pseudo(None) => qh,
+                WindowStart::Through(plan) => match p.basis.apply(0, plan).max(0.0) {
+                    q if q > 0.0 => (q * (1.0 + cfg.rho_min)).max(cfg.rho_min * 0.05 * lp.q_max(p)),
+                    _ => qh,
+                },
             }
         })
         .collect();
@@ -708,6 +743,17 @@ pub(crate) fn solve_window_until(
     Ok(plan)
 }
 
+/// A window's next linearisation point around its iterate `q` (at the
+/// check points): q̄ = min(q_max, q + max(ρ·q, ρ/20·q_max)·w), the growth
+/// by the free weight w of each point (see [`solve_window`]).
+fn grow_window_qbar(qbar: &mut [f64], q: &[f64], qmax: &[f64], free_weight: &[f64], rho: f64) {
+    let delta = rho * 0.05;
+    for (i, qb) in qbar.iter_mut().enumerate() {
+        let grow = (q[i] * rho).max(delta * qmax[i]) * free_weight[i];
+        *qb = qmax[i].min(q[i] + grow);
+    }
+}
+
 /// Solves an LP on the given rows, from a warm start when given.
 type SolveRows<'a> = dyn Fn(&[Row], Option<&[f64]>) -> Result<LpSolution, LpError> + 'a;
 
@@ -725,8 +771,8 @@ const LAZY_ROUNDS: usize = 8;
 
 /// A window's LP over every row at every check point, solved on the rows
 /// that matter (cutting planes): it starts with the rows it took in before
-/// (at first the q ≤ q̄ rows and the acceleration rows the pseudo-jerk LP
-/// took in), and the rows its solution comes near or breaks
+/// (at first the q ≤ q̄ rows, the acceleration rows the pseudo-jerk LP
+/// took in and the jerk rows at the knots), and the rows its solution comes near or breaks
 /// ([`LAZY_MARGIN`], [`LAZY_SPREAD`]) join it before it is solved again
 /// from that solution, until its solution holds every row. A subset of rows
 /// relaxes the LP, so the solution that holds them all is the whole LP's
@@ -1188,8 +1234,20 @@ fn solve_with(
         let sol = match sol {
             Ok(s) => s,
             // a window LP linearised around an accepted iterate may be
-            // infeasible next to the fixed ends: keep the best
-            Err(_) if win.is_some() && best.is_some() => break,
+            // infeasible next to the fixed ends: again around the same
+            // iterate in a trust region shrunk as after an LP, until ρ_min,
+            // then keep the best (where a window brakes from its join state
+            // with the jerk binding, only q̄ ≈ q holds its rows: a window
+            // started from the plan before, `WindowStart::Through`, failed
+            // its second LP at ρ₀ and kept its first, slow, iterate)
+            Err(_) if win.is_some() && best.is_some() => match (&win, &qk) {
+                (Some(w), Some(q)) if rho > cfg.rho_min * 1.0001 => {
+                    grow_window_qbar(&mut qbar, q, &qmax, &w.free_weight, rho);
+                    rho = (rho * cfg.rho_shrink).max(cfg.rho_min);
+                    continue;
+                }
+                _ => break,
+            },
             Err(e) => return Err(e),
         };
         lps.push(sol.stats);
@@ -1304,12 +1362,7 @@ fn solve_with(
                     qbar[i] = qmax[i].min((q_now[i] * (1.0 + rho)).max(q_now[i] + delta * qmax[i]));
                 }
             }
-            Some(w) => {
-                for i in 0..pts.len() {
-                    let grow = (q_now[i] * rho).max(delta * qmax[i]) * w.free_weight[i];
-                    qbar[i] = qmax[i].min(q_now[i] + grow);
-                }
-            }
+            Some(w) => grow_window_qbar(&mut qbar, &q_now, &qmax, &w.free_weight, rho),
         }
         qk = Some(q_now);
         rho = (rho * cfg.rho_shrink).max(cfg.rho_min);

@@ -213,6 +213,13 @@ impl PlanOutput {
                 w.max_window_s * 1e3,
                 w.windows_s * 1e3
             );
+            if w.from_plan_before > 0 {
+                let _ = writeln!(
+                    o,
+                    "  {} window(s) had no first plan linearised at the pseudo-jerk LP's and were solved from the window before's plan",
+                    w.from_plan_before
+                );
+            }
         }
         for lp in self.lp.iter().filter(|_| self.windows.is_none()) {
             let _ = writeln!(
@@ -293,4 +300,8 @@ pub struct WindowStats {
     pub windows_s: f64,
     /// Path committed by the first window, mm.
     pub first_commit_mm: f64,
+    /// Windows whose first LP, linearised at the pseudo-jerk plan, had no
+    /// solution and that were solved from the window before's plan instead
+    /// (`crate::lp::trust_region::WindowStart::Through`).
+    pub from_plan_before: usize,
 }
