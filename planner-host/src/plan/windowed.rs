@@ -109,11 +109,26 @@ pub(crate) struct WindowStart<'a> {
 /// then find no plan: on the five built-in curves in windows of 40–400 mm
 /// committing 15–150 mm (165 plans), 10 failed at 100 and 300, 8 at 1,000,
 /// 6 at 3,000 (every failure in windows of 40 or 60 mm; before the lazy
-/// rows, at 3,000, 6 failed, one of them at 100/60). At 3,000 the
+/// rows, at 3,000, 6 failed, one of them at 100/60; since such windows
+/// are solved from the window before's plan, none fail). At 3,000 the
 /// Butterfly at 60/20 mm came out 3.2 % slower than its whole plan and 20
 /// plans more than 1 % slower than before; at 1,000 two (by 1.4 and 2.0 %),
 /// and the machining times 0.4 % shorter in the geometric mean.
 pub const WINDOW_GAP_LOOSENING: f64 = 1000.0;
+
+/// The plan of the window before, as the next window starts from it
+/// ([`LpStage::solve_windowed`]).
+struct Before {
+    /// Its first column.
+    first: usize,
+    /// Its control points from `first` on.
+    ctrl: Vec<f64>,
+    /// The column from which the next window's first linearisation point
+    /// is q̂ alone, not min(q̂, this plan).
+    reach: usize,
+    /// A window's plan (at rest at its end), not a replan's running plan.
+    window: bool,
+}
 
 /// What a window evaluates of the path before its LPs
 /// ([`LpStage::solve_windowed`]): its reach in knots, its commit and the
@@ -245,12 +260,18 @@ impl LpStage<'_> {
         let stop_first = end_rows.and_then(|e| join(e.stop.s)).map_or(n - 1, |j| j.0);
         let knot_at = |s: f64| knots.partition_point(|&u| u < s);
         let mut committed = vec![0.0; n];
-        // the window before's plan from its first column on, the first
-        // linearisation point (f64::MAX beyond it: q̂ alone)
-        let mut prev: (usize, Vec<f64>) = (0, Vec::new());
-        // the window before's plan whole, brake to rest included (its
-        // first column, its control points)
-        let mut before: (usize, Vec<f64>) = (0, Vec::new());
+        // the window before's plan (its control points from its first
+        // column on, brake to rest included): the first linearisation point
+        // is min(q̂, q_ref), q_ref this plan's control points before `reach`
+        // (f64::MAX from there: q̂ alone); a replan's running plan reaches
+        // everywhere but is no window's plan (`window`: a window can be
+        // solved again from it)
+        let mut prev = Before {
+            first: 0,
+            ctrl: Vec::new(),
+            reach: usize::MAX,
+            window: false,
+        };
         // forced check points the window before found past its commit
         let mut carried: Vec<EvalPoint> = Vec::new();
         let mut i_l = 0usize;
@@ -278,7 +299,7 @@ impl LpStage<'_> {
             committed[..=st.through].copy_from_slice(&st.ctrl[..=st.through]);
             i_l = st.through;
             // the first linearisation point: min(q̂, the running plan)
-            prev = (0, st.ctrl.to_vec());
+            prev.ctrl = st.ctrl.to_vec();
         }
         let mut stats = WindowStats::default();
         let mut lps: Vec<LpStats> = Vec::new();
@@ -428,12 +449,11 @@ impl LpStage<'_> {
                 })
                 .collect();
             let prev_l: Vec<f64> = (c0..=c1)
-                .map(|i| {
-                    i.checked_sub(prev.0)
-                        .and_then(|k| prev.1.get(k))
-                        .copied()
-                        .unwrap_or(f64::MAX)
+                .map(|i| match i < prev.reach {
+                    true => i.checked_sub(prev.first).and_then(|k| prev.ctrl.get(k)).copied(),
+                    false => None,
                 })
+                .map(|a| a.unwrap_or(f64::MAX))
                 .collect();
             let shift = |p: &EvalPoint, to_local: bool| {
                 let mut p = *p;
@@ -487,11 +507,11 @@ impl LpStage<'_> {
             // (195 layouts), 10 failed so, all in windows of 40 or 60 mm;
             // solved again from here all 10 plan.
             let from_before = || -> Option<Vec<f64>> {
-                (!before.1.is_empty()).then(|| {
+                prev.window.then(|| {
                     (c0..=c1)
-                        .map(|i| match i.checked_sub(before.0) {
+                        .map(|i| match i.checked_sub(prev.first) {
                             None => committed[i],
-                            Some(k) => before.1.get(k).copied().unwrap_or(0.0),
+                            Some(k) => prev.ctrl.get(k).copied().unwrap_or(0.0),
                         })
                         .collect()
                 })
@@ -636,11 +656,12 @@ impl LpStage<'_> {
             // the next window's first linearisation point: this plan up to
             // halfway between its commit and its end (before its braking),
             // q̂ beyond
-            before = (c0, plan.ctrl.clone());
-            prev = (c0, plan.ctrl);
-            for x in prev.1.iter_mut().skip(((i_c + i_m) / 2).saturating_sub(c0)) {
-                *x = f64::MAX;
-            }
+            prev = Before {
+                first: c0,
+                ctrl: plan.ctrl,
+                reach: (i_c + i_m) / 2,
+                window: true,
+            };
             stats.windows += 1;
             if stats.windows == 1 {
                 stats.first_window_s = dt;
