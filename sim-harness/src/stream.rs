@@ -1111,6 +1111,16 @@ pub struct StreamReport {
     pub first_motion_ms: f64,
     /// Machining time over planning time.
     pub plan_realtime_factor: f64,
+    /// Machining time over the host's time to have every chunk ready to
+    /// send, planned and with its hold point ([`StreamReport::host_s`]):
+    /// the host's streaming throughput, of which the hold-point search can
+    /// be the slower half.
+    pub host_realtime_factor: f64,
+    /// The host's time to have every chunk ready, s: windows, the later of
+    /// the planning and the hold-point search (both from the start of
+    /// planning, side by side); the whole path, their sum (the search after
+    /// the plan).
+    pub host_s: f64,
     /// Chunks sent.
     pub chunks: usize,
     /// Framed bytes per mm of path.
@@ -1489,6 +1499,10 @@ fn stream_through<const Q: usize, const P: usize>(
     }
     let rep = checker.finish().map_err(|e| StreamError::Check(e.to_string()))?;
     let machining_time_s = last_t_s;
+    let host_s = match out.windows {
+        Some(_) => plan_s.max(hold_points_s),
+        None => plan_s + hold_points_s,
+    };
     let r = &rep.ratios;
     Ok(StreamReport {
         schema_version: 1,
@@ -1498,6 +1512,8 @@ fn stream_through<const Q: usize, const P: usize>(
         hold_points_s,
         first_motion_ms: run.first_motion_s * 1e3,
         plan_realtime_factor: machining_time_s / plan_s,
+        host_realtime_factor: machining_time_s / host_s,
+        host_s,
         chunks: run.chunks,
         bytes_per_mm: run.framed_bytes as f64 / out.path_length_mm,
         u_form: o.u_form,

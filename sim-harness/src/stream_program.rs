@@ -97,6 +97,10 @@ pub struct ProgramStreamReport {
     pub waits_ms: f64,
     /// Machining time over planning time.
     pub plan_realtime_factor: f64,
+    /// Machining time over the host's time to have every path's chunks
+    /// ready, planned and with their hold points (the paths'
+    /// [`crate::stream::StreamReport::host_s`] summed).
+    pub host_realtime_factor: f64,
     /// Chunks sent.
     pub chunks: usize,
     /// Framed bytes per mm of path.
@@ -189,6 +193,7 @@ pub fn stream_program(
         first_motion_ms: 0.0,
         waits_ms: 0.0,
         plan_realtime_factor: 0.0,
+        host_realtime_factor: 0.0,
         chunks: 0,
         bytes_per_mm: 0.0,
         u_form: o.u_form,
@@ -208,6 +213,8 @@ pub fn stream_program(
         path: vec![],
     };
     let mut framed_bytes = 0.0;
+    // the host's time to have the paths' chunks ready, path after path
+    let mut ready_s = 0.0f64;
     let mut failed: Option<StreamError> = None;
     let mut i = 0usize;
     let mut each = |p: Path| -> Result<(), StreamError> {
@@ -248,6 +255,7 @@ pub fn stream_program(
         }
         sum.length_mm += rep.length_mm;
         sum.plan_s += rep.plan_s;
+        ready_s += rep.host_s;
         sum.windows += rep.windows;
         sum.chunks += rep.chunks;
         framed_bytes += rep.bytes_per_mm * rep.length_mm;
@@ -292,6 +300,7 @@ pub fn stream_program(
     }
     sum.bytes_per_mm = framed_bytes / sum.length_mm;
     sum.plan_realtime_factor = sum.machining_time_s / sum.plan_s;
+    sum.host_realtime_factor = sum.machining_time_s / ready_s;
     sum.path = out;
     Ok(sum)
 }

@@ -483,6 +483,7 @@ fn stream_reports_the_streamed_run_as_json_and_refuses_bad_options() {
     for key in [
         "first_motion_ms",
         "plan_realtime_factor",
+        "host_realtime_factor",
         "bytes_per_mm",
         "ring_bytes",
         "starved_ticks",
@@ -490,6 +491,12 @@ fn stream_reports_the_streamed_run_as_json_and_refuses_bad_options() {
     ] {
         assert!(v[key].as_f64().is_some_and(|x| x >= 0.0), "{key}: {v}");
     }
+    // the host's time with its hold points is at least its planning time
+    let (plan, host) = (
+        v["plan_realtime_factor"].as_f64().unwrap(),
+        v["host_realtime_factor"].as_f64().unwrap(),
+    );
+    assert!(host > 0.0 && host <= plan, "host {host}, planning {plan}");
     for key in ["vel", "acc", "jerk", "feed", "tacc", "tjerk"] {
         let r = v["ratios"][key].as_f64().unwrap();
         assert!(r > 0.0 && r <= 1.01, "ratio {key} {r}");

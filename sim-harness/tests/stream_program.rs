@@ -144,6 +144,7 @@ fn feedsim_streams_a_program_and_refuses_what_does_not_fit() {
     for key in [
         "first_motion_ms",
         "plan_realtime_factor",
+        "host_realtime_factor",
         "bytes_per_mm",
         "ring_bytes",
         "starved_ticks",
