@@ -327,6 +327,36 @@ fn stream_in_windows_sends_while_planning_and_holds_every_limit() {
     assert!(v["machining_time_s"].as_f64().unwrap() >= v["planned_time_s"].as_f64().unwrap() - 1e-3);
 }
 
+/// The Fan streamed in windows of 40 mm committing 30, shorter than a brake
+/// from its feed: some windows find no first plan from the pseudo-jerk LP
+/// and are solved from the window before's plan (before, the stream stopped
+/// with `window 2 (from s = 66.106 mm)`); the run holds every limit on the
+/// setpoints and runs the whole plan.
+#[test]
+fn stream_in_windows_shorter_than_a_brake_plans_from_the_window_before() {
+    let out = feedsim()
+        .args([
+            "stream",
+            "fan",
+            "--window-mm",
+            "40",
+            "--commit-mm",
+            "30",
+            "--json",
+        ])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(v["windows"].as_u64().unwrap() >= 10, "{v}");
+    for key in ["vel", "acc", "jerk", "feed", "tacc", "tjerk"] {
+        let r = v["ratios"][key].as_f64().unwrap();
+        assert!(r > 0.0 && r <= 1.01, "ratio {key} {r}");
+    }
+    assert_eq!(v["check_ok"], true);
+    assert!(v["machining_time_s"].as_f64().unwrap() >= v["planned_time_s"].as_f64().unwrap() - 1e-3);
+}
+
 /// A slower host, its chunks ready three times later, and the same run
 /// replayed from the ready times it wrote: the same setpoints' outcome,
 /// starvation included; a bad factor or times file is refused.
