@@ -7,6 +7,31 @@ fn feedsim() -> Command {
     Command::new(env!("CARGO_BIN_EXE_feedsim"))
 }
 
+/// `feedsim stream ARGS --json` (ARGS split at spaces), which must succeed:
+/// its JSON.
+fn stream_json(args: &str) -> serde_json::Value {
+    let out = feedsim()
+        .arg("stream")
+        .args(args.split(' '))
+        .arg("--json")
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
+/// A streamed run's JSON: every ratio to a limit on the setpoints within
+/// 1 %, the check passed, and the motion no shorter than the plan's own
+/// time (the whole plan was run).
+fn assert_streamed_whole_within_limits(v: &serde_json::Value) {
+    for key in ["vel", "acc", "jerk", "feed", "tacc", "tjerk"] {
+        let r = v["ratios"][key].as_f64().unwrap();
+        assert!(r > 0.0 && r <= 1.01, "ratio {key} {r}");
+    }
+    assert_eq!(v["check_ok"], true);
+    assert!(v["machining_time_s"].as_f64().unwrap() >= v["planned_time_s"].as_f64().unwrap() - 1e-3);
+}
+
 fn temp_dir(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("feedsim-cli-{name}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
@@ -300,31 +325,11 @@ fn help_documents_exit_codes_and_completions_are_generated() {
 /// within every limit.
 #[test]
 fn stream_in_windows_sends_while_planning_and_holds_every_limit() {
-    let out = feedsim()
-        .args([
-            "stream",
-            "trident",
-            "--window-mm",
-            "30",
-            "--commit-mm",
-            "10",
-            "--chunk-mm",
-            "8",
-            "--json",
-        ])
-        .output()
-        .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let v = stream_json("trident --window-mm 30 --commit-mm 10 --chunk-mm 8");
     assert!(v["windows"].as_u64().unwrap() >= 2, "{v}");
     assert!(v["chunks"].as_u64().unwrap() >= 3, "{v}");
-    for key in ["vel", "acc", "jerk", "feed", "tacc", "tjerk"] {
-        let r = v["ratios"][key].as_f64().unwrap();
-        assert!(r > 0.0 && r <= 1.01, "ratio {key} {r}");
-    }
-    assert_eq!(v["check_ok"], true);
     // starved or not, the whole plan was run: no less than its own time
-    assert!(v["machining_time_s"].as_f64().unwrap() >= v["planned_time_s"].as_f64().unwrap() - 1e-3);
+    assert_streamed_whole_within_limits(&v);
 }
 
 /// The Fan streamed in windows of 40 mm committing 30, shorter than a brake
@@ -334,27 +339,9 @@ fn stream_in_windows_sends_while_planning_and_holds_every_limit() {
 /// setpoints and runs the whole plan.
 #[test]
 fn stream_in_windows_shorter_than_a_brake_plans_from_the_window_before() {
-    let out = feedsim()
-        .args([
-            "stream",
-            "fan",
-            "--window-mm",
-            "40",
-            "--commit-mm",
-            "30",
-            "--json",
-        ])
-        .output()
-        .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let v = stream_json("fan --window-mm 40 --commit-mm 30");
     assert!(v["windows"].as_u64().unwrap() >= 10, "{v}");
-    for key in ["vel", "acc", "jerk", "feed", "tacc", "tjerk"] {
-        let r = v["ratios"][key].as_f64().unwrap();
-        assert!(r > 0.0 && r <= 1.01, "ratio {key} {r}");
-    }
-    assert_eq!(v["check_ok"], true);
-    assert!(v["machining_time_s"].as_f64().unwrap() >= v["planned_time_s"].as_f64().unwrap() - 1e-3);
+    assert_streamed_whole_within_limits(&v);
 }
 
 /// A slower host, its chunks ready three times later, and the same run
@@ -527,13 +514,8 @@ fn stream_reports_the_streamed_run_as_json_and_refuses_bad_options() {
         v["host_realtime_factor"].as_f64().unwrap(),
     );
     assert!(host > 0.0 && host <= plan, "host {host}, planning {plan}");
-    for key in ["vel", "acc", "jerk", "feed", "tacc", "tjerk"] {
-        let r = v["ratios"][key].as_f64().unwrap();
-        assert!(r > 0.0 && r <= 1.01, "ratio {key} {r}");
-    }
-    assert_eq!(v["check_ok"], true);
     // the machining time is the plan's, plus what the stall's hold cost
-    assert!(v["machining_time_s"].as_f64().unwrap() >= v["planned_time_s"].as_f64().unwrap() - 1e-3);
+    assert_streamed_whole_within_limits(&v);
     // (a first window that commits past its end)
     let first_window: Vec<&str> = "stream star --window-mm 40 --commit-mm 15 --first-window 30:40"
         .split(' ')
