@@ -592,9 +592,9 @@ struct Window<'w> {
 /// weight Σ_{j free} N_j only, and an LP that fails after an accepted
 /// iterate ends the sequence (in a window started from a plan,
 /// `WindowStart::Through`, it is first solved again in a trust region
-/// shrunk around the same iterate, down to ρ_min). A window is judged by its own time (∫ds/√q over
-/// its spans) and stops at the first accepted iterate that gains less than
-/// `stop_rel` on the best. Errors: the pseudo-jerk LP (the window cannot be
+/// shrunk around the same iterate, down to ρ_min). A window is judged by
+/// its own time (∫ds/√q over its spans) and stops at the first accepted
+/// iterate that gains less than `stop_rel` on the best. Errors: the pseudo-jerk LP (the window cannot be
 /// feasible) or no iterate held every limit at every check point to 1 + `tol`.
 pub fn solve_window(
     lp: &FeedLp,
@@ -686,8 +686,8 @@ pub(crate) fn solve_window_until(
     };
     let pseudo = lazy.solve(&rows, &tags, None, &solve_all)?;
     // and the jerk rows at the knots, where a window's jerk rows bind most
-    // (the 11 m meander at 200/150 mm: its windows' LPs 1.39–1.48 →
-    // 1.04–1.10 s, fewer solves as the rows come in)
+    // (the 11 m meander at 200/150 mm: its windows 1.37–1.48 → 1.02–1.04 s,
+    // fewer solves as the rows come in)
     let mut seed: Vec<u32> = lp
         .points
         .iter()
@@ -778,8 +778,8 @@ const LAZY_ROUNDS: usize = 8;
 /// A window's LP over every row at every check point, solved on the rows
 /// that matter (cutting planes): it starts with the rows it took in before
 /// (at first the q ≤ q̄ rows, the acceleration rows the pseudo-jerk LP
-/// took in and the jerk rows at the knots), and the rows its solution comes near or breaks
-/// ([`LAZY_MARGIN`], [`LAZY_SPREAD`]) join it before it is solved again
+/// took in and the jerk rows at the knots), and the rows its solution
+/// comes near or breaks ([`LAZY_MARGIN`], [`LAZY_SPREAD`]) join it before it is solved again
 /// from that solution, until its solution holds every row. A subset of rows
 /// relaxes the LP, so the solution that holds them all is the whole LP's
 /// (to the solver's tolerance), and an infeasible subset means an
@@ -1248,8 +1248,9 @@ fn solve_with(
             // LP at ρ₀ failed, and it kept its first, slow, iterate: the
             // Butterfly at 60/40 mm +76 %). In every window this made the
             // 195 layouts of the built-in curves 0.27 % faster still in the
-            // geometric mean, but the Butterfly at 60/20 +0.8 % and three
-            // layouts more than 1 % slower than before)
+            // geometric mean, but three layouts more than 1 % slower than
+            // before, the Butterfly at 60/20 among them: +0.92 % on its
+            // whole plan, where CI allows 1 %)
             Err(_) if win.is_some() && best.is_some() => match (&win, &qk) {
                 (Some(w), Some(q)) if w.shrink && rho > cfg.rho_min * 1.0001 => {
                     grow_window_qbar(&mut qbar, q, &qmax, &w.free_weight, rho);
