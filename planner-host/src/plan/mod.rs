@@ -32,7 +32,7 @@ pub mod verify;
 pub mod windowed;
 
 pub use crate::lp::machining_time::machining_time;
-pub use atomic_write::{write_atomic, write_file_atomic};
+pub use atomic_write::{replace_with, temp_beside, write_atomic, write_file_atomic};
 pub use config::{FirstWindow, Formulation, PlanConfig, WindowConfig};
 pub use error::PlanError;
 pub use output::{LevelPlan, PlanOutput, WindowStats};

@@ -70,26 +70,20 @@ pub fn plot_feed_marked(path: &Path, p: &FeedPlot, markers: &[Marker]) -> Result
     }
     register_font()?;
     let shown = path.display().to_string();
-    let dir = path
-        .parent()
-        .filter(|d| !d.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let stem = path
-        .file_stem()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
     // the bitmap backend picks the encoder by extension: keep `.png`
-    let tmp = dir.join(format!(".{stem}.{}.tmp.png", std::process::id()));
+    let tmp = planner_host::plan::temp_beside(path, ".png");
     let result = draw(&tmp, p, markers).map_err(|message| PlotError::Draw {
         path: shown.clone(),
         message,
     });
-    let result = result
-        .and_then(|()| std::fs::rename(&tmp, path).map_err(|source| PlotError::Io { path: shown, source }));
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
+    match result {
+        Ok(()) => planner_host::plan::replace_with(&tmp, path)
+            .map_err(|source| PlotError::Io { path: shown, source }),
+        Err(e) => {
+            let _ = std::fs::remove_file(&tmp);
+            Err(e)
+        }
     }
-    result
 }
 
 fn finite(series: &[(f64, f64)]) -> impl Iterator<Item = (f64, f64)> + '_ {
