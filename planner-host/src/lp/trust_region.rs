@@ -594,8 +594,9 @@ struct Window<'w> {
 /// `WindowStart::Through`, it is first solved again in a trust region
 /// shrunk around the same iterate, down to ρ_min). A window is judged by
 /// its own time (∫ds/√q over its spans) and stops at the first accepted
-/// iterate that gains less than `stop_rel` on the best. Errors: the pseudo-jerk LP (the window cannot be
-/// feasible) or no iterate held every limit at every check point to 1 + `tol`.
+/// iterate that gains less than `stop_rel` on the best. Errors: the
+/// pseudo-jerk LP (the window cannot be feasible) or no iterate held every
+/// limit at every check point to 1 + `tol`.
 pub fn solve_window(
     lp: &FeedLp,
     caps: &[JumpCap],
@@ -779,8 +780,9 @@ const LAZY_ROUNDS: usize = 8;
 /// that matter (cutting planes): it starts with the rows it took in before
 /// (at first the q ≤ q̄ rows, the acceleration rows the pseudo-jerk LP
 /// took in and the jerk rows at the knots), and the rows its solution
-/// comes near or breaks ([`LAZY_MARGIN`], [`LAZY_SPREAD`]) join it before it is solved again
-/// from that solution, until its solution holds every row. A subset of rows
+/// comes near or breaks ([`LAZY_MARGIN`], [`LAZY_SPREAD`]) join it before
+/// it is solved again from that solution, until its solution holds every
+/// row. A subset of rows
 /// relaxes the LP, so the solution that holds them all is the whole LP's
 /// (to the solver's tolerance), and an infeasible subset means an
 /// infeasible LP. A window of the 11 m meander at 200/150 mm holds ~26,000
