@@ -328,6 +328,8 @@ fn control_upper(lp: &FeedLp) -> Vec<f64> {
 /// The static cap q̄₀ of the geometry `geo` under `limits` (see `static_cap_at`).
 pub(crate) fn static_cap(limits: &firmware_core::Limits, geo: &crate::geometry::PathDerivs) -> f64 {
     let mut c = limits.vbar * limits.vbar;
+    // (the jerk's cap x^(2/3) rises with x: one power, of the least x)
+    let mut jerk = f64::INFINITY;
     for k in 0..3 {
         let (r1, r2, r3) = (geo.d1[k].abs(), geo.d2[k].abs(), geo.d3[k].abs());
         if r1 > 0.0 {
@@ -337,8 +339,11 @@ pub(crate) fn static_cap(limits: &firmware_core::Limits, geo: &crate::geometry::
             c = c.min(limits.a[k] / r2);
         }
         if r3 > 0.0 {
-            c = c.min((limits.j[k] / r3).powf(2.0 / 3.0));
+            jerk = jerk.min(limits.j[k] / r3);
         }
+    }
+    if jerk < f64::INFINITY {
+        c = c.min(jerk.powf(2.0 / 3.0));
     }
     c
 }

@@ -8,11 +8,15 @@
 
 use firmware_core::{EndSegments, Limits};
 
-use crate::geometry::arc_length::{path_derivs_at, ArcLength};
+use crate::geometry::arc_length::ArcLength;
 use crate::geometry::curve::Nurbs;
 use crate::limits::Ratios;
 use crate::lp::basis_rows::BasisRow;
 use crate::lp::feed_profile::FeedProfile;
+use rayon::prelude::*;
+
+/// Points [`dense_check_ends`] evaluates in a run on one core.
+const DENSE_RUN: usize = 512;
 
 /// Fewest time samples per end segment in [`dense_check_ends`].
 pub(crate) const SEGMENT_MIN_POINTS: usize = 200;
@@ -32,6 +36,7 @@ pub struct DenseReport {
 
 /// Ratios to the limits at one arc length `s` of the plan (knots, ctrl);
 /// the feed against `feed`'s v̄(s) where there is a profile.
+#[cfg(test)]
 pub(crate) fn ratios_at(
     curve: &Nurbs,
     arc: &ArcLength,
@@ -41,27 +46,35 @@ pub(crate) fn ratios_at(
     feed: Option<&FeedProfile>,
     s: f64,
 ) -> Ratios {
-    let Some(b) = BasisRow::at(knots, s) else {
-        return Ratios::default();
-    };
+    kin_of(knots, ctrl, s).map_or_else(Ratios::default, |k| {
+        ratios_kin_u(curve, arc, lim, feed, s, arc.u_of_s(s), k)
+    })
+}
+
+/// [ṡ, s̈, s⃛] of the plan (knots, ctrl) at `s` (ṡ = √q, s̈ = q′/2,
+/// s⃛ = ½q″√q); `None` where `s` has no knot span.
+fn kin_of(knots: &[f64], ctrl: &[f64], s: f64) -> Option<[f64; 3]> {
+    let b = BasisRow::at(knots, s)?;
     let q = b.apply(0, ctrl).max(0.0);
     let (q1, q2) = (b.apply(1, ctrl), b.apply(2, ctrl));
     let sd = q.sqrt();
-    ratios_kin(curve, arc, lim, feed, s, [sd, 0.5 * q1, 0.5 * q2 * sd])
+    Some([sd, 0.5 * q1, 0.5 * q2 * sd])
 }
 
-/// Ratios to the limits at arc length `s` moving with `[ṡ, s̈, s⃛]`.
-pub(crate) fn ratios_kin(
+/// Ratios to the limits at arc length `s` (parameter `u`) moving with
+/// `[ṡ, s̈, s⃛]`.
+fn ratios_kin_u(
     curve: &Nurbs,
     arc: &ArcLength,
     lim: &Limits,
     feed: Option<&FeedProfile>,
     s: f64,
+    u: f64,
     kin: [f64; 3],
 ) -> Ratios {
     let [sd, sdd, sddd] = kin;
     let q = sd * sd;
-    let g = path_derivs_at(curve, arc, s);
+    let g = arc.derivs_s(curve, u);
     let vbar = feed.map_or(lim.vbar, |f| f.at(s).min(lim.vbar));
     let mut r = Ratios {
         feed: sd / vbar,
@@ -122,7 +135,8 @@ pub fn dense_check_ends(
         .map(|w| (w[0], w[1]))
         .collect();
     let n_spans = spans.len();
-    let mut samples: Vec<(f64, Ratios)> = Vec::new();
+    // (s, ṡ, s̈, s⃛) where known (the end segments), else q's at s
+    let mut at: Vec<(f64, Option<[f64; 3]>)> = Vec::new();
     if let Some(e) = ends {
         let length = knots.last().copied().unwrap_or(0.0);
         let spans_in = |a: f64, b: f64| {
@@ -135,20 +149,36 @@ pub fn dense_check_ends(
         let n2 = (per_span * spans_in(e.s_stop, length)).max(SEGMENT_MIN_POINTS);
         for k in 0..=n1 {
             let [s, v, a, j] = e.start_at(e.t_start * k as f64 / n1 as f64);
-            samples.push((s, ratios_kin(curve, arc, lim, feed, s, [v, a, j])));
+            at.push((s, Some([v, a, j])));
         }
         for k in 0..=n2 {
             let [s, v, a, j] = e.stop_at(length, e.t_stop * k as f64 / n2 as f64);
-            samples.push((s, ratios_kin(curve, arc, lim, feed, s, [v, a, j])));
+            at.push((s, Some([v, a, j])));
         }
     }
     for (i, (a, b)) in spans.into_iter().enumerate() {
         let count = if i + 1 == n_spans { per_span + 1 } else { per_span };
         for k in 0..count {
-            let s = a + (b - a) * k as f64 / per_span as f64;
-            samples.push((s, ratios_at(curve, arc, knots, ctrl, lim, feed, s)));
+            at.push((a + (b - a) * k as f64 / per_span as f64, None));
         }
     }
+    // on every core, in runs of ascending s (each u(s) from the one before:
+    // `ArcLength::u_of_s_sorted`); the maxima taken in order
+    let samples: Vec<(f64, Ratios)> = at
+        .par_chunks(DENSE_RUN)
+        .flat_map_iter(|run| {
+            let s: Vec<f64> = run.iter().map(|p| p.0).collect();
+            let u = match s.windows(2).all(|w| w[0] <= w[1]) {
+                true => arc.u_of_s_sorted(&s),
+                false => s.iter().map(|&x| arc.u_of_s(x)).collect(),
+            };
+            run.iter().zip(u).map(|(&(s, kin), u)| {
+                let kin = kin.or_else(|| kin_of(knots, ctrl, s));
+                let r = kin.map_or_else(Ratios::default, |k| ratios_kin_u(curve, arc, lim, feed, s, u, k));
+                (s, r)
+            })
+        })
+        .collect();
     for (s, r) in samples {
         {
             points += 1;

@@ -154,17 +154,25 @@ impl LpStage<'_> {
         let (curve, arc) = (self.curve, self.arc);
         let a = self.knots.partition_point(|&u| u < lo).saturating_sub(1);
         let b = (self.knots.partition_point(|&u| u <= hi) + 1).min(self.knots.len());
-        let at: Vec<f64> = self.knots[a..b]
+        let mut at: Vec<f64> = self.knots[a..b]
             .windows(2)
             .filter(|w| w[1] > w[0] && w[1] > lo && w[0] < hi)
             .flat_map(|w| {
                 let even = |n: usize| (1..n).map(move |k| w[0] + (w[1] - w[0]) * k as f64 / n as f64);
                 even(REFINE_PER_SPAN).chain(even(REPORT_PER_SPAN))
             })
+            .chain(
+                caps.iter()
+                    .flat_map(|&(s, _, r)| [s - r, s - 0.5 * r, s + 0.5 * r, s + r])
+                    .filter(|&s| s > lo && s < hi),
+            )
             .collect();
-        // evaluated on both cores, in order
-        let mut v: Vec<EvalPoint> = at.par_iter().filter_map(|&s| self.eval(s)).collect();
+        at.sort_by(f64::total_cmp);
+        at.dedup();
+        let at: Vec<EvalPoint> = self.eval_sorted(&at).into_iter().flatten().collect();
+        // and the curve's spans' inner points (sorted: s(u) rises)
         let (u_lo, u_hi) = (arc.u_of_s(lo.max(0.0)), arc.u_of_s(hi.min(self.length)));
+        let mut inner = Vec::new();
         for sp in arc.spans().iter().filter(|sp| sp.u1 > u_lo && sp.u0 < u_hi) {
             for k in 1..REFINE_PER_CURVE_SPAN {
                 let u = sp.u0 + (sp.u1 - sp.u0) * k as f64 / REFINE_PER_CURVE_SPAN as f64;
@@ -173,7 +181,7 @@ impl LpStage<'_> {
                     continue;
                 }
                 if let Some(basis) = BasisRow::at(self.knots, s) {
-                    v.push(EvalPoint {
+                    inner.push(EvalPoint {
                         s,
                         geo: arc.derivs_s(curve, u),
                         basis,
@@ -181,17 +189,33 @@ impl LpStage<'_> {
                 }
             }
         }
-        v.extend(
-            caps.iter()
-                .flat_map(|&(s, _, r)| [s - r, s - 0.5 * r, s + 0.5 * r, s + r])
-                .filter(|&s| s > lo && s < hi)
-                .filter_map(|s| self.eval(s)),
-        );
-        v.sort_by(|a, b| a.s.total_cmp(&b.s));
-        v.dedup_by(|a, b| a.s == b.s);
+        // the two merged in order of s, one point at each s (a merge, not a
+        // sort: the points are ~200 bytes and a window has ~10,000)
+        let mut v = Vec::with_capacity(at.len() + inner.len());
+        let (mut i, mut j) = (0, 0);
+        while i < at.len() || j < inner.len() {
+            let p = match (at.get(i), inner.get(j)) {
+                (Some(x), Some(y)) if y.s < x.s => {
+                    j += 1;
+                    *y
+                }
+                (Some(x), _) => {
+                    i += 1;
+                    *x
+                }
+                (None, Some(y)) => {
+                    j += 1;
+                    *y
+                }
+                (None, None) => break,
+            };
+            if v.last().is_none_or(|l: &EvalPoint| l.s != p.s) {
+                v.push(p);
+            }
+        }
         let lim = &self.cfg.limits;
         let cap = |p: &EvalPoint| trust_region::static_cap(lim, &p.geo);
-        let mut out = Vec::with_capacity(v.len());
+        let mut out = Vec::with_capacity(v.len() + v.len() / 4);
         for w in v.windows(2) {
             out.push(w[0]);
             self.bisect_fast(&w[0], cap(&w[0]), &w[1], cap(&w[1]), 0, &cap, &mut out);
@@ -357,10 +381,15 @@ impl LpStage<'_> {
             let a = knot_at(lo_s).saturating_sub(1);
             let b = (knots.partition_point(|&u| u <= hi_s)).min(knots.len());
             // (a knot's rows from the first LP on)
-            let checks: Vec<(EvalPoint, bool)> = check_points(&knots[a..b], cfg.certified.checks_per_span)
+            let (at, knot): (Vec<f64>, Vec<bool>) = check_points(&knots[a..b], cfg.certified.checks_per_span)
                 .into_iter()
                 .filter(|&(s, _)| s >= lo_s && s <= hi_s)
-                .filter_map(|(s, k)| Some((self.eval(s)?, k)))
+                .unzip();
+            let checks: Vec<(EvalPoint, bool)> = self
+                .eval_sorted(&at)
+                .into_iter()
+                .zip(knot)
+                .filter_map(|(p, k)| Some((p?, k)))
                 .collect();
             let win_caps: Vec<crate::lp::JumpCap> = caps
                 .iter()
