@@ -1482,6 +1482,18 @@ fn stream_through<const Q: usize, const P: usize>(
     // each change's feed limit from where it holds to where the next that
     // took effect spliced (in s: the setpoints' clock starts with the motion)
     let mut override_feed_ratio = 0.0f64;
+    // (and before the first that took effect, the feed planned: the checker's
+    // feed limit is the highest change's, asked or not)
+    if !o.overrides.is_empty() {
+        let until = run
+            .overrides
+            .iter()
+            .find(|n| n.effect_s.is_some())
+            .map_or(f64::INFINITY, |n| n.splice_mm);
+        for &(_, f, _) in feeds.iter().filter(|&&(_, _, s)| s < until) {
+            override_feed_ratio = override_feed_ratio.max(f / vbar);
+        }
+    }
     for (k, ov) in run.overrides.iter().enumerate() {
         if ov.at_feed_s.is_none() {
             continue;

@@ -25,9 +25,27 @@
 //!   within [`JOIN_TOL_MM`], else [`StreamError::Gap`].
 //! - **Time.** Path k + 1's session opens one servo period after path k's
 //!   last setpoint (as in [`crate::program`]), its motion after its wait.
-//! - **Not yet.** Feed changes, link stalls and faults and replayed ready times belong
-//!   to one path's stream and are refused for a program
-//!   ([`StreamError::Option`]). At a program stop (M0, M1) the machine is
+//! - **Feed override.** The operator's override (`--override T:PCT`, T in
+//!   seconds from the program's start) holds from its time on, across
+//!   paths, as the knob on a control panel does: a feed path whose session
+//!   opens after a change is planned at that share of its programmed feed
+//!   (its profile scaled, never above the machine's feed limit), and a
+//!   change while a path runs is replanned and spliced into it as on one
+//!   path's stream ([`crate::stream_host`]), relative to the programmed
+//!   feed. Rapids keep the rapid rate (a rapid override is another knob).
+//!   Each path reports the factor it was planned at and the changes made
+//!   while it ran ([`StreamedPath::overrides`], times from the program's
+//!   start); the check holds every path's feed to each change once it
+//!   applies.
+//! - **The link's troubles** (`--stall`, `--faults`) are the program's:
+//!   stall times and the host's restart in seconds from its start, each
+//!   given to the session it falls in (a stall across a path's end goes on
+//!   in the next session; a restart resends the path it came in from its
+//!   first chunk); the frames damaged, lost, doubled or reordered are
+//!   counted in each path's session. [`ProgramStreamReport::link`] sums
+//!   the paths'. Replayed ready times belong to one path's stream and are
+//!   refused for a program ([`StreamError::Option`]).
+//! - **Not yet.** At a program stop (M0, M1) the machine is
 //!   at rest (a path ends there, [`planner_host::program::paths_for`]), but
 //!   the stream does not wait for a cycle start; and the next path's head
 //!   and chunks wait for the path before it to end instead of filling the
@@ -41,7 +59,9 @@ use planner_host::{Machine, Ratios};
 use serde::Serialize;
 
 use crate::program::{distance_mm, JOIN_TOL_MM};
-use crate::stream::{stream_curve_with, LinkFaults, StreamError, StreamOptions};
+use crate::stream::{
+    stream_curve_with, LinkCounts, LinkFaults, OverrideOutcome, OverrideRun, StreamError, StreamOptions,
+};
 
 /// One path of a streamed program.
 #[derive(Debug, Clone, Serialize)]
@@ -73,6 +93,15 @@ pub struct StreamedPath {
     pub starved_ticks: u64,
     /// Largest ratio to each of its limits on its setpoints.
     pub ratios: Ratios,
+    /// The feed override it was planned at (the share of its programmed
+    /// feed; 1 for a rapid).
+    pub feed_factor: f64,
+    /// The feed changes asked for while it ran (times in s from the
+    /// program's start, factors of the programmed feed).
+    pub overrides: Vec<OverrideRun>,
+    /// Its feed against each change once the change applied (0 without
+    /// any): at most 1 + the check's tolerance.
+    pub override_feed_ratio: f64,
     /// Its check passed.
     pub check_ok: bool,
 }
@@ -132,6 +161,13 @@ pub struct ProgramStreamReport {
     pub planned_time_s: f64,
     /// Largest ratio to each limit over every path (each against its own).
     pub ratios: Ratios,
+    /// DATA frames on the link and what the firmware refused, all paths.
+    pub link: LinkCounts,
+    /// Feed changes asked for while the paths ran.
+    pub overrides: usize,
+    /// The feed against each change once it applied, the largest over the
+    /// paths (0 without any).
+    pub override_feed_ratio: f64,
     /// Every path's check passed.
     pub check_ok: bool,
     /// Each path.
@@ -146,14 +182,18 @@ pub fn stream_program(
     popts: &ProgramOptions,
     o: &StreamOptions,
 ) -> Result<ProgramStreamReport, StreamError> {
-    if !o.overrides.is_empty()
-        || !o.stalls.is_empty()
-        || o.ready_times.is_some()
-        || o.host_replan_s.is_some()
-        || o.faults != LinkFaults::default()
+    if o.ready_times.is_some() {
+        return Err(StreamError::Option(
+            "replayed ready times stream one path, not a program".into(),
+        ));
+    }
+    if !o.overrides.windows(2).all(|w| w[0].0 <= w[1].0)
+        || o.overrides
+            .iter()
+            .any(|&(t, a)| !(t.is_finite() && a.is_finite() && a > 0.0))
     {
         return Err(StreamError::Option(
-            "feed changes, link stalls, link faults and ready times stream one path, not a program".into(),
+            "feed changes: expected times in order and factors above 0".into(),
         ));
     }
     let path_opts = PathOptions {
@@ -209,6 +249,9 @@ pub fn stream_program(
         machining_time_s: 0.0,
         planned_time_s: 0.0,
         ratios: Ratios::default(),
+        overrides: 0,
+        override_feed_ratio: 0.0,
+        link: LinkCounts::default(),
         check_ok: true,
         path: vec![],
     };
@@ -216,12 +259,42 @@ pub fn stream_program(
     // the host's time to have the paths' chunks ready, path after path
     let mut ready_s = 0.0f64;
     let mut failed: Option<StreamError> = None;
+    // the host's restart, until a path's session has had it
+    let mut restart = o.faults.host_restart_s;
     let mut i = 0usize;
     let mut each = |p: Path| -> Result<(), StreamError> {
         let index = i + 1;
-        let cfg = path_config(index, &p, &machine, popts).map_err(|e| StreamError::Program(Box::new(e)))?;
+        let mut cfg =
+            path_config(index, &p, &machine, popts).map_err(|e| StreamError::Program(Box::new(e)))?;
+        // the override in force as the path's session opens, and the changes
+        // after (in the session's time, of the feed it is planned at)
+        let (factor, changes) = match p.kind {
+            PathKind::Feed => session_overrides(&o.overrides, machine_s),
+            PathKind::Rapid => (1.0, vec![]),
+        };
+        let programmed = cfg.limits.vbar;
+        if factor != 1.0 {
+            cfg.limits.vbar = (programmed * factor).min(machine.limits.vbar);
+            cfg.feed_profile = cfg.feed_profile.map(|f| f.scaled(factor));
+        }
+        let planned_share = cfg.limits.vbar / programmed;
         let session = StreamOptions {
             host_ahead_s: machine_s - host_s,
+            overrides: changes
+                .iter()
+                .map(|&(t, a)| (t - machine_s, a / planned_share))
+                .collect(),
+            // the link's stalls and the host's restart in the session's time
+            stalls: o
+                .stalls
+                .iter()
+                .filter(|&&(a, d)| a + d > machine_s)
+                .map(|&(a, d)| (a - machine_s, d))
+                .collect(),
+            faults: LinkFaults {
+                host_restart_s: restart.map(|at| (at - machine_s).max(0.0)),
+                ..o.faults
+            },
             ..o.clone()
         };
         let rep = stream_curve_with(&p.curve, &cfg, &session).map_err(|e| StreamError::Path {
@@ -243,8 +316,16 @@ pub fn stream_program(
             }
         }
         prev_end = Some((rep.ends_mm[1], index, p.last_line));
+        let machine_s_open = machine_s;
         let wait_s = rep.first_motion_ms * 1e-3;
         let start_s = machine_s + wait_s;
+        // (a restart while the path ran was this session's)
+        restart = restart.filter(|&at| at > start_s + rep.machining_time_s);
+        sum.link.transmissions += rep.link.transmissions;
+        sum.link.refused_crc += rep.link.refused_crc;
+        sum.link.refused_duplicate += rep.link.refused_duplicate;
+        sum.link.refused_order += rep.link.refused_order;
+        sum.link.refused_window += rep.link.refused_window;
         // (a slower host's planning: its chunks' ready times are stretched too)
         host_s += rep.plan_s * if o.windows.is_some() { o.host_slowdown } else { 1.0 };
         machine_s = start_s + rep.machining_time_s + o.period_s;
@@ -267,7 +348,26 @@ pub fn stream_program(
         sum.planned_time_s += rep.planned_time_s;
         sum.ratios = sum.ratios.max(rep.ratios);
         sum.check_ok &= rep.check_ok;
+        sum.override_feed_ratio = sum.override_feed_ratio.max(rep.override_feed_ratio);
+        // (the session's times and factors as the program's)
+        let open_s = machine_s_open;
+        // (changes the session never asked for came after the path ended:
+        // they are the next paths')
+        let overrides: Vec<OverrideRun> = rep
+            .overrides
+            .iter()
+            .filter(|v| !(v.outcome == OverrideOutcome::PathEnded && v.known_mm.is_nan()))
+            .map(|v| OverrideRun {
+                asked_s: v.asked_s + open_s,
+                alpha: v.alpha * planned_share,
+                taken_s: v.taken_s.map(|x| x + open_s),
+                effect_s: v.effect_s.map(|x| x + open_s),
+                at_feed_s: v.at_feed_s.map(|x| x + open_s),
+                ..v.clone()
+            })
+            .collect();
         sum.machining_time_s = start_s + rep.machining_time_s - sum.first_motion_ms * 1e-3;
+        sum.overrides += overrides.len();
         out.push(StreamedPath {
             index,
             kind: p.kind,
@@ -282,6 +382,9 @@ pub fn stream_program(
             planned_time_s: rep.planned_time_s,
             starved_ticks: rep.starved_ticks,
             ratios: rep.ratios,
+            feed_factor: planned_share,
+            overrides,
+            override_feed_ratio: rep.override_feed_ratio,
             check_ok: rep.check_ok,
         });
         i += 1;
@@ -303,4 +406,28 @@ pub fn stream_program(
     sum.host_realtime_factor = sum.machining_time_s / ready_s;
     sum.path = out;
     Ok(sum)
+}
+
+/// The feed override in force at `open_s` (s from the program's start: the
+/// last change asked for by then, else 1) and the changes after it, of
+/// `changes` (time, factor of the programmed feed; in time order).
+fn session_overrides(changes: &[(f64, f64)], open_s: f64) -> (f64, Vec<(f64, f64)>) {
+    let before = changes.partition_point(|c| c.0 <= open_s);
+    let factor = before.checked_sub(1).map_or(1.0, |k| changes[k].1);
+    (factor, changes[before..].to_vec())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::session_overrides;
+
+    #[test]
+    fn a_session_opens_at_the_last_change_before_it_and_gets_those_after() {
+        let c = [(1.0, 0.5), (2.0, 1.2), (2.0, 0.8), (5.0, 1.0)];
+        assert_eq!(session_overrides(&c, 0.5), (1.0, c.to_vec()));
+        assert_eq!(session_overrides(&c, 1.0), (0.5, c[1..].to_vec()));
+        assert_eq!(session_overrides(&c, 3.0), (0.8, c[3..].to_vec()));
+        assert_eq!(session_overrides(&c, 9.0), (1.0, vec![]));
+        assert_eq!(session_overrides(&[], 9.0), (1.0, vec![]));
+    }
 }

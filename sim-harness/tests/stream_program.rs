@@ -164,12 +164,15 @@ fn feedsim_streams_a_program_and_refuses_what_does_not_fit() {
     for (args, code, what) in [
         (vec![refused.to_str().unwrap(), "--json"], 3, "LINE"),
         (
-            vec![quarter.to_str().unwrap(), "--stall", "1.0:0.5"],
-            2,
-            "not a program",
-        ),
-        (
-            vec![quarter.to_str().unwrap(), "--override", "1.0:50"],
+            vec![
+                quarter.to_str().unwrap(),
+                "--window-mm",
+                "120",
+                "--commit-mm",
+                "40",
+                "--ready-times",
+                "ready.txt",
+            ],
             2,
             "not a program",
         ),
@@ -206,4 +209,178 @@ fn a_path_past_the_travel_refuses_the_program_before_it_moves() {
         "{msg}"
     );
     assert!(msg.contains("LINE 7") && msg.contains('X'), "{msg}");
+}
+
+/// The feed override on a streamed part program, as the knob on a control
+/// panel: a change while a path runs is replanned and spliced into it, and
+/// holds from then on, so that a feed path whose session opens later is
+/// planned at it; rapids keep the rapid rate. Every change is reported by
+/// the path it came in, none lost; every limit holds on every path's
+/// setpoints (50 ticks at rest padding) and the feed stays under each
+/// change once it applies. The host's replans are ready 0.25 s after each
+/// ask, so the run does not depend on this machine's speed.
+#[test]
+fn the_feed_override_holds_across_the_paths_of_a_streamed_program() {
+    use sim_harness::stream::OverrideOutcome;
+    let text = std::fs::read_to_string(own("circles-helices.ngc")).unwrap();
+    let prog = read_str(&text, ReadOptions::default()).unwrap();
+    // (in paths 2, 3, 4 and 5 of the run at 100 %: 0.47–5.2, 5.2–18.3,
+    // 18.3–25.1, 25.1–27.0 s)
+    let asks = vec![(2.0, 1.5), (10.0, 0.6), (20.0, 1.2), (25.5, 0.5)];
+    let o = StreamOptions {
+        overrides: asks.clone(),
+        host_replan_s: Some(0.25),
+        chunk_mm: 16.0,
+        ..StreamOptions::default()
+    };
+    let machine = Machine::table1();
+    let rep = stream_program(&prog, &machine, &ProgramOptions::default(), &o).unwrap();
+    let plain = streamed("circles-helices.ngc", None);
+    assert!(rep.check_ok, "{:?}", rep.ratios);
+    assert!(
+        rep.override_feed_ratio > 0.9 && rep.override_feed_ratio <= 1.01,
+        "{}",
+        rep.override_feed_ratio
+    );
+    // every change in the path it came in, once
+    let mut seen: Vec<(f64, f64)> = rep
+        .path
+        .iter()
+        .flat_map(|p| p.overrides.iter().map(|v| (v.asked_s, v.alpha)))
+        .collect();
+    seen.sort_by(|a, b| a.0.total_cmp(&b.0));
+    assert_eq!(seen.len(), asks.len(), "{seen:?}");
+    for (s, a) in seen.iter().zip(&asks) {
+        assert!(
+            (s.0 - a.0).abs() < 1e-9 && (s.1 - a.1).abs() < 1e-12,
+            "{s:?} vs {a:?}"
+        );
+    }
+    assert_eq!(rep.overrides, asks.len());
+    let made = rep
+        .path
+        .iter()
+        .flat_map(|p| &p.overrides)
+        .filter(|v| v.outcome == OverrideOutcome::Effective)
+        .count();
+    assert!(made >= 2, "{made} changes took effect while a path ran");
+    assert!(rep
+        .path
+        .iter()
+        .flat_map(|p| &p.overrides)
+        .all(|v| v.outcome != OverrideOutcome::Pending));
+    // each path planned at the override in force as its session opened
+    // (program time: the first motion's wait, then each path one servo
+    // period after the one before ends), rapids at their rate
+    let first = rep.first_motion_ms * 1e-3;
+    let mut open_s = 0.0;
+    for p in &rep.path {
+        let factor = asks.iter().rfind(|a| a.0 <= open_s).map_or(1.0, |a| a.1);
+        assert!(
+            asks.iter().all(|a| (a.0 - open_s).abs() > 0.01),
+            "a change at a path's opening"
+        );
+        match p.kind {
+            PathKind::Rapid => {
+                assert_eq!(p.feed_factor, 1.0, "path {}", p.index);
+                assert_eq!(p.vbar_mm_s, machine.rapid_mm_s);
+            }
+            PathKind::Feed => assert!(
+                (p.feed_factor - factor).abs() < 1e-12,
+                "path {} opened at {open_s:.3} s: planned at {}, the override then {factor}",
+                p.index,
+                p.feed_factor
+            ),
+        }
+        assert!(
+            p.check_ok && p.override_feed_ratio <= 1.01,
+            "path {}: {:?}",
+            p.index,
+            p.ratios
+        );
+        open_s = first + p.start_s + p.machining_time_s + o.period_s;
+    }
+    assert!(
+        rep.path.iter().any(|p| p.feed_factor == 0.5),
+        "a path planned at 50 %"
+    );
+    // the slower share of the program dominates: longer than at 100 %
+    assert!(
+        rep.machining_time_s > plain.machining_time_s,
+        "{} s against {} s at 100 %",
+        rep.machining_time_s,
+        plain.machining_time_s
+    );
+}
+
+/// A spiral of 600 chords at F6000 (a 480 mm feed path, fitted into one
+/// NURBS) between two rapids.
+fn spiral_program() -> String {
+    let mut text = String::from("G21 G90 G17 G64 P0.01\nG0 X10 Y0\nF6000\n");
+    for k in 1..=600 {
+        let th = k as f64 * 0.05;
+        let r = 10.0 + 0.4 * th;
+        text += &format!("G1 X{:.4} Y{:.4}\n", r * th.cos(), r * th.sin());
+    }
+    text + "G0 X0 Y0\nM2\n"
+}
+
+/// The link's troubles on a streamed part program, in the program's time:
+/// a stall in the middle of its feed path, on an MCU-sized plan window,
+/// starves the machine there (it stops inside the chunks it holds and
+/// resumes when they come), and frames damaged, lost, doubled and
+/// reordered, with the host restarting mid-path, are refused and sent
+/// again; every path runs to its end within every limit (50 ticks at rest
+/// padding), the next from where it stopped.
+#[test]
+fn a_streamed_program_rides_out_a_stalled_and_damaged_link() {
+    use sim_harness::stream::LinkFaults;
+    let prog = read_str(&spiral_program(), ReadOptions::default()).unwrap();
+    let machine = Machine::table1();
+    let run = |stalls: Vec<(f64, f64)>, faults: LinkFaults| {
+        let o = StreamOptions {
+            window_rows: (64, 128),
+            ring_bytes: 4096,
+            stalls,
+            faults,
+            ..StreamOptions::default()
+        };
+        stream_program(&prog, &machine, &ProgramOptions::default(), &o).unwrap()
+    };
+    let clean = run(vec![], LinkFaults::default());
+    assert_eq!(clean.paths, 3);
+    assert_eq!(clean.path[1].kind, PathKind::Feed);
+    assert!(clean.check_ok && clean.starvations == 0, "{:?}", clean.ratios);
+    // (the feed path runs from about 0.48 s to 5.5 s)
+    let stalled = run(vec![(1.0, 1.0)], LinkFaults::default());
+    let faults = LinkFaults {
+        corrupt_every: 11,
+        drop_every: 7,
+        duplicate_every: 13,
+        reorder_every: 17,
+        host_restart_s: Some(2.5),
+    };
+    let damaged = run(vec![(1.0, 1.0)], faults);
+    for (what, rep) in [("stalled", &stalled), ("stalled and damaged", &damaged)] {
+        assert!(rep.check_ok, "{what}: {:?}", rep.ratios);
+        assert!(rep.path.iter().all(|p| p.check_ok), "{what}");
+        assert!(
+            rep.path[1].starved_ticks > 0 && rep.starvations >= 1,
+            "{what}: the feed path did not starve"
+        );
+        assert_eq!(rep.path[0].starved_ticks + rep.path[2].starved_ticks, 0, "{what}");
+        assert!(
+            rep.machining_time_s > clean.machining_time_s + 0.1,
+            "{what}: {} s against {} s",
+            rep.machining_time_s,
+            clean.machining_time_s
+        );
+    }
+    let l = damaged.link;
+    assert!(
+        l.refused_crc > 0 && l.refused_duplicate > 0 && l.refused_order > 0,
+        "{l:?}"
+    );
+    assert!(l.transmissions > clean.link.transmissions, "{l:?}");
+    assert_eq!(stalled.link, clean.link, "a stall alone loses no frame");
 }

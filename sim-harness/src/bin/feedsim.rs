@@ -252,7 +252,9 @@ enum Cmd {
         /// A feedrate override while streaming: at T seconds from the start of sending,
         /// PCT percent of the programmed feed (repeatable, in time order). The host replans
         /// the path ahead at the new feed and the firmware splices it in; the check holds
-        /// the feed to each override once it applies.
+        /// the feed to each override once it applies. In a part program it holds from T
+        /// on, path after path: a feed path that starts later is planned at it (rapids
+        /// keep the rapid rate).
         #[arg(long = "override")]
         overrides: Vec<String>,
         /// With --override: each replan's chunks ready this many milliseconds after its
@@ -271,7 +273,8 @@ enum Cmd {
         /// (every Nth DATA frame sent, resends counted: a bit flipped, lost, sent twice,
         /// after the next one) and restart:SECONDS (the host restarts then, sending from
         /// the first chunk again). The firmware refuses and NAKs, the host resends; the
-        /// report's "link" counts what was sent and refused. One path, not a program.
+        /// report's "link" counts what was sent and refused. In a part program the times
+        /// are from its start and the frames are counted in each path's session.
         #[arg(long)]
         faults: Option<String>,
         /// Chunks without the u form (each piece's u(s), six f32: about a third of the
@@ -487,6 +490,20 @@ fn stream_program_cmd(
                 rep.check_ok
             )
         );
+        if rep.overrides > 0 || rep.path.iter().any(|p| p.feed_factor != 1.0) {
+            let planned: Vec<String> = rep
+                .path
+                .iter()
+                .filter(|p| p.feed_factor != 1.0)
+                .map(|p| format!("{} at {:.0} %", p.index, p.feed_factor * 100.0))
+                .collect();
+            outln!(
+                "  feed override: {} change(s) made while a path ran, paths planned at an override: {}; feed against each override once it holds: {:.4}",
+                rep.overrides,
+                if planned.is_empty() { "none".to_string() } else { planned.join(", ") },
+                rep.override_feed_ratio
+            );
+        }
         for p in rep.path.iter().filter(|p| !p.check_ok) {
             outln!(
                 "  path {} (LINE {}..{}) over its limits: {:?}",
