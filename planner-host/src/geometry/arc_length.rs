@@ -444,14 +444,10 @@ impl ArcLength {
             let un = u - f / sig;
             let un = if un > lo && un < hi { un } else { 0.5 * (lo + hi) };
             // s(un) = s(u) + ∫_u^un: a short step (the Newton steps after the
-            // first) needs only the 4- or 8-point rule (error ∝ step⁹,
-            // step¹⁷), a long one is integrated afresh from the piece start
-            let r = (un - u).abs() / width;
-            let speed = |x| self.polys.speed_in_span(span, x);
-            su = if r <= 1e-3 {
-                su + gl4(u, un, speed)
-            } else if r <= 1.0 / 16.0 {
-                su + gl8(u, un, speed)
+            // first) needs only the 4-point rule (error ∝ step⁹), a long one
+            // is integrated afresh from the piece start
+            su = if (un - u).abs() <= 1e-3 * width {
+                su + gl4(u, un, |x| self.polys.speed_in_span(span, x))
             } else {
                 self.s_in_piece(k, un)
             };
