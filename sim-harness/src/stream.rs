@@ -1028,6 +1028,11 @@ pub struct StreamOptions {
     /// Frames damaged, lost, doubled or reordered on the link, and a host
     /// restart ([`LinkFaults`]).
     pub faults: LinkFaults,
+    /// A part program: at a program stop (M0, M1) or a tool change (M6) the
+    /// operator presses cycle start this long after the machine came to
+    /// rest, s (the next path's session opens then); `None`: the program
+    /// goes on at once.
+    pub cycle_start_s: Option<f64>,
 }
 
 /// The plan windows the simulation has (q spans, pieces): three MCU sizes
@@ -1056,6 +1061,7 @@ impl Default for StreamOptions {
             start_runway_mm: 0.0,
             u_form: true,
             faults: LinkFaults::default(),
+            cycle_start_s: None,
         }
     }
 }

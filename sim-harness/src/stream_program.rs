@@ -45,15 +45,22 @@
 //!   counted in each path's session. [`ProgramStreamReport::link`] sums
 //!   the paths'. Replayed ready times belong to one path's stream and are
 //!   refused for a program ([`StreamError::Option`]).
-//! - **Not yet.** At a program stop (M0, M1) the machine is
-//!   at rest (a path ends there, [`planner_host::program::paths_for`]), but
-//!   the stream does not wait for a cycle start; and the next path's head
-//!   and chunks wait for the path before it to end instead of filling the
-//!   ring while it runs.
+//! - **Program stops and tool changes.** At a program stop (M0, M1) or a
+//!   tool change (M6) the machine is at rest (a path ends there,
+//!   [`planner_host::program::paths_for`]); with
+//!   [`StreamOptions::cycle_start_s`] the operator presses cycle start that
+//!   long after, and the next path's session opens then (the wait counts in
+//!   the machining time, [`ProgramStreamReport::operator_wait_s`]); without
+//!   it the program goes on at once. Each path after one says which line
+//!   stopped the machine before it ([`StreamedPath::after_stop_line`]).
+//! - **Not yet.** The next path's head and chunks wait for the path before
+//!   it to end (and for the cycle start) instead of filling the ring while
+//!   it runs.
 
 use planner_host::gcode::Program;
 use planner_host::program::{
-    check_travel, path_config, paths_each, Path, PathKind, PathOptions, ProgramError, ProgramOptions,
+    check_travel, path_config, paths_each, program_stops, Path, PathKind, PathOptions, ProgramError,
+    ProgramOptions,
 };
 use planner_host::{Machine, Ratios};
 use serde::Serialize;
@@ -93,6 +100,9 @@ pub struct StreamedPath {
     pub starved_ticks: u64,
     /// Largest ratio to each of its limits on its setpoints.
     pub ratios: Ratios,
+    /// The program stop (M0, M1) or tool change (M6) the machine waited at
+    /// before it: its line.
+    pub after_stop_line: Option<usize>,
     /// The feed override it was planned at (the share of its programmed
     /// feed; 1 for a rapid).
     pub feed_factor: f64,
@@ -163,6 +173,12 @@ pub struct ProgramStreamReport {
     pub ratios: Ratios,
     /// DATA frames on the link and what the firmware refused, all paths.
     pub link: LinkCounts,
+    /// Program stops (M0, M1) and tool changes (M6) the machine came to rest
+    /// at between paths.
+    pub program_stops: usize,
+    /// The machine at rest for the operator's cycle start there, s in all
+    /// (in the machining time).
+    pub operator_wait_s: f64,
     /// Feed changes asked for while the paths ran.
     pub overrides: usize,
     /// The feed against each change once it applied, the largest over the
@@ -252,6 +268,8 @@ pub fn stream_program(
         overrides: 0,
         override_feed_ratio: 0.0,
         link: LinkCounts::default(),
+        program_stops: 0,
+        operator_wait_s: 0.0,
         check_ok: true,
         path: vec![],
     };
@@ -261,9 +279,24 @@ pub fn stream_program(
     let mut failed: Option<StreamError> = None;
     // the host's restart, until a path's session has had it
     let mut restart = o.faults.host_restart_s;
+    // where the machine rests for a cycle start: program stops, tool changes
+    let mut stops = program_stops(program);
+    stops.extend(program.tool.iter().filter(|n| n.word == "M6").map(|n| n.line));
+    stops.sort_unstable();
     let mut i = 0usize;
     let mut each = |p: Path| -> Result<(), StreamError> {
         let index = i + 1;
+        // (a stop on the line of the path before's last move, or between
+        // the two: the operator's cycle start first)
+        let after_stop_line =
+            prev_end.and_then(|(_, _, last)| stops.iter().copied().find(|&s| last <= s && s < p.first_line));
+        if after_stop_line.is_some() {
+            sum.program_stops += 1;
+            if let Some(w) = o.cycle_start_s {
+                machine_s += w;
+                sum.operator_wait_s += w;
+            }
+        }
         let mut cfg =
             path_config(index, &p, &machine, popts).map_err(|e| StreamError::Program(Box::new(e)))?;
         // the override in force as the path's session opens, and the changes
@@ -382,6 +415,7 @@ pub fn stream_program(
             planned_time_s: rep.planned_time_s,
             starved_ticks: rep.starved_ticks,
             ratios: rep.ratios,
+            after_stop_line,
             feed_factor: planned_share,
             overrides,
             override_feed_ratio: rep.override_feed_ratio,

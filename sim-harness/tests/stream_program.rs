@@ -384,3 +384,42 @@ fn a_streamed_program_rides_out_a_stalled_and_damaged_link() {
     assert!(l.transmissions > clean.link.transmissions, "{l:?}");
     assert_eq!(stalled.link, clean.link, "a stall alone loses no frame");
 }
+
+/// A program stop (M0) and a tool change (M6) between feed paths: the
+/// machine rests there, and with a cycle start pressed 0.5 s later the
+/// next path streams then, the waits in the machining time; each path after
+/// a stop names its line.
+#[test]
+fn a_streamed_program_waits_for_the_cycle_start_at_its_stops() {
+    let text = "G21 G17 G90 F600\nG1 X10\nM0\nG1 X20\nT2 M6\nG1 X30 Y5\nM2\n";
+    let prog = read_str(text, ReadOptions::default()).unwrap();
+    let machine = Machine::table1();
+    let run = |cycle_start_s: Option<f64>| {
+        let o = StreamOptions {
+            cycle_start_s,
+            ..StreamOptions::default()
+        };
+        stream_program(&prog, &machine, &ProgramOptions::default(), &o).unwrap()
+    };
+    let at_once = run(None);
+    let waited = run(Some(0.5));
+    for rep in [&at_once, &waited] {
+        assert!(rep.check_ok, "{:?}", rep.ratios);
+        assert_eq!(rep.paths, 3);
+        assert_eq!(rep.program_stops, 2);
+        let after: Vec<Option<usize>> = rep.path.iter().map(|p| p.after_stop_line).collect();
+        assert_eq!(after, [None, Some(3), Some(5)]);
+    }
+    assert_eq!(at_once.operator_wait_s, 0.0);
+    assert!((waited.operator_wait_s - 1.0).abs() < 1e-12);
+    // (the host is that much further ahead at each: the link's waits can
+    // only shrink)
+    let more = waited.machining_time_s - at_once.machining_time_s;
+    assert!(
+        more <= 1.0 + 1e-9 && more >= 1.0 - at_once.waits_ms * 1e-3 - 1e-9,
+        "{more} s more"
+    );
+    for (a, b) in at_once.path.iter().zip(&waited.path) {
+        assert!((a.planned_time_s - b.planned_time_s).abs() < 1e-12);
+    }
+}

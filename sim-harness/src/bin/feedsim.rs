@@ -277,6 +277,11 @@ enum Cmd {
         /// are from its start and the frames are counted in each path's session.
         #[arg(long)]
         faults: Option<String>,
+        /// A part program: at each program stop (M0, M1) and tool change (M6) the operator
+        /// presses cycle start this many milliseconds after the machine comes to rest, and
+        /// the next path streams then (default: the program goes on at once).
+        #[arg(long)]
+        cycle_start_ms: Option<f64>,
         /// Chunks without the u form (each piece's u(s), six f32: about a third of the
         /// Butterfly's stream): the setpoints' u then reads 0 along the path (the end
         /// point's at the end); their positions are the same.
@@ -490,6 +495,12 @@ fn stream_program_cmd(
                 rep.check_ok
             )
         );
+        if rep.program_stops > 0 {
+            outln!(
+                "  {} program stop(s) and tool change(s) between paths, the operator's cycle start awaited {:.3} s in all",
+                rep.program_stops, rep.operator_wait_s
+            );
+        }
         if rep.overrides > 0 || rep.path.iter().any(|p| p.feed_factor != 1.0) {
             let planned: Vec<String> = rep
                 .path
@@ -837,6 +848,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
             host_slowdown,
             ready_times,
             faults,
+            cycle_start_ms,
             no_u_form,
             period_us,
             tol,
@@ -899,6 +911,9 @@ fn run(cli: Cli) -> Result<(), Failure> {
             if host_replan_ms.is_some_and(|h| !(h.is_finite() && h >= 0.0)) {
                 return Err(Failure::usage("--host-replan-ms: expected a time ≥ 0"));
             }
+            if cycle_start_ms.is_some_and(|c| !(c.is_finite() && c >= 0.0)) {
+                return Err(Failure::usage("--cycle-start-ms: expected a time ≥ 0"));
+            }
             let opts = sim_harness::stream::StreamOptions {
                 overrides,
                 host_replan_s: host_replan_ms.map(|h| h * 1e-3),
@@ -922,6 +937,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
                 start_runway_mm,
                 u_form: !no_u_form,
                 faults,
+                cycle_start_s: cycle_start_ms.map(|m| m * 1e-3),
             };
             if planner_host::cli::is_gcode_program(Path::new(&curve)) {
                 return stream_program_cmd(Path::new(&curve), &machine, &opts, json);
