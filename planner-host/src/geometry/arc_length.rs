@@ -688,12 +688,17 @@ mod tests {
         }
     }
 
-    #[test]
-    fn inverse_is_exact_on_all_curves() {
+    /// The benchmark curves, a 3-D quintic and a circle.
+    fn inverse_test_curves() -> Vec<Nurbs> {
         let mut curves = benchmark_curves();
         curves.push(quintic_3d());
         curves.push(Nurbs::circle([0.0; 3], 7.0));
-        for c in &curves {
+        curves
+    }
+
+    #[test]
+    fn inverse_is_exact_on_all_curves() {
+        for c in &inverse_test_curves() {
             let arc = ArcLength::new(c);
             let l = arc.total();
             let (u0, u1) = c.u_range();
@@ -723,10 +728,7 @@ mod tests {
     fn the_sorted_inverse_is_the_inverse_point_by_point() {
         // points 0.05 mm apart (the dense re-evaluation's spacing), 1 µm
         // apart, repeated, and a few far apart: each as exact as u_of_s's
-        let mut curves = benchmark_curves();
-        curves.push(quintic_3d());
-        curves.push(Nurbs::circle([0.0; 3], 7.0));
-        for c in &curves {
+        for c in &inverse_test_curves() {
             let arc = ArcLength::new(c);
             let l = arc.total();
             let mut s: Vec<f64> = (0..=(l / 0.05) as usize).map(|k| k as f64 * 0.05).collect();

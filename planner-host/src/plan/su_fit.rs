@@ -64,7 +64,7 @@
 
 use firmware_core::{path::su_map::SU_COEFFS, SuSegment};
 
-use crate::geometry::arc_length::{speed_floor, ArcLength};
+use crate::geometry::arc_length::{gl8, speed_floor, ArcLength};
 use crate::geometry::curve::{cross, dot, norm, Nurbs, SpanPolys};
 use crate::geometry::curve_error::CurveError;
 use crate::limits::Limits;
@@ -143,28 +143,9 @@ fn node(curve: &SpanPolys, span: usize, s: f64, u: f64, floor: f64) -> Result<No
 /// table's u(s) is good to ~1e-11 mm, which a 1e-3 mm segment's e‴ would
 /// amplify by 60/h³).
 fn u_after(curve: &SpanPolys, span: usize, a: &Node, h: f64, guess: f64) -> f64 {
-    const X: [f64; 4] = [
-        0.183_434_642_495_649_8,
-        0.525_532_409_916_329,
-        0.796_666_477_413_626_7,
-        0.960_289_856_497_536_3,
-    ];
-    const W: [f64; 4] = [
-        0.362_683_783_378_362,
-        0.313_706_645_877_887_3,
-        0.222_381_034_453_374_5,
-        0.101_228_536_290_376_3,
-    ];
     let mut u = guess;
     for _ in 0..4 {
-        let (mid, half) = (0.5 * (a.u + u), 0.5 * (u - a.u));
-        let len: f64 = (0..4)
-            .map(|i| {
-                W[i] * (curve.speed_in_span(span, mid - half * X[i])
-                    + curve.speed_in_span(span, mid + half * X[i]))
-            })
-            .sum::<f64>()
-            * half;
+        let len = gl8(a.u, u, |x| curve.speed_in_span(span, x));
         let sig = curve.speed_in_span(span, u);
         let step = (len - h) / sig;
         if !step.is_finite() {
