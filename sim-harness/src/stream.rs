@@ -30,7 +30,7 @@
 use firmware_core::interp::{Feeding, Interpolator, SpliceError, Spliced, StreamHead};
 use firmware_core::stream::frame::encoded_max_len;
 use firmware_core::stream::{set_seq, Chunk, ChunkRing, PlanWindow};
-use firmware_core::{Setpoint, Table};
+use firmware_core::{HoldState, Setpoint, Table};
 use planner_host::stream_hold::stream_head;
 
 use crate::stream_host::{Ask, Replacement, StreamHost};
@@ -58,6 +58,10 @@ pub struct StreamLink {
     /// ([`firmware_core::stream::ChunkRing::refuse_head`]), and the host
     /// resends chunk k itself.
     pub substitute: Vec<(usize, Vec<u8>)>,
+    /// The operator's feed holds: (time s, held for s): the hold pressed at
+    /// the first tick at or after the time while the motion runs (or
+    /// resumes), cycle start pressed once it has rested that long.
+    pub holds: Vec<(f64, f64)>,
 }
 
 /// Damage to the DATA frames on the link, by transmission number (the
@@ -105,6 +109,10 @@ pub struct StreamRun {
     pub link: LinkCounts,
     /// Feed changes asked for, in order, and what became of each.
     pub overrides: Vec<OverrideRun>,
+    /// The operator's feed holds, in order: where each was pressed, where
+    /// the motion came to rest and the end of the rows held then, mm (the
+    /// stop never passes them); NaN where not reached.
+    pub operator_holds: Vec<[f64; 3]>,
 }
 
 /// A feed change on a streamed run: the host's replan from a splice point,
@@ -503,13 +511,20 @@ pub fn run_stream_head<const CAP: usize, const NQ: usize, const NP: usize>(
         starved_reach_mm: vec![],
         link: LinkCounts::default(),
         overrides: vec![],
+        operator_holds: vec![[f64::NAN; 3]; link.holds.len()],
     };
+    // the operator's holds: pressed, and at rest since (s)
+    let mut op_pressed = vec![false; link.holds.len()];
+    let mut op_rest: Vec<Option<f64>> = vec![None; link.holds.len()];
+    let mut op_released = vec![false; link.holds.len()];
     let mut stop_set = false;
     let mut ring_bytes = 0usize;
     // (the largest s while starved, the end of the rows held then)
     let mut starve: Option<(f64, i64)> = None;
     let fx = |x: i64| x as f64 / (1u64 << 40) as f64;
     let stalled = |t: f64| link.stalls.iter().any(|&(a, d)| t >= a && t < a + d);
+    // starvation holds, resumes and a faulting tick's state on stderr
+    let debug = std::env::var_os("FEEDLP_FAULT_DEBUG").is_some();
     let limit = 50_000_000u64;
     for k in 0..limit {
         let t = k as f64 * link.period_s;
@@ -907,6 +922,15 @@ pub fn run_stream_head<const CAP: usize, const NQ: usize, const NP: usize>(
         run.window_peak_pieces = run.window_peak_pieces.max(ipr.window().held().1);
         match ipr.keep_fed() {
             Ok(Feeding::Starving) => {
+                if debug {
+                    let w = ipr.window();
+                    eprintln!(
+                        "starving at t {t:.4} s: s {:.3} mm, rows to {:.3} mm, {:?} held",
+                        ipr.s_mm(),
+                        fx(w.held_end()),
+                        w.held()
+                    );
+                }
                 run.starvations += 1;
                 run.starved_ticks += 1;
                 starve = Some((ipr.s_mm(), ipr.window().held_end()));
@@ -925,15 +949,64 @@ pub fn run_stream_head<const CAP: usize, const NQ: usize, const NP: usize>(
                 }
             }
             Ok(Feeding::Resumed) => {
+                if debug {
+                    let w = ipr.window();
+                    eprintln!(
+                        "resumed at t {t:.4} s: s {:.3} mm, rows to {:.3} mm, hold point {:.3} mm",
+                        ipr.s_mm(),
+                        fx(w.held_end()),
+                        fx(w.hold_point())
+                    );
+                }
                 if let Some((reach, end)) = starve.take() {
                     run.starved_reach_mm.push((reach, fx(end)));
                 }
             }
             _ => {}
         }
-        let sp = ipr.tick().map_err(|f| StreamRunError::Fault {
-            tick: ipr.ticks(),
-            message: format!("{f:?}"),
+        // the operator: a feed hold at each hold's time (once the motion
+        // runs), cycle start once it has rested its time
+        for (k, &(at, dur)) in link.holds.iter().enumerate() {
+            let state = ipr.hold_state();
+            let moving = matches!(state, HoldState::Running | HoldState::Resuming);
+            if !op_pressed[k] && t >= at && moving {
+                ipr.hold().map_err(|e| StreamRunError::Fault {
+                    tick: ipr.ticks(),
+                    message: format!("feed hold refused: {e:?}"),
+                })?;
+                op_pressed[k] = true;
+                run.operator_holds[k][0] = ipr.s_mm();
+            } else if op_pressed[k] && !op_released[k] && state == HoldState::Held {
+                let since = *op_rest[k].get_or_insert(t);
+                if run.operator_holds[k][1].is_nan() {
+                    run.operator_holds[k][1] = ipr.s_mm();
+                    run.operator_holds[k][2] = fx(ipr.window().held_end());
+                }
+                if t >= since + dur {
+                    ipr.resume().map_err(|e| StreamRunError::Fault {
+                        tick: ipr.ticks(),
+                        message: format!("cycle start refused: {e:?}"),
+                    })?;
+                    op_released[k] = true;
+                }
+            }
+        }
+        // (FEEDLP_FAULT_DEBUG: the state a faulting tick started from)
+        let before = debug.then(|| {
+            let w = ipr.window();
+            let (held_end, hold_point) = (fx(w.held_end()), fx(w.hold_point()));
+            (ipr.s_mm(), ipr.hold_state(), held_end, hold_point, w.held())
+        });
+        let sp = ipr.tick().map_err(|f| {
+            if let Some((s, state, held_end, hold_point, held)) = before {
+                eprintln!(
+                    "fault {f:?} at t {t:.4} s: from s {s:.3} mm, {state:?}, rows to {held_end:.3} mm, hold point {hold_point:.3} mm, {held:?} q spans and pieces held, {ring_bytes} bytes in the ring"
+                );
+            }
+            StreamRunError::Fault {
+                tick: ipr.ticks(),
+                message: format!("{f:?}"),
+            }
         })?;
         if let Some((reach, _)) = starve.as_mut() {
             *reach = reach.max(sp.s_mm);
@@ -1028,6 +1101,11 @@ pub struct StreamOptions {
     /// Frames damaged, lost, doubled or reordered on the link, and a host
     /// restart ([`LinkFaults`]).
     pub faults: LinkFaults,
+    /// The operator's feed holds: (time s from the start of sending, held
+    /// for s), each pressed at the first tick at or after its time while
+    /// the motion runs, cycle start pressed once the machine has rested
+    /// that long ([`StreamLink::holds`]).
+    pub holds: Vec<(f64, f64)>,
     /// A part program: at a program stop (M0, M1) or a tool change (M6) the
     /// operator presses cycle start this long after the machine came to
     /// rest, s (the next path's session opens then); `None`: the program
@@ -1061,6 +1139,7 @@ impl Default for StreamOptions {
             start_runway_mm: 0.0,
             u_form: true,
             faults: LinkFaults::default(),
+            holds: vec![],
             cycle_start_s: None,
         }
     }
@@ -1169,6 +1248,10 @@ pub struct StreamReport {
     /// What the link carried and the firmware refused (with `--faults`,
     /// the damage it met).
     pub link: LinkCounts,
+    /// The operator's feed holds (`--hold`): where each was pressed, where
+    /// the motion came to rest, and the end of the rows held then, mm (NaN
+    /// where the path ended first).
+    pub operator_holds: Vec<[f64; 3]>,
     /// The first and the last setpoint's position, mm.
     #[serde(skip)]
     pub ends_mm: [[f64; 3]; 2],
@@ -1429,6 +1512,7 @@ fn stream_through<const Q: usize, const P: usize>(
             None => ready_s,
         },
         substitute: vec![],
+        holds: o.holds.clone(),
     };
     // every setpoint checked as it comes, none kept (an hour's run is
     // 15 million of them)
@@ -1558,6 +1642,7 @@ fn stream_through<const Q: usize, const P: usize>(
         overrides: run.overrides,
         override_feed_ratio,
         link: run.link,
+        operator_holds: run.operator_holds,
         ends_mm: ends_mm.unwrap_or_default(),
     })
 }

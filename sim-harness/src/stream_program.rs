@@ -37,6 +37,9 @@
 //!   while it ran ([`StreamedPath::overrides`], times from the program's
 //!   start); the check holds every path's feed to each change once it
 //!   applies.
+//! - **The operator's feed holds** (`--hold T:HELD`) are the program's too:
+//!   each pressed in the session it falls in (one that comes while the
+//!   machine stands between paths is pressed as the next path moves).
 //! - **The link's troubles** (`--stall`, `--faults`) are the program's:
 //!   stall times and the host's restart in seconds from its start, each
 //!   given to the session it falls in (a stall across a path's end goes on
@@ -103,6 +106,10 @@ pub struct StreamedPath {
     /// The program stop (M0, M1) or tool change (M6) the machine waited at
     /// before it: its line.
     pub after_stop_line: Option<usize>,
+    /// The operator's feed holds pressed while it ran: where each was
+    /// pressed, where the motion came to rest and the end of the rows held
+    /// then, mm.
+    pub operator_holds: Vec<[f64; 3]>,
     /// The feed override it was planned at (the share of its programmed
     /// feed; 1 for a rapid).
     pub feed_factor: f64,
@@ -176,8 +183,9 @@ pub struct ProgramStreamReport {
     /// Program stops (M0, M1) and tool changes (M6) the machine came to rest
     /// at between paths.
     pub program_stops: usize,
-    /// The machine at rest for the operator's cycle start there, s in all
-    /// (in the machining time).
+    /// The machine at rest for the operator's cycle start there, and at a
+    /// path's end where a feed hold's stop met it, s in all (in the
+    /// machining time).
     pub operator_wait_s: f64,
     /// Feed changes asked for while the paths ran.
     pub overrides: usize,
@@ -279,6 +287,8 @@ pub fn stream_program(
     let mut failed: Option<StreamError> = None;
     // the host's restart, until a path's session has had it
     let mut restart = o.faults.host_restart_s;
+    // the operator's feed holds, until a path's session has pressed them
+    let mut holds = o.holds.clone();
     // where the machine rests for a cycle start: program stops, tool changes
     let mut stops = program_stops(program);
     stops.extend(program.tool.iter().filter(|n| n.word == "M6").map(|n| n.line));
@@ -328,6 +338,12 @@ pub fn stream_program(
                 host_restart_s: restart.map(|at| (at - machine_s).max(0.0)),
                 ..o.faults
             },
+            // the operator's holds not pressed yet (one asked while the
+            // machine stood between paths: at once)
+            holds: holds
+                .iter()
+                .map(|&(at, d)| ((at - machine_s).max(0.0), d))
+                .collect(),
             ..o.clone()
         };
         let rep = stream_curve_with(&p.curve, &cfg, &session).map_err(|e| StreamError::Path {
@@ -352,8 +368,29 @@ pub fn stream_program(
         let machine_s_open = machine_s;
         let wait_s = rep.first_motion_ms * 1e-3;
         let start_s = machine_s + wait_s;
-        // (a restart while the path ran was this session's)
+        // (a restart while the path ran was this session's, and so were the
+        // holds it pressed)
         restart = restart.filter(|&at| at > start_s + rep.machining_time_s);
+        let pressed: Vec<[f64; 3]> = rep
+            .operator_holds
+            .iter()
+            .copied()
+            .filter(|h| !h[0].is_nan())
+            .collect();
+        // (a hold whose stop met the path's end holds the machine there
+        // until its cycle start: before the next path's session)
+        let held_at_end: f64 = holds
+            .iter()
+            .zip(&rep.operator_holds)
+            .filter(|(_, h)| !h[0].is_nan() && h[1].is_nan())
+            .map(|(&(_, d), _)| d)
+            .sum();
+        holds = holds
+            .iter()
+            .zip(&rep.operator_holds)
+            .filter(|(_, h)| h[0].is_nan())
+            .map(|(&x, _)| x)
+            .collect();
         sum.link.transmissions += rep.link.transmissions;
         sum.link.refused_crc += rep.link.refused_crc;
         sum.link.refused_duplicate += rep.link.refused_duplicate;
@@ -361,7 +398,8 @@ pub fn stream_program(
         sum.link.refused_window += rep.link.refused_window;
         // (a slower host's planning: its chunks' ready times are stretched too)
         host_s += rep.plan_s * if o.windows.is_some() { o.host_slowdown } else { 1.0 };
-        machine_s = start_s + rep.machining_time_s + o.period_s;
+        machine_s = start_s + rep.machining_time_s + o.period_s + held_at_end;
+        sum.operator_wait_s += held_at_end;
         if i == 0 {
             sum.first_motion_ms = rep.first_motion_ms;
         } else {
@@ -416,6 +454,7 @@ pub fn stream_program(
             starved_ticks: rep.starved_ticks,
             ratios: rep.ratios,
             after_stop_line,
+            operator_holds: pressed,
             feed_factor: planned_share,
             overrides,
             override_feed_ratio: rep.override_feed_ratio,

@@ -53,6 +53,7 @@ fn run_with(
         faults,
         ready_s: vec![],
         substitute,
+        holds: vec![],
     };
     run_stream::<CAP, NQ, NP>(table, chunks, &link).unwrap()
 }

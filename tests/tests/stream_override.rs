@@ -306,6 +306,7 @@ fn a_splice_of_another_path_is_refused_and_the_change_made_again() {
             faults: LinkFaults::default(),
             ready_s: vec![],
             substitute: vec![],
+            holds: vec![],
         };
         let mut setpoints = Vec::new();
         let r = run_stream_host::<{ 16 * 1024 }, Q, P>(

@@ -68,6 +68,7 @@ fn link(baud: f64, stalls: Vec<(f64, f64)>) -> StreamLink {
         faults: Default::default(),
         ready_s: vec![],
         substitute: vec![],
+        holds: vec![],
     }
 }
 
@@ -215,9 +216,9 @@ fn a_host_that_waits_for_a_runway_does_not_starve_the_start() {
 fn runway() {
     let p = planned("butterfly");
     let table = Table::parse(&p.bytes).unwrap();
-    // the first six chunks (48 mm) at 0.1 s, the rest from 1.5 s on
+    // the first ten chunks (80 mm) at 0.1 s, the rest from 1.5 s on
     let ready: Vec<f64> = (0..p.chunks.len())
-        .map(|i| if i < 6 { 0.1 } else { 1.5 + 0.01 * (i - 6) as f64 })
+        .map(|i| if i < 10 { 0.1 } else { 1.5 + 0.01 * (i - 10) as f64 })
         .collect();
     let run_with = |ready_s: Vec<f64>| {
         let l = StreamLink {
@@ -245,4 +246,91 @@ fn runway() {
     assert!(rep.ok, "{}", rep.text());
     // a runway of 0 sends each chunk as it is ready
     assert_eq!(start_after_runway(&ready, &p.s_c_mm, 0.0), ready);
+}
+
+/// The 11 m meander at full feed through a firmware window of 128 q spans
+/// and 256 pieces over a 2 Mbaud link that keeps up: the window's q spans
+/// run out about every 3 s (it holds ~105 mm of rows, the stops take up to
+/// ~100 mm), so the firmware starves on a full window 26 times, pressing
+/// the hold at the hold point with the resume before it still in its tail.
+/// Every stop comes to rest inside the rows held, the path is finished and
+/// every limit holds on the setpoints. With the hold-point search's margin
+/// at 1 % of the stop, one such stop ran 106 mm from its hold point to the
+/// end of the rows at 3,400 mm and the tick faulted there (`Fault::Eval`).
+#[test]
+fn a_full_mcu_window_starves_the_meander_again_and_again_and_never_runs_past_the_rows() {
+    big_stack(full_mcu_window);
+}
+
+fn full_mcu_window() {
+    const Q: usize = 128;
+    const P: usize = 256;
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../planner-host/curves/long/meander-11m.json");
+    let curve = planner_host::cli::load_curve(&path).unwrap();
+    let out = plan_curve(&curve, &PlanConfig::default()).unwrap();
+    let table = Table::parse(&out.table_bytes).unwrap();
+    let opts = ChunkOptions {
+        chunk_mm: 8.0,
+        u_form: true,
+        ..ChunkOptions::default()
+    };
+    let mut chunks = chunk_table(&table, &opts).unwrap();
+    set_hold_points::<Q, P>(&table, &mut chunks, &HoldSearch::default()).unwrap();
+    let run = run_stream::<{ 16 * 1024 }, Q, P>(&table, &chunks, &link(2e6, vec![])).unwrap();
+    assert!(run.starvations >= 10, "{} starvations", run.starvations);
+    let mut least = f64::INFINITY;
+    for &(reach, end) in &run.starved_reach_mm {
+        assert!(
+            reach <= end,
+            "motion reached {reach} mm past the rows held ({end} mm)"
+        );
+        least = least.min(end - reach);
+    }
+    assert_eq!(run.setpoints.last().unwrap().s_mm, table.path_length_mm());
+    let rep = check(&table, &run.setpoints, TOL);
+    assert!(rep.ok, "{}", rep.text());
+    println!(
+        "{} starvations, {} ticks starved, the least room left {least:.3} mm; machining {:.3} s",
+        run.starvations,
+        run.starved_ticks,
+        run.setpoints.last().unwrap().t_s
+    );
+}
+
+/// The operator's feed holds on a streamed plan through an MCU-sized
+/// window (128 q spans, 256 pieces): pressed while the motion runs, at
+/// times through the whole Butterfly, one released at once; each comes to
+/// rest inside the rows held then, the cycle start resumes it, the path is
+/// finished and every limit holds on the setpoints.
+#[test]
+fn the_operators_feed_holds_on_a_streamed_plan_rest_inside_the_rows() {
+    big_stack(operator_holds);
+}
+
+fn operator_holds() {
+    const Q: usize = 128;
+    const P: usize = 256;
+    let p = planned_for::<Q, P>("butterfly");
+    let table = Table::parse(&p.bytes).unwrap();
+    let holds = vec![(0.4, 0.3), (1.7, 0.0), (2.9, 0.5), (4.1, 0.2), (5.3, 0.3)];
+    let l = StreamLink {
+        holds: holds.clone(),
+        ..link(2e6, vec![])
+    };
+    let run = run_stream::<{ 16 * 1024 }, Q, P>(&table, &p.chunks, &l).unwrap();
+    assert_eq!(run.operator_holds.len(), holds.len());
+    for h in &run.operator_holds {
+        let [pressed, rest, end] = *h;
+        assert!(pressed.is_finite() && rest >= pressed, "{h:?}");
+        assert!(rest < end, "at rest at {rest} mm past the rows held ({end} mm)");
+    }
+    assert_eq!(run.setpoints.last().unwrap().s_mm, table.path_length_mm());
+    let rep = check(&table, &run.setpoints, TOL);
+    assert!(rep.ok, "{}", rep.text());
+    println!(
+        "holds (pressed, rest, rows' end) {:?}; machining {:.3} s",
+        run.operator_holds,
+        run.setpoints.last().unwrap().t_s
+    );
 }

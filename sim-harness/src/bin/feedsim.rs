@@ -249,6 +249,12 @@ enum Cmd {
         /// A link stall: START:DURATION in seconds from the start of sending (repeatable).
         #[arg(long)]
         stall: Vec<String>,
+        /// The operator's feed hold: pressed at TIME seconds from the start of sending (at
+        /// the first tick after it that the machine moves), cycle start pressed once it has
+        /// rested HELD seconds (repeatable). The report lists where each stop came to rest
+        /// and the end of the rows held then.
+        #[arg(long)]
+        hold: Vec<String>,
         /// A feedrate override while streaming: at T seconds from the start of sending,
         /// PCT percent of the programmed feed (repeatable, in time order). The host replans
         /// the path ahead at the new feed and the firmware splices it in; the check holds
@@ -843,6 +849,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
             first_window,
             start_runway_mm,
             stall,
+            hold,
             overrides,
             host_replan_ms,
             host_slowdown,
@@ -876,15 +883,20 @@ fn run(cli: Cli) -> Result<(), Failure> {
                 .ok_or_else(|| {
                     Failure::usage(format!("--link {link}: expected uart:BAUD, e.g. uart:115200"))
                 })?;
-            let stalls = stall
-                .iter()
-                .map(|s| {
-                    let (a, d) = s.split_once(':')?;
-                    let (a, d) = (a.parse::<f64>().ok()?, d.parse::<f64>().ok()?);
-                    (a >= 0.0 && d > 0.0).then_some((a, d))
-                })
-                .collect::<Option<Vec<_>>>()
+            let intervals = |v: &[String], zero: bool| {
+                v.iter()
+                    .map(|s| {
+                        let (a, d) = s.split_once(':')?;
+                        let (a, d) = (a.parse::<f64>().ok()?, d.parse::<f64>().ok()?);
+                        (a >= 0.0 && a.is_finite() && d.is_finite() && (d > 0.0 || zero && d == 0.0))
+                            .then_some((a, d))
+                    })
+                    .collect::<Option<Vec<_>>>()
+            };
+            let stalls = intervals(&stall, false)
                 .ok_or_else(|| Failure::usage("--stall: expected START:DURATION in seconds, e.g. 1.0:0.5"))?;
+            let holds = intervals(&hold, true)
+                .ok_or_else(|| Failure::usage("--hold: expected TIME:HELD in seconds, e.g. 2.0:1.5"))?;
             let overrides = overrides
                 .iter()
                 .map(|s| {
@@ -916,6 +928,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
             }
             let opts = sim_harness::stream::StreamOptions {
                 overrides,
+                holds,
                 host_replan_s: host_replan_ms.map(|h| h * 1e-3),
                 baud,
                 latency_s: latency_ms * 1e-3,
@@ -991,6 +1004,14 @@ fn run(cli: Cli) -> Result<(), Failure> {
                     outln!(
                         "  feed against each override once it holds: {:.4}",
                         rep.override_feed_ratio
+                    );
+                }
+                for h in &rep.operator_holds {
+                    outln!(
+                        "  feed hold pressed at {:.2} mm: at rest at {:.2} mm, rows held to {:.2} mm",
+                        h[0],
+                        h[1],
+                        h[2]
                     );
                 }
             }
