@@ -37,7 +37,12 @@ fn planned(name: &str) -> Planned {
 /// `Q` q spans and `P` pieces.
 fn planned_for<const Q: usize, const P: usize>(name: &str) -> Planned {
     let curve = planner_host::builtin::by_name(name).unwrap().unwrap();
-    let out = plan_curve(&curve, &PlanConfig::default()).unwrap();
+    planned_curve_for::<Q, P>(&curve, name)
+}
+
+/// [`planned_for`] of `curve`.
+fn planned_curve_for<const Q: usize, const P: usize>(curve: &planner_host::Nurbs, name: &str) -> Planned {
+    let out = plan_curve(curve, &PlanConfig::default()).unwrap();
     let table = Table::parse(&out.table_bytes).unwrap();
     let opts = ChunkOptions {
         chunk_mm: 8.0,
@@ -268,16 +273,9 @@ fn full_mcu_window() {
     let path =
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../planner-host/curves/long/meander-11m.json");
     let curve = planner_host::cli::load_curve(&path).unwrap();
-    let out = plan_curve(&curve, &PlanConfig::default()).unwrap();
-    let table = Table::parse(&out.table_bytes).unwrap();
-    let opts = ChunkOptions {
-        chunk_mm: 8.0,
-        u_form: true,
-        ..ChunkOptions::default()
-    };
-    let mut chunks = chunk_table(&table, &opts).unwrap();
-    set_hold_points::<Q, P>(&table, &mut chunks, &HoldSearch::default()).unwrap();
-    let run = run_stream::<{ 16 * 1024 }, Q, P>(&table, &chunks, &link(2e6, vec![])).unwrap();
+    let p = planned_curve_for::<Q, P>(&curve, "meander-11m");
+    let table = Table::parse(&p.bytes).unwrap();
+    let run = run_stream::<{ 16 * 1024 }, Q, P>(&table, &p.chunks, &link(2e6, vec![])).unwrap();
     assert!(run.starvations >= 10, "{} starvations", run.starvations);
     let mut least = f64::INFINITY;
     for &(reach, end) in &run.starved_reach_mm {
@@ -287,9 +285,7 @@ fn full_mcu_window() {
         );
         least = least.min(end - reach);
     }
-    assert_eq!(run.setpoints.last().unwrap().s_mm, table.path_length_mm());
-    let rep = check(&table, &run.setpoints, TOL);
-    assert!(rep.ok, "{}", rep.text());
+    finished_within_the_limits(&table, &run);
     println!(
         "{} starvations, {} ticks starved, the least room left {least:.3} mm; machining {:.3} s",
         run.starvations,
@@ -325,12 +321,18 @@ fn operator_holds() {
         assert!(pressed.is_finite() && rest >= pressed, "{h:?}");
         assert!(rest < end, "at rest at {rest} mm past the rows held ({end} mm)");
     }
-    assert_eq!(run.setpoints.last().unwrap().s_mm, table.path_length_mm());
-    let rep = check(&table, &run.setpoints, TOL);
-    assert!(rep.ok, "{}", rep.text());
+    finished_within_the_limits(&table, &run);
     println!(
         "holds (pressed, rest, rows' end) {:?}; machining {:.3} s",
         run.operator_holds,
         run.setpoints.last().unwrap().t_s
     );
+}
+
+/// The run reached the path's end, every limit within [`TOL`] on its
+/// setpoints (50 ticks at rest padding).
+fn finished_within_the_limits(table: &Table, run: &StreamRun) {
+    assert_eq!(run.setpoints.last().unwrap().s_mm, table.path_length_mm());
+    let rep = check(table, &run.setpoints, TOL);
+    assert!(rep.ok, "{}", rep.text());
 }
