@@ -419,6 +419,8 @@ fn stream_through_an_mcu_sized_window_starves_safely_or_is_refused() {
             "uart:230400",
             "--stall",
             "1.0:1.5",
+            "--chunk-mm",
+            "32",
             "--json",
         ])
         .output()
