@@ -1,6 +1,7 @@
-//! The 16-point Gauss–Legendre rule on [−1, 1], by its positive half: the
-//! nodes ±x_k carry the weight w_k. The arc length integrals of the host's
-//! geometry and of the pieces' fit use the same rule.
+//! The 16-, 8- and 4-point Gauss–Legendre rules on [−1, 1], by their
+//! positive halves: the nodes ±x_k carry the weight w_k. The arc length
+//! integrals of the host's geometry and of the pieces' fit use the same
+//! rules (the shorter ones over short steps).
 
 /// Positive nodes of the 16-point Gauss–Legendre rule.
 pub const GL16_X: [f64; 8] = [
@@ -25,3 +26,25 @@ pub const GL16_W: [f64; 8] = [
     0.062_253_523_938_647_89,
     0.027_152_459_411_754_095,
 ];
+
+/// Positive nodes of the 8-point Gauss–Legendre rule.
+pub const GL8_X: [f64; 4] = [
+    0.183_434_642_495_649_8,
+    0.525_532_409_916_329,
+    0.796_666_477_413_626_7,
+    0.960_289_856_497_536_3,
+];
+
+/// Their weights.
+pub const GL8_W: [f64; 4] = [
+    0.362_683_783_378_362,
+    0.313_706_645_877_887_3,
+    0.222_381_034_453_374_5,
+    0.101_228_536_290_376_3,
+];
+
+/// Positive nodes of the 4-point Gauss–Legendre rule.
+pub const GL4_X: [f64; 2] = [0.339_981_043_584_856_3, 0.861_136_311_594_052_6];
+
+/// Their weights.
+pub const GL4_W: [f64; 2] = [0.652_145_154_862_546_1, 0.347_854_845_137_453_9];

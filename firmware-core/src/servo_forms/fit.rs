@@ -17,7 +17,7 @@
 //! [`POS_ALONG_TOL_MM`](crate::servo_forms::check::POS_ALONG_TOL_MM)).
 
 use crate::math::basis::MAX_DEGREE;
-use crate::math::quadrature::{GL16_W, GL16_X};
+use crate::math::quadrature::{GL16_W, GL16_X, GL4_W, GL4_X};
 use crate::path::nurbs::{NurbsSpan, NurbsView};
 use crate::path::qspline::QSpline;
 use crate::path::su_map::{horner, SuSegment};
@@ -309,15 +309,13 @@ impl<'a> ArcRef<'a> {
     /// off by well under a micrometre: the rule's error, ∝ step⁹, is far
     /// below the rounding), else [`ArcRef::integral`].
     fn step_integral(&self, a: f64, b: f64) -> f64 {
-        const X: [f64; 2] = [0.339_981_043_584_856_3, 0.861_136_311_594_052_6];
-        const WT: [f64; 2] = [0.652_145_154_862_546_1, 0.347_854_845_137_453_9];
         let w = self.knots.1 - self.knots.0;
         if libm::fabs(b - a) > 1e-3 * w {
             return self.integral(a, b);
         }
         let (c, h) = (0.5 * (a + b), 0.5 * (b - a));
         let mut sum = 0.0;
-        for (&x, &wt) in X.iter().zip(WT.iter()) {
+        for (&x, &wt) in GL4_X.iter().zip(GL4_W.iter()) {
             sum += wt * (self.speed(c - h * x) + self.speed(c + h * x));
         }
         sum * h

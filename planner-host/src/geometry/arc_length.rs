@@ -18,7 +18,7 @@
 
 use crate::geometry::curve::{cross, dot, norm, Nurbs, SpanPolys};
 use crate::geometry::curve_error::CurveError;
-use firmware_core::math::quadrature::{GL16_W, GL16_X};
+use firmware_core::math::quadrature::{GL16_W, GL16_X, GL4_W, GL4_X, GL8_W, GL8_X};
 
 /// Nodes (on [−1, 1]) and weights of the 16-point Gauss–Legendre rule.
 pub const GL16: ([f64; 16], [f64; 16]) = {
@@ -53,34 +53,20 @@ pub(crate) fn gl16(a: f64, b: f64, mut f: impl FnMut(f64) -> f64) -> f64 {
 /// table's tolerance: the 8-point rule's error falls as the step's 17th
 /// power).
 pub(crate) fn gl8(a: f64, b: f64, mut f: impl FnMut(f64) -> f64) -> f64 {
-    const X: [f64; 4] = [
-        0.183_434_642_495_649_8,
-        0.525_532_409_916_329,
-        0.796_666_477_413_626_7,
-        0.960_289_856_497_536_3,
-    ];
-    const W: [f64; 4] = [
-        0.362_683_783_378_362,
-        0.313_706_645_877_887_3,
-        0.222_381_034_453_374_5,
-        0.101_228_536_290_376_3,
-    ];
     let (c, h) = (0.5 * (a + b), 0.5 * (b - a));
     let mut sum = 0.0;
     for i in 0..4 {
-        sum += W[i] * (f(c - h * X[i]) + f(c + h * X[i]));
+        sum += GL8_W[i] * (f(c - h * GL8_X[i]) + f(c + h * GL8_X[i]));
     }
     sum * h
 }
 
 /// ∫ₐᵇ f by the 4-point Gauss–Legendre rule (for short steps).
 pub(crate) fn gl4(a: f64, b: f64, mut f: impl FnMut(f64) -> f64) -> f64 {
-    const X: [f64; 2] = [0.339_981_043_584_856_3, 0.861_136_311_594_052_6];
-    const W: [f64; 2] = [0.652_145_154_862_546_1, 0.347_854_845_137_453_9];
     let (c, h) = (0.5 * (a + b), 0.5 * (b - a));
     let mut sum = 0.0;
     for i in 0..2 {
-        sum += W[i] * (f(c - h * X[i]) + f(c + h * X[i]));
+        sum += GL4_W[i] * (f(c - h * GL4_X[i]) + f(c + h * GL4_X[i]));
     }
     sum * h
 }

@@ -202,8 +202,7 @@ fn hermite(a: &Node, b: &Node) -> [f64; SU_COEFFS] {
 /// 1/32 — no cancellation against s, 124 speed evaluations. σ is span
 /// `span`'s piece (continued a hair past its ends if u_c overshoots).
 fn segment_error(curve: &SpanPolys, span: usize, c: &[f64; SU_COEFFS], h: f64) -> (f64, f64) {
-    const X: [f64; 2] = [0.339_981_043_584_856_3, 0.861_136_311_594_052_6];
-    const W: [f64; 2] = [0.652_145_154_862_546_1, 0.347_854_845_137_453_9];
+    use firmware_core::math::quadrature::{GL4_W as W, GL4_X as X};
     let dc = [c[1], 2.0 * c[2], 3.0 * c[3], 4.0 * c[4], 5.0 * c[5]];
     let g = |t: f64| {
         let u = horner(c, t);
