@@ -91,6 +91,14 @@ pub enum ChunkTableError {
         /// The commit's first segment.
         told: usize,
     },
+    /// A commit told a knot vector of q that is not the one before with
+    /// knots added past the control points taken (a planner bug, never a
+    /// chunk cut on the wrong knots).
+    #[error("a commit moved the knots of q before control point {through}")]
+    KnotsMoved {
+        /// Control points taken.
+        through: usize,
+    },
 }
 
 /// A table's rows, owned: what the chunks carry and what they must decode to.

@@ -23,6 +23,7 @@ use firmware_core::table::{fit_pieces, piece_group_bounds, FittedPiece, TablePar
 use firmware_core::{EndSegments, SuSegment};
 
 use crate::geometry::curve::Nurbs;
+use crate::lp::basis_rows::ORDER;
 use crate::plan::replan::{replan_committing, FeedChange};
 use crate::plan::su_fit::drop_front;
 use crate::plan::{plan_curve_committing, Commit, PlanConfig, PlanError, PlanOutput};
@@ -139,6 +140,19 @@ impl ChunkPipeline {
             let jb = path.su_first + path.su_breaks.len();
             path.su_breaks.extend_from_slice(&c.su_breaks[jb - c.su_first..]);
             self.groups_from(j);
+        }
+        // a plan whose knots are refined while it is planned
+        // (`crate::plan::knot_feed`) tells a longer vector when its windows
+        // pass the refined ones: the same knots up to there, where the
+        // control points taken so far stand
+        if c.knots.len() != self.rows.q_knots.len() {
+            let keep = self.taken + ORDER;
+            if c.knots.len() < self.rows.q_knots.len() || c.knots.get(..keep) != self.rows.q_knots.get(..keep)
+            {
+                return Err(ChunkTableError::KnotsMoved { through: self.taken });
+            }
+            self.rows.q_knots = c.knots.to_vec();
+            self.rows.q_ctrl.resize(c.ctrl.len(), 0.0);
         }
         let n = self.rows.q_ctrl.len().min(c.ctrl.len());
         let through = c.through.min(n.saturating_sub(1));

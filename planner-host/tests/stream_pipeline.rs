@@ -331,3 +331,61 @@ fn a_sink_that_panics_ends_the_planning_instead_of_hanging_it() {
         .expect("the planning hung after its sink panicked");
     assert!(panicked, "the sink's panic did not reach the caller");
 }
+
+/// A path of more samples than three stretches of the knot refinement (the
+/// 1.2 m meander at 10 points per mm, windows of 100/40 mm, its sample
+/// intervals split where they turn by more than 0.01 rad, so that the
+/// refinement adds knots) has its knots refined while its windows plan, each
+/// window on a vector refined past its reach and raw after it: the commits
+/// tell knot vectors that grow under the windows, and the plan is still the
+/// one on the whole refined vector, bit for bit (planned without commits,
+/// the vector refined first), its chunks those of that table.
+#[test]
+fn knots_refined_while_the_windows_plan_give_the_plan_on_the_whole_refined_vector() {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/curves/long/meander-1m.json");
+    let curve = planner_host::cli::load_curve(std::path::Path::new(path)).unwrap();
+    let mut cfg = PlanConfig {
+        windows: Some(WindowConfig::new(100.0, 40.0)),
+        density_per_mm: 10.0,
+        ..PlanConfig::default()
+    };
+    cfg.certified.max_turn_rad = 0.01;
+    let whole = plan_curve(&curve, &cfg).unwrap();
+    let opts = ChunkOptions {
+        chunk_mm: 16.0,
+        max_chunk_bytes: Some(4096),
+        ..ChunkOptions::default()
+    };
+    let pipe: Mutex<Option<ChunkPipeline>> = Mutex::new(None);
+    let out: Mutex<(Vec<Vec<u8>>, Vec<usize>)> = Mutex::new((vec![], vec![]));
+    let sink = |c: &Commit| {
+        let mut p = pipe.lock().unwrap();
+        let p = p.get_or_insert_with(|| ChunkPipeline::new(&curve, c, &opts).unwrap());
+        let new = p.commit(c).unwrap();
+        let mut o = out.lock().unwrap();
+        o.0.extend(new);
+        o.1.push(c.knots.len());
+    };
+    let fed = plan_curve_committing(&curve, &cfg, &sink).unwrap();
+    let (chunks, told) = out.into_inner().unwrap();
+    // the vectors the commits told: more than one, each at least as long
+    // as the one before, the last the whole refined vector
+    let mut lengths = told.clone();
+    lengths.dedup();
+    eprintln!("knot vectors told by {} commits: {lengths:?}", told.len());
+    assert!(
+        lengths.len() >= 2,
+        "the windows never took a longer vector: {lengths:?}"
+    );
+    assert!(lengths.windows(2).all(|w| w[0] < w[1]));
+    assert_eq!(*lengths.last().unwrap(), whole.q_knots.len());
+    assert_eq!(fed.q_knots, whole.q_knots);
+    assert_eq!(fed.q_ctrl, whole.q_ctrl);
+    assert_eq!(fed.table_bytes, whole.table_bytes);
+    let table = Table::parse(&fed.table_bytes).unwrap();
+    let reference = chunk_table(&table, &opts).unwrap();
+    assert_eq!(chunks.len(), reference.len());
+    for (i, (a, b)) in chunks.iter().zip(&reference).enumerate() {
+        assert_eq!(a, b, "chunk {i} differs");
+    }
+}

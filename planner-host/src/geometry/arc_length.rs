@@ -19,6 +19,13 @@
 use crate::geometry::curve::{cross, dot, norm, Nurbs, SpanPolys};
 use crate::geometry::curve_error::CurveError;
 use firmware_core::math::quadrature::{GL16_W, GL16_X, GL4_W, GL4_X, GL8_W, GL8_X};
+use rayon::prelude::*;
+
+/// Spans (or pieces) per task when the table is made on both cores.
+const PAR_SPANS: usize = 512;
+
+/// A run of spans' pieces `(lo, hi, ∫)`, and where each span's end.
+type RunPieces = (Vec<(f64, f64, f64)>, Vec<usize>);
 
 /// Nodes (on [−1, 1]) and weights of the 16-point Gauss–Legendre rule.
 pub const GL16: ([f64; 16], [f64; 16]) = {
@@ -77,7 +84,9 @@ pub(crate) fn gl4(a: f64, b: f64, mut f: impl FnMut(f64) -> f64) -> f64 {
 /// `tol·(width/(b−a)) + 1e-15·|value|` (the halves are kept), at depth 40,
 /// or once [`MAX_PIECES`] pieces are out (so rounding noise above `tol`
 /// costs at most that many evaluations, never an exponential recursion).
+/// The pieces are appended to `out`.
 pub(crate) fn adaptive_gl(a: f64, b: f64, tol: f64, f: &impl Fn(f64) -> f64, out: &mut Vec<(f64, f64, f64)>) {
+    #[allow(clippy::too_many_arguments)]
     fn rec(
         lo: f64,
         hi: f64,
@@ -86,24 +95,26 @@ pub(crate) fn adaptive_gl(a: f64, b: f64, tol: f64, f: &impl Fn(f64) -> f64, out
         tol_per_width: f64,
         f: &impl Fn(f64) -> f64,
         out: &mut Vec<(f64, f64, f64)>,
+        base: usize,
     ) {
         let m = 0.5 * (lo + hi);
         let (l, r) = (gl16(lo, m, f), gl16(m, hi, f));
         let err = (l + r - whole).abs();
         if err <= tol_per_width * (hi - lo) + 1e-15 * (l.abs() + r.abs())
             || depth >= 40
-            || out.len() >= MAX_PIECES
+            || out.len() - base >= MAX_PIECES
             || !(m > lo && hi > m)
         {
             out.push((lo, m, l));
             out.push((m, hi, r));
         } else {
-            rec(lo, m, l, depth + 1, tol_per_width, f, out);
-            rec(m, hi, r, depth + 1, tol_per_width, f, out);
+            rec(lo, m, l, depth + 1, tol_per_width, f, out, base);
+            rec(m, hi, r, depth + 1, tol_per_width, f, out, base);
         }
     }
+    // (pieces appended to `out`: the cap counts this call's)
     if b > a {
-        rec(a, b, gl16(a, b, f), 0, tol / (b - a), f, out);
+        rec(a, b, gl16(a, b, f), 0, tol / (b - a), f, out, out.len());
     }
 }
 
@@ -224,26 +235,50 @@ impl ArcLength {
         let mut s = vec![0.0];
         let mut piece_span = Vec::new();
         let mut spans = Vec::new();
-        let mut pieces = Vec::new();
         let mut acc = 0.0;
         let tol = span_tol_mm(curve);
-        for (i, a, b) in curve.spans() {
-            pieces.clear();
-            adaptive_gl(a, b, tol, &|x| polys.speed_in_span(i, x), &mut pieces);
-            let s0 = acc;
-            for &(lo, _, v) in &pieces {
-                u.push(lo);
-                acc += v;
-                s.push(acc);
-                piece_span.push(i);
+        // each span's pieces on both cores (a span's depend on it alone),
+        // summed in order: the same table as span by span
+        let all = curve.spans();
+        // (by runs of spans: each run's pieces in one vector, and where
+        // each span's end)
+        let per_run: Vec<RunPieces> = all
+            .par_chunks(PAR_SPANS)
+            .map(|run| {
+                let mut pieces = Vec::new();
+                let mut ends = Vec::with_capacity(run.len());
+                for &(i, a, b) in run {
+                    adaptive_gl(a, b, tol, &|x| polys.speed_in_span(i, x), &mut pieces);
+                    ends.push(pieces.len());
+                }
+                (pieces, ends)
+            })
+            .collect();
+        let count: usize = per_run.iter().map(|r| r.0.len()).sum();
+        u.reserve_exact(count + 1);
+        s.reserve_exact(count);
+        piece_span.reserve_exact(count);
+        spans.reserve_exact(all.len());
+        let runs = all.chunks(PAR_SPANS).zip(&per_run);
+        for (run, (pieces, ends)) in runs {
+            let mut k0 = 0;
+            for (&(i, a, b), &k1) in run.iter().zip(ends) {
+                let s0 = acc;
+                for &(lo, _, v) in &pieces[k0..k1] {
+                    u.push(lo);
+                    acc += v;
+                    s.push(acc);
+                    piece_span.push(i);
+                }
+                k0 = k1;
+                spans.push(SpanArc {
+                    span: i,
+                    u0: a,
+                    u1: b,
+                    s0,
+                    s1: acc,
+                });
             }
-            spans.push(SpanArc {
-                span: i,
-                u0: a,
-                u1: b,
-                s0,
-                s1: acc,
-            });
         }
         let (_, u_end) = curve.u_range();
         u.push(u_end);
@@ -255,7 +290,8 @@ impl ArcLength {
         }
         let speed_floor = speed_floor(curve, acc);
         let piece_speed = piece_span
-            .iter()
+            .par_iter()
+            .with_min_len(PAR_SPANS)
             .enumerate()
             .map(|(k, &sp)| [polys.speed_in_span(sp, u[k]), polys.speed_in_span(sp, u[k + 1])])
             .collect();

@@ -13,6 +13,7 @@
 //! available as a degree-2 curve, [`Nurbs::line`].
 
 use firmware_core::math::basis::{self, BasisDerivs, MAX_DEGREE, MAX_DERIV};
+use rayon::prelude::*;
 
 use crate::geometry::curve_error::CurveError;
 
@@ -307,55 +308,68 @@ impl Nurbs {
     #[allow(clippy::needless_range_loop)] // a small dense solve, written with indices
     pub fn span_polys(&self) -> SpanPolys {
         let p = self.degree.min(MAX_DEGREE);
-        let mut polys = vec![None; self.knots.len()];
-        for (i, a, b) in self.spans() {
-            let (c, h) = (0.5 * (a + b), 0.5 * (b - a));
-            // interpolate at the p + 1 Chebyshev–Lobatto points of t ∈ [−1, 1]
-            let n = p + 1;
-            let mut v = [[0.0; MAX_DEGREE + 1]; MAX_DEGREE + 1];
-            let mut f = [[0.0; 4]; MAX_DEGREE + 1];
-            for j in 0..n {
-                let t = if p == 0 {
-                    0.0
-                } else {
-                    (std::f64::consts::PI * j as f64 / p as f64).cos()
-                };
-                let mut tk = 1.0;
-                for k in 0..n {
-                    v[j][k] = tk;
-                    tk *= t;
+        let n = self.points.len();
+        // span by span on both cores (each span's form is its own), one per
+        // knot index (`None`: an empty span, or no span)
+        let polys: Vec<Option<SpanPoly>> = (0..self.knots.len())
+            .into_par_iter()
+            .with_min_len(512)
+            .map(|i| {
+                if i < self.degree || i >= n {
+                    return None;
                 }
-                f[j] = self.homogeneous(i, c + h * t, 0)[0];
-            }
-            // Gaussian elimination with partial pivoting, four right-hand sides
-            for col in 0..n {
-                let piv = (col..n)
-                    .max_by(|&x, &y| v[x][col].abs().total_cmp(&v[y][col].abs()))
-                    .unwrap_or(col);
-                v.swap(col, piv);
-                f.swap(col, piv);
-                for r in col + 1..n {
-                    let m = v[r][col] / v[col][col];
-                    for k in col..n {
-                        v[r][k] -= m * v[col][k];
+                let (a, b) = (*self.knots.get(i)?, *self.knots.get(i + 1)?);
+                if b <= a {
+                    return None;
+                }
+                let (c, h) = (0.5 * (a + b), 0.5 * (b - a));
+                // interpolate at the p + 1 Chebyshev–Lobatto points of t ∈ [−1, 1]
+                let n = p + 1;
+                let mut v = [[0.0; MAX_DEGREE + 1]; MAX_DEGREE + 1];
+                let mut f = [[0.0; 4]; MAX_DEGREE + 1];
+                for j in 0..n {
+                    let t = if p == 0 {
+                        0.0
+                    } else {
+                        (std::f64::consts::PI * j as f64 / p as f64).cos()
+                    };
+                    let mut tk = 1.0;
+                    for k in 0..n {
+                        v[j][k] = tk;
+                        tk *= t;
                     }
+                    f[j] = self.homogeneous(i, c + h * t, 0)[0];
+                }
+                // Gaussian elimination with partial pivoting, four right-hand sides
+                for col in 0..n {
+                    let piv = (col..n)
+                        .max_by(|&x, &y| v[x][col].abs().total_cmp(&v[y][col].abs()))
+                        .unwrap_or(col);
+                    v.swap(col, piv);
+                    f.swap(col, piv);
+                    for r in col + 1..n {
+                        let m = v[r][col] / v[col][col];
+                        for k in col..n {
+                            v[r][k] -= m * v[col][k];
+                        }
+                        for d in 0..4 {
+                            f[r][d] -= m * f[col][d];
+                        }
+                    }
+                }
+                let mut a = [[0.0; 4]; MAX_DEGREE + 1];
+                for r in (0..n).rev() {
                     for d in 0..4 {
-                        f[r][d] -= m * f[col][d];
+                        let mut acc = f[r][d];
+                        for k in r + 1..n {
+                            acc -= v[r][k] * a[k][d];
+                        }
+                        a[r][d] = acc / v[r][r];
                     }
                 }
-            }
-            let mut a = [[0.0; 4]; MAX_DEGREE + 1];
-            for r in (0..n).rev() {
-                for d in 0..4 {
-                    let mut acc = f[r][d];
-                    for k in r + 1..n {
-                        acc -= v[r][k] * a[k][d];
-                    }
-                    a[r][d] = acc / v[r][r];
-                }
-            }
-            polys[i] = Some(SpanPoly { c, inv_h: 1.0 / h, a });
-        }
+                Some(SpanPoly { c, inv_h: 1.0 / h, a })
+            })
+            .collect();
         SpanPolys {
             curve: self.clone(),
             p,

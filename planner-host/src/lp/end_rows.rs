@@ -281,8 +281,11 @@ impl EndRows {
     /// one in [2L/3, L) (too short or too coarsely sampled for segments).
     pub fn new(knots: &[f64], limits: &Limits, geo: &dyn Fn(f64) -> PathDerivs) -> Option<Self> {
         let length = *knots.last()?;
-        let mut inner: Vec<f64> = knots.iter().copied().filter(|&k| k > 0.0 && k < length).collect();
-        inner.dedup();
+        // the inner knots (0 < k < L), sorted: each end's candidates are a
+        // prefix or a suffix of them, found without reading the rest (a
+        // long path has hundreds of thousands)
+        let lo = knots.partition_point(|&k| k <= 0.0);
+        let inner = &knots[lo..knots.partition_point(|&k| k < length).max(lo)];
         // Candidates: knots up to 1.25× the jerk-phase length (at least the
         // first), at most L/3 from the end. Each is rated by ρ = J/J̄ of its
         // fastest segment, the fraction of a straight-line jerk-limited start
@@ -291,13 +294,30 @@ impl EndRows {
         let pick = |stop: bool| -> Option<(f64, f64)> {
             let dist = |k: f64| if stop { length - k } else { k };
             let target = jerk_phase_len(limits, geo(if stop { length } else { 0.0 }).d1);
-            let mut ks: Vec<f64> = inner.clone();
+            let near = 1.25 * target;
+            // the nearest knot and those within `near` (distance falls as k
+            // rises at the stop, rises at the start), as a stable sort of
+            // every knot by distance would give them, each value once
+            let mut ks: Vec<f64> = match stop {
+                false => {
+                    inner.first()?;
+                    inner[..inner.partition_point(|&k| k <= near).max(1)].to_vec()
+                }
+                true => {
+                    let last = *inner.last()?;
+                    let p = inner.partition_point(|&k| dist(k) > near || near.is_nan());
+                    match p < inner.len() {
+                        true => inner[p..].to_vec(),
+                        // (none within: the nearest alone, the first of equals)
+                        false => vec![inner[inner.partition_point(|&k| dist(k) > dist(last))]],
+                    }
+                }
+            };
+            ks.dedup();
             ks.sort_by(|a, b| dist(*a).total_cmp(&dist(*b)));
-            let first = *ks.first()?;
             let rated: Vec<(f64, f64, f64)> = ks
                 .iter()
                 .copied()
-                .filter(|&k| k == first || dist(k) <= 1.25 * target)
                 .filter(|&k| dist(k) <= length / 3.0)
                 .map(|k| {
                     let d = dist(k);

@@ -144,7 +144,12 @@ fn merge_breaks(samples: &[f64], breaks: impl Iterator<Item = f64>) -> Vec<f64> 
             j += 1;
         }
         let len = out.len() + rest.len() - j;
-        let i = out.partition_point(|&x| x < b);
+        // (`out` is sorted and, the breaks rising, almost always wholly
+        // below b: the search only when it is not)
+        let i = match out.last() {
+            Some(&l) if l >= b => out.partition_point(|&x| x < b),
+            _ => out.len(),
+        };
         let get = |out: &[f64], k: usize| {
             if k < out.len() {
                 out[k]

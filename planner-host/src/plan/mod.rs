@@ -20,6 +20,7 @@ pub(crate) mod atomic_write;
 pub(crate) mod config;
 pub(crate) mod error;
 pub(crate) mod feed_change;
+pub(crate) mod knot_feed;
 pub(crate) mod knots;
 pub(crate) mod levels;
 pub(crate) mod lp_stage;

@@ -16,6 +16,7 @@ use crate::lp::problem::EvalPoint;
 use crate::plan::config::{Formulation, PlanConfig};
 use crate::plan::error::PlanError;
 use crate::plan::feed_change::{FeedChangeAt, Resume};
+use crate::plan::knot_feed::{stretch_starts, KnotFeed, STRETCH};
 use crate::plan::knots::{end_room, refine_turning, with_breaks, with_feed_breaks, TurnInU};
 use crate::plan::levels::validate_levels;
 use crate::plan::lp_stage::{check_points, LpStage, Refine, Solved};
@@ -24,6 +25,11 @@ use crate::plan::su_fit::{drop_front, SetpointBudget, SuMap};
 use crate::plan::windowed::WindowStart;
 use crate::sampling;
 use firmware_core::Limits;
+
+/// Stretches of samples from which a path whose windows commit as they go
+/// has its knots refined while the windows plan ([`KnotFeed`]); a shorter
+/// one is refined whole first, on both cores.
+const FEED_STRETCHES: usize = 3;
 
 /// Ranges of knot-span groups the pieces are fitted in (on rayon).
 const PIECE_RANGES: usize = 16;
@@ -235,6 +241,29 @@ fn plan_curve_inner(
         Formulation::Paper => Vec::new(),
         Formulation::Certified => junction::curvature_jumps(curve, &arc, &cfg.limits, cfg.servo_period_s),
     };
+    // planned whole although windows were asked for: no longer than one
+    let whole = match cfg.windows {
+        Some(w) => resume.is_none() && length <= w.window_mm,
+        None => true,
+    };
+    // the turning refinement of a stretch (each with its own memo of u(s))
+    let floor = match cfg.formulation {
+        Formulation::Paper => 0.0,
+        Formulation::Certified => TurnInU::new(curve, &arc).floor,
+    };
+    let refine = |stretch: &[f64]| {
+        let turn = TurnInU::with_floor(curve, &arc, floor);
+        refine_turning(stretch, cfg.certified.max_turn_rad, |a, b| turn.turning(a, b))
+    };
+    // refined samples → the knot vector (17), with room for the end segments
+    let finish = |samples: Vec<f64>| -> Result<Vec<f64>, PlanError> {
+        let samples = match cfg.ends {
+            EndMode::Jerk => end_room(samples, &cfg.limits, length, &|s| path_derivs_at(curve, &arc, s))?,
+            EndMode::Step => samples,
+        };
+        Ok(basis_rows::knot_vector(&samples))
+    };
+    let mut feed: Option<KnotFeed<'_>> = None;
     let samples = match cfg.formulation {
         Formulation::Paper => samples,
         Formulation::Certified => {
@@ -242,29 +271,27 @@ fn plan_curve_inner(
             if let Some(f) = &cfg.feed_profile {
                 samples = with_feed_breaks(&samples, f.breaks());
             }
-            // in stretches on both cores, each with its own memo of u(s):
-            // the stretches share their end samples, kept once
-            const STRETCH: usize = 4096;
-            let floor = TurnInU::new(curve, &arc).floor;
-            let ends: Vec<usize> = (0..samples.len().saturating_sub(1)).step_by(STRETCH).collect();
-            let parts: Vec<Vec<f64>> = ends
-                .par_iter()
-                .map(|&a| {
-                    let turn = TurnInU::with_floor(curve, &arc, floor);
-                    let b = (a + STRETCH).min(samples.len() - 1);
-                    refine_turning(&samples[a..=b], cfg.certified.max_turn_rad, |a, b| {
-                        turn.turning(a, b)
-                    })
-                })
-                .collect();
-            let mut refined = Vec::with_capacity(parts.iter().map(Vec::len).sum());
-            for (k, p) in parts.into_iter().enumerate() {
-                refined.extend_from_slice(&p[usize::from(k > 0)..]);
+            let ends = stretch_starts(samples.len());
+            // a long path whose windows commit as they go: refined
+            // stretch by stretch while the windows plan (knot_feed)
+            if on_commit.is_some() && !whole && ends.len() >= FEED_STRETCHES {
+                feed = Some(KnotFeed::new(samples, &refine, &finish));
+                Vec::new()
+            } else {
+                // in stretches on both cores: they share their end samples, kept once
+                let parts: Vec<Vec<f64>> = ends
+                    .par_iter()
+                    .map(|&a| refine(&samples[a..=(a + STRETCH).min(samples.len() - 1)]))
+                    .collect();
+                let mut refined = Vec::with_capacity(parts.iter().map(Vec::len).sum());
+                for (k, p) in parts.into_iter().enumerate() {
+                    refined.extend_from_slice(&p[usize::from(k > 0)..]);
+                }
+                if refined.is_empty() {
+                    refined = samples;
+                }
+                refined
             }
-            if refined.is_empty() {
-                refined = samples;
-            }
-            refined
         }
     };
     dbg_t("refine");
@@ -278,6 +305,10 @@ fn plan_curve_inner(
     let su_slot: SuSlot = Default::default();
     let sink = |c: &Commit| {
         let Some(f) = on_commit else { return };
+        // (the first window's plan is out: the knots refine on beside)
+        if let Some(feed) = &feed {
+            feed.go();
+        }
         // q is final below U_{through+1}; all of it with the last commit
         let need = match c.last {
             true => f64::INFINITY,
@@ -313,23 +344,24 @@ fn plan_curve_inner(
     let sink: Option<&CommitSink<'_>> = on_commit.map(|_| &sink as &CommitSink<'_>);
     // The plan on the sampling asked for; if it fails (a stall, or no LP of
     // the sequence held every limit), once more on every span bisected.
-    // planned whole although windows were asked for: no longer than one
-    let whole = match cfg.windows {
-        Some(w) => resume.is_none() && length <= w.window_mm,
-        None => true,
-    };
     let plan_q = || -> Result<_, PlanError> {
+        // (a fed plan: on each vector as the refinement grows it; committed
+        // as it goes, so never retried)
+        if let (Some(feed), Some(w)) = (&feed, &cfg.windows) {
+            let stage = LpStage {
+                commits: sink,
+                ..lp_stage(curve, &arc, &[], cfg, progress, steps, 0)
+            };
+            let geometry_time_s = t0.elapsed().as_secs_f64();
+            let (base, stats, knots) = stage.solve_windowed_fed(&cfg.limits, &jumps, w, feed)?;
+            stage.step_done();
+            return Ok((knots, base, geometry_time_s, 0, Some(stats), None));
+        }
         let mut retry_samples = samples;
         let mut bisections = 0;
         let mut window_stats = None;
         let (knots, base, geometry_time_s, feed_change) = loop {
-            let samples = match cfg.ends {
-                EndMode::Jerk => end_room(retry_samples.clone(), &cfg.limits, length, &|s| {
-                    path_derivs_at(curve, &arc, s)
-                })?,
-                EndMode::Step => retry_samples.clone(),
-            };
-            let knots = basis_rows::knot_vector(&samples);
+            let knots = finish(retry_samples.clone())?;
             let eval = |s: f64| {
                 Some(EvalPoint {
                     s,
@@ -467,10 +499,17 @@ fn plan_curve_inner(
                 }
                 g.done = Some(su.map_err(PlanError::from));
             });
+            // (the knots of a long path refined beside the windows)
+            if let Some(f) = &feed {
+                scope.spawn(|| f.run());
+            }
             // (the map's thread fits the rest, whatever became of the plan:
             // also when the planning unwinds, else the scope would wait for
             // a thread that waits for a demand never raised)
             let _release = Release(&su_slot);
+            // (and the refinement stops once the plan is done or failed,
+            // also when it unwinds)
+            let _stop = feed.as_ref().map(KnotFeed::stopper);
             (None, plan_q())
         }),
         None => {

@@ -75,6 +75,7 @@ use crate::lp::problem::{EvalPoint, FeedLp, LpStats};
 use crate::lp::trust_region;
 use crate::plan::config::WindowConfig;
 use crate::plan::error::{PlanError, SpliceError};
+use crate::plan::knot_feed::KnotFeed;
 use crate::plan::lp_stage::{
     check_points, LpStage, Solved, PEAK_LOOK, REFINE_PER_CURVE_SPAN, REFINE_PER_SPAN, REFINE_ROUNDS,
     REFINE_TRIGGER, REPORT_PER_SPAN,
@@ -129,6 +130,77 @@ struct Before {
     /// A window's plan (at rest at its end), not a replan's running plan.
     window: bool,
 }
+
+/// What the windows carry from one knot vector to the next
+/// ([`LpStage::solve_windowed_fed`]): everything they have planned, all of
+/// it on knots the next vector holds at the same indices (the refined
+/// stretches before its frontier).
+struct WindowRun {
+    committed: Vec<f64>,
+    prev: Before,
+    /// Forced check points the window before found past its commit.
+    carried: Vec<EvalPoint>,
+    i_l: usize,
+    stats: WindowStats,
+    lps: Vec<LpStats>,
+    all_pts: Vec<f64>,
+    rounds: usize,
+    t_all: Instant,
+    /// The start (a replan's kept control points) taken.
+    started: bool,
+}
+
+impl WindowRun {
+    fn new() -> Self {
+        WindowRun {
+            committed: Vec::new(),
+            // the window before's plan (its control points from its first
+            // column on, brake to rest included): the first linearisation
+            // point is min(q̂, q_ref), q_ref this plan's control points
+            // before `reach` (f64::MAX from there: q̂ alone); a replan's
+            // running plan reaches everywhere but is no window's plan
+            // (`window`: a window can be solved again from it)
+            prev: Before {
+                first: 0,
+                ctrl: Vec::new(),
+                reach: usize::MAX,
+                window: false,
+            },
+            carried: Vec::new(),
+            i_l: 0,
+            stats: WindowStats::default(),
+            lps: Vec::new(),
+            all_pts: Vec::new(),
+            rounds: 0,
+            t_all: Instant::now(),
+            started: false,
+        }
+    }
+}
+
+/// The feed profile and the end rows the windows planned with.
+type PlannedWith = (
+    Option<crate::lp::feed_profile::FeedProfile>,
+    Option<crate::lp::end_rows::EndRows>,
+);
+
+/// How the windows on one knot vector ended.
+enum Epoch {
+    /// The last window is planned: the feed profile and the end rows they
+    /// planned with.
+    Done(Box<PlannedWith>),
+    /// The next window reaches past the refined knots: a vector refined
+    /// at least as far as this arc length, mm.
+    More(f64),
+}
+
+/// A window's need of refined knots past its join: twice the longest
+/// window, a commit, the curvature jumps' reach and this much, mm.
+const FEED_SLACK_MM: f64 = 10.0;
+
+/// ... and at least this many knots past that (on a coarse sampling a
+/// window's columns reach a few knot spans past its end).
+const FEED_SLACK_KNOTS: usize = 4 * ORDER + 8;
 
 /// What a window evaluates of the path before its LPs
 /// ([`LpStage::solve_windowed`]): its reach in knots, its commit and the
@@ -263,6 +335,67 @@ impl LpStage<'_> {
         wc: &WindowConfig,
         start: Option<WindowStart<'_>>,
     ) -> Result<(Solved, WindowStats), PlanError> {
+        let mut run = WindowRun::new();
+        match self.windows_on(&mut run, limits, jumps, wc, start, f64::INFINITY)? {
+            Epoch::Done(with) => self.windows_done(run, limits, *with),
+            // (every knot is refined: no window asks for more)
+            Epoch::More(_) => Err(PlanError::Committing),
+        }
+    }
+
+    /// [`LpStage::solve_windowed`] from the path's start on knots that
+    /// `feed` refines while the windows plan ([`KnotFeed`]): each window
+    /// plans on a vector refined past its reach, and the windows go on from
+    /// where they are on the next vector when they reach its frontier (the
+    /// knots before it, and their indices, are the same in both). The plan
+    /// is the one on the whole refined vector, bit for bit; it is returned
+    /// with that vector.
+    pub(crate) fn solve_windowed_fed(
+        &self,
+        limits: &Limits,
+        jumps: &[Jump],
+        wc: &WindowConfig,
+        feed: &KnotFeed<'_>,
+    ) -> Result<(Solved, WindowStats, Vec<f64>), PlanError> {
+        let mut run = WindowRun::new();
+        let mut need = 0.0;
+        loop {
+            let (knots, frontier) = feed.knots_to(need)?;
+            let stage = LpStage {
+                curve: self.curve,
+                arc: self.arc,
+                knots: &knots,
+                cfg: self.cfg,
+                length: self.length,
+                dense: Default::default(),
+                progress: self.progress,
+                steps: self.steps,
+                done: Default::default(),
+                commits: self.commits,
+            };
+            match stage.windows_on(&mut run, limits, jumps, wc, None, frontier)? {
+                Epoch::Done(with) => {
+                    let (solved, stats) = stage.windows_done(run, limits, *with)?;
+                    drop(stage);
+                    return Ok((solved, stats, knots));
+                }
+                Epoch::More(s_mm) => need = s_mm,
+            }
+        }
+    }
+
+    /// The windows on this stage's knots from where `run` stands, as long
+    /// as each reaches no further than `frontier_s` (refined knots
+    /// before it; `f64::INFINITY`: all of them).
+    fn windows_on(
+        &self,
+        run: &mut WindowRun,
+        limits: &Limits,
+        jumps: &[Jump],
+        wc: &WindowConfig,
+        start: Option<WindowStart<'_>>,
+        frontier_s: f64,
+    ) -> Result<Epoch, PlanError> {
         let (cfg, knots) = (self.cfg, self.knots);
         // (a replan keeps the running plan's end rows: its start join is
         // committed, and its stop join is where the chunks sent put it)
@@ -283,23 +416,38 @@ impl LpStage<'_> {
         let start_last = end_rows.and_then(|e| join(e.start.s)).map_or(0, |j| j.1);
         let stop_first = end_rows.and_then(|e| join(e.stop.s)).map_or(n - 1, |j| j.0);
         let knot_at = |s: f64| knots.partition_point(|&u| u < s);
-        let mut committed = vec![0.0; n];
-        // the window before's plan (its control points from its first
-        // column on, brake to rest included): the first linearisation point
-        // is min(q̂, q_ref), q_ref this plan's control points before `reach`
-        // (f64::MAX from there: q̂ alone); a replan's running plan reaches
-        // everywhere but is no window's plan (`window`: a window can be
-        // solved again from it)
-        let mut prev = Before {
-            first: 0,
-            ctrl: Vec::new(),
-            reach: usize::MAX,
-            window: false,
+        // (what the windows on earlier vectors planned: the committed
+        // control points keep their indices, the vector only grows)
+        let mut committed = std::mem::take(&mut run.committed);
+        committed.resize(n, 0.0);
+        let mut prev = std::mem::replace(
+            &mut run.prev,
+            Before {
+                first: 0,
+                ctrl: Vec::new(),
+                reach: usize::MAX,
+                window: false,
+            },
+        );
+        let mut carried = std::mem::take(&mut run.carried);
+        let mut i_l = run.i_l;
+        let mut stats = std::mem::take(&mut run.stats);
+        let mut lps = std::mem::take(&mut run.lps);
+        let mut all_pts = std::mem::take(&mut run.all_pts);
+        let mut rounds = run.rounds;
+        let first_epoch = !run.started;
+        run.started = true;
+        // where the next window's geometry must be refined to: the window
+        // and the next one's (evaluated beside it), the jumps' reach
+        let (frontier_i, reach_mm) = {
+            let longest = wc.first.map_or(wc.window_mm, |f| f.window_mm.max(wc.window_mm));
+            let r_all = caps.iter().fold(0.0f64, |m, c| m.max(c.2));
+            (
+                knots.partition_point(|&u| u <= frontier_s),
+                2.0 * longest + wc.commit_mm + r_all + FEED_SLACK_MM,
+            )
         };
-        // forced check points the window before found past its commit
-        let mut carried: Vec<EvalPoint> = Vec::new();
-        let mut i_l = 0usize;
-        if let Some(st) = start {
+        if let (true, Some(st)) = (first_epoch, start) {
             let splice = |reason| PlanError::Splice {
                 s_mm: st.s_mm,
                 reason,
@@ -325,15 +473,10 @@ impl LpStage<'_> {
             // the first linearisation point: min(q̂, the running plan)
             prev.ctrl = st.ctrl.to_vec();
         }
-        let mut stats = WindowStats::default();
-        let mut lps: Vec<LpStats> = Vec::new();
-        // the committed check points' s (all forced: every row is in every LP)
-        // the committed check points, for the override levels and the
-        // output (a plan without its table keeps nothing of the whole path)
-        let mut all_pts: Vec<f64> = Vec::new();
+        // the committed check points' s (all forced: every row is in every
+        // LP), for the override levels and the output (a plan without its
+        // table keeps nothing of the whole path)
         let keep_pts = cfg.table || !cfg.override_levels.is_empty();
-        let mut rounds = 0;
-        let t_all = Instant::now();
         // A window's geometry: its reach in knots and its commit, its
         // check points and dense points. It depends on where the window
         // before committed only (not on its plan), so the next window's is
@@ -411,6 +554,22 @@ impl LpStage<'_> {
         };
         let mut ahead: Option<WindowGeometry> = None;
         loop {
+            // past the refined knots: the windows go on on the next vector
+            if frontier_s < f64::INFINITY {
+                let s_join = knots[i_l + ORDER - 1];
+                let need = s_join + reach_mm;
+                if knots.partition_point(|&u| u <= need) + FEED_SLACK_KNOTS >= frontier_i {
+                    run.committed = committed;
+                    run.prev = prev;
+                    run.carried = carried;
+                    run.i_l = i_l;
+                    run.stats = stats;
+                    run.lps = lps;
+                    run.all_pts = all_pts;
+                    run.rounds = rounds;
+                    return Ok(Epoch::More(need + reach_mm));
+                }
+            }
             let t = Instant::now();
             let g = match ahead.take() {
                 Some(g) => g,
@@ -698,6 +857,34 @@ impl LpStage<'_> {
             }
             i_l = i_c;
         }
+        run.committed = committed;
+        run.i_l = i_l;
+        run.stats = stats;
+        run.lps = lps;
+        run.all_pts = all_pts;
+        run.rounds = rounds;
+        Ok(Epoch::Done(Box::new((profile, end_rows))))
+    }
+
+    /// The windowed plan from the windows' `run` on this stage's knots
+    /// (the last vector's), with the feed profile and end rows they
+    /// planned with.
+    fn windows_done(
+        &self,
+        run: WindowRun,
+        limits: &Limits,
+        (profile, end_rows): PlannedWith,
+    ) -> Result<(Solved, WindowStats), PlanError> {
+        let WindowRun {
+            committed,
+            mut stats,
+            lps,
+            mut all_pts,
+            rounds,
+            t_all,
+            ..
+        } = run;
+        let cfg = self.cfg;
         stats.windows_s = t_all.elapsed().as_secs_f64();
         all_pts.sort_by(f64::total_cmp);
         all_pts.dedup();

@@ -1,0 +1,271 @@
+//! The knot vector of q for a long path planned window by window, refined
+//! while the windows plan, so that the first motion waits for the first
+//! stretch of the path's knots and not for all of them.
+//!
+//! The certified formulation refines the sampling Γ where the path turns
+//! ([`crate::plan::knots::refine_turning`]): each sample interval is split
+//! on its own, by its own turning, so the refined samples of a stretch of
+//! the path are the same whether the stretch is refined alone or with the
+//! rest. On a 603 m path that refinement took 0.34 s on both cores before
+//! the first window could start (the windows themselves plan 300 mm in
+//! ~15 ms). Here the first and the last stretch of [`STRETCH`] samples are
+//! refined at once, the ones between on a thread of their own, in order,
+//! once the first window has committed ([`KnotFeed::run`]); the windows plan on a vector whose stretches are
+//! refined up to a frontier and still raw after it, and take the next
+//! vector when a window would reach past the frontier
+//! ([`crate::plan::lp_stage::LpStage::solve_windowed_fed`]). Before the
+//! frontier every vector holds the same knots at the same indices, so what
+//! the windows committed stays where it is, and the plan is the one on the
+//! whole refined vector, bit for bit. The last stretch is refined from the
+//! start so that the stop's end rows, which read the path's last knots, are
+//! those of the final vector too.
+//!
+//! Written here, not taken from a crate: the vector is a prefix that grows
+//! under a condition variable, a few dozen lines on `std::sync`.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Condvar, Mutex};
+
+use crate::plan::error::PlanError;
+
+/// Samples per stretch of the turning refinement (a stretch's refined
+/// samples are a few milliseconds' work on one core).
+pub(crate) const STRETCH: usize = 4096;
+
+/// The first index of each stretch of `len` samples (stretch k is
+/// `samples[starts[k] ..= starts[k] + STRETCH]`, clipped to the last; the
+/// stretches share their end samples).
+pub(crate) fn stretch_starts(len: usize) -> Vec<usize> {
+    (0..len.saturating_sub(1)).step_by(STRETCH).collect()
+}
+
+/// A knot vector refined stretch by stretch (see the module docs).
+pub(crate) struct KnotFeed<'a> {
+    /// The sampling with the toolpath's (and the feed's) breaks, unrefined.
+    samples: Vec<f64>,
+    starts: Vec<usize>,
+    /// A stretch's samples refined.
+    refine: &'a (dyn Fn(&[f64]) -> Vec<f64> + Sync),
+    /// Refined samples → the knot vector (the end segments' room, (17)).
+    finish: &'a (dyn Fn(Vec<f64>) -> Result<Vec<f64>, PlanError> + Sync),
+    /// The last stretch refined (its first sample included).
+    last: Vec<f64>,
+    state: Mutex<FeedState>,
+    grown: Condvar,
+    stop: AtomicBool,
+}
+
+/// Stops a feed's refinement when dropped ([`KnotFeed::stopper`]).
+pub(crate) struct Stopper<'f, 'a>(&'f KnotFeed<'a>);
+
+impl Drop for Stopper<'_, '_> {
+    fn drop(&mut self) {
+        self.0.stop();
+    }
+}
+
+struct FeedState {
+    /// Stretches 0 .. parts.len() refined, each with its first sample.
+    parts: Vec<Vec<f64>>,
+    /// The frontier of the vector given last (a later one must reach
+    /// further), mm.
+    given: f64,
+    /// The refining thread has ended (done, stopped, or unwound).
+    ended: bool,
+    /// The first window has committed: refine on ([`KnotFeed::go`]).
+    go: bool,
+}
+
+impl<'a> KnotFeed<'a> {
+    /// A feed on `samples` (at least two stretches), its first and last
+    /// stretch refined now.
+    pub(crate) fn new(
+        samples: Vec<f64>,
+        refine: &'a (dyn Fn(&[f64]) -> Vec<f64> + Sync),
+        finish: &'a (dyn Fn(Vec<f64>) -> Result<Vec<f64>, PlanError> + Sync),
+    ) -> Self {
+        let starts = stretch_starts(samples.len());
+        let stretch = |k: usize| {
+            let a = starts[k];
+            &samples[a..=(a + STRETCH).min(samples.len() - 1)]
+        };
+        let (first, last) = rayon::join(|| refine(stretch(0)), || refine(stretch(starts.len() - 1)));
+        KnotFeed {
+            state: Mutex::new(FeedState {
+                parts: vec![first],
+                given: f64::NEG_INFINITY,
+                ended: false,
+                go: false,
+            }),
+            samples,
+            starts,
+            refine,
+            finish,
+            last,
+            grown: Condvar::new(),
+            stop: AtomicBool::new(false),
+        }
+    }
+
+    /// The stretches between the first and the last refined in order, each
+    /// told to the windows waiting for it; until [`KnotFeed::stop`]. Run
+    /// on a thread of its own (not rayon's: the windows wait for it while
+    /// they hold the pool).
+    pub(crate) fn run(&self) {
+        struct Ended<'f, 'a>(&'f KnotFeed<'a>);
+        impl Drop for Ended<'_, '_> {
+            fn drop(&mut self) {
+                let mut st = self.0.state.lock().unwrap_or_else(|e| e.into_inner());
+                st.ended = true;
+                self.0.grown.notify_all();
+            }
+        }
+        let _ended = Ended(self);
+        {
+            let mut st = self.state.lock().unwrap_or_else(|e| e.into_inner());
+            while !st.go && !self.stop.load(Ordering::Relaxed) {
+                st = self.grown.wait(st).unwrap_or_else(|e| e.into_inner());
+            }
+        }
+        let n = self.samples.len();
+        for k in 1..self.starts.len().saturating_sub(1) {
+            if self.stop.load(Ordering::Relaxed) {
+                return;
+            }
+            let a = self.starts[k];
+            let part = (self.refine)(&self.samples[a..=(a + STRETCH).min(n - 1)]);
+            let mut st = self.state.lock().unwrap_or_else(|e| e.into_inner());
+            st.parts.push(part);
+            self.grown.notify_all();
+        }
+    }
+
+    /// No more stretches wanted (the plan ended, or failed).
+    pub(crate) fn stop(&self) {
+        let _st = self.state.lock().unwrap_or_else(|e| e.into_inner());
+        self.stop.store(true, Ordering::Relaxed);
+        self.grown.notify_all();
+    }
+
+    /// Refine on: the first window's plan has left (until then both cores
+    /// are the first window's, which the first motion waits for; a window
+    /// asking for more knots also starts the refinement).
+    pub(crate) fn go(&self) {
+        let mut st = self.state.lock().unwrap_or_else(|e| e.into_inner());
+        if !st.go {
+            st.go = true;
+            self.grown.notify_all();
+        }
+    }
+
+    /// [`KnotFeed::stop`] when the guard drops.
+    pub(crate) fn stopper<'f>(&'f self) -> Stopper<'f, 'a> {
+        Stopper(self)
+    }
+
+    /// The knot vector refined at least to `need_mm` and further than the
+    /// one given before (or wholly), and its frontier: the arc length up
+    /// to which its knots are final (`f64::INFINITY`: all of them).
+    pub(crate) fn knots_to(&self, need_mm: f64) -> Result<(Vec<f64>, f64), PlanError> {
+        let whole = self.starts.len().saturating_sub(1).max(1);
+        let mut st = self.state.lock().unwrap_or_else(|e| e.into_inner());
+        let frontier = |k: usize| match k >= whole {
+            true => f64::INFINITY,
+            false => self.samples[self.starts[k]],
+        };
+        loop {
+            let f = frontier(st.parts.len());
+            if f == f64::INFINITY || (f >= need_mm && f > st.given) {
+                break;
+            }
+            if st.ended {
+                // (stopped or unwound before the windows were done)
+                return Err(PlanError::Committing);
+            }
+            if !st.go {
+                st.go = true;
+                self.grown.notify_all();
+            }
+            st = self.grown.wait(st).unwrap_or_else(|e| e.into_inner());
+        }
+        let k = st.parts.len().min(whole);
+        let f = frontier(k);
+        st.given = f;
+        let mut v: Vec<f64> = Vec::with_capacity(self.samples.len() + self.samples.len() / 4);
+        for (i, p) in st.parts[..k].iter().enumerate() {
+            v.extend_from_slice(&p[usize::from(i > 0)..]);
+        }
+        drop(st);
+        let lastk = self.starts.len() - 1;
+        if k < lastk {
+            // raw from the frontier to the last stretch
+            v.extend_from_slice(&self.samples[self.starts[k] + 1..=self.starts[lastk]]);
+        }
+        if lastk > 0 {
+            v.extend_from_slice(&self.last[1..]);
+        }
+        Ok(((self.finish)(v)?, f))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A refinement that splits an interval by a rule of its own ends
+    /// only, as the turning refinement does.
+    fn halve_wide(s: &[f64]) -> Vec<f64> {
+        let mut out = vec![s[0]];
+        for w in s.windows(2) {
+            if (w[0] * 7.0).sin() > 0.3 {
+                out.push(0.5 * (w[0] + w[1]));
+            }
+            out.push(w[1]);
+        }
+        out
+    }
+
+    #[test]
+    fn each_vector_is_the_whole_refinement_up_to_its_frontier_and_the_last_is_all_of_it() {
+        let samples: Vec<f64> = (0..3 * STRETCH + 123).map(|i| i as f64 * 0.9).collect();
+        let whole: Vec<f64> = {
+            let starts = stretch_starts(samples.len());
+            let mut v = Vec::new();
+            for (k, &a) in starts.iter().enumerate() {
+                let p = halve_wide(&samples[a..=(a + STRETCH).min(samples.len() - 1)]);
+                v.extend_from_slice(&p[usize::from(k > 0)..]);
+            }
+            v
+        };
+        let finish = |v: Vec<f64>| -> Result<Vec<f64>, PlanError> { Ok(v) };
+        let feed = KnotFeed::new(samples.clone(), &halve_wide, &finish);
+        // before the thread: the first stretch refined, raw after it, the
+        // last stretch refined
+        let (v0, f0) = feed.knots_to(0.0).unwrap();
+        assert_eq!(f0, samples[STRETCH]);
+        let cut = whole.partition_point(|&u| u <= f0);
+        assert_eq!(v0[..cut], whole[..cut]);
+        assert!(v0.len() < whole.len());
+        assert_eq!(v0[v0.len() - 100..], whole[whole.len() - 100..]);
+        std::thread::scope(|s| {
+            s.spawn(|| feed.run());
+            let (v1, f1) = feed.knots_to(f0 + 1.0).unwrap();
+            assert!(f1 > f0);
+            let cut = whole.partition_point(|&u| u <= f1.min(1e300));
+            assert_eq!(v1[..cut], whole[..cut]);
+            let (v2, f2) = feed.knots_to(f64::INFINITY).unwrap();
+            assert_eq!(f2, f64::INFINITY);
+            assert_eq!(v2, whole);
+        });
+    }
+
+    #[test]
+    fn a_stopped_feed_says_so_instead_of_waiting() {
+        let samples: Vec<f64> = (0..4 * STRETCH).map(|i| i as f64).collect();
+        let finish = |v: Vec<f64>| -> Result<Vec<f64>, PlanError> { Ok(v) };
+        let feed = KnotFeed::new(samples, &halve_wide, &finish);
+        feed.stop();
+        feed.run();
+        assert!(feed.knots_to(f64::INFINITY).is_err());
+    }
+}
