@@ -275,6 +275,36 @@ fn jerk_phase_len(lim: &Limits, t: [f64; 3]) -> f64 {
     a.powi(3) / (6.0 * j * j)
 }
 
+/// The candidate knots of one end of the path (`stop`: the end at
+/// `length`): the nearest inner knot and those within `near` of the end,
+/// sorted by distance as a stable sort of every inner knot would give them,
+/// each value once. `inner` holds the inner knots in rising order (repeats
+/// allowed): the candidates are a prefix (the start) or a suffix (the stop)
+/// of it, found without reading the rest (a long path has hundreds of
+/// thousands, and the end rows are made at every knot vector).
+fn end_candidates(inner: &[f64], length: f64, near: f64, stop: bool) -> Option<Vec<f64>> {
+    let dist = |k: f64| if stop { length - k } else { k };
+    let mut ks: Vec<f64> = match stop {
+        false => {
+            inner.first()?;
+            inner[..inner.partition_point(|&k| k <= near).max(1)].to_vec()
+        }
+        true => {
+            let last = *inner.last()?;
+            // (distance falls as k rises: those within are a suffix)
+            let p = inner.partition_point(|&k| dist(k) > near || near.is_nan());
+            match p < inner.len() {
+                true => inner[p..].to_vec(),
+                // (none within: the nearest alone, the first of equals)
+                false => vec![inner[inner.partition_point(|&k| dist(k) > dist(last))]],
+            }
+        }
+    };
+    ks.dedup();
+    ks.sort_by(|a, b| dist(*a).total_cmp(&dist(*b)));
+    Some(ks)
+}
+
 impl EndRows {
     /// The joins for q on `knots` (order 4, 0 … L) with path derivatives
     /// `geo(s)`; `None` if the path has no interior knot in (0, L/3] and
@@ -294,27 +324,7 @@ impl EndRows {
         let pick = |stop: bool| -> Option<(f64, f64)> {
             let dist = |k: f64| if stop { length - k } else { k };
             let target = jerk_phase_len(limits, geo(if stop { length } else { 0.0 }).d1);
-            let near = 1.25 * target;
-            // the nearest knot and those within `near` (distance falls as k
-            // rises at the stop, rises at the start), as a stable sort of
-            // every knot by distance would give them, each value once
-            let mut ks: Vec<f64> = match stop {
-                false => {
-                    inner.first()?;
-                    inner[..inner.partition_point(|&k| k <= near).max(1)].to_vec()
-                }
-                true => {
-                    let last = *inner.last()?;
-                    let p = inner.partition_point(|&k| dist(k) > near || near.is_nan());
-                    match p < inner.len() {
-                        true => inner[p..].to_vec(),
-                        // (none within: the nearest alone, the first of equals)
-                        false => vec![inner[inner.partition_point(|&k| dist(k) > dist(last))]],
-                    }
-                }
-            };
-            ks.dedup();
-            ks.sort_by(|a, b| dist(*a).total_cmp(&dist(*b)));
+            let ks = end_candidates(inner, length, 1.25 * target, stop)?;
             let rated: Vec<(f64, f64, f64)> = ks
                 .iter()
                 .copied()
@@ -430,6 +440,66 @@ mod tests {
     use super::*;
     use crate::limits::TABLE1;
     use crate::lp;
+
+    /// The candidates as they were first found: every inner knot, each
+    /// value once, stably sorted by distance, then the nearest and those
+    /// within `near` (the reference for [`end_candidates`]).
+    fn candidates_by_sorting(inner: &[f64], length: f64, near: f64, stop: bool) -> Option<Vec<f64>> {
+        let dist = |k: f64| if stop { length - k } else { k };
+        let mut ks = inner.to_vec();
+        ks.dedup();
+        ks.sort_by(|a, b| dist(*a).total_cmp(&dist(*b)));
+        let first = *ks.first()?;
+        Some(
+            ks.into_iter()
+                .filter(|&k| k == first || dist(k) <= near)
+                .collect(),
+        )
+    }
+
+    #[test]
+    fn end_candidates_are_those_of_a_sort_of_every_knot() {
+        // rising knots with repeats, some too close to part at the stop
+        // (L − k rounds alike), distances within and past `near`, NaN
+        let mut seed = 0x2545_f491_4f6c_dd1du64;
+        let mut next = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for case in 0..400 {
+            let length = [10.0, 603_420.640_749_936_7, 1e-3][case % 3];
+            let n = 1 + (next() * 60.0) as usize;
+            let mut inner: Vec<f64> = (0..n).map(|_| length * (1e-9 + 0.999_999 * next())).collect();
+            if case % 5 == 0 {
+                // neighbours one ulp apart at the stop
+                let k = length * (1.0 - 1e-12);
+                inner.extend([
+                    k,
+                    f64::from_bits(k.to_bits() + 1),
+                    f64::from_bits(k.to_bits() + 2),
+                ]);
+            }
+            inner.sort_by(f64::total_cmp);
+            if case % 4 == 0 && n > 2 {
+                inner.insert(n / 2, inner[n / 2]);
+            }
+            let near = match case % 7 {
+                0 => f64::NAN,
+                1 => 0.0,
+                _ => length * next() * 0.5,
+            };
+            for stop in [false, true] {
+                assert_eq!(
+                    end_candidates(&inner, length, near, stop),
+                    candidates_by_sorting(&inner, length, near, stop),
+                    "case {case}, stop {stop}, near {near}: {inner:?}"
+                );
+            }
+        }
+        assert_eq!(end_candidates(&[], 1.0, 0.5, true), None);
+    }
 
     #[test]
     fn segment_formulas_match_the_closed_forms() {

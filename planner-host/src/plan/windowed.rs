@@ -44,8 +44,10 @@
 //! over to the next window), and its control points up to about
 //! [`WindowConfig::commit_mm`] past the join are committed. The geometry
 //! (check points, dense points) is evaluated per window, only for the spans
-//! the window touches, on both cores; the sampling, the knot vector and the
-//! curvature jumps are still the whole path's. Where a window reaches and
+//! the window touches, on both cores; the sampling and the curvature jumps
+//! are still the whole path's, and so is the knot vector, but for a long
+//! path whose windows commit as they go it is refined while the windows
+//! plan ([`LpStage::solve_windowed_fed`], `crate::plan::knot_feed`). Where a window reaches and
 //! what it commits follow from the knots and the curvature jumps alone, not
 //! from the plan before, so the next window's geometry is evaluated on the
 //! other core while a window's LPs are solved (from the second window on:
