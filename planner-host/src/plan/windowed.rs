@@ -247,7 +247,11 @@ impl LpStage<'_> {
         // and the curve's spans' inner points (sorted: s(u) rises)
         let (u_lo, u_hi) = (arc.u_of_s(lo.max(0.0)), arc.u_of_s(hi.min(self.length)));
         let mut inner = Vec::new();
-        for sp in arc.spans().iter().filter(|sp| sp.u1 > u_lo && sp.u0 < u_hi) {
+        // (the spans rise in u: from the first that ends past u_lo, not
+        // every span of a long path at every window)
+        let spans = arc.spans();
+        let first = spans.partition_point(|sp| sp.u1 <= u_lo);
+        for sp in spans[first..].iter().take_while(|sp| sp.u0 < u_hi) {
             for k in 1..REFINE_PER_CURVE_SPAN {
                 let u = sp.u0 + (sp.u1 - sp.u0) * k as f64 / REFINE_PER_CURVE_SPAN as f64;
                 let s = arc.s_of_u(u);
@@ -408,10 +412,21 @@ impl LpStage<'_> {
             ),
             None => self.profile_and_end_rows(limits),
         };
-        let caps: Vec<crate::lp::JumpCap> = jumps
+        let mut caps: Vec<crate::lp::JumpCap> = jumps
             .iter()
             .map(|j| crate::lp::jump_cap(j, cfg.servo_period_s))
             .collect();
+        // (in order of s, as the jumps come: a window reads those near it
+        // by bisection, not every cap of a long path at every window)
+        caps.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let r_caps = caps.iter().fold(0.0f64, |m, c| m.max(c.2));
+        // (a millimetre wider than any cap reaches: the exact tests that
+        // follow decide, whatever the rounding of s ± r)
+        let caps_near = |a: f64, b: f64| -> &[crate::lp::JumpCap] {
+            let lo = caps.partition_point(|c| c.0 < a - r_caps - 1.0);
+            let hi = caps.partition_point(|c| c.0 <= b + r_caps + 1.0).max(lo);
+            &caps[lo..hi]
+        };
         let n = knots.len() - ORDER;
         // the joins' control points: never split between fixed and free
         let join = |s: f64| crate::lp::basis_rows::join_ctrl(knots, s);
@@ -443,10 +458,9 @@ impl LpStage<'_> {
         // and the next one's (evaluated beside it), the jumps' reach
         let (frontier_i, reach_mm) = {
             let longest = wc.first.map_or(wc.window_mm, |f| f.window_mm.max(wc.window_mm));
-            let r_all = caps.iter().fold(0.0f64, |m, c| m.max(c.2));
             (
                 knots.partition_point(|&u| u <= frontier_s),
-                2.0 * longest + wc.commit_mm + r_all + FEED_SLACK_MM,
+                2.0 * longest + wc.commit_mm + r_caps + FEED_SLACK_MM,
             )
         };
         if let (true, Some(st)) = (first_epoch, start) {
@@ -517,7 +531,7 @@ impl LpStage<'_> {
             // the Star's plans changed, by −1.5 … +2.2 %).
             let meets_cap = |i: usize| {
                 let (a, b) = (knots[i + 1], knots[(i + 2 * ORDER).min(knots.len() - 1)]);
-                caps.iter().any(|&(s, _, r)| s + r >= a && s - r <= b)
+                caps_near(a, b).iter().any(|&(s, _, r)| s + r >= a && s - r <= b)
             };
             let floor = (i_l + 1).max(start_last).max((i_l + i_c) / 2).min(i_c);
             let i_c = (floor..=i_c).rev().find(|&i| !meets_cap(i)).unwrap_or(i_c);
@@ -536,7 +550,7 @@ impl LpStage<'_> {
                 .zip(knot)
                 .filter_map(|(p, k)| Some((p?, k)))
                 .collect();
-            let win_caps: Vec<crate::lp::JumpCap> = caps
+            let win_caps: Vec<crate::lp::JumpCap> = caps_near(lo_s, hi_s)
                 .iter()
                 .copied()
                 .filter(|&(s, _, r)| s + r > lo_s && s - r < hi_s)
