@@ -4,6 +4,7 @@
 use std::sync::Mutex;
 
 use firmware_core::Table;
+use planner_host::plan::replan::{replan, replan_committing, FeedChange};
 use planner_host::plan::{plan_curve, plan_curve_committing, Commit, PlanConfig, WindowConfig};
 use planner_host::stream::{chunk_table, ChunkOptions};
 use planner_host::stream_pipeline::ChunkPipeline;
@@ -388,4 +389,48 @@ fn knots_refined_while_the_windows_plan_give_the_plan_on_the_whole_refined_vecto
     for (i, (a, b)) in chunks.iter().zip(&reference).enumerate() {
         assert_eq!(a, b, "chunk {i} differs");
     }
+}
+
+/// A replan at a new feed on such a path, its windows committing as they
+/// go (`replan_committing`, as a streaming host replans an override): it
+/// keeps the running plan's knots, refined whole, and its control points up
+/// to the splice, and holds the new feed after it, as the replan without
+/// commits does, bit for bit. (A replan once took the knot feed of a plan
+/// from the start and planned the whole path again at the old feed.)
+#[test]
+fn a_committed_replan_on_a_path_refined_while_planned_keeps_the_running_plan_up_to_the_splice() {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/curves/long/meander-1m.json");
+    let curve = planner_host::cli::load_curve(std::path::Path::new(path)).unwrap();
+    let mut cfg = PlanConfig {
+        windows: Some(WindowConfig::new(100.0, 40.0)),
+        density_per_mm: 10.0,
+        table: false,
+        ..PlanConfig::default()
+    };
+    cfg.certified.max_turn_rad = 0.01;
+    let running = plan_curve_committing(&curve, &cfg, &|_: &Commit| {}).unwrap();
+    let before = running.feed_limit();
+    let change = FeedChange {
+        ctrl: &running.q_ctrl,
+        before: &before,
+        s_mm: 0.4 * running.path_length_mm,
+        alpha: 0.5,
+    };
+    let told = Mutex::new(0usize);
+    let committed =
+        replan_committing(&curve, &cfg, &change, &|_: &Commit| *told.lock().unwrap() += 1).unwrap();
+    let whole = replan(&curve, &cfg, &change).unwrap();
+    let f = committed
+        .feed_change
+        .as_ref()
+        .expect("a replan says where the feed changed");
+    assert!(
+        *told.lock().unwrap() > 1,
+        "the replan's windows did not commit as they went"
+    );
+    assert_eq!(committed.q_knots, running.q_knots);
+    assert_eq!(committed.q_ctrl[..=f.through], running.q_ctrl[..=f.through]);
+    assert_eq!(f.profile.at(f.s_feed_mm + 1e-3), 0.5 * cfg.limits.vbar);
+    assert_eq!(committed.q_ctrl, whole.q_ctrl);
+    assert!(committed.predicted_time_s > running.predicted_time_s);
 }

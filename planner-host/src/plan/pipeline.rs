@@ -272,9 +272,10 @@ fn plan_curve_inner(
                 samples = with_feed_breaks(&samples, f.breaks());
             }
             let ends = stretch_starts(samples.len());
-            // a long path whose windows commit as they go: refined
-            // stretch by stretch while the windows plan (knot_feed)
-            if on_commit.is_some() && !whole && ends.len() >= FEED_STRETCHES {
+            // a long path whose windows commit as they go from its start:
+            // refined stretch by stretch while the windows plan (knot_feed);
+            // a replan keeps the running plan's knots, refined whole
+            if on_commit.is_some() && resume.is_none() && !whole && ends.len() >= FEED_STRETCHES {
                 feed = Some(KnotFeed::new(samples, &refine, &finish));
                 Vec::new()
             } else {
@@ -347,7 +348,7 @@ fn plan_curve_inner(
     let plan_q = || -> Result<_, PlanError> {
         // (a fed plan: on each vector as the refinement grows it; committed
         // as it goes, so never retried)
-        if let (Some(feed), Some(w)) = (&feed, &cfg.windows) {
+        if let (Some(feed), Some(w), None) = (&feed, &cfg.windows, resume) {
             let stage = LpStage {
                 commits: sink,
                 ..lp_stage(curve, &arc, &[], cfg, progress, steps, 0)
