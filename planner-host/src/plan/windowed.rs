@@ -569,21 +569,14 @@ impl LpStage<'_> {
             }
         };
         let mut ahead: Option<WindowGeometry> = None;
-        loop {
+        // (`Some(s)`: the next window needs knots refined to s)
+        let more = loop {
             // past the refined knots: the windows go on on the next vector
             if frontier_s < f64::INFINITY {
                 let s_join = knots[i_l + ORDER - 1];
                 let need = s_join + reach_mm;
                 if knots.partition_point(|&u| u <= need) + FEED_SLACK_KNOTS >= frontier_i {
-                    run.committed = committed;
-                    run.prev = prev;
-                    run.carried = carried;
-                    run.i_l = i_l;
-                    run.stats = stats;
-                    run.lps = lps;
-                    run.all_pts = all_pts;
-                    run.rounds = rounds;
-                    return Ok(Epoch::More(need + reach_mm));
+                    break Some(need + reach_mm);
                 }
             }
             let t = Instant::now();
@@ -843,7 +836,7 @@ impl LpStage<'_> {
                     stats.first_window_s = dt;
                     stats.first_commit_mm = self.length;
                 }
-                break;
+                break None;
             }
             committed[i_l + 1..=i_c].copy_from_slice(&plan.ctrl[i_l + 1 - c0..=i_c - c0]);
             self.tell_commit(end_rows.as_ref(), &committed, i_c, false);
@@ -872,14 +865,19 @@ impl LpStage<'_> {
                 stats.first_commit_mm = s_commit;
             }
             i_l = i_c;
-        }
+        };
         run.committed = committed;
+        run.prev = prev;
+        run.carried = carried;
         run.i_l = i_l;
         run.stats = stats;
         run.lps = lps;
         run.all_pts = all_pts;
         run.rounds = rounds;
-        Ok(Epoch::Done(Box::new((profile, end_rows))))
+        Ok(match more {
+            Some(s_mm) => Epoch::More(s_mm),
+            None => Epoch::Done(Box::new((profile, end_rows))),
+        })
     }
 
     /// The windowed plan from the windows' `run` on this stage's knots
