@@ -152,11 +152,19 @@ impl TableRows {
     fn stretch(&self, j0: usize, j1: usize, u_form: bool) -> Option<Stretch<'_>> {
         let (sa, sb) = (*self.breaks.get(j0)?, *self.breaks.get(j1)?);
         let n = self.q_ctrl.len();
-        let i0 = (3..n).find(|&i| self.q_knots.get(i + 1).is_some_and(|&u| u >= sa))?;
-        let i1 = (3..n)
-            .rev()
-            .find(|&i| self.q_knots.get(i).is_some_and(|&u| u < sb))?
-            .max(i0);
+        // (the knots rise: the first span i ≥ 3 whose end U_{i+1} reaches
+        // sa, and the last whose start U_i is below sb, by bisection, not a
+        // scan of a long path's knots at every chunk)
+        let knots = self.q_knots.get(..n + 1)?;
+        let i0 = 3 + knots.get(4..)?.partition_point(|&u| u < sa);
+        if i0 >= n {
+            return None;
+        }
+        let i1 = (3 + knots.get(3..n)?.partition_point(|&u| u < sb)).checked_sub(1)?;
+        if i1 < 3 {
+            return None;
+        }
+        let i1 = i1.max(i0);
         Some(Stretch {
             first_span: u32::try_from(i0).ok()?,
             q_knots: self.q_knots.get(i0 - 2..=i1 + 3)?,
