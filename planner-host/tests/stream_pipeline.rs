@@ -333,6 +333,21 @@ fn a_sink_that_panics_ends_the_planning_instead_of_hanging_it() {
     assert!(panicked, "the sink's panic did not reach the caller");
 }
 
+/// The 1.2 m meander at 10 points per mm in windows of 100/40 mm, its
+/// sample intervals split where they turn by more than 0.01 rad: more
+/// samples than three stretches of the knot refinement, and knots added.
+fn fed_meander() -> (planner_host::Nurbs, PlanConfig) {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/curves/long/meander-1m.json");
+    let curve = planner_host::cli::load_curve(std::path::Path::new(path)).unwrap();
+    let mut cfg = PlanConfig {
+        windows: Some(WindowConfig::new(100.0, 40.0)),
+        density_per_mm: 10.0,
+        ..PlanConfig::default()
+    };
+    cfg.certified.max_turn_rad = 0.01;
+    (curve, cfg)
+}
+
 /// A path of more samples than three stretches of the knot refinement (the
 /// 1.2 m meander at 10 points per mm, windows of 100/40 mm, its sample
 /// intervals split where they turn by more than 0.01 rad, so that the
@@ -343,14 +358,7 @@ fn a_sink_that_panics_ends_the_planning_instead_of_hanging_it() {
 /// the vector refined first), its chunks those of that table.
 #[test]
 fn knots_refined_while_the_windows_plan_give_the_plan_on_the_whole_refined_vector() {
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/curves/long/meander-1m.json");
-    let curve = planner_host::cli::load_curve(std::path::Path::new(path)).unwrap();
-    let mut cfg = PlanConfig {
-        windows: Some(WindowConfig::new(100.0, 40.0)),
-        density_per_mm: 10.0,
-        ..PlanConfig::default()
-    };
-    cfg.certified.max_turn_rad = 0.01;
+    let (curve, cfg) = fed_meander();
     let whole = plan_curve(&curve, &cfg).unwrap();
     let opts = ChunkOptions {
         chunk_mm: 16.0,
@@ -399,15 +407,8 @@ fn knots_refined_while_the_windows_plan_give_the_plan_on_the_whole_refined_vecto
 /// from the start and planned the whole path again at the old feed.)
 #[test]
 fn a_committed_replan_on_a_path_refined_while_planned_keeps_the_running_plan_up_to_the_splice() {
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/curves/long/meander-1m.json");
-    let curve = planner_host::cli::load_curve(std::path::Path::new(path)).unwrap();
-    let mut cfg = PlanConfig {
-        windows: Some(WindowConfig::new(100.0, 40.0)),
-        density_per_mm: 10.0,
-        table: false,
-        ..PlanConfig::default()
-    };
-    cfg.certified.max_turn_rad = 0.01;
+    let (curve, cfg) = fed_meander();
+    let cfg = PlanConfig { table: false, ..cfg };
     let running = plan_curve_committing(&curve, &cfg, &|_: &Commit| {}).unwrap();
     let before = running.feed_limit();
     let change = FeedChange {
