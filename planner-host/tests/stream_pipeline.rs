@@ -435,3 +435,22 @@ fn a_committed_replan_on_a_path_refined_while_planned_keeps_the_running_plan_up_
     assert_eq!(committed.q_ctrl, whole.q_ctrl);
     assert!(committed.predicted_time_s > running.predicted_time_s);
 }
+
+/// A fed plan whose sink panics (the first window's commit) comes back
+/// with the panic too: the refining thread stops on the planning's unwind
+/// instead of leaving the scope waiting (watched from here, as above).
+#[test]
+fn a_sink_that_panics_ends_a_fed_planning_instead_of_hanging_it() {
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let (curve, cfg) = fed_meander();
+        let r = std::panic::catch_unwind(|| {
+            plan_curve_committing(&curve, &cfg, &|_: &Commit| panic!("the sink gives up")).is_ok()
+        });
+        let _ = tx.send(r.is_err());
+    });
+    let panicked = rx
+        .recv_timeout(std::time::Duration::from_secs(300))
+        .expect("the fed planning hung after its sink panicked");
+    assert!(panicked, "the sink's panic did not reach the caller");
+}
