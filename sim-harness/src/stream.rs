@@ -439,6 +439,24 @@ pub fn run_stream_host<const CAP: usize, const NQ: usize, const NP: usize>(
     run_stream_head::<CAP, NQ, NP>(&head, chunks, link, host, each)
 }
 
+/// A streamed motion's state as `FEEDLP_FAULT_DEBUG` prints it: where it
+/// is, its hold state, the end of the rows held, the hold point and the q
+/// spans and pieces held.
+fn motion_state<const NQ: usize, const NP: usize>(
+    ipr: &Interpolator<'static, 0, 0, PlanWindow<NQ, NP>>,
+) -> String {
+    let w = ipr.window();
+    let fx = |x: i64| x as f64 / (1u64 << 40) as f64;
+    format!(
+        "s {:.3} mm, {:?}, rows to {:.3} mm, hold point {:.3} mm, {:?} q spans and pieces held",
+        ipr.s_mm(),
+        ipr.hold_state(),
+        fx(w.held_end()),
+        fx(w.hold_point()),
+        w.held()
+    )
+}
+
 /// [`run_stream_host`] with the plan's head (its limits, ends and end
 /// points) instead of its table: a plan streamed as its windows commit
 /// need not have one.
@@ -923,13 +941,7 @@ pub fn run_stream_head<const CAP: usize, const NQ: usize, const NP: usize>(
         match ipr.keep_fed() {
             Ok(Feeding::Starving) => {
                 if debug {
-                    let w = ipr.window();
-                    eprintln!(
-                        "starving at t {t:.4} s: s {:.3} mm, rows to {:.3} mm, {:?} held",
-                        ipr.s_mm(),
-                        fx(w.held_end()),
-                        w.held()
-                    );
+                    eprintln!("starving at t {t:.4} s: {}", motion_state(ipr));
                 }
                 run.starvations += 1;
                 run.starved_ticks += 1;
@@ -950,13 +962,7 @@ pub fn run_stream_head<const CAP: usize, const NQ: usize, const NP: usize>(
             }
             Ok(Feeding::Resumed) => {
                 if debug {
-                    let w = ipr.window();
-                    eprintln!(
-                        "resumed at t {t:.4} s: s {:.3} mm, rows to {:.3} mm, hold point {:.3} mm",
-                        ipr.s_mm(),
-                        fx(w.held_end()),
-                        fx(w.hold_point())
-                    );
+                    eprintln!("resumed at t {t:.4} s: {}", motion_state(ipr));
                 }
                 if let Some((reach, end)) = starve.take() {
                     run.starved_reach_mm.push((reach, fx(end)));
@@ -992,16 +998,10 @@ pub fn run_stream_head<const CAP: usize, const NQ: usize, const NP: usize>(
             }
         }
         // (FEEDLP_FAULT_DEBUG: the state a faulting tick started from)
-        let before = debug.then(|| {
-            let w = ipr.window();
-            let (held_end, hold_point) = (fx(w.held_end()), fx(w.hold_point()));
-            (ipr.s_mm(), ipr.hold_state(), held_end, hold_point, w.held())
-        });
+        let before = debug.then(|| motion_state(ipr));
         let sp = ipr.tick().map_err(|f| {
-            if let Some((s, state, held_end, hold_point, held)) = before {
-                eprintln!(
-                    "fault {f:?} at t {t:.4} s: from s {s:.3} mm, {state:?}, rows to {held_end:.3} mm, hold point {hold_point:.3} mm, {held:?} q spans and pieces held, {ring_bytes} bytes in the ring"
-                );
+            if let Some(state) = &before {
+                eprintln!("fault {f:?} at t {t:.4} s: from {state}, {ring_bytes} bytes in the ring");
             }
             StreamRunError::Fault {
                 tick: ipr.ticks(),
