@@ -164,9 +164,11 @@ impl Turning {
                 a,
                 b,
                 1e-10,
-                &|x| {
-                    let d = arc.polys().derivs_in_span(i, x, 2);
-                    curvature_of(&d, floor) * norm(d[1])
+                &|x: &[f64; 16]| {
+                    x.map(|x| {
+                        let d = arc.polys().derivs_in_span(i, x, 2);
+                        curvature_of(&d, floor) * norm(d[1])
+                    })
                 },
                 &mut pieces,
             );

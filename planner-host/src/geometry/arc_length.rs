@@ -55,6 +55,19 @@ pub(crate) fn gl16(a: f64, b: f64, mut f: impl FnMut(f64) -> f64) -> f64 {
     sum * h
 }
 
+/// [`gl16`] with the integrand at all 16 nodes in one call (`f16`: the
+/// values at the nodes given, in their order): the same sum, the same bits.
+pub(crate) fn gl16_batch(a: f64, b: f64, f16: impl FnOnce(&[f64; 16]) -> [f64; 16]) -> f64 {
+    let (x, w) = GL16;
+    let (c, h) = (0.5 * (a + b), 0.5 * (b - a));
+    let v = f16(&x.map(|x| c + h * x));
+    let mut sum = 0.0;
+    for i in 0..16 {
+        sum += w[i] * v[i];
+    }
+    sum * h
+}
+
 /// ∫ₐᵇ f by the 8-point Gauss–Legendre rule (for steps of at most a
 /// sixteenth of a table piece, on which the 16-point rule is exact to the
 /// table's tolerance: the 8-point rule's error falls as the step's 17th
@@ -84,8 +97,15 @@ pub(crate) fn gl4(a: f64, b: f64, mut f: impl FnMut(f64) -> f64) -> f64 {
 /// `tol·(width/(b−a)) + 1e-15·|value|` (the halves are kept), at depth 40,
 /// or once [`MAX_PIECES`] pieces are out (so rounding noise above `tol`
 /// costs at most that many evaluations, never an exponential recursion).
-/// The pieces are appended to `out`.
-pub(crate) fn adaptive_gl(a: f64, b: f64, tol: f64, f: &impl Fn(f64) -> f64, out: &mut Vec<(f64, f64, f64)>) {
+/// The pieces are appended to `out`. `f` gives the integrand at the 16
+/// nodes of a rule at once ([`gl16_batch`]).
+pub(crate) fn adaptive_gl(
+    a: f64,
+    b: f64,
+    tol: f64,
+    f: &impl Fn(&[f64; 16]) -> [f64; 16],
+    out: &mut Vec<(f64, f64, f64)>,
+) {
     #[allow(clippy::too_many_arguments)]
     fn rec(
         lo: f64,
@@ -93,12 +113,12 @@ pub(crate) fn adaptive_gl(a: f64, b: f64, tol: f64, f: &impl Fn(f64) -> f64, out
         whole: f64,
         depth: u32,
         tol_per_width: f64,
-        f: &impl Fn(f64) -> f64,
+        f: &impl Fn(&[f64; 16]) -> [f64; 16],
         out: &mut Vec<(f64, f64, f64)>,
         base: usize,
     ) {
         let m = 0.5 * (lo + hi);
-        let (l, r) = (gl16(lo, m, f), gl16(m, hi, f));
+        let (l, r) = (gl16_batch(lo, m, f), gl16_batch(m, hi, f));
         let err = (l + r - whole).abs();
         if err <= tol_per_width * (hi - lo) + 1e-15 * (l.abs() + r.abs())
             || depth >= 40
@@ -114,7 +134,7 @@ pub(crate) fn adaptive_gl(a: f64, b: f64, tol: f64, f: &impl Fn(f64) -> f64, out
     }
     // (pieces appended to `out`: the cap counts this call's)
     if b > a {
-        rec(a, b, gl16(a, b, f), 0, tol / (b - a), f, out, out.len());
+        rec(a, b, gl16_batch(a, b, f), 0, tol / (b - a), f, out, out.len());
     }
 }
 
@@ -248,7 +268,7 @@ impl ArcLength {
                 let mut pieces = Vec::new();
                 let mut ends = Vec::with_capacity(run.len());
                 for &(i, a, b) in run {
-                    adaptive_gl(a, b, tol, &|x| polys.speed_in_span(i, x), &mut pieces);
+                    adaptive_gl(a, b, tol, &|x| polys.speeds_in_span16(i, x), &mut pieces);
                     ends.push(pieces.len());
                 }
                 (pieces, ends)
@@ -343,7 +363,7 @@ impl ArcLength {
 
     fn s_in_piece(&self, k: usize, u: f64) -> f64 {
         let span = self.piece_span[k];
-        self.s[k] + gl16(self.u[k], u, |x| self.polys.speed_in_span(span, x))
+        self.s[k] + gl16_batch(self.u[k], u, |x| self.polys.speeds_in_span16(span, x))
     }
 
     /// s(u), mm; u is clamped into the curve's range (s = 0 at the start,
@@ -444,7 +464,7 @@ impl ArcLength {
                 } else if r <= 1.0 / 16.0 {
                     gl8(u0, u, speed)
                 } else {
-                    gl16(u0, u, speed)
+                    gl16_batch(u0, u, |x| self.polys.speeds_in_span16(span, x))
                 }
             }
             _ => self.s_in_piece(k, u),

@@ -309,6 +309,43 @@ impl Nurbs {
     pub fn span_polys(&self) -> SpanPolys {
         let p = self.degree.min(MAX_DEGREE);
         let n = self.points.len();
+        // Interpolation at the p + 1 Chebyshev–Lobatto points of t ∈ [−1, 1]:
+        // the Vandermonde matrix, and so its elimination (pivots, multipliers,
+        // the upper triangle), is the same for every span; done once, and
+        // each span's right-hand sides then take the same operations in the
+        // same order as an elimination of their own (the same bits).
+        let np = p + 1;
+        let mut t = [0.0; MAX_DEGREE + 1];
+        let mut v = [[0.0; MAX_DEGREE + 1]; MAX_DEGREE + 1];
+        for j in 0..np {
+            t[j] = if p == 0 {
+                0.0
+            } else {
+                (std::f64::consts::PI * j as f64 / p as f64).cos()
+            };
+            let mut tk = 1.0;
+            for k in 0..np {
+                v[j][k] = tk;
+                tk *= t[j];
+            }
+        }
+        // Gaussian elimination with partial pivoting
+        let mut pivots = [0usize; MAX_DEGREE + 1];
+        let mut mults = [[0.0; MAX_DEGREE + 1]; MAX_DEGREE + 1];
+        for col in 0..np {
+            let piv = (col..np)
+                .max_by(|&x, &y| v[x][col].abs().total_cmp(&v[y][col].abs()))
+                .unwrap_or(col);
+            pivots[col] = piv;
+            v.swap(col, piv);
+            for r in col + 1..np {
+                let m = v[r][col] / v[col][col];
+                mults[col][r] = m;
+                for k in col..np {
+                    v[r][k] -= m * v[col][k];
+                }
+            }
+        }
         // span by span on both cores (each span's form is its own), one per
         // knot index (`None`: an empty span, or no span)
         let polys: Vec<Option<SpanPoly>> = (0..self.knots.len())
@@ -323,45 +360,24 @@ impl Nurbs {
                     return None;
                 }
                 let (c, h) = (0.5 * (a + b), 0.5 * (b - a));
-                // interpolate at the p + 1 Chebyshev–Lobatto points of t ∈ [−1, 1]
-                let n = p + 1;
-                let mut v = [[0.0; MAX_DEGREE + 1]; MAX_DEGREE + 1];
                 let mut f = [[0.0; 4]; MAX_DEGREE + 1];
-                for j in 0..n {
-                    let t = if p == 0 {
-                        0.0
-                    } else {
-                        (std::f64::consts::PI * j as f64 / p as f64).cos()
-                    };
-                    let mut tk = 1.0;
-                    for k in 0..n {
-                        v[j][k] = tk;
-                        tk *= t;
-                    }
-                    f[j] = self.homogeneous(i, c + h * t, 0)[0];
+                for j in 0..np {
+                    f[j] = self.homogeneous(i, c + h * t[j], 0)[0];
                 }
-                // Gaussian elimination with partial pivoting, four right-hand sides
-                for col in 0..n {
-                    let piv = (col..n)
-                        .max_by(|&x, &y| v[x][col].abs().total_cmp(&v[y][col].abs()))
-                        .unwrap_or(col);
-                    v.swap(col, piv);
-                    f.swap(col, piv);
-                    for r in col + 1..n {
-                        let m = v[r][col] / v[col][col];
-                        for k in col..n {
-                            v[r][k] -= m * v[col][k];
-                        }
+                for col in 0..np {
+                    f.swap(col, pivots[col]);
+                    for r in col + 1..np {
+                        let m = mults[col][r];
                         for d in 0..4 {
                             f[r][d] -= m * f[col][d];
                         }
                     }
                 }
                 let mut a = [[0.0; 4]; MAX_DEGREE + 1];
-                for r in (0..n).rev() {
+                for r in (0..np).rev() {
                     for d in 0..4 {
                         let mut acc = f[r][d];
-                        for k in r + 1..n {
+                        for k in r + 1..np {
                             acc -= v[r][k] * a[k][d];
                         }
                         a[r][d] = acc / v[r][r];
@@ -534,6 +550,54 @@ impl SpanPolys {
     }
 }
 
+impl SpanPolys {
+    /// [`SpanPolys::speed_in_span`] at 16 parameters of one span (a
+    /// Gauss–Legendre rule's nodes): each by the same operations in the same
+    /// order (the same bits), laid out node by node in the innermost loops
+    /// so that the compiler runs them side by side in vector registers —
+    /// the arc-length quadrature is most of the whole path's geometry
+    /// before the first window (docs/streaming-design.md, "first motion").
+    #[allow(clippy::needless_range_loop)] // coordinates by index, as above
+    pub fn speeds_in_span16(&self, span: usize, us: &[f64; 16]) -> [f64; 16] {
+        let Some(Some(sp)) = self.polys.get(span) else {
+            return us.map(|u| norm(self.curve.derivs_in_span(span, u, 1)[1]));
+        };
+        let mut t = [0.0; 16];
+        for i in 0..16 {
+            t[i] = (us[i] - sp.c) * sp.inv_h;
+        }
+        let (mut a0, mut a1) = ([[0.0; 16]; 4], [[0.0; 16]; 4]);
+        for m in (0..=self.p).rev() {
+            for d in 0..4 {
+                let am = sp.a[m][d];
+                for i in 0..16 {
+                    a0[d][i] = a0[d][i] * t[i] + am;
+                }
+            }
+            if m >= 1 {
+                let f = m as f64;
+                for d in 0..4 {
+                    let fa = f * sp.a[m][d];
+                    for i in 0..16 {
+                        a1[d][i] = a1[d][i] * t[i] + fa;
+                    }
+                }
+            }
+        }
+        let mut out = [0.0; 16];
+        for i in 0..16 {
+            let w0 = a0[3][i];
+            let h3 = a1[3][i] * sp.inv_h;
+            let v0 = a1[0][i] * sp.inv_h - h3 * (a0[0][i] / w0);
+            let v1 = a1[1][i] * sp.inv_h - h3 * (a0[1][i] / w0);
+            let v2 = a1[2][i] * sp.inv_h - h3 * (a0[2][i] / w0);
+            let (x, y, z) = (v0 / w0, v1 / w0, v2 / w0);
+            out[i] = (x * x + y * y + z * z).sqrt();
+        }
+        out
+    }
+}
+
 /// m!/(m−k)!.
 fn falling(m: usize, k: usize) -> f64 {
     (m + 1 - k..=m).fold(1.0, |a, i| a * i as f64)
@@ -606,6 +670,34 @@ pub(crate) mod tests {
                     }
                 }
             }
+        }
+    }
+
+    #[test]
+    fn speeds_at_sixteen_nodes_are_the_speeds_one_by_one_bit_for_bit() {
+        let mut curves = benchmark_curves();
+        curves.push(quintic_3d());
+        curves.push(Nurbs::circle([1.0, 2.0, 0.0], 5.0));
+        for c in curves {
+            let polys = c.span_polys();
+            for (i, a, b) in c.spans() {
+                // the rule's nodes, and parameters past the span's ends
+                let us: [f64; 16] = std::array::from_fn(|k| a + (b - a) * (k as f64 - 1.0) / 13.0);
+                let batch = polys.speeds_in_span16(i, &us);
+                for (k, &u) in us.iter().enumerate() {
+                    let one = polys.speed_in_span(i, u);
+                    assert_eq!(batch[k].to_bits(), one.to_bits(), "{} span {i} u {u}", c.name);
+                }
+            }
+            // a span index with no form: the recurrence's, node by node
+            let us = [0.5; 16];
+            let batch = polys.speeds_in_span16(0, &us);
+            assert_eq!(
+                batch[3].to_bits(),
+                polys.speed_in_span(0, 0.5).to_bits(),
+                "{}",
+                c.name
+            );
         }
     }
 
