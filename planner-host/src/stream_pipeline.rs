@@ -79,9 +79,12 @@ impl ChunkPipeline {
             su_segments: first.su_segments.to_vec(),
             su_first: first.su_first,
         };
+        // (q's control points as the commits make them final: zeros past
+        // them, not a copy of what the windows have not yet decided — on a
+        // long path tens of megabytes that are not read before they are)
         let rows = TableRows {
             q_knots: first.knots.to_vec(),
-            q_ctrl: first.ctrl.to_vec(),
+            q_ctrl: vec![0.0; first.ctrl.len()],
             q_local: vec![],
             q_fixed: vec![],
             breaks: vec![],

@@ -23,6 +23,35 @@ pub fn knot_vector(samples: &[f64]) -> Vec<f64> {
     u
 }
 
+/// [`knot_vector`] of samples given whole: the same vector, made in place
+/// (no second copy of a long path's samples).
+pub fn knot_vector_of(mut samples: Vec<f64>) -> Vec<f64> {
+    let (first, last) = match (samples.first(), samples.last()) {
+        (Some(&f), Some(&l)) => (f, l),
+        _ => return Vec::new(),
+    };
+    if samples.len() < 2 {
+        // (one sample: no interval, a degenerate vector of 2·ORDER knots)
+        return vec![first; 2 * ORDER];
+    }
+    samples.reserve_exact(2 * ORDER - 2);
+    samples.splice(0..0, std::iter::repeat_n(first, ORDER - 1));
+    samples.extend(std::iter::repeat_n(last, ORDER - 1));
+    samples
+}
+
+/// The samples of a knot vector [`knot_vector`] made (its inverse: the end
+/// knots once), in place.
+pub fn samples_of(mut knots: Vec<f64>) -> Vec<f64> {
+    if knots.len() < 2 * ORDER {
+        knots.dedup();
+        return knots;
+    }
+    knots.truncate(knots.len() - (ORDER - 1));
+    knots.drain(..ORDER - 1);
+    knots
+}
+
 /// Greville points (18), read as ERRATA.md says: one per control point,
 /// g_i = (U_{i+1} + U_{i+2} + U_{i+3})/3, so g_1 = 0 and g_N = L.
 pub fn greville(knots: &[f64]) -> Vec<f64> {
@@ -94,6 +123,18 @@ mod tests {
         assert_eq!(*g.last().unwrap(), 4.0);
         assert!((g[1] - 1.0 / 3.0).abs() < 1e-15);
         assert!(g.windows(2).all(|w| w[0] < w[1]));
+    }
+
+    #[test]
+    fn the_knot_vector_made_in_place_is_the_copied_one_and_gives_its_samples_back() {
+        for n in 2..9 {
+            let samples: Vec<f64> = (0..n).map(|i| (i * i) as f64 * 0.37).collect();
+            let u = knot_vector_of(samples.clone());
+            assert_eq!(u, knot_vector(&samples), "{n} samples");
+            assert_eq!(samples_of(u), samples, "{n} samples");
+        }
+        assert!(knot_vector_of(vec![]).is_empty());
+        assert_eq!(knot_vector_of(vec![2.5]), vec![2.5; 2 * ORDER]);
     }
 
     #[test]

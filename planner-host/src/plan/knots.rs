@@ -109,14 +109,14 @@ impl<'a> TurnInU<'a> {
 /// break, every span of q sees smooth geometry. A break within 5 % of a
 /// span's length of a sample moves that sample onto it instead
 /// ([`merge_breaks`]).
-pub fn with_breaks(samples: &[f64], arc: &ArcLength) -> Vec<f64> {
+pub fn with_breaks(samples: Vec<f64>, arc: &ArcLength) -> Vec<f64> {
     merge_breaks(samples, arc.spans().iter().skip(1).map(|sp| sp.s0))
 }
 
 /// The samples with the feed profile's breaks (where the programmed feed
 /// changes) merged in as knots of q too ([`merge_breaks`]): the limit (11)
 /// steps there, and a knot gives the check points on both sides.
-pub fn with_feed_breaks(samples: &[f64], breaks: &[f64]) -> Vec<f64> {
+pub fn with_feed_breaks(samples: Vec<f64>, breaks: &[f64]) -> Vec<f64> {
     merge_breaks(samples, breaks.iter().copied())
 }
 
@@ -126,16 +126,18 @@ pub fn with_feed_breaks(samples: &[f64], breaks: &[f64]) -> Vec<f64> {
 /// keep a knot of q, so no span of q straddles a knot of the toolpath (a
 /// short, sharp bend between two close knots would otherwise lie inside one
 /// span of q, between its check points, and the plan would cross it unseen).
-fn merge_breaks(samples: &[f64], breaks: impl Iterator<Item = f64>) -> Vec<f64> {
+fn merge_breaks(samples: Vec<f64>, breaks: impl Iterator<Item = f64>) -> Vec<f64> {
     if samples.len() < 2 {
-        return samples.to_vec();
+        return samples;
     }
     // The merged knots v are `out` followed by `rest[j..]`: the samples
     // below each break move to `out` as the breaks come (they increase), so
     // a break is inserted at the end of `out`, not into the middle of one
     // long vector (which made 10⁵ breaks quadratic).
-    let mut rest = samples.to_vec();
-    let mut out: Vec<f64> = Vec::with_capacity(samples.len());
+    // (the samples taken, not copied: a long path's are tens of megabytes)
+    // (room for every break: no reallocation half-way through)
+    let mut out: Vec<f64> = Vec::with_capacity(samples.len() + breaks.size_hint().0);
+    let mut rest = samples;
     let mut j = 0;
     let mut last_break = f64::NAN;
     for b in breaks {
@@ -180,23 +182,27 @@ fn merge_breaks(samples: &[f64], breaks: impl Iterator<Item = f64>) -> Vec<f64> 
     out
 }
 
-/// Samples whose knot vector leaves room for the joins of the jerk-limited
-/// end segments ([`EndRows::new`]): if it does not (a short path or a coarse
-/// sampling), the first and last sample intervals are halved, up to 8
-/// times; then [`PlanError::EndSegments`] (never a silent acceleration step).
-pub(crate) fn end_room(
-    mut samples: Vec<f64>,
+/// The knot vector (17) of `samples`, leaving room for the joins of the
+/// jerk-limited end segments ([`EndRows::new`]): if it does not (a short
+/// path or a coarse sampling), the first and last sample intervals are
+/// halved, up to 8 times; then [`PlanError::EndSegments`] (never a silent
+/// acceleration step). The samples become the knots in place (a long path's
+/// are tens of megabytes: no copy for the test and another for the vector).
+pub(crate) fn end_room_knots(
+    samples: Vec<f64>,
     limits: &Limits,
     length: f64,
     geo: &dyn Fn(f64) -> PathDerivs,
 ) -> Result<Vec<f64>, PlanError> {
     let mut added = 0;
-    for _ in 0..8 {
-        if EndRows::new(&basis_rows::knot_vector(&samples), limits, geo).is_some() {
-            return Ok(samples);
+    let mut knots = basis_rows::knot_vector_of(samples);
+    for round in 0..=8 {
+        if EndRows::new(&knots, limits, geo).is_some() {
+            return Ok(knots);
         }
+        let mut samples = basis_rows::samples_of(knots);
         let n = samples.len();
-        if n < 2 {
+        if round == 8 || n < 2 {
             break;
         }
         let (a, b) = (
@@ -208,9 +214,7 @@ pub(crate) fn end_room(
         samples.insert(n - 1, b);
         samples.dedup();
         added += 2;
-    }
-    if EndRows::new(&basis_rows::knot_vector(&samples), limits, geo).is_some() {
-        return Ok(samples);
+        knots = basis_rows::knot_vector_of(samples);
     }
     Err(PlanError::EndSegments {
         length_mm: length,
@@ -224,13 +228,13 @@ mod merge_breaks_tests {
 
     #[test]
     fn a_break_near_a_sample_moves_the_sample_onto_it() {
-        let v = merge_breaks(&[0.0, 10.0, 20.0, 30.0], [10.2, 19.9].into_iter());
+        let v = merge_breaks(vec![0.0, 10.0, 20.0, 30.0], [10.2, 19.9].into_iter());
         assert_eq!(v, [0.0, 10.2, 19.9, 30.0]);
     }
 
     #[test]
     fn a_break_far_from_every_sample_is_inserted() {
-        let v = merge_breaks(&[0.0, 10.0, 20.0], [5.0].into_iter());
+        let v = merge_breaks(vec![0.0, 10.0, 20.0], [5.0].into_iter());
         assert_eq!(v, [0.0, 5.0, 10.0, 20.0]);
     }
 
@@ -276,7 +280,7 @@ mod merge_breaks_tests {
             let mut breaks: Vec<f64> = raw.iter().map(|&r| r as f64 * 0.25 - 10.0).collect();
             breaks.sort_by(f64::total_cmp);
             let want = merge_by_insertion(&samples, &breaks);
-            let got = merge_breaks(&samples, breaks.iter().copied());
+            let got = merge_breaks(samples.clone(), breaks.iter().copied());
             proptest::prop_assert_eq!(got, want);
         }
     }
@@ -288,7 +292,7 @@ mod merge_breaks_tests {
     #[test]
     fn close_breaks_each_keep_a_knot() {
         let samples = [0.0, 8.3713, 10.119249, 12.3898, 20.0];
-        let v = merge_breaks(&samples, [10.108902, 10.172784].into_iter());
+        let v = merge_breaks(samples.to_vec(), [10.108902, 10.172784].into_iter());
         assert!(v.contains(&10.108902), "{v:?}");
         assert!(v.contains(&10.172784), "{v:?}");
         assert!(v.windows(2).all(|w| w[0] < w[1]), "{v:?}");

@@ -17,7 +17,7 @@ use crate::plan::config::{Formulation, PlanConfig};
 use crate::plan::error::PlanError;
 use crate::plan::feed_change::{FeedChangeAt, Resume};
 use crate::plan::knot_feed::{stretch_starts, KnotFeed, STRETCH};
-use crate::plan::knots::{end_room, refine_turning, with_breaks, with_feed_breaks, TurnInU};
+use crate::plan::knots::{end_room_knots, refine_turning, with_breaks, with_feed_breaks, TurnInU};
 use crate::plan::levels::validate_levels;
 use crate::plan::lp_stage::{check_points, LpStage, Refine, Solved};
 use crate::plan::output::PlanOutput;
@@ -257,19 +257,20 @@ fn plan_curve_inner(
     };
     // refined samples → the knot vector (17), with room for the end segments
     let finish = |samples: Vec<f64>| -> Result<Vec<f64>, PlanError> {
-        let samples = match cfg.ends {
-            EndMode::Jerk => end_room(samples, &cfg.limits, length, &|s| path_derivs_at(curve, &arc, s))?,
-            EndMode::Step => samples,
-        };
-        Ok(basis_rows::knot_vector(&samples))
+        match cfg.ends {
+            EndMode::Jerk => {
+                end_room_knots(samples, &cfg.limits, length, &|s| path_derivs_at(curve, &arc, s))
+            }
+            EndMode::Step => Ok(basis_rows::knot_vector_of(samples)),
+        }
     };
     let mut feed: Option<KnotFeed<'_>> = None;
     let samples = match cfg.formulation {
         Formulation::Paper => samples,
         Formulation::Certified => {
-            let mut samples = with_breaks(&samples, &arc);
+            let mut samples = with_breaks(samples, &arc);
             if let Some(f) = &cfg.feed_profile {
-                samples = with_feed_breaks(&samples, f.breaks());
+                samples = with_feed_breaks(samples, f.breaks());
             }
             let ends = stretch_starts(samples.len());
             // a long path whose windows commit as they go from its start:

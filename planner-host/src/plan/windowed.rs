@@ -435,8 +435,15 @@ impl LpStage<'_> {
         let knot_at = |s: f64| knots.partition_point(|&u| u < s);
         // (what the windows on earlier vectors planned: the committed
         // control points keep their indices, the vector only grows)
-        let mut committed = std::mem::take(&mut run.committed);
-        committed.resize(n, 0.0);
+        let mut committed = match std::mem::take(&mut run.committed) {
+            // (zeros from the allocator, untouched until a window commits:
+            // on a long path megabytes the first window need not wait for)
+            c if c.is_empty() => vec![0.0; n],
+            mut c => {
+                c.resize(n, 0.0);
+                c
+            }
+        };
         let mut prev = std::mem::replace(
             &mut run.prev,
             Before {
