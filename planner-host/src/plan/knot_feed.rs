@@ -8,8 +8,9 @@
 //! the path are the same whether the stretch is refined alone or with the
 //! rest. On a 603 m path that refinement took 0.34 s on both cores before
 //! the first window could start (the windows themselves plan 300 mm in
-//! ~15 ms). Here the first and the last stretch of [`STRETCH`] samples are
-//! refined at once, the ones between on a thread of their own, in order,
+//! ~15 ms). Here the first and the last stretch are refined at once (each
+//! no longer than the first windows need, [`feed_starts`]), the ones
+//! between, of [`STRETCH`] samples, on a thread of their own, in order,
 //! once the first window has committed ([`KnotFeed::run`]); the windows plan on a vector whose stretches are
 //! refined up to a frontier and still raw after it, and take the next
 //! vector when a window would reach past the frontier
@@ -37,6 +38,30 @@ pub(crate) const STRETCH: usize = 4096;
 /// stretches share their end samples).
 pub(crate) fn stretch_starts(len: usize) -> Vec<usize> {
     (0..len.saturating_sub(1)).step_by(STRETCH).collect()
+}
+
+/// The first index of each stretch of a feed on `len` samples: the first
+/// and the last stretch `end` samples (at most [`STRETCH`]: what the
+/// first motion waits for, so no more than the first windows read), the
+/// ones between [`STRETCH`]. Stretch k is `samples[starts[k] ..=
+/// starts[k + 1]]` (the last to the last sample).
+pub(crate) fn feed_starts(len: usize, end: usize) -> Vec<usize> {
+    let last = len.saturating_sub(1);
+    if last == 0 {
+        return Vec::new();
+    }
+    let end = end.clamp(1, STRETCH);
+    let tail = last.saturating_sub(end);
+    let mut starts = vec![0];
+    let mut a = end;
+    while a < tail {
+        starts.push(a);
+        a += STRETCH;
+    }
+    if tail > starts[starts.len() - 1] {
+        starts.push(tail);
+    }
+    starts
 }
 
 /// A knot vector refined stretch by stretch (see the module docs).
@@ -81,14 +106,12 @@ impl<'a> KnotFeed<'a> {
     /// stretch refined now.
     pub(crate) fn new(
         samples: Vec<f64>,
+        end: usize,
         refine: &'a (dyn Fn(&[f64]) -> Vec<f64> + Sync),
         finish: &'a (dyn Fn(Vec<f64>) -> Result<Vec<f64>, PlanError> + Sync),
     ) -> Self {
-        let starts = stretch_starts(samples.len());
-        let stretch = |k: usize| {
-            let a = starts[k];
-            &samples[a..=(a + STRETCH).min(samples.len() - 1)]
-        };
+        let starts = feed_starts(samples.len(), end);
+        let stretch = |k: usize| &samples[starts[k]..=stretch_end(&starts, k, samples.len())];
         let (first, last) = rayon::join(|| refine(stretch(0)), || refine(stretch(starts.len() - 1)));
         KnotFeed {
             state: Mutex::new(FeedState {
@@ -132,8 +155,7 @@ impl<'a> KnotFeed<'a> {
             if self.stop.load(Ordering::Relaxed) {
                 return;
             }
-            let a = self.starts[k];
-            let part = (self.refine)(&self.samples[a..=(a + STRETCH).min(n - 1)]);
+            let part = (self.refine)(&self.samples[self.starts[k]..=stretch_end(&self.starts, k, n)]);
             let mut st = self.state.lock().unwrap_or_else(|e| e.into_inner());
             st.parts.push(part);
             self.grown.notify_all();
@@ -208,6 +230,11 @@ impl<'a> KnotFeed<'a> {
     }
 }
 
+/// The last sample of stretch k: the next one's first, or the last.
+fn stretch_end(starts: &[usize], k: usize, len: usize) -> usize {
+    starts.get(k + 1).copied().unwrap_or(len - 1)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -238,11 +265,11 @@ mod tests {
             v
         };
         let finish = |v: Vec<f64>| -> Result<Vec<f64>, PlanError> { Ok(v) };
-        let feed = KnotFeed::new(samples.clone(), &halve_wide, &finish);
+        let feed = KnotFeed::new(samples.clone(), 1000, &halve_wide, &finish);
         // before the thread: the first stretch refined, raw after it, the
         // last stretch refined
         let (v0, f0) = feed.knots_to(0.0).unwrap();
-        assert_eq!(f0, samples[STRETCH]);
+        assert_eq!(f0, samples[1000]);
         let cut = whole.partition_point(|&u| u <= f0);
         assert_eq!(v0[..cut], whole[..cut]);
         assert!(v0.len() < whole.len());
@@ -260,10 +287,46 @@ mod tests {
     }
 
     #[test]
+    fn a_feed_starts_with_short_end_stretches_and_covers_every_sample_once() {
+        for len in [
+            0,
+            1,
+            2,
+            3,
+            500,
+            1001,
+            2002,
+            2003,
+            5000,
+            3 * STRETCH + 123,
+            10 * STRETCH,
+        ] {
+            for end in [0, 1, 7, 1000, STRETCH, 2 * STRETCH] {
+                let st = feed_starts(len, end);
+                if len < 2 {
+                    assert!(st.is_empty());
+                    continue;
+                }
+                assert_eq!(st[0], 0, "{len} {end}");
+                assert!(st.windows(2).all(|w| w[0] < w[1]), "{len} {end}: {st:?}");
+                let e = end.clamp(1, STRETCH);
+                let ends: Vec<usize> = (0..st.len()).map(|k| stretch_end(&st, k, len)).collect();
+                assert_eq!(ends[ends.len() - 1], len - 1);
+                for (k, (&a, &b)) in st.iter().zip(&ends).enumerate() {
+                    assert!(b > a && b - a <= STRETCH, "{len} {end}: stretch {k} {a}..={b}");
+                    if k == 0 || k + 1 == st.len() {
+                        assert!(b - a <= e, "{len} {end}: end stretch {k} {a}..={b}");
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
     fn a_stopped_feed_says_so_instead_of_waiting() {
         let samples: Vec<f64> = (0..4 * STRETCH).map(|i| i as f64).collect();
         let finish = |v: Vec<f64>| -> Result<Vec<f64>, PlanError> { Ok(v) };
-        let feed = KnotFeed::new(samples, &halve_wide, &finish);
+        let feed = KnotFeed::new(samples, STRETCH, &halve_wide, &finish);
         feed.stop();
         feed.run();
         assert!(feed.knots_to(f64::INFINITY).is_err());

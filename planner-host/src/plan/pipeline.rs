@@ -277,7 +277,15 @@ fn plan_curve_inner(
             // refined stretch by stretch while the windows plan (knot_feed);
             // a replan keeps the running plan's knots, refined whole
             if on_commit.is_some() && resume.is_none() && !whole && ends.len() >= FEED_STRETCHES {
-                feed = Some(KnotFeed::new(samples, &refine, &finish));
+                // (its first and last stretch about twice what the first
+                // windows read, plan::windowed: the first window waits for
+                // no more)
+                let end_mm = cfg.windows.as_ref().map_or(0.0, |w| {
+                    let longest = w.first.map_or(w.window_mm, |f| f.window_mm.max(w.window_mm));
+                    2.0 * (2.0 * longest + w.commit_mm)
+                });
+                let end = samples.partition_point(|&s| s < end_mm);
+                feed = Some(KnotFeed::new(samples, end, &refine, &finish));
                 Vec::new()
             } else {
                 // in stretches on both cores: they share their end samples, kept once
