@@ -766,10 +766,12 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
         let first = |s_c_before: &[f64]| s_c >= 0.0 && s_c_before.iter().all(|&x| x < 0.0);
         if std::env::var_os("FEEDLP_TIME_DEBUG").is_some() && (self.i < 3 || first(&self.s_c[..self.i])) {
             eprintln!(
-                "  hold point of chunk {}: {:.1} ms, s_c {:.2} mm",
+                "  hold point of chunk {}: {:.1} ms, s_c {:.2} mm, tests {} history {}",
                 self.i,
                 self.known[self.i] * 1e3,
-                s_c
+                s_c,
+                self.tests,
+                self.history.len()
             );
         }
         self.i += 1;
