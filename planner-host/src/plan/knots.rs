@@ -134,9 +134,9 @@ fn merge_breaks(samples: Vec<f64>, breaks: impl Iterator<Item = f64>) -> Vec<f64
     // below each break move to `out` as the breaks come (they increase), so
     // a break is inserted at the end of `out`, not into the middle of one
     // long vector (which made 10⁵ breaks quadratic).
-    // (the samples taken, not copied: a long path's are tens of megabytes)
     // (room for every break: no reallocation half-way through)
     let mut out: Vec<f64> = Vec::with_capacity(samples.len() + breaks.size_hint().0);
+    // (the samples taken, not copied: a long path's are tens of megabytes)
     let mut rest = samples;
     let mut j = 0;
     let mut last_break = f64::NAN;
