@@ -306,30 +306,34 @@ fn hold_points_alike() {
     assert_eq!(bare.plan.predicted_time_s, st.plan.predicted_time_s);
 }
 
+/// Whether `plan` (a planning whose sink panics) came back with the
+/// panic, watched from here: a planning that unwinds must still let its
+/// helper threads finish, or the scope around them would wait forever (a
+/// watchdog, not a timing: the plannings take about a second).
+fn comes_back_with_the_panic(plan: impl FnOnce() -> bool + Send + std::panic::UnwindSafe + 'static) -> bool {
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let _ = tx.send(std::panic::catch_unwind(plan).is_err());
+    });
+    rx.recv_timeout(std::time::Duration::from_secs(300))
+        .expect("the planning hung after its sink panicked")
+}
+
 #[test]
 fn a_sink_that_panics_ends_the_planning_instead_of_hanging_it() {
     // The s → u map is fitted on a thread of its own that waits until a
     // commit wants more of it; a planning that unwinds must still let it
-    // finish, or the scope around both would wait for it forever. Watched
-    // from here: the call must come back (with the sink's panic).
-    let (tx, rx) = std::sync::mpsc::channel();
-    std::thread::spawn(move || {
-        // (longer than the map's lead: the map's thread waits for a demand)
+    // finish. (Longer than the map's lead: the map's thread waits for a
+    // demand.)
+    let panicked = comes_back_with_the_panic(|| {
         let path = concat!(env!("CARGO_MANIFEST_DIR"), "/curves/long/meander-1m.json");
         let curve = planner_host::cli::load_curve(std::path::Path::new(path)).unwrap();
         let cfg = PlanConfig {
             windows: Some(WindowConfig::default()),
             ..PlanConfig::default()
         };
-        let r = std::panic::catch_unwind(|| {
-            plan_curve_committing(&curve, &cfg, &|_: &Commit| panic!("the sink gives up")).is_ok()
-        });
-        let _ = tx.send(r.is_err());
+        plan_curve_committing(&curve, &cfg, &|_: &Commit| panic!("the sink gives up")).is_ok()
     });
-    // (a watchdog, not a timing: the planning takes about a second)
-    let panicked = rx
-        .recv_timeout(std::time::Duration::from_secs(300))
-        .expect("the planning hung after its sink panicked");
     assert!(panicked, "the sink's panic did not reach the caller");
 }
 
@@ -438,19 +442,12 @@ fn a_committed_replan_on_a_path_refined_while_planned_keeps_the_running_plan_up_
 
 /// A fed plan whose sink panics (the first window's commit) comes back
 /// with the panic too: the refining thread stops on the planning's unwind
-/// instead of leaving the scope waiting (watched from here, as above).
+/// instead of leaving the scope waiting.
 #[test]
 fn a_sink_that_panics_ends_a_fed_planning_instead_of_hanging_it() {
-    let (tx, rx) = std::sync::mpsc::channel();
-    std::thread::spawn(move || {
+    let panicked = comes_back_with_the_panic(|| {
         let (curve, cfg) = fed_meander();
-        let r = std::panic::catch_unwind(|| {
-            plan_curve_committing(&curve, &cfg, &|_: &Commit| panic!("the sink gives up")).is_ok()
-        });
-        let _ = tx.send(r.is_err());
+        plan_curve_committing(&curve, &cfg, &|_: &Commit| panic!("the sink gives up")).is_ok()
     });
-    let panicked = rx
-        .recv_timeout(std::time::Duration::from_secs(300))
-        .expect("the fed planning hung after its sink panicked");
     assert!(panicked, "the sink's panic did not reach the caller");
 }

@@ -441,20 +441,38 @@ pub fn run_stream_host<const CAP: usize, const NQ: usize, const NP: usize>(
 
 /// A streamed motion's state as `FEEDLP_FAULT_DEBUG` prints it: where it
 /// is, its hold state, the end of the rows held, the hold point and the q
-/// spans and pieces held.
+/// spans and pieces held (taken at every tick while debugging, formatted
+/// only when printed).
+struct MotionState {
+    s_mm: f64,
+    hold: HoldState,
+    held_end_mm: f64,
+    hold_point_mm: f64,
+    held: (usize, usize),
+}
+
 fn motion_state<const NQ: usize, const NP: usize>(
     ipr: &Interpolator<'static, 0, 0, PlanWindow<NQ, NP>>,
-) -> String {
+) -> MotionState {
     let w = ipr.window();
     let fx = |x: i64| x as f64 / (1u64 << 40) as f64;
-    format!(
-        "s {:.3} mm, {:?}, rows to {:.3} mm, hold point {:.3} mm, {:?} q spans and pieces held",
-        ipr.s_mm(),
-        ipr.hold_state(),
-        fx(w.held_end()),
-        fx(w.hold_point()),
-        w.held()
-    )
+    MotionState {
+        s_mm: ipr.s_mm(),
+        hold: ipr.hold_state(),
+        held_end_mm: fx(w.held_end()),
+        hold_point_mm: fx(w.hold_point()),
+        held: w.held(),
+    }
+}
+
+impl std::fmt::Display for MotionState {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "s {:.3} mm, {:?}, rows to {:.3} mm, hold point {:.3} mm, {:?} q spans and pieces held",
+            self.s_mm, self.hold, self.held_end_mm, self.hold_point_mm, self.held
+        )
+    }
 }
 
 /// [`run_stream_host`] with the plan's head (its limits, ends and end

@@ -268,7 +268,7 @@ impl ArcLength {
                 let mut pieces = Vec::new();
                 let mut ends = Vec::with_capacity(run.len());
                 for &(i, a, b) in run {
-                    adaptive_gl(a, b, tol, &|x| polys.speeds_in_span16(i, x), &mut pieces);
+                    adaptive_gl(a, b, tol, &|x| polys.speeds_in_span(i, x), &mut pieces);
                     ends.push(pieces.len());
                 }
                 (pieces, ends)
@@ -363,7 +363,7 @@ impl ArcLength {
 
     fn s_in_piece(&self, k: usize, u: f64) -> f64 {
         let span = self.piece_span[k];
-        self.s[k] + gl16_batch(self.u[k], u, |x| self.polys.speeds_in_span16(span, x))
+        self.s[k] + gl16_batch(self.u[k], u, |x| self.polys.speeds_in_span(span, x))
     }
 
     /// s(u), mm; u is clamped into the curve's range (s = 0 at the start,
@@ -464,7 +464,7 @@ impl ArcLength {
                 } else if r <= 1.0 / 16.0 {
                     gl8(u0, u, speed)
                 } else {
-                    gl16_batch(u0, u, |x| self.polys.speeds_in_span16(span, x))
+                    gl16_batch(u0, u, |x| self.polys.speeds_in_span(span, x))
                 }
             }
             _ => self.s_in_piece(k, u),

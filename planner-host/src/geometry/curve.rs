@@ -520,57 +520,31 @@ impl SpanPolys {
     /// [`SpanPolys::derivs_in_span`]'s first derivative, its orders 0 and 1
     /// only, by the same operations in the same order (the same bits; the
     /// arc-length quadrature calls this most of all).
-    #[allow(clippy::needless_range_loop)] // coordinates by index, as above
     pub fn speed_in_span(&self, span: usize, u: f64) -> f64 {
-        let Some(Some(sp)) = self.polys.get(span) else {
-            return norm(self.curve.derivs_in_span(span, u, 1)[1]);
-        };
-        let t = (u - sp.c) * sp.inv_h;
-        // A(u) and A′(u) = inv_h Σ_{m ≥ 1} m a_m t^{m−1}, by Horner
-        let (mut a0, mut a1) = ([0.0; 4], [0.0; 4]);
-        for m in (0..=self.p).rev() {
-            for d in 0..4 {
-                a0[d] = a0[d] * t + sp.a[m][d];
-            }
-            if m >= 1 {
-                let f = m as f64;
-                for d in 0..4 {
-                    a1[d] = a1[d] * t + f * sp.a[m][d];
-                }
-            }
-        }
-        let w0 = a0[3];
-        let h1: [f64; 4] = std::array::from_fn(|d| a1[d] * sp.inv_h);
-        let c0 = [a0[0] / w0, a0[1] / w0, a0[2] / w0];
-        let mut v = [h1[0], h1[1], h1[2]];
-        for d in 0..3 {
-            v[d] -= h1[3] * c0[d];
-        }
-        norm([v[0] / w0, v[1] / w0, v[2] / w0])
+        self.speeds_in_span(span, &[u])[0]
     }
-}
 
-impl SpanPolys {
-    /// [`SpanPolys::speed_in_span`] at 16 parameters of one span (a
-    /// Gauss–Legendre rule's nodes): each by the same operations in the same
-    /// order (the same bits), laid out node by node in the innermost loops
-    /// so that the compiler runs them side by side in vector registers —
-    /// the arc-length quadrature is most of the whole path's geometry
-    /// before the first window (docs/streaming-design.md, "first motion").
+    /// [`SpanPolys::speed_in_span`] at N parameters of one span (16: a
+    /// Gauss–Legendre rule's nodes), each by the same operations in the
+    /// same order (the same bits as one at a time), laid out node by node
+    /// in the innermost loops so that the compiler runs them side by side
+    /// in vector registers — the arc-length quadrature is most of the whole
+    /// path's geometry before the first window (docs/streaming-design.md).
     #[allow(clippy::needless_range_loop)] // coordinates by index, as above
-    pub fn speeds_in_span16(&self, span: usize, us: &[f64; 16]) -> [f64; 16] {
+    pub fn speeds_in_span<const N: usize>(&self, span: usize, us: &[f64; N]) -> [f64; N] {
         let Some(Some(sp)) = self.polys.get(span) else {
             return us.map(|u| norm(self.curve.derivs_in_span(span, u, 1)[1]));
         };
-        let mut t = [0.0; 16];
-        for i in 0..16 {
+        let mut t = [0.0; N];
+        for i in 0..N {
             t[i] = (us[i] - sp.c) * sp.inv_h;
         }
-        let (mut a0, mut a1) = ([[0.0; 16]; 4], [[0.0; 16]; 4]);
+        // A(u) and A′(u) = inv_h Σ_{m ≥ 1} m a_m t^{m−1}, by Horner
+        let (mut a0, mut a1) = ([[0.0; N]; 4], [[0.0; N]; 4]);
         for m in (0..=self.p).rev() {
             for d in 0..4 {
                 let am = sp.a[m][d];
-                for i in 0..16 {
+                for i in 0..N {
                     a0[d][i] = a0[d][i] * t[i] + am;
                 }
             }
@@ -578,14 +552,14 @@ impl SpanPolys {
                 let f = m as f64;
                 for d in 0..4 {
                     let fa = f * sp.a[m][d];
-                    for i in 0..16 {
+                    for i in 0..N {
                         a1[d][i] = a1[d][i] * t[i] + fa;
                     }
                 }
             }
         }
-        let mut out = [0.0; 16];
-        for i in 0..16 {
+        let mut out = [0.0; N];
+        for i in 0..N {
             let w0 = a0[3][i];
             let h3 = a1[3][i] * sp.inv_h;
             let v0 = a1[0][i] * sp.inv_h - h3 * (a0[0][i] / w0);
@@ -643,12 +617,17 @@ pub(crate) mod tests {
         crate::geometry::builtin::all().unwrap()
     }
 
-    #[test]
-    fn span_polys_agree_with_the_basis_recurrence() {
+    /// The benchmark curves, a 3-D degree-5 rational and a circle.
+    fn form_test_curves() -> Vec<Nurbs> {
         let mut curves = benchmark_curves();
         curves.push(quintic_3d());
         curves.push(Nurbs::circle([1.0, 2.0, 0.0], 5.0));
-        for c in curves {
+        curves
+    }
+
+    #[test]
+    fn span_polys_agree_with_the_basis_recurrence() {
+        for c in form_test_curves() {
             let polys = c.span_polys();
             let size = c.points.iter().flatten().fold(1.0f64, |m, x| m.max(x.abs()));
             for (i, a, b) in c.spans() {
@@ -675,15 +654,12 @@ pub(crate) mod tests {
 
     #[test]
     fn speeds_at_sixteen_nodes_are_the_speeds_one_by_one_bit_for_bit() {
-        let mut curves = benchmark_curves();
-        curves.push(quintic_3d());
-        curves.push(Nurbs::circle([1.0, 2.0, 0.0], 5.0));
-        for c in curves {
+        for c in form_test_curves() {
             let polys = c.span_polys();
             for (i, a, b) in c.spans() {
                 // the rule's nodes, and parameters past the span's ends
                 let us: [f64; 16] = std::array::from_fn(|k| a + (b - a) * (k as f64 - 1.0) / 13.0);
-                let batch = polys.speeds_in_span16(i, &us);
+                let batch = polys.speeds_in_span(i, &us);
                 for (k, &u) in us.iter().enumerate() {
                     let one = polys.speed_in_span(i, u);
                     assert_eq!(batch[k].to_bits(), one.to_bits(), "{} span {i} u {u}", c.name);
@@ -691,7 +667,7 @@ pub(crate) mod tests {
             }
             // a span index with no form: the recurrence's, node by node
             let us = [0.5; 16];
-            let batch = polys.speeds_in_span16(0, &us);
+            let batch = polys.speeds_in_span(0, &us);
             assert_eq!(
                 batch[3].to_bits(),
                 polys.speed_in_span(0, 0.5).to_bits(),
