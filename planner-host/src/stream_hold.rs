@@ -11,15 +11,19 @@
 //! by running the firmware's code: the streamed interpolator it would run,
 //! fed as the firmware feeds it ([`Interpolator::keep_fed`] aside), and, every
 //! `coarse_mm` of the way (further while the holds rest far before the
-//! chunk's end, up to `coarse_max_mm`), a copy of it cut back to the chunks
-//! up to chunk i ([`PlanWindow::truncate`]) with the hold pressed, ticked to
-//! rest. Where chunk i fails, the search looks back through the copies kept
-//! at the earlier coarse tests for the latest where it passes and tests
-//! every `step_mm` around it, from the failure back as far as the hold
-//! point needs ([`HoldPointSearch`]). A test passes when the stop
-//! rests `margin_mm` and `margin_frac` of its length before chunk i's end;
-//! s_c is a passing test `backoff_mm` before the last one of the latest
-//! run of passing tests.
+//! chunk's end, up to `coarse_max_mm`; once a chunk's tests have turned,
+//! the next chunk's straight to a little before where its own are
+//! predicted to turn), a copy of it cut back to the chunks up to chunk i
+//! ([`PlanWindow::truncate`]) with the hold pressed, ticked to rest. Where
+//! chunk i fails, the search looks back through the copies kept for the
+//! latest where it passes, halves the stretch to the failure down to a
+//! coarse step, and tests every `step_mm` from the last pass to the first
+//! failure, and before that pass as far as the hold point needs
+//! ([`HoldPointSearch`]). A test passes when the stop rests `margin_mm`
+//! and `margin_frac` of its length before chunk i's end; s_c is a passing
+//! test `backoff_mm` before the last one of a run of passing tests every
+//! `step_mm`, the run that ends at the first failure after the coarse
+//! pass.
 //!
 //! Why each of these, measured on long meanders fed more slowly than they
 //! run (docs/streaming-design.md, "starved stops"):
@@ -33,14 +37,28 @@
 //!   firmware presses on its own tick, so s_c lies inside a run of passing
 //!   tests, never on an untested point back from one.
 //! - **The margin's fraction.** Stops from the firmware's state and the dry
-//!   run's can still part (measured: a few hundredths of a millimetre on a
-//!   105 mm stop, pressed in a resume's tail; on the 11 m meander through a
-//!   128:256 window that starves on its q spans every 3 s, more than 2 % of
-//!   the stop: at 1 % a stop ran to the end of its rows and the tick
-//!   faulted, at 2 % the same in 32 mm chunks; at 3 % the least room left
-//!   was 1.8 mm, and the Butterfly in 8 mm chunks is refused in that window
-//!   for want of a hold point from its start: a typed refusal at rest, not
-//!   a fault at speed).
+//!   run's can still part. Measured on the 11 m meander through a 128:256
+//!   window that starves on its q spans every 3 s, the stop pressed in a
+//!   resume's tail each time: at 1 % of the stop a stop ran to the end of
+//!   its rows and the tick faulted, at 2 % the same in 32 mm chunks; at 3 %
+//!   the least room left was 1.8 mm in 8 mm chunks, but in 4 mm chunks, and
+//!   planned in 200/150 mm windows in 4 and 32 mm chunks, a stop ran past
+//!   its rows; at 4 % the same in 8 mm chunks. The stop's length from a
+//!   resume's tail is not the dry run's: near where the tests turn (there
+//!   the stop grows by ~14 mm for a press a few millimetres later) a hold
+//!   point that passed can fail from the tail (one 2.6 mm later than a
+//!   hold point that held, found by another spacing of the tests, ran
+//!   105.7 mm to the end of its rows, over 3 % more than its test). Which
+//!   side of that a hold point falls depends on where the tests fell, so a
+//!   larger margin is not always safer. At 5 %, over 24
+//!   layouts of that window (the 11 m and 1.2 m meanders, the Butterfly,
+//!   the Fan and the Star whole, the 11 m meander in 200/150 mm windows, in
+//!   4, 8, 16 and 32 mm chunks) and 20 of a 256:512 one (the Fan aside), no
+//!   stop ran past its rows, the least room left 1.4 mm (`feedsim stream …
+//!   --json`, `starved_room_min_mm`); four are refused for want of a hold
+//!   point far enough ahead (the Fan in 4, 16 and 32 mm chunks, at 3 % in
+//!   8 mm too; the 11 m meander in windows in 32 mm chunks): a typed
+//!   refusal at rest, not a fault at speed.
 //!
 //! None of this is a bound: it is what the measurements needed, with room.
 //! The firmware side keeps to the states and chunks the tests were run
@@ -293,15 +311,15 @@ pub struct HoldSearch {
     /// costs a hold ticked to rest and, the first dozen, a fresh copy of
     /// the dry run; near the start a chunk's holds rest far before its
     /// end. Hold points still come only from tests that passed with their
-    /// chunk the last one held: the spacing costs or gains availability,
-    /// never safety.
+    /// chunk the last one held; the spacing moves where the tests fall
+    /// (module docs: the margins).
     pub coarse_max_mm: f64,
     /// The hold must come to rest at least this far before the chunk's end, mm.
     pub margin_mm: f64,
     /// And besides, this fraction of its own stopping distance: the
     /// firmware presses from its own state, which after a hold and resume
     /// is not the dry run's (its λ a little under 1 for seconds), and such
-    /// stops can end later (by more than 2 % of a 100 mm stop, measured:
+    /// stops can end later (by more than 4 % of a 100 mm stop, measured:
     /// see the module docs).
     pub margin_frac: f64,
     /// s_c lies this far before the last test that passed, on a test that
@@ -310,6 +328,17 @@ pub struct HoldSearch {
     /// the firmware presses on its own tick, up to a tick's step past s_c,
     /// from its own state.
     pub backoff_mm: f64,
+    /// Once a chunk's tests have turned, the next chunk's coarse tests go
+    /// straight to this far before where its tests are predicted to turn
+    /// (from the room they leave: [`HoldPointSearch`]), mm, and on from
+    /// there every `coarse_mm`. A step that fails is halved back. Hold
+    /// points still come from a run of passing tests either way, but where
+    /// the tests fall moves them by up to a few millimetres, and a stop
+    /// pressed in a resume's tail is not the dry run's: what keeps those
+    /// inside their rows is the margins (module docs).
+    pub predict_back_mm: f64,
+    /// The longest such step, mm.
+    pub predict_max_mm: f64,
 }
 
 impl Default for HoldSearch {
@@ -320,8 +349,10 @@ impl Default for HoldSearch {
             coarse_mm: 2.0,
             coarse_max_mm: 8.0,
             margin_mm: 0.05,
-            margin_frac: 0.03,
+            margin_frac: 0.05,
             backoff_mm: 1.0,
+            predict_back_mm: 1.5,
+            predict_max_mm: 64.0,
         }
     }
 }
@@ -427,6 +458,17 @@ pub struct HoldPointSearch<const NQ: usize, const NP: usize> {
     /// (for a chunk the end came before).
     last_pass: Option<f64>,
     last_found: Option<f64>,
+    /// Where the first coarse test chunk i passed was pressed and the room
+    /// it left (s, room), mm.
+    first_room: Option<(f64, f64)>,
+    /// The room at which the chunk before's tests turned, as the room falls
+    /// a millimetre a millimetre from its first pass
+    /// ([`HoldPointSearch::gap_after`], learned by
+    /// [`HoldPointSearch::scan`]), mm.
+    cliff_mm: Option<f64>,
+    /// A copy of the dry run is kept, untested, once it reaches this s:
+    /// a fine scan's start ahead of a long coarse step.
+    keep_at: Option<f64>,
     next_test: f64,
     tests: usize,
     /// A test is due at the current tick, at this s.
@@ -444,6 +486,7 @@ pub struct HoldPointSearch<const NQ: usize, const NP: usize> {
     /// window is megabytes; into these only the rows held are copied).
     scratch: Option<DryIp<NQ, NP>>,
     trial: Option<Box<StreamedRun<NQ, NP>>>,
+    at_pass: Option<Box<StreamedRun<NQ, NP>>>,
 }
 
 /// Coarse tests the search keeps the dry run of, to look back from a
@@ -484,6 +527,9 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
             i: 0,
             last_pass: None,
             last_found: None,
+            first_room: None,
+            cliff_mm: None,
+            keep_at: None,
             next_test: 0.0,
             tests: 0,
             testing: None,
@@ -492,6 +538,7 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
             given: vec![],
             scratch: None,
             trial: None,
+            at_pass: None,
         }
     }
 
@@ -559,17 +606,7 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                 // (the chunks that came since the tick, into the window the
                 // tests cut back: as if they had been there at it)
                 run.push(chunks)?;
-                if self.history.back().map(|h| h.1) != Some(s) {
-                    // (into the oldest's box once the history is full)
-                    let mut kept = match self.history.len() == HISTORY {
-                        true => self.history.pop_front().map(|h| h.0),
-                        false => None,
-                    };
-                    copy_into(&mut kept, &**run);
-                    if let Some(b) = kept {
-                        self.history.push_back((b, s));
-                    }
-                }
+                keep(&mut self.history, run, s);
                 // Chunk i at this tick; on failure its hold point from the
                 // tests before, and chunk i + 1 at this tick.
                 let coarse = self.how.coarse_mm.max(self.how.step_mm);
@@ -600,7 +637,7 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                             break;
                         }
                         self.s_c[self.i] = g;
-                        (self.last_pass, self.last_found) = (None, Some(g));
+                        (self.last_pass, self.last_found, self.first_room) = (None, Some(g), None);
                         self.known[self.i] = self.started.elapsed().as_secs_f64();
                         self.i += 1;
                         continue;
@@ -614,7 +651,13 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                         &self.how,
                     ) {
                         self.last_pass = Some(s);
-                        gap = (0.5 * room).min(self.how.coarse_max_mm).max(coarse);
+                        self.first_room.get_or_insert((s, room));
+                        gap = self.gap_after(room);
+                        // (a long step: the dry run kept a fine scan's
+                        // start before the test, in case it fails)
+                        if gap > coarse + self.how.step_mm {
+                            self.keep_at = Some(s + gap - coarse - self.how.step_mm);
+                        }
                         break;
                     }
                     gap = coarse;
@@ -634,6 +677,10 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                 return Ok(());
             }
             let sp = run.step(chunks)?;
+            if self.keep_at.is_some_and(|k| sp.s_mm >= k) {
+                self.keep_at = None;
+                keep(&mut self.history, run, sp.s_mm);
+            }
             let entered = self.entering
                 && self
                     .chunk_end
@@ -645,11 +692,36 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
         }
     }
 
+    /// The step to chunk i's next coarse test after one that passed and
+    /// left `room` mm: half the room, from `coarse_mm` to `coarse_max_mm`;
+    /// or, once a chunk's tests have turned, to `predict_back_mm` before
+    /// where this chunk's are predicted to turn, up to `predict_max_mm` on:
+    /// where the room left falls to the room at which the chunk before's
+    /// turned (`cliff_mm`). The room falls about a millimetre for each
+    /// millimetre the press comes later, and then, near the end of the
+    /// rows held, drops by many: measured on the 11 m meander, passes with
+    /// 49, 42, 34, 26 and 18 mm of room 8 mm apart, then a failure 8 mm on,
+    /// the room at the turn 12–14 mm from one chunk to the next along a
+    /// row. Near the predicted turn the steps are `coarse_mm`; a chunk
+    /// whose room falls below it without turning (no drop there) goes on
+    /// by halves of its room as without a prediction.
+    fn gap_after(&self, room: f64) -> f64 {
+        let h = &self.how;
+        let coarse = h.coarse_mm.max(h.step_mm);
+        match self.cliff_mm {
+            Some(c) if room - c - h.predict_back_mm > coarse => {
+                (room - c - h.predict_back_mm).min(h.predict_max_mm)
+            }
+            Some(c) if room >= c => coarse,
+            _ => (0.5 * room).min(h.coarse_max_mm).max(coarse),
+        }
+    }
+
     /// Chunk i, ending at `end` and followed by `next`, failed at the
     /// latest coarse test: the latest kept coarse test at which it passes
-    /// is looked for back through the dry runs kept, and from a coarse
-    /// step before that to the failure after it, it is tested every
-    /// `step_mm` (from the failure back, as far as needed); its hold point
+    /// is looked for back through the dry runs kept (kept untested ones
+    /// included: the start of a long step), and from there to the failure
+    /// it is tested forward ([`HoldPointSearch::scan`]); its hold point
     /// from those ([`hold_point_of_runs`]).
     fn resolve(&mut self, chunks: &[Vec<u8>], end: i64, next: &Chunk<'_>) -> Result<(), HoldPointError> {
         let n = self.history.len();
@@ -675,92 +747,10 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
         }
         let s_c = match found {
             None => NOT_ALONE_MM,
-            Some(k) => {
-                // Where the tests turn between coarse test k (passed) and
-                // k + 1 (failed): further apart than a coarse step
-                // (`coarse_max_mm`), coarse tests between them first.
-                let (step, coarse) = (self.how.step_mm, self.how.coarse_mm.max(self.how.step_mm));
-                let (mut pass_s, mut fail_s) = (self.history[k].1, self.history[k + 1].1);
-                if fail_s - pass_s > coarse + step {
-                    let t = copy_into(&mut self.trial, &*self.history[k].0);
-                    t.push(chunks)?;
-                    loop {
-                        let goal = t.ip.s_mm() + coarse;
-                        while !t.ip.is_done() && t.ip.s_mm() < goal {
-                            t.step(chunks)?;
-                        }
-                        t.push(chunks)?;
-                        if t.ip.is_done() || t.ip.s_mm() >= fail_s {
-                            break;
-                        }
-                        self.tests += 1;
-                        if hold_room(&t.ip, &mut self.scratch, end, next, &self.how).is_none() {
-                            fail_s = t.ip.s_mm();
-                            break;
-                        }
-                        pass_s = t.ip.s_mm();
-                    }
-                }
-                // Then every `step_mm` from a coarse step before the last
-                // that passed (where chunk i is held then) to the failure:
-                // the passing runs between failures. The positions come
-                // from the run kept before k (if it holds chunk i, else
-                // k's) ticked on untested; the tests from the last
-                // position back, only as far as the hold point needs
-                // (`hold_point_of_runs` reads the latest run of passes and
-                // `backoff_mm` of it), each on a copy ticked to its
-                // position the same way.
-                let mut k0 = k.saturating_sub(1);
-                let mut t = copy_into(&mut self.trial, &*self.history[k0].0);
-                t.push(chunks)?;
-                if k0 != k && !holds_i(t) {
-                    k0 = k;
-                    t = copy_into(&mut self.trial, &*self.history[k0].0);
-                    t.push(chunks)?;
-                }
-                let from = pass_s - coarse - step;
-                let mut n = 0usize;
-                while !t.ip.is_done() && t.ip.s_mm() < from {
-                    t.step(chunks)?;
-                    n += 1;
-                }
-                let mut marks = vec![(n, t.ip.s_mm())];
-                loop {
-                    let goal = marks[marks.len() - 1].1 + step;
-                    while !t.ip.is_done() && t.ip.s_mm() < goal {
-                        t.step(chunks)?;
-                        n += 1;
-                    }
-                    if t.ip.is_done() || t.ip.s_mm() >= fail_s {
-                        break;
-                    }
-                    marks.push((n, t.ip.s_mm()));
-                }
-                let mut tests = vec![];
-                let mut last_pass = None;
-                for &(n, at) in marks.iter().rev() {
-                    let t = copy_into(&mut self.trial, &*self.history[k0].0);
-                    t.push(chunks)?;
-                    for _ in 0..n {
-                        t.step(chunks)?;
-                    }
-                    t.push(chunks)?;
-                    self.tests += 1;
-                    let passed = hold_room(&t.ip, &mut self.scratch, end, next, &self.how).is_some();
-                    tests.push((at, passed));
-                    match last_pass {
-                        None if passed => last_pass = Some(at),
-                        None => {}
-                        Some(l) if !passed || at <= l - self.how.backoff_mm => break,
-                        Some(_) => {}
-                    }
-                }
-                tests.reverse();
-                hold_point_of_runs(&tests, self.how.backoff_mm)
-            }
+            Some(k) => self.scan(chunks, end, next, k)?,
         };
         self.s_c[self.i] = s_c;
-        (self.last_pass, self.last_found) = (None, Some(s_c));
+        (self.last_pass, self.last_found, self.first_room) = (None, Some(s_c), None);
         self.known[self.i] = self.started.elapsed().as_secs_f64();
         // (and the first hold point: what the first motion waits for)
         let first = |s_c_before: &[f64]| s_c >= 0.0 && s_c_before.iter().all(|&x| x < 0.0);
@@ -776,6 +766,124 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
         }
         self.i += 1;
         Ok(())
+    }
+
+    /// Chunk i passes at the kept dry run `k` and fails at the one after:
+    /// tested halfway between the last pass and the first failure until
+    /// they are a coarse step apart, then every `step_mm` from the last pass
+    /// to the first failure; and where those passes span less than
+    /// `backoff_mm`, every `step_mm` before the first of them as well, on a
+    /// kept run from before. Its hold point from the tests at the fine
+    /// step ([`hold_point_of_runs`]: from the first turn after the coarse
+    /// pass, the tests' latest run of passes); the room this chunk's tests
+    /// turned at is learned for the next chunk's
+    /// ([`HoldPointSearch::gap_after`]). Forward, a scan ticks one copy on
+    /// and stops at its first failure; from the failure back, each test
+    /// ticked a fresh copy to its place and the scan crossed every failing
+    /// step between the turn and the failure first.
+    fn scan(
+        &mut self,
+        chunks: &[Vec<u8>],
+        end: i64,
+        next: &Chunk<'_>,
+        k: usize,
+    ) -> Result<f64, HoldPointError> {
+        let h = self.how;
+        let (step, coarse) = (h.step_mm, h.coarse_mm.max(h.step_mm));
+        let (mut pass_s, mut fail_s) = (self.history[k].1, self.history[k + 1].1);
+        copy_into(&mut self.trial, &*self.history[k].0).push(chunks)?;
+        // halving the stretch between a pass and a failure down to a coarse
+        // step (the run at the pass kept in `at_pass` while one halfway on
+        // is tested)
+        while fail_s - pass_s > coarse + step {
+            let (Some(t), at_pass) = (self.trial.as_deref_mut(), &mut self.at_pass) else {
+                return Ok(NOT_ALONE_MM);
+            };
+            copy_into(at_pass, &*t);
+            let goal = 0.5 * (pass_s + fail_s);
+            while !t.ip.is_done() && t.ip.s_mm() < goal {
+                t.step(chunks)?;
+            }
+            t.push(chunks)?;
+            if t.ip.is_done() || t.ip.s_mm() >= fail_s {
+                // (no test: back to the pass, from which the steps go on)
+                std::mem::swap(&mut self.trial, &mut self.at_pass);
+                break;
+            }
+            self.tests += 1;
+            if hold_room(&t.ip, &mut self.scratch, end, next, &h).is_some() {
+                pass_s = t.ip.s_mm();
+            } else {
+                fail_s = t.ip.s_mm();
+                std::mem::swap(&mut self.trial, &mut self.at_pass);
+            }
+        }
+        let Some(t) = self.trial.as_deref_mut() else {
+            return Ok(NOT_ALONE_MM);
+        };
+        // every step from the last pass to the first failure
+        let run_lo = pass_s;
+        let mut tests = vec![(pass_s, true)];
+        loop {
+            let goal = t.ip.s_mm() + step;
+            while !t.ip.is_done() && t.ip.s_mm() < goal {
+                t.step(chunks)?;
+            }
+            t.push(chunks)?;
+            if t.ip.is_done() || t.ip.s_mm() >= fail_s {
+                break;
+            }
+            self.tests += 1;
+            let passed = hold_room(&t.ip, &mut self.scratch, end, next, &h).is_some();
+            tests.push((t.ip.s_mm(), passed));
+            if !passed {
+                break;
+            }
+        }
+        let latest = tests.iter().rev().find(|x| x.1).map_or(pass_s, |x| x.0);
+        // and before the run, back to `backoff_mm` before its latest pass,
+        // from the latest run kept there that holds chunk i (else the
+        // earliest after it that does)
+        if latest - h.backoff_mm < run_lo {
+            let from = latest - h.backoff_mm - step;
+            let holds_i = |t: &StreamedRun<NQ, NP>| t.ip.window().held_end() >= end;
+            let mut base = None;
+            for j in (0..=k).rev() {
+                let t = copy_into(&mut self.trial, &*self.history[j].0);
+                t.push(chunks)?;
+                if !holds_i(t) {
+                    break;
+                }
+                base = Some(j);
+                if self.history[j].1 <= from {
+                    break;
+                }
+            }
+            if let Some(j) = base {
+                let t = copy_into(&mut self.trial, &*self.history[j].0);
+                t.push(chunks)?;
+                while !t.ip.is_done() && t.ip.s_mm() < from {
+                    t.step(chunks)?;
+                }
+                let mut before = vec![];
+                while !t.ip.is_done() && t.ip.s_mm() < run_lo - 0.5 * step {
+                    t.push(chunks)?;
+                    self.tests += 1;
+                    let passed = hold_room(&t.ip, &mut self.scratch, end, next, &h).is_some();
+                    before.push((t.ip.s_mm(), passed));
+                    let goal = t.ip.s_mm() + step;
+                    while !t.ip.is_done() && t.ip.s_mm() < goal {
+                        t.step(chunks)?;
+                    }
+                }
+                before.extend(tests);
+                tests = before;
+            }
+        }
+        if let Some((s_r, room)) = self.first_room.filter(|r| r.0 <= latest) {
+            self.cliff_mm = Some(room - (latest - s_r));
+        }
+        Ok(hold_point_of_runs(&tests, h.backoff_mm))
     }
 
     /// The hold points, once [`HoldPointSearch::advance`] has had every
@@ -808,6 +916,26 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
             tests: self.tests,
             known_after_s: self.known,
         })
+    }
+}
+
+/// The dry run `run` at `s` kept at the history's end (into the oldest's
+/// box once it is full), unless kept there already.
+fn keep<const NQ: usize, const NP: usize>(
+    history: &mut std::collections::VecDeque<(Box<StreamedRun<NQ, NP>>, f64)>,
+    run: &StreamedRun<NQ, NP>,
+    s: f64,
+) {
+    if history.back().map(|h| h.1) == Some(s) {
+        return;
+    }
+    let mut kept = match history.len() == HISTORY {
+        true => history.pop_front().map(|h| h.0),
+        false => None,
+    };
+    copy_into(&mut kept, run);
+    if let Some(b) = kept {
+        history.push_back((b, s));
     }
 }
 

@@ -140,7 +140,8 @@ fn every_hold_point_found_stops_the_starved_motion_inside_its_rows() {
 }
 
 /// Every chunk's hold point, found by the search spaced by the room its
-/// holds leave (the default) and by one testing every `coarse_mm`: a
+/// holds leave and by where they turned for the chunk before (the
+/// default) and by one testing every `coarse_mm`: a
 /// motion fed the chunks up to it only presses the hold there and comes to
 /// rest inside them. The spaced search runs fewer tests.
 fn every_hold_point_holds() {
@@ -149,6 +150,7 @@ fn every_hold_point_holds() {
     let spaced = HoldSearch::default();
     let every = HoldSearch {
         coarse_max_mm: spaced.coarse_mm,
+        predict_max_mm: spaced.coarse_mm,
         ..spaced
     };
     assert!(spaced.coarse_max_mm > spaced.coarse_mm);

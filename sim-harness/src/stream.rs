@@ -102,8 +102,9 @@ pub struct StreamRun {
     pub chunks: usize,
     /// Framed bytes sent.
     pub framed_bytes: usize,
-    /// The largest s reached while each starvation hold was on, and the end
-    /// of the rows held then (mm): the motion never passes the rows.
+    /// The largest s reached while each starvation hold was on and no more
+    /// rows had come, and the end of the rows held at its press (mm): the
+    /// motion never passes the rows.
     pub starved_reach_mm: Vec<(f64, f64)>,
     /// DATA frames sent and what the firmware refused of them.
     pub link: LinkCounts,
@@ -1026,8 +1027,12 @@ pub fn run_stream_head<const CAP: usize, const NQ: usize, const NP: usize>(
                 message: format!("{f:?}"),
             }
         })?;
-        if let Some((reach, _)) = starve.as_mut() {
-            *reach = reach.max(sp.s_mm);
+        // (how far the stop went on the rows it had: once more come, the
+        // motion may go on over them)
+        if let Some((reach, end)) = starve.as_mut() {
+            if ipr.window().held_end() == *end {
+                *reach = reach.max(sp.s_mm);
+            }
         }
         each(&sp);
         if host.is_some() {
@@ -1248,6 +1253,11 @@ pub struct StreamReport {
     pub starvations: u64,
     /// Ticks stopping or held for want of chunks.
     pub starved_ticks: u64,
+    /// The least room a hold pressed for want of chunks left between the
+    /// furthest the motion went before more rows came and the end of the
+    /// rows held at the press, mm (`None` without such a hold): how near
+    /// such a stop came to running out of plan.
+    pub starved_room_min_mm: Option<f64>,
     /// Time of the last setpoint, s.
     pub machining_time_s: f64,
     /// The plan's own time ∫ds/√q, s.
@@ -1646,6 +1656,11 @@ fn stream_through<const Q: usize, const P: usize>(
         hold_lead_max_mm: hp.lead_mm.iter().copied().fold(0.0, f64::max),
         starvations: run.starvations,
         starved_ticks: run.starved_ticks,
+        starved_room_min_mm: run
+            .starved_reach_mm
+            .iter()
+            .map(|&(reach, end)| end - reach)
+            .reduce(f64::min),
         machining_time_s,
         planned_time_s: out.predicted_time_s,
         ratios: planner_host::Ratios {

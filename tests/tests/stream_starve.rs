@@ -37,15 +37,19 @@ fn planned(name: &str) -> Planned {
 /// `Q` q spans and `P` pieces.
 fn planned_for<const Q: usize, const P: usize>(name: &str) -> Planned {
     let curve = planner_host::builtin::by_name(name).unwrap().unwrap();
-    planned_curve_for::<Q, P>(&curve, name)
+    planned_curve_for::<Q, P>(&curve, name, 8.0)
 }
 
-/// [`planned_for`] of `curve`.
-fn planned_curve_for<const Q: usize, const P: usize>(curve: &planner_host::Nurbs, name: &str) -> Planned {
+/// [`planned_for`] of `curve`, in chunks of about `chunk_mm`.
+fn planned_curve_for<const Q: usize, const P: usize>(
+    curve: &planner_host::Nurbs,
+    name: &str,
+    chunk_mm: f64,
+) -> Planned {
     let out = plan_curve(curve, &PlanConfig::default()).unwrap();
     let table = Table::parse(&out.table_bytes).unwrap();
     let opts = ChunkOptions {
-        chunk_mm: 8.0,
+        chunk_mm,
         u_form: true,
         ..ChunkOptions::default()
     };
@@ -267,16 +271,56 @@ fn runway() {
 /// at 2 % the same in 32 mm chunks at 3,380 mm.
 #[test]
 fn a_full_mcu_window_starves_the_meander_again_and_again_and_never_runs_past_the_rows() {
-    big_stack(full_mcu_window);
+    big_stack(|| full_mcu_window(8.0));
 }
 
-fn full_mcu_window() {
+/// The same in 4 mm chunks: with the margin at 3 % of the stop (enough in
+/// 8 mm chunks) a stop pressed in a resume's tail ran past its rows at
+/// 4,664 mm (`planner_host::stream_hold`, the margin's fraction).
+#[test]
+fn a_full_mcu_window_in_short_chunks_never_runs_past_the_rows() {
+    big_stack(|| full_mcu_window(4.0));
+}
+
+/// The meander planned in 200/150 mm windows while it streams through the
+/// same window in 4 mm chunks, the host keeping up (`feedsim stream
+/// meander-11m.json --window-rows 128:256 --window-mm 200 --commit-mm 150
+/// --chunk-mm 4`): it starves on the window as above, and with the margin
+/// at 3 % of the stop a stop ran past its rows at 2,554 mm. Every stop
+/// rests inside the rows it had, and every limit holds.
+#[test]
+fn a_full_mcu_window_fed_as_the_windows_plan_never_runs_past_the_rows() {
+    big_stack(windows_full_mcu_window);
+}
+
+fn windows_full_mcu_window() {
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../planner-host/curves/long/meander-11m.json");
+    let curve = planner_host::cli::load_curve(&path).unwrap();
+    let o = sim_harness::stream::StreamOptions {
+        windows: Some(planner_host::plan::WindowConfig::new(200.0, 150.0)),
+        window_rows: (128, 256),
+        chunk_mm: 4.0,
+        ..Default::default()
+    };
+    let rep = sim_harness::stream::stream_curve(&curve, &o).unwrap();
+    let room = rep.starved_room_min_mm;
+    println!(
+        "{} chunks, {} starvations, the least room left {room:?} mm; machining {:.3} s; ratios {:?}",
+        rep.chunks, rep.starvations, rep.machining_time_s, rep.ratios
+    );
+    assert!(rep.starvations >= 10, "{} starvations", rep.starvations);
+    assert!(room.is_some_and(|r| r > 0.0), "least room {room:?} mm");
+    assert!(rep.check_ok, "{:?}", rep.ratios);
+}
+
+fn full_mcu_window(chunk_mm: f64) {
     const Q: usize = 128;
     const P: usize = 256;
     let path =
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../planner-host/curves/long/meander-11m.json");
     let curve = planner_host::cli::load_curve(&path).unwrap();
-    let p = planned_curve_for::<Q, P>(&curve, "meander-11m");
+    let p = planned_curve_for::<Q, P>(&curve, "meander-11m", chunk_mm);
     let table = Table::parse(&p.bytes).unwrap();
     let run = run_stream::<{ 16 * 1024 }, Q, P>(&table, &p.chunks, &link(2e6, vec![])).unwrap();
     assert!(run.starvations >= 10, "{} starvations", run.starvations);

@@ -974,13 +974,16 @@ fn run(cli: Cli) -> Result<(), Failure> {
                     rep.plan_s, rep.windows, rep.hold_points_s, rep.first_motion_ms, rep.machining_time_s, rep.plan_realtime_factor, rep.host_realtime_factor, rep.planned_time_s
                 );
                 outln!(
-                    "{}",
+                    "{}{}",
                     ring_text(
                         (rep.ring_bytes, rep.ring_peak_bytes),
                         (rep.window_pieces, rep.window_peak_pieces),
                         rep.hold_lead_max_mm,
                         (rep.starvations, rep.starved_ticks)
-                    )
+                    ),
+                    rep.starved_room_min_mm.map_or(String::new(), |r| format!(
+                        ", each stop at least {r:.2} mm short of its rows' end"
+                    ))
                 );
                 outln!("{}", ratios_text("ratios", &rep.ratios, rep.check_ok));
                 for o in &rep.overrides {
