@@ -461,8 +461,8 @@ pub struct HoldPointSearch<const NQ: usize, const NP: usize> {
     /// Where the first coarse test chunk i passed was pressed and the room
     /// it left (s, room), mm.
     first_room: Option<(f64, f64)>,
-    /// The room at which the chunk before's tests turned, as the room falls
-    /// a millimetre a millimetre from its first pass
+    /// The room at which the chunk before's tests turned, reckoned from its
+    /// first pass as the room falls a millimetre for each millimetre on
     /// ([`HoldPointSearch::gap_after`], learned by
     /// [`HoldPointSearch::scan`]), mm.
     cliff_mm: Option<f64>,
