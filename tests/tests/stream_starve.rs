@@ -282,11 +282,12 @@ fn a_full_mcu_window_in_short_chunks_never_runs_past_the_rows() {
     big_stack(|| full_mcu_window(4.0));
 }
 
-/// The meander planned in 200/150 mm windows while it streams through the
-/// same window in 4 mm chunks, the host keeping up (`feedsim stream
-/// meander-11m.json --window-rows 128:256 --window-mm 200 --commit-mm 150
-/// --chunk-mm 4`): it starves on the window as above, and with the margin
-/// at 3 % of the stop a stop ran past its rows at 2,554 mm. Every stop
+/// The meander planned in 200/150 and 300/250 mm windows while it streams
+/// through the same window in 4 mm chunks, the host keeping up (`feedsim
+/// stream meander-11m.json --window-rows 128:256 --window-mm 200
+/// --commit-mm 150 --chunk-mm 4`): it starves on the window as above. With
+/// the margin at 3 % of the stop a stop ran past its rows in both (at
+/// 2,554 and 3,410 mm), at 5 % in the second (at 7,171 mm). Every stop
 /// rests inside the rows it had, and every limit holds.
 #[test]
 fn a_full_mcu_window_fed_as_the_windows_plan_never_runs_past_the_rows() {
@@ -297,21 +298,23 @@ fn windows_full_mcu_window() {
     let path =
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../planner-host/curves/long/meander-11m.json");
     let curve = planner_host::cli::load_curve(&path).unwrap();
-    let o = sim_harness::stream::StreamOptions {
-        windows: Some(planner_host::plan::WindowConfig::new(200.0, 150.0)),
-        window_rows: (128, 256),
-        chunk_mm: 4.0,
-        ..Default::default()
-    };
-    let rep = sim_harness::stream::stream_curve(&curve, &o).unwrap();
-    let room = rep.starved_room_min_mm;
-    println!(
-        "{} chunks, {} starvations, the least room left {room:?} mm; machining {:.3} s; ratios {:?}",
-        rep.chunks, rep.starvations, rep.machining_time_s, rep.ratios
-    );
-    assert!(rep.starvations >= 10, "{} starvations", rep.starvations);
-    assert!(room.is_some_and(|r| r > 0.0), "least room {room:?} mm");
-    assert!(rep.check_ok, "{:?}", rep.ratios);
+    for (window_mm, commit_mm) in [(200.0, 150.0), (300.0, 250.0)] {
+        let o = sim_harness::stream::StreamOptions {
+            windows: Some(planner_host::plan::WindowConfig::new(window_mm, commit_mm)),
+            window_rows: (128, 256),
+            chunk_mm: 4.0,
+            ..Default::default()
+        };
+        let rep = sim_harness::stream::stream_curve(&curve, &o).unwrap();
+        let room = rep.starved_room_min_mm;
+        println!(
+            "{window_mm}/{commit_mm} mm: {} chunks, {} starvations, the least room left {room:?} mm; machining {:.3} s; ratios {:?}",
+            rep.chunks, rep.starvations, rep.machining_time_s, rep.ratios
+        );
+        assert!(rep.starvations >= 10, "{} starvations", rep.starvations);
+        assert!(room.is_some_and(|r| r > 0.0), "least room {room:?} mm");
+        assert!(rep.check_ok, "{:?}", rep.ratios);
+    }
 }
 
 fn full_mcu_window(chunk_mm: f64) {
