@@ -23,7 +23,8 @@
 //! and `margin_frac` of its length before chunk i's end; s_c is a passing
 //! test `backoff_mm` before the last one of a run of passing tests every
 //! `step_mm`, the run that ends at the first failure after the coarse
-//! pass.
+//! pass, whose hold pressed on the `press_ticks − 1` ticks after it
+//! passes as well.
 //!
 //! Why each of these, measured on long meanders fed more slowly than they
 //! run (docs/streaming-design.md, "starved stops"):
@@ -36,40 +37,41 @@
 //!   before one that passed can run past the rows (both measured). The
 //!   firmware presses on its own tick, so s_c lies inside a run of passing
 //!   tests, never on an untested point back from one.
-//! - **The margin's fraction.** Stops from the firmware's state and the dry
-//!   run's can still part. Measured on the 11 m meander through a 128:256
-//!   window that starves on its q spans every 3 s, the stop pressed in a
-//!   resume's tail each time: at 1 % of the stop a stop ran to the end of
-//!   its rows and the tick faulted, at 2 % the same in 32 mm chunks; at 3 %
-//!   the least room left was 1.8 mm in 8 mm chunks, but in 4 mm chunks, and
-//!   planned in 200/150 mm windows in 4 and 32 mm chunks, a stop ran past
-//!   its rows; at 4 % the same in 8 mm chunks. The stop's length from a
-//!   resume's tail is not the dry run's: near where the tests turn (there
-//!   the stop grows by ~14 mm for a press a few millimetres later) a hold
-//!   point that passed can fail from the tail (one 2.6 mm later than a
-//!   hold point that held, found by another spacing of the tests, ran
-//!   105.7 mm to the end of its rows, over 3 % more than its test). Which
-//!   side of that a hold point falls depends on where the tests fell, so a
-//!   larger margin is not always safer. At 5 % the search as it is ran
-//!   through 24 layouts of that window (the 11 m and 1.2 m meanders, the
-//!   Butterfly, the Fan and the Star whole, the 11 m meander in 200/150 mm
-//!   windows, in 4, 8, 16 and 32 mm chunks) and 20 of a 256:512 one, but
-//!   faulted in 300/250 mm windows in 4 mm chunks (at 7,171 mm; at 6, 8
-//!   and 10 % that layout left 6.5, 11.2 and 11.5 mm). At 8 %, over 44
-//!   layouts of the 128:256 window (those, the Trident and the Circle, the
-//!   1.2 m meander in 120/40 mm windows, the 11 m one in 120/40 and
-//!   300/250 mm windows) and 44 of the 256:512 one, no stop ran past its
-//!   rows, the least room left 3.0 mm (`feedsim stream … --json`,
-//!   `starved_room_min_mm`). The price is availability: in the 128:256
-//!   window the Fan in every chunk size and the 11 m meander in windows in
-//!   16 or 32 mm chunks (eight layouts in all; at 5 %, four) are refused
-//!   for want of a hold point far enough ahead: a typed refusal at rest,
-//!   not a fault at speed.
+//! - **The ticks after s_c.** Presses one tick apart can rest millimetres
+//!   apart. While the plan ahead uses its acceleration the stop can only
+//!   creep (μ at the look-ahead's floor, 0.02/s: some 50 mm at full feed),
+//!   until its look-ahead leaves that stretch behind; the look-ahead is
+//!   refreshed a sweep at a time (some 300 ticks), and which sweep first
+//!   leaves it behind turns on where the hold was pressed (measured on the
+//!   11 m meander: presses at alternate ticks over 2 mm resting 4 mm
+//!   apart). The firmware presses at its first tick at or past s_c, up to
+//!   a tick's step on, and from a resume's control period a tick later, so
+//!   s_c's own test presses on the `press_ticks − 1` ticks after it as
+//!   well ([`presses_near_hold_points`] measures presses between the dry
+//!   run's ticks; docs/streaming-design.md, "The stop's length from one
+//!   tick to the next").
+//! - **The margin's fraction.** What the ticks tested still miss — a press
+//!   between them, or from the firmware's own state (a resume's tail: the
+//!   same press there and on the plan rested up to 5 mm apart) — the
+//!   margin must cover: 8 % of the stop. Measured over layouts of a
+//!   128:256 window that starves on its q spans every few seconds (the
+//!   11 m and 1.2 m meanders, the Butterfly, Fan, Star, Trident and Circle,
+//!   whole and planned in windows, in 4 to 32 mm chunks) and of a 256:512
+//!   one, with s_c's test alone a stop ran past its rows at 3, 4 and 5 %;
+//!   at 8 % none did, but some presses between the dry run's ticks did
+//!   (one of the meander's 1,700 hold points in 4 mm chunks, one of the
+//!   Butterfly's 31 in 8 mm), which the presses on the ticks after s_c
+//!   brought to none. The price is availability: through the 128:256
+//!   window the Fan in every chunk size and the 11 m meander in 32 mm
+//!   chunks (and in 120/40 mm windows in 16 mm ones) are refused for want
+//!   of a hold point far enough ahead: a typed refusal at rest, not a
+//!   fault at speed.
 //!
-//! None of this is a bound: it is what the measurements needed, with room.
-//! The firmware side keeps to the states and chunks the tests were run
-//! for: a resume that has all but reached the plan lands (a hold is then
-//! pressed from the plan, as in the dry run), it takes no chunk whose hold
+//! None of this is a bound: it is what the measurements needed, with room
+//! (a stop whose length did not turn on the tick it was pressed at, from a
+//! look-ahead without sweeps, would make it one; not yet built). The
+//! firmware side keeps to the states and chunks the tests were run for: a
+//! resume that has reached the plan lands, it takes no chunk whose hold
 //! point the moving motion has passed, and it resumes only towards a hold
 //! point far enough ahead (`Interpolator::holds_back`,
 //! `Interpolator::can_go_on`, [`Interpolator::keep_fed`]).
@@ -323,10 +325,9 @@ pub struct HoldSearch {
     /// The hold must come to rest at least this far before the chunk's end, mm.
     pub margin_mm: f64,
     /// And besides, this fraction of its own stopping distance: the
-    /// firmware presses from its own state, which after a hold and resume
-    /// is not the dry run's (its λ a little under 1 for seconds), and such
-    /// stops can end later (by more than 5 % of a 100 mm stop, measured:
-    /// see the module docs).
+    /// firmware presses from its own state (after a starvation, a resume's
+    /// tail) between the dry run's ticks, and such stops can end later (by
+    /// more than 5 % of a 100 mm stop, measured: see the module docs).
     pub margin_frac: f64,
     /// s_c lies this far before the last test that passed, on a test that
     /// passed, mm: where the tests turn from passing to failing the stop's
@@ -345,6 +346,14 @@ pub struct HoldSearch {
     pub predict_back_mm: f64,
     /// The longest such step, mm.
     pub predict_max_mm: f64,
+    /// The hold point's own test presses the hold at its tick and at each
+    /// of the ticks after it, this many presses in all; where one fails,
+    /// the test counts as failed and the hold point is taken again from
+    /// the tests (the firmware presses at its first tick at or past s_c,
+    /// up to a tick's step on, and a hold pressed during a resume's control
+    /// period starts a tick later; the stop's length can differ by
+    /// millimetres from one tick's press to the next: module docs).
+    pub press_ticks: u32,
 }
 
 impl Default for HoldSearch {
@@ -359,6 +368,7 @@ impl Default for HoldSearch {
             backoff_mm: 1.0,
             predict_back_mm: 1.5,
             predict_max_mm: 64.0,
+            press_ticks: 3,
         }
     }
 }
@@ -655,6 +665,7 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                         end,
                         &parse(self.i + 1, next)?,
                         &self.how,
+                        0..1,
                     ) {
                         self.last_pass = Some(s);
                         self.first_room.get_or_insert((s, room));
@@ -746,7 +757,7 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                 break;
             }
             self.tests += 1;
-            if hold_room(&t.ip, &mut self.scratch, end, next, &self.how).is_some() {
+            if hold_room(&t.ip, &mut self.scratch, end, next, &self.how, 0..1).is_some() {
                 found = Some(k);
                 break;
             }
@@ -817,7 +828,7 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                 break;
             }
             self.tests += 1;
-            if hold_room(&t.ip, &mut self.scratch, end, next, &h).is_some() {
+            if hold_room(&t.ip, &mut self.scratch, end, next, &h, 0..1).is_some() {
                 pass_s = t.ip.s_mm();
             } else {
                 fail_s = t.ip.s_mm();
@@ -840,7 +851,7 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                 break;
             }
             self.tests += 1;
-            let passed = hold_room(&t.ip, &mut self.scratch, end, next, &h).is_some();
+            let passed = hold_room(&t.ip, &mut self.scratch, end, next, &h, 0..1).is_some();
             tests.push((t.ip.s_mm(), passed));
             if !passed {
                 break;
@@ -875,7 +886,7 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                 while !t.ip.is_done() && t.ip.s_mm() < run_lo - 0.5 * step {
                     t.push(chunks)?;
                     self.tests += 1;
-                    let passed = hold_room(&t.ip, &mut self.scratch, end, next, &h).is_some();
+                    let passed = hold_room(&t.ip, &mut self.scratch, end, next, &h, 0..1).is_some();
                     before.push((t.ip.s_mm(), passed));
                     let goal = t.ip.s_mm() + step;
                     while !t.ip.is_done() && t.ip.s_mm() < goal {
@@ -889,7 +900,48 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
         if let Some((s_r, room)) = self.first_room.filter(|r| r.0 <= latest) {
             self.cliff_mm = Some(room - (latest - s_r));
         }
-        Ok(hold_point_of_runs(&tests, h.backoff_mm))
+        self.pressed_later(chunks, end, next, &mut tests)
+    }
+
+    /// The hold point from `tests` ([`hold_point_of_runs`]), its hold
+    /// pressed on the `press_ticks − 1` ticks after it as well (the
+    /// firmware presses on its own tick, up to a tick's step past s_c, and
+    /// from a resume's control period a tick later; the stop's length can
+    /// differ by millimetres from one tick to the next): where one of those
+    /// fails, the test counts as failed and the hold point is taken again.
+    fn pressed_later(
+        &mut self,
+        chunks: &[Vec<u8>],
+        end: i64,
+        next: &Chunk<'_>,
+        tests: &mut [(f64, bool)],
+    ) -> Result<f64, HoldPointError> {
+        let h = self.how;
+        loop {
+            let s_c = hold_point_of_runs(tests, h.backoff_mm);
+            if s_c < 0.0 || h.press_ticks <= 1 {
+                return Ok(s_c);
+            }
+            // (the dry run at s_c: from the latest kept at or before it)
+            let Some(j) = self.history.iter().rposition(|r| r.1 <= s_c) else {
+                return Ok(NOT_ALONE_MM);
+            };
+            let t = copy_into(&mut self.trial, &*self.history[j].0);
+            t.push(chunks)?;
+            while !t.ip.is_done() && t.ip.s_mm() < s_c {
+                t.step(chunks)?;
+            }
+            t.push(chunks)?;
+            self.tests += 1;
+            let at = t.ip.s_mm() == s_c && t.ip.window().held_end() >= end;
+            if at && hold_room(&t.ip, &mut self.scratch, end, next, &h, 1..h.press_ticks).is_some() {
+                return Ok(s_c);
+            }
+            match tests.iter_mut().find(|x| x.0 == s_c) {
+                Some(x) => x.1 = false,
+                None => return Ok(NOT_ALONE_MM),
+            }
+        }
     }
 
     /// The hold points, once [`HoldPointSearch::advance`] has had every
@@ -962,18 +1014,37 @@ fn hold_point_of_runs(tests: &[(f64, bool)], backoff_mm: f64) -> f64 {
 }
 
 /// A copy of `ip` cut back to the chunks ending at `s_end` (Q40; those it
-/// holds, if fewer), the hold pressed: does it come to rest, without a
-/// fault, at least `margin_mm` before the end of the rows it holds, with
-/// room then for the chunk `next`? If so, how far before the furthest it
-/// may rest it came to rest, mm.
+/// holds, if fewer), the hold pressed `later` ticks on (one copy for each;
+/// 0: at its tick): does every one come to rest, without a fault, at least
+/// `margin_mm` before the end of the rows it holds, with room then for the
+/// chunk `next`? If so, how far before the furthest it may rest the one
+/// that came nearest came to rest, mm (∞ for no press).
 fn hold_room<const NQ: usize, const NP: usize>(
     ip: &Interpolator<'static, 0, 0, PlanWindow<NQ, NP>>,
     scratch: &mut Option<DryIp<NQ, NP>>,
     s_end: i64,
     next: &Chunk<'_>,
     how: &HoldSearch,
+    later: std::ops::Range<u32>,
 ) -> Option<f64> {
-    let t = copy_into(scratch, ip);
+    let mut least = f64::INFINITY;
+    for k in later {
+        let t = copy_into(scratch, ip);
+        for _ in 0..k {
+            t.tick().ok()?;
+        }
+        least = least.min(hold_room_here(t, s_end, next, how)?);
+    }
+    Some(least)
+}
+
+/// [`hold_room`] of one press, in place on `t`.
+fn hold_room_here<const NQ: usize, const NP: usize>(
+    t: &mut Interpolator<'static, 0, 0, PlanWindow<NQ, NP>>,
+    s_end: i64,
+    next: &Chunk<'_>,
+    how: &HoldSearch,
+) -> Option<f64> {
     if t.window().held_end() > s_end && !t.truncate_window(s_end) {
         return None;
     }
@@ -998,6 +1069,94 @@ fn hold_room<const NQ: usize, const NP: usize>(
         }
         if t.is_done() {
             return None;
+        }
+    }
+    None
+}
+
+/// Holds pressed at and just after one chunk's hold point
+/// ([`presses_near_hold_points`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct PressesNear {
+    /// The chunk.
+    pub chunk: usize,
+    /// Its end (the end of the rows held), mm.
+    pub end_mm: f64,
+    /// Each press: where it was pressed and where it came to rest, mm (∞:
+    /// the tick faulted, or it did not rest within four minutes).
+    pub presses: Vec<(f64, f64)>,
+}
+
+/// How the firmware's starved stops may end near the hold points
+/// `s_c_mm` of `chunks` (the plan of `table`): the streamed interpolator
+/// runs the plan with every chunk in time, ticking every `period_s`, and at
+/// its first tick at or past each chunk's s_c and the `ticks − 1` after it,
+/// a copy is cut back to the chunk's end and the hold pressed and ticked to
+/// rest. At the search's own period the first press is its test at s_c; at
+/// a period a little off it, the ticks fall where the firmware's may after
+/// a starvation (anywhere within a tick's step past s_c), which no test of
+/// the search's dry run sees.
+pub fn presses_near_hold_points<const NQ: usize, const NP: usize>(
+    table: &Table,
+    chunks: &[Vec<u8>],
+    s_c_mm: &[f64],
+    period_s: f64,
+    ticks: usize,
+) -> Result<Vec<PressesNear>, HoldPointError> {
+    let fx = |x: i64| x as f64 / (1u64 << 40) as f64;
+    let mut ends = Vec::with_capacity(chunks.len());
+    for (k, b) in chunks.iter().enumerate() {
+        ends.push(parse(k, b)?.info().s_b);
+    }
+    // the chunks with a hold point on the path (not the last), by s_c
+    let mut due: Vec<usize> = (0..chunks.len().saturating_sub(1))
+        .filter(|&i| s_c_mm.get(i).is_some_and(|&c| c > 0.0))
+        .collect();
+    due.sort_by(|&i, &j| s_c_mm[i].total_cmp(&s_c_mm[j]));
+    let mut run = StreamedRun::<NQ, NP>::start(table, chunks, period_s)?;
+    let mut open: Vec<PressesNear> = vec![];
+    let mut done = vec![];
+    let mut next = 0;
+    loop {
+        let s = run.ip.s_mm();
+        while next < due.len() && s_c_mm[due[next]] <= s {
+            let i = due[next];
+            open.push(PressesNear {
+                chunk: i,
+                end_mm: fx(ends[i]),
+                presses: vec![],
+            });
+            next += 1;
+        }
+        for o in open.iter_mut() {
+            let mut t = run.ip.clone();
+            let press = t.s_mm();
+            let pressed = t.truncate_window(ends[o.chunk]) && t.hold().is_ok();
+            let rest = pressed.then(|| rest_of(&mut t)).flatten();
+            o.presses.push((press, rest.unwrap_or(f64::INFINITY)));
+        }
+        let (full, rest): (Vec<_>, Vec<_>) = open.into_iter().partition(|o| o.presses.len() >= ticks);
+        done.extend(full);
+        open = rest;
+        if next >= due.len() && open.is_empty() || run.ip.is_done() {
+            break;
+        }
+        run.step(chunks)?;
+    }
+    done.extend(open);
+    done.sort_by_key(|o| o.chunk);
+    Ok(done)
+}
+
+/// A pressed hold ticked to rest: where it rested, mm (`None`: the tick
+/// faulted, or it did not rest within four minutes).
+fn rest_of<const NQ: usize, const NP: usize>(
+    t: &mut Interpolator<'static, 0, 0, PlanWindow<NQ, NP>>,
+) -> Option<f64> {
+    for _ in 0..(240.0 / t.period_s()) as u64 {
+        let rest = t.tick().ok()?.s_mm;
+        if t.hold_state() == HoldState::Held {
+            return Some(rest);
         }
     }
     None
