@@ -251,6 +251,15 @@ impl<const NQ: usize, const NP: usize> StreamedRun<NQ, NP> {
             fault: format!("{f:?}"),
         })
     }
+
+    /// [`StreamedRun::step`] until the motion reaches `s_mm` (or the plan's
+    /// end).
+    pub fn run_to(&mut self, s_mm: f64, chunks: &[Vec<u8>]) -> Result<(), HoldPointError> {
+        while !self.ip.is_done() && self.ip.s_mm() < s_mm {
+            self.step(chunks)?;
+        }
+        Ok(())
+    }
 }
 
 fn first_is_last(bytes: &[u8]) -> bool {
@@ -818,9 +827,7 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
             };
             copy_into(at_pass, &*t);
             let goal = 0.5 * (pass_s + fail_s);
-            while !t.ip.is_done() && t.ip.s_mm() < goal {
-                t.step(chunks)?;
-            }
+            t.run_to(goal, chunks)?;
             t.push(chunks)?;
             if t.ip.is_done() || t.ip.s_mm() >= fail_s {
                 // (no test: back to the pass, from which the steps go on)
@@ -843,9 +850,7 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
         let mut tests = vec![(pass_s, true)];
         loop {
             let goal = t.ip.s_mm() + step;
-            while !t.ip.is_done() && t.ip.s_mm() < goal {
-                t.step(chunks)?;
-            }
+            t.run_to(goal, chunks)?;
             t.push(chunks)?;
             if t.ip.is_done() || t.ip.s_mm() >= fail_s {
                 break;
@@ -879,9 +884,7 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
             if let Some(j) = base {
                 let t = copy_into(&mut self.trial, &*self.history[j].0);
                 t.push(chunks)?;
-                while !t.ip.is_done() && t.ip.s_mm() < from {
-                    t.step(chunks)?;
-                }
+                t.run_to(from, chunks)?;
                 let mut before = vec![];
                 while !t.ip.is_done() && t.ip.s_mm() < run_lo - 0.5 * step {
                     t.push(chunks)?;
@@ -889,9 +892,7 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                     let passed = hold_room(&t.ip, &mut self.scratch, end, next, &h, 0..1).is_some();
                     before.push((t.ip.s_mm(), passed));
                     let goal = t.ip.s_mm() + step;
-                    while !t.ip.is_done() && t.ip.s_mm() < goal {
-                        t.step(chunks)?;
-                    }
+                    t.run_to(goal, chunks)?;
                 }
                 before.extend(tests);
                 tests = before;
@@ -928,9 +929,7 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
             };
             let t = copy_into(&mut self.trial, &*self.history[j].0);
             t.push(chunks)?;
-            while !t.ip.is_done() && t.ip.s_mm() < s_c {
-                t.step(chunks)?;
-            }
+            t.run_to(s_c, chunks)?;
             t.push(chunks)?;
             self.tests += 1;
             let at = t.ip.s_mm() == s_c && t.ip.window().held_end() >= end;
