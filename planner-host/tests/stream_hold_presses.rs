@@ -13,25 +13,17 @@
 //! Butterfly in 8 mm chunks and the Fan in 4 mm chunks through a 128:256
 //! window (measured: `examples/hold_press_spread.rs`).
 
+mod support;
+
 use firmware_core::Table;
-use planner_host::builtin;
-use planner_host::plan::{plan_curve, PlanConfig};
-use planner_host::stream::{chunk_table, ChunkOptions};
 use planner_host::stream_hold::{on_big_stack, presses_near_hold_points, set_hold_points, HoldSearch};
 
 const Q: usize = 128;
 const P: usize = 256;
 
 fn presses_rest_inside(name: &str, chunk_mm: f64) {
-    let curve = builtin::by_name(name).unwrap().unwrap();
-    let out = plan_curve(&curve, &PlanConfig::default()).unwrap();
-    let table = Table::parse(&out.table_bytes).unwrap();
-    let opts = ChunkOptions {
-        chunk_mm,
-        u_form: true,
-        ..ChunkOptions::default()
-    };
-    let mut chunks = chunk_table(&table, &opts).unwrap();
+    let (bytes, mut chunks) = support::in_chunks(name, chunk_mm);
+    let table = Table::parse(&bytes).unwrap();
     let how = HoldSearch::default();
     assert!(how.press_ticks >= 3);
     let hp = set_hold_points::<Q, P>(&table, &mut chunks, &how).unwrap();

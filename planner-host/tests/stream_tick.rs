@@ -6,6 +6,8 @@
 //! position), or rows that do not start and end at the head's points, are
 //! refused with nothing changed.
 
+mod support;
+
 use firmware_core::interp::Interpolator;
 use firmware_core::stream::{Chunk, PlanWindow, WindowError, JOIN_TOL_FX};
 use firmware_core::{F64Array, HoldState, Setpoint, Table};
@@ -257,7 +259,7 @@ fn a_chunk_whose_pieces_step_away_from_the_path_is_refused_with_nothing_changed(
 /// end, when the plan's last chunk comes (the rows held before it stay).
 #[test]
 fn a_head_whose_end_points_are_not_the_rows_is_refused() {
-    let (bytes, chunks) = in_chunks("star", 8.0);
+    let (bytes, chunks) = support::in_chunks("star", 8.0);
     let table = Table::parse(&bytes).unwrap();
     let head = planner_host::stream_hold::stream_head(&table).unwrap();
     let first = |w: &mut PlanWindow<NQ, NP>| w.push(&Chunk::parse(&chunks[0]).unwrap()).unwrap();
@@ -316,7 +318,7 @@ fn a_head_whose_end_points_are_not_the_rows_is_refused() {
 fn a_stop_segment_that_q_does_not_join_is_refused() {
     use firmware_core::interp::StopError;
     // rows at s₂ held: the Trident in one chunk
-    let (bytes, one) = in_chunks("trident", 1000.0);
+    let (bytes, one) = support::in_chunks("trident", 1000.0);
     let table = Table::parse(&bytes).unwrap();
     assert_eq!(one.len(), 1);
     let head = planner_host::stream_hold::stream_head(&table).unwrap();
@@ -542,22 +544,7 @@ fn a_run_copied_into_one_holding_other_rows_ticks_as_a_whole_copy() {
 
 /// The Butterfly's table and its chunks of about `chunk_mm`.
 fn butterfly_in_chunks(chunk_mm: f64) -> (Vec<u8>, Vec<Vec<u8>>) {
-    in_chunks("butterfly", chunk_mm)
-}
-
-/// A built-in curve's table and its chunks of about `chunk_mm` (u form
-/// sent).
-fn in_chunks(name: &str, chunk_mm: f64) -> (Vec<u8>, Vec<Vec<u8>>) {
-    let curve = builtin::by_name(name).unwrap().unwrap();
-    let out = plan_curve(&curve, &PlanConfig::default()).unwrap();
-    let table = Table::parse(&out.table_bytes).unwrap();
-    let opts = ChunkOptions {
-        chunk_mm,
-        u_form: true,
-        ..ChunkOptions::default()
-    };
-    let chunks = chunk_table(&table, &opts).unwrap();
-    (out.table_bytes, chunks)
+    support::in_chunks("butterfly", chunk_mm)
 }
 
 /// Push `chunks` after the rows `w` holds (none freed yet), in order,
