@@ -1,29 +1,32 @@
 //! How far a starved stop's rest point moves when the hold is pressed a
-//! tick or two after its hold point: the spread the hold points' margin
-//! must cover (`planner_host::stream_hold`, the margin's fraction).
+//! tick or two after its hold point, or between the search's ticks: the
+//! spread the hold points' margin must cover (`planner_host::stream_hold`,
+//! the ticks after s_c and the margin's fraction).
 //!
 //! The curve is planned whole, cut into chunks and given hold points for
-//! a firmware window of Q q spans and P pieces (`set_hold_points`, the
-//! default search). Then the firmware's streamed interpolator runs the plan
-//! as the search's dry run does (`StreamedRun`: every chunk arriving in
-//! time), and at each chunk's hold point s_c (a tick of that run: where the
-//! search's test passed) and at each of the `--ticks` − 1 ticks after it, a
-//! copy of the run is cut back to the chunk's end and the hold pressed, and
-//! ticked to rest. The firmware presses at its own first tick at or past
-//! s_c, from its own state (after a starvation, a resume's tail), so
-//! anywhere within a tick's step of s_c; what it may then do is what these
-//! presses spread over.
+//! a firmware window of Q q spans and P pieces (`set_hold_points`). Then
+//! the firmware's streamed interpolator runs the plan as the search's dry
+//! run does, every chunk arriving in time, and at its first tick at or
+//! past each chunk's hold point s_c and at each of the `--ticks` − 1
+//! ticks after it, a copy of the run is cut back to the chunk's end, the
+//! hold pressed and ticked to rest (`presses_near_hold_points`). At the
+//! search's own servo period the first press is the search's test at s_c;
+//! at one a little off it (`--run-period-us 250.0001`) the ticks slide
+//! between the search's, where a firmware's fall after a starvation.
 //!
-//!     cargo run --release -p planner-host --example hold_press_spread -- [--window-rows 128:256|256:512] [--chunk-mm MM] [--ticks N] [--each] [CURVE]
+//!     cargo run --release -p planner-host --example hold_press_spread -- [--window-rows 128:256|256:512] [--chunk-mm MM] [--ticks N] [--run-period-us US] [--press-ticks N] [--margin-frac F] [--each] [CURVE]
 //!
 //! CURVE is a built-in name (butterfly, circle, fan, star, trident) or a
 //! curve JSON file (default: `curves/long/meander-11m.json`); the window
-//! 128:256 by default, chunks of 8 mm, 3 ticks. Per chunk (`--each`):
-//! its s_c, the stop pressed there (its rest's room before the chunk's
-//! end), and the furthest rest of the presses after it. Then, over the
-//! chunks: how much further than the press at s_c the furthest of them
-//! rested, in mm and as a fraction of the stop, and how many ran past the
-//! chunk's end (the tick faulting there) or left less room than the
+//! 128:256 by default, chunks of 8 mm, 3 ticks, the search's period.
+//! `--press-ticks` and `--margin-frac`: the search's
+//! (`HoldSearch::press_ticks`, `HoldSearch::margin_frac`; default the
+//! search's defaults). Per chunk (`--each`): where the first press was,
+//! its stop and the room its rest left before the chunk's end, and the
+//! furthest rest of the presses after it. Then, over the chunks: how much
+//! further than the first press the furthest of them rested, in mm and as
+//! a fraction of the stop, and at how many hold points a press ran past
+//! the chunk's end (the tick faulting there) or left less room than the
 //! search's margins.
 
 use std::path::Path;
