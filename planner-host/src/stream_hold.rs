@@ -1053,18 +1053,27 @@ fn hold_room_here<const NQ: usize, const NP: usize>(
     if t.hold().is_err() {
         return None;
     }
-    // (a hold at full feed takes well under a minute)
+    let rest = tick_to_rest(t, limit_mm)?;
+    // and at rest, with the rows passed freed, the next chunk fits: else a
+    // firmware starved here would wait for it forever
+    t.release_passed();
+    t.window().fits(next).then_some(limit_mm - rest)
+}
+
+/// A pressed hold ticked to rest: where it rested, mm (`None`: a tick
+/// faulted or passed `past_mm`, the plan ended first, or it did not rest
+/// within four minutes; a hold at full feed takes well under one).
+fn tick_to_rest<const NQ: usize, const NP: usize>(
+    t: &mut Interpolator<'static, 0, 0, PlanWindow<NQ, NP>>,
+    past_mm: f64,
+) -> Option<f64> {
     for _ in 0..(240.0 / t.period_s()) as u64 {
-        let rest = match t.tick() {
-            Ok(sp) if sp.s_mm > limit_mm => return None,
-            Ok(sp) => sp.s_mm,
-            Err(_) => return None,
-        };
+        let rest = t.tick().ok()?.s_mm;
+        if rest > past_mm {
+            return None;
+        }
         if t.hold_state() == HoldState::Held {
-            // and at rest, with the rows passed freed, the next chunk fits:
-            // else a firmware starved here would wait for it forever
-            t.release_passed();
-            return t.window().fits(next).then_some(limit_mm - rest);
+            return Some(rest);
         }
         if t.is_done() {
             return None;
@@ -1131,7 +1140,7 @@ pub fn presses_near_hold_points<const NQ: usize, const NP: usize>(
             let mut t = run.ip.clone();
             let press = t.s_mm();
             let pressed = t.truncate_window(ends[o.chunk]) && t.hold().is_ok();
-            let rest = pressed.then(|| rest_of(&mut t)).flatten();
+            let rest = pressed.then(|| tick_to_rest(&mut t, f64::INFINITY)).flatten();
             o.presses.push((press, rest.unwrap_or(f64::INFINITY)));
         }
         let (full, rest): (Vec<_>, Vec<_>) = open.into_iter().partition(|o| o.presses.len() >= ticks);
@@ -1145,20 +1154,6 @@ pub fn presses_near_hold_points<const NQ: usize, const NP: usize>(
     done.extend(open);
     done.sort_by_key(|o| o.chunk);
     Ok(done)
-}
-
-/// A pressed hold ticked to rest: where it rested, mm (`None`: the tick
-/// faulted, or it did not rest within four minutes).
-fn rest_of<const NQ: usize, const NP: usize>(
-    t: &mut Interpolator<'static, 0, 0, PlanWindow<NQ, NP>>,
-) -> Option<f64> {
-    for _ in 0..(240.0 / t.period_s()) as u64 {
-        let rest = t.tick().ok()?.s_mm;
-        if t.hold_state() == HoldState::Held {
-            return Some(rest);
-        }
-    }
-    None
 }
 
 /// [`hold_points`], written into the chunks' commit fields (CRC renewed).
