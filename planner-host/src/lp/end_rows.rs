@@ -165,8 +165,9 @@ impl Join {
 /// The start and stop joins of one plan.
 #[derive(Debug, Clone, Copy)]
 pub struct EndRows {
-    /// Start join s₁.
-    pub start: Join,
+    /// Start join s₁; `None` in the LP of a window whose columns begin past
+    /// it ([`EndRows::past_start`]).
+    pub start: Option<Join>,
     /// Stop join s₂.
     pub stop: Join,
     /// Path length L, mm.
@@ -362,24 +363,53 @@ impl EndRows {
         if stop.basis.first < start.basis.first + ORDER - 1 {
             return None;
         }
-        Some(EndRows { start, stop, length })
+        Some(EndRows {
+            start: Some(start),
+            stop,
+            length,
+        })
+    }
+
+    /// These rows as the LP of a window on the control points from `c0` on
+    /// sees them, the start join committed before them
+    /// (`crate::plan::windowed`: the last window, on its own columns
+    /// instead of the whole path's): the stop join's control points
+    /// renumbered from `c0`, the start join left out. That LP is the one on
+    /// all columns: the start join's rows reach fixed control points only,
+    /// which an LP drops, and its weight in the objective falls on them.
+    /// `None` if the start join reaches control point `c0` or the stop join
+    /// begins before it.
+    pub fn past_start(&self, c0: usize) -> Option<EndRows> {
+        if self.start.is_some_and(|j| j.basis.first + ORDER > c0) || self.stop.basis.first < c0 {
+            return None;
+        }
+        let mut stop = self.stop;
+        stop.basis.first -= c0;
+        Some(EndRows {
+            start: None,
+            stop,
+            length: self.length,
+        })
+    }
+
+    /// The joins in these rows: the start's (when in them) and the stop's.
+    pub fn joins(&self) -> impl Iterator<Item = &Join> {
+        self.start.iter().chain(core::iter::once(&self.stop))
     }
 
     /// `true` if q is executed at `s` (s₁ ≤ s ≤ s₂), `false` inside a segment.
     pub fn executes(&self, s: f64) -> bool {
-        s >= self.start.s && s <= self.stop.s
+        self.start.is_none_or(|j| s >= j.s) && s <= self.stop.s
     }
 
     /// The equality rows (two per join).
     pub fn eq_rows(&self) -> Vec<EndRow> {
-        let mut v = self.start.eq_rows().to_vec();
-        v.extend(self.stop.eq_rows());
-        v
+        self.joins().flat_map(|j| j.eq_rows()).collect()
     }
 
     /// The inequality rows q(s₁) ≤ Q_max, q(s₂) ≤ Q_max.
     pub fn ineq_rows(&self) -> Vec<EndRow> {
-        vec![self.start.bound_row(), self.stop.bound_row()]
+        self.joins().map(|j| j.bound_row()).collect()
     }
 
     /// Make the equality rows hold to rounding: the least-norm correction of
@@ -388,7 +418,7 @@ impl EndRows {
     /// control points stay 0.
     pub fn enforce(&self, ctrl: &mut [f64]) {
         let n = ctrl.len();
-        for join in [&self.start, &self.stop] {
+        for join in self.joins() {
             let rows = join.eq_rows();
             let free = |j: usize| {
                 let i = join.basis.first + j;
@@ -422,16 +452,18 @@ impl EndRows {
     /// same values), before the stop's control points are known: the stop
     /// fields repeat the start's join and are not the plan's.
     pub fn start_segment(&self, ctrl: &[f64]) -> Option<EndSegments> {
-        let q1 = self.start.basis.apply(0, ctrl);
-        (q1 > 0.0).then(|| EndSegments::from_q(self.start.s, q1, self.stop.s, q1, self.length))
+        let start = self.start.as_ref()?;
+        let q1 = start.basis.apply(0, ctrl);
+        (q1 > 0.0).then(|| EndSegments::from_q(start.s, q1, self.stop.s, q1, self.length))
     }
 
     /// The segments for the plan `ctrl` (after [`EndRows::enforce`]); `None`
-    /// if q vanishes at a join.
+    /// if q vanishes at a join or the start join is not in these rows.
     pub fn segments(&self, ctrl: &[f64]) -> Option<EndSegments> {
-        let q1 = self.start.basis.apply(0, ctrl);
+        let start = self.start.as_ref()?;
+        let q1 = start.basis.apply(0, ctrl);
         let q2 = self.stop.basis.apply(0, ctrl);
-        (q1 > 0.0 && q2 > 0.0).then(|| EndSegments::from_q(self.start.s, q1, self.stop.s, q2, self.length))
+        (q1 > 0.0 && q2 > 0.0).then(|| EndSegments::from_q(start.s, q1, self.stop.s, q2, self.length))
     }
 }
 
@@ -553,13 +585,13 @@ mod tests {
             d3: [0.0; 3],
         };
         let ends = EndRows::new(&knots, &TABLE1, &line).unwrap();
-        assert_eq!((ends.start.s, ends.stop.s), (2.0, 18.0));
+        assert_eq!((ends.start.map(|j| j.s), ends.stop.s), (Some(2.0), 18.0));
         let n = knots.len() - 4;
         let mut ctrl: Vec<f64> = (0..n).map(|i| 1000.0 + 37.0 * i as f64).collect();
         (ctrl[0], ctrl[n - 1]) = (0.0, 0.0);
         ends.enforce(&mut ctrl);
         let e = ends.segments(&ctrl).unwrap();
-        for (join, stop) in [(ends.start, false), (ends.stop, true)] {
+        for (join, stop) in [(ends.start.unwrap(), false), (ends.stop, true)] {
             let want = e.q_join(20.0, stop);
             for (k, w) in want.iter().enumerate() {
                 let got = join.basis.apply(k, &ctrl);

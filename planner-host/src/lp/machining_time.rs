@@ -5,10 +5,23 @@ use crate::lp::basis_rows::BasisRow;
 use crate::lp::end_rows::EndRows;
 
 /// Machining time of the plan `ctrl`, s: T = ∫ ds/√q, or with end segments
-/// t₁ + ∫_{s₁}^{s₂} ds/√q + t₂ (infinite if q vanishes at a join).
+/// t₁ + ∫_{s₁}^{s₂} ds/√q + t₂ (infinite if q vanishes at a join). Rows
+/// without the start join (a window's past it, [`EndRows::past_start`]):
+/// ∫ from the first knot to s₂, + t₂.
 pub fn plan_time(knots: &[f64], ctrl: &[f64], ends: Option<&EndRows>) -> f64 {
     match ends {
         None => machining_time(knots, ctrl),
+        Some(e) if e.start.is_none() => {
+            let q2 = e.stop.basis.apply(0, ctrl);
+            match knots.first() {
+                Some(&a) if q2 > 0.0 => {
+                    let t_stop =
+                        firmware_core::EndSegments::from_q(e.stop.s, q2, e.stop.s, q2, e.length).t_stop;
+                    machining_time_between(knots, ctrl, a, e.stop.s) + t_stop
+                }
+                _ => f64::INFINITY,
+            }
+        }
         Some(e) => match e.segments(ctrl) {
             Some(g) => g.t_start + machining_time_between(knots, ctrl, g.s_start, g.s_stop) + g.t_stop,
             None => f64::INFINITY,

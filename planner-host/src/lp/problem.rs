@@ -785,4 +785,122 @@ mod tests {
         assert!(msg.starts_with("pseudo-jerk LP failed: solver status"), "{msg}");
         assert!(!err.status.is_empty() && err.status != "Solved", "{msg}");
     }
+
+    /// A 60 mm line sampled every mm: its knots, end rows and the executed
+    /// Greville points whose basis starts at control point `c0` or later.
+    fn line_tail(c0: usize) -> (Vec<f64>, EndRows, Vec<EvalPoint>) {
+        let samples: Vec<f64> = (0..=60).map(f64::from).collect();
+        let knots = knot_vector(&samples);
+        let line = |_s: f64| PathDerivs {
+            r: [0.0; 3],
+            d1: [1.0, 0.0, 0.0],
+            d2: [0.0; 3],
+            d3: [0.0; 3],
+        };
+        let ends = EndRows::new(&knots, &crate::limits::TABLE1, &line).unwrap();
+        let points = greville(&knots)
+            .into_iter()
+            .filter_map(|g| {
+                let basis = BasisRow::at(&knots, g)?;
+                (basis.first >= c0 && ends.executes(g)).then_some(EvalPoint {
+                    s: g,
+                    geo: line(g),
+                    basis,
+                })
+            })
+            .collect();
+        (knots, ends, points)
+    }
+
+    #[test]
+    fn a_window_past_the_start_join_solves_the_lp_of_all_columns() {
+        // the last window of a windowed plan: control points up to i_l
+        // committed (fixed), the rest free to the path's end and its stop
+        // join; on its own columns c0 … with the start join left out
+        // (EndRows::past_start) it is the LP on all columns
+        let (c0, i_l) = (30, 34);
+        let (knots, ends, all_points) = line_tail(0);
+        // (none reaching column c0: an LP's first column is a_0 = 0)
+        let points = line_tail(c0 + 1).2;
+        let n = knots.len() - ORDER;
+        let lim = crate::limits::TABLE1;
+        let lp_of = |knots, ends| FeedLp {
+            knots,
+            points: &[],
+            limits: lim,
+            objective: Objective::Integral,
+            qhat_bound: QhatBound::ControlPoints,
+            settings: SolverSettings::default(),
+            ends,
+            feed: None,
+        };
+        // a plan to commit from: the whole path's LP on the same rows
+        let rows_from = |lp: &FeedLp, points: &[EvalPoint], shift: usize| -> Vec<Row> {
+            let mut rows = Vec::new();
+            for p in points {
+                let mut b = p.basis;
+                b.first -= shift;
+                let p = EvalPoint { basis: b, ..*p };
+                rows.push(Row::q_at(&p.basis, lim.vbar * lim.vbar));
+                lp.kind_rows(&p, RowKind::TAcc, 1.0, &mut rows);
+                let r = rows[rows.len() - 1];
+                rows.push(Row {
+                    val: r.val.map(|v| -v),
+                    ..r
+                });
+            }
+            rows
+        };
+        let whole = lp_of(&knots, Some(&ends));
+        let c = whole.weights();
+        // (the control points inside the end segments meet no row)
+        let upper = vec![lim.vbar * lim.vbar; n];
+        let t0 = Instant::now();
+        let first = whole
+            .solve_rows(
+                Stage::Linearised,
+                &rows_from(&whole, &all_points, 0),
+                Some(&upper),
+                &c,
+                t0,
+                None,
+                None,
+            )
+            .unwrap();
+        let fixed: Vec<Option<f64>> = (0..n).map(|i| (i <= i_l).then(|| first.ctrl[i] * 0.9)).collect();
+        let rows = rows_from(&whole, &points, 0);
+        let all = whole
+            .solve_rows(Stage::Linearised, &rows, Some(&upper), &c, t0, None, Some(&fixed))
+            .unwrap();
+        let tail_ends = ends.past_start(c0).unwrap();
+        let tail = lp_of(&knots[c0..], Some(&tail_ends));
+        let local = tail
+            .solve_rows(
+                Stage::Linearised,
+                &rows_from(&tail, &points, c0),
+                Some(&upper[c0..]),
+                &tail.weights(),
+                t0,
+                None,
+                Some(&fixed[c0..]),
+            )
+            .unwrap();
+        assert_eq!(local.ctrl.len(), n - c0);
+        assert_eq!(all.stats.variables, local.stats.variables);
+        assert!(
+            all.ctrl[c0 + 1..] == local.ctrl[1..],
+            "{:?}\n{:?}",
+            &all.ctrl[c0..],
+            local.ctrl
+        );
+        // the stop join's rows, renumbered; none where the start join reaches c0
+        let start_first = ends.start.unwrap().basis.first;
+        assert!(ends.past_start(start_first + ORDER - 1).is_none());
+        assert!(ends.past_start(start_first + ORDER).is_some());
+        let (eq, eq_local) = (ends.eq_rows(), tail_ends.eq_rows());
+        assert_eq!((eq.len(), eq_local.len()), (4, 2));
+        for (a, b) in eq[2..].iter().zip(&eq_local) {
+            assert_eq!((a.first - c0, a.val, a.rhs), (b.first, b.val, b.rhs));
+        }
+    }
 }

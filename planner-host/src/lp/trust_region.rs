@@ -1115,7 +1115,7 @@ fn solve_with(
                 // −∂t/∂a = (3/2)·d·Q^{−3/2}·N(s_join)
                 if let Some(e) = lp.ends {
                     let prev = &last_ctrl;
-                    for join in [&e.start, &e.stop] {
+                    for join in e.joins() {
                         let qj = if prev.is_empty() {
                             join.q_max
                         } else {
@@ -1144,7 +1144,7 @@ fn solve_with(
                 .max(f64::MIN_POSITIVE);
             for (i, c) in weights.iter_mut().enumerate() {
                 let (lo, hi) = (lp.knots[i], lp.knots[(i + ORDER).min(lp.knots.len() - 1)]);
-                if hi <= e.start.s || lo >= e.stop.s {
+                if e.start.is_some_and(|j| hi <= j.s) || lo >= e.stop.s {
                     *c = -1e-6 * cmax;
                 }
             }

@@ -736,7 +736,7 @@ impl LpStage<'_> {
             (None, _) => find_stall(knots, ctrl, limits, &cap),
             (Some(_), Some(e)) => find_stall_between(knots, ctrl, limits, e.s_start, e.s_stop, &cap),
             (Some(e), None) => Some(StallAt::Interior {
-                s_mm: e.start.s,
+                s_mm: e.start.map_or(0.0, |j| j.s),
                 feed_mm_s: 0.0,
             }),
         };

@@ -430,7 +430,7 @@ impl LpStage<'_> {
         let n = knots.len() - ORDER;
         // the joins' control points: never split between fixed and free
         let join = |s: f64| crate::lp::basis_rows::join_ctrl(knots, s);
-        let start_last = end_rows.and_then(|e| join(e.start.s)).map_or(0, |j| j.1);
+        let start_last = end_rows.and_then(|e| join(e.start?.s)).map_or(0, |j| j.1);
         let stop_first = end_rows.and_then(|e| join(e.stop.s)).map_or(n - 1, |j| j.0);
         let knot_at = |s: f64| knots.partition_point(|&u| u < s);
         // (what the windows on earlier vectors planned: the committed
@@ -623,23 +623,39 @@ impl LpStage<'_> {
             // column 0 (eliminated as 0) is one no row of the window reaches;
             // the jump caps' rows within the knots' reach. The end rows come
             // with the first window (its columns start at the path's; a stop
-            // join past them has no rows) and the last (all n columns);
+            // join past them has no rows) and the last (its columns reach
+            // the path's end; the start join before them is left out, or,
+            // where it reaches them, the columns start at the path's);
             // between, every point is past the start segment (the first
             // window committed the start join) and before the stop segment.
+            // (The last window on all n columns held a few vectors of the
+            // whole path's length: 150 MB of heap on a 603 m path, at its
+            // end.)
             let r_max = win_caps.iter().fold(0.0f64, |m, c| m.max(c.2));
-            let (c0, c1) = if last {
-                (0, n - 1)
-            } else {
-                let c0 = match i_l {
-                    0 => 0,
-                    _ => knot_at(lo_s - r_max)
-                        .saturating_sub(ORDER + 1)
-                        .min(i_l.saturating_sub(ORDER - 1)),
-                };
-                let c1 = (knots.partition_point(|&u| u <= hi_s + r_max) + ORDER + 1).max(i_m + 1);
-                (c0, if c1 + ORDER >= stop_first { n - 1 } else { c1 })
+            let c0 = match i_l {
+                0 => 0,
+                _ => knot_at(lo_s - r_max)
+                    .saturating_sub(ORDER + 1)
+                    .min(i_l.saturating_sub(ORDER - 1)),
             };
-            let local_ends = if c0 == 0 { end_rows.as_ref() } else { None };
+            let c1 = (knots.partition_point(|&u| u <= hi_s + r_max) + ORDER + 1).max(i_m + 1);
+            let c1 = if last || c1 + ORDER >= stop_first {
+                n - 1
+            } else {
+                c1
+            };
+            let past_start = match (last, c0) {
+                (true, 1..) => end_rows.as_ref().and_then(|e| e.past_start(c0)),
+                _ => None,
+            };
+            let c0 = match last && past_start.is_none() && end_rows.is_some() {
+                true => 0,
+                false => c0,
+            };
+            let local_ends = match c0 {
+                0 => end_rows.as_ref(),
+                _ => past_start.as_ref(),
+            };
             let local_knots = &knots[c0..=c1 + ORDER];
             let fixed: Vec<Option<f64>> = (c0..=c1)
                 .map(|i| {
@@ -833,7 +849,7 @@ impl LpStage<'_> {
             }
             stats.max_window_s = stats.max_window_s.max(dt);
             if last {
-                committed[i_l + 1..].copy_from_slice(&plan.ctrl[i_l + 1..]);
+                committed[i_l + 1..].copy_from_slice(&plan.ctrl[i_l + 1 - c0..]);
                 self.tell_commit(end_rows.as_ref(), &committed, n - 1, true);
                 if keep_pts {
                     all_pts.extend(pts.iter().map(|p| p.s));
