@@ -66,9 +66,13 @@ pub(crate) fn feed_starts(len: usize, end: usize) -> Vec<usize> {
 
 /// A knot vector refined stretch by stretch (see the module docs).
 pub(crate) struct KnotFeed<'a> {
-    /// The sampling with the toolpath's (and the feed's) breaks, unrefined.
-    samples: Vec<f64>,
+    /// The first index of each stretch ([`feed_starts`]).
     starts: Vec<usize>,
+    /// The sample at each stretch's start: the frontier once the stretches
+    /// before it are refined, mm.
+    fronts: Vec<f64>,
+    /// Samples in all.
+    len: usize,
     /// A stretch's samples refined.
     refine: &'a (dyn Fn(&[f64]) -> Vec<f64> + Sync),
     /// Refined samples → the knot vector (the end segments' room, (17)).
@@ -90,8 +94,16 @@ impl Drop for Stopper<'_, '_> {
 }
 
 struct FeedState {
-    /// Stretches 0 .. parts.len() refined, each with its first sample.
+    /// The sampling with the toolpath's (and the feed's) breaks, unrefined;
+    /// let go (empty) once the whole vector is given.
+    samples: Vec<f64>,
+    /// Stretches 0 .. parts.len() refined, each with its first sample; let
+    /// go once the whole vector is given.
     parts: Vec<Vec<f64>>,
+    /// The whole refined vector has been given: the samples and stretches
+    /// are no longer held (on a 603 m path 16 MB of the heap for the rest
+    /// of the planning).
+    whole: bool,
     /// The frontier of the vector given last (a later one must reach
     /// further), mm.
     given: f64,
@@ -113,14 +125,18 @@ impl<'a> KnotFeed<'a> {
         let starts = feed_starts(samples.len(), end);
         let stretch = |k: usize| &samples[starts[k]..=stretch_end(&starts, k, samples.len())];
         let (first, last) = rayon::join(|| refine(stretch(0)), || refine(stretch(starts.len() - 1)));
+        let fronts = starts.iter().map(|&a| samples[a]).collect();
         KnotFeed {
+            len: samples.len(),
             state: Mutex::new(FeedState {
+                samples,
                 parts: vec![first],
+                whole: false,
                 given: f64::NEG_INFINITY,
                 ended: false,
                 go: false,
             }),
-            samples,
+            fronts,
             starts,
             refine,
             finish,
@@ -150,12 +166,22 @@ impl<'a> KnotFeed<'a> {
                 st = self.grown.wait(st).unwrap_or_else(|e| e.into_inner());
             }
         }
-        let n = self.samples.len();
         for k in 1..self.starts.len().saturating_sub(1) {
             if self.stop.load(Ordering::Relaxed) {
                 return;
             }
-            let part = (self.refine)(&self.samples[self.starts[k]..=stretch_end(&self.starts, k, n)]);
+            // (copied out: the samples are the state's, let go at the end)
+            let stretch = {
+                let st = self.state.lock().unwrap_or_else(|e| e.into_inner());
+                match st
+                    .samples
+                    .get(self.starts[k]..=stretch_end(&self.starts, k, self.len))
+                {
+                    Some(s) => s.to_vec(),
+                    None => return,
+                }
+            };
+            let part = (self.refine)(&stretch);
             let mut st = self.state.lock().unwrap_or_else(|e| e.into_inner());
             st.parts.push(part);
             self.grown.notify_all();
@@ -187,14 +213,19 @@ impl<'a> KnotFeed<'a> {
 
     /// The knot vector refined at least to `need_mm` and further than the
     /// one given before (or wholly), and its frontier: the arc length up
-    /// to which its knots are final (`f64::INFINITY`: all of them).
+    /// to which its knots are final (`f64::INFINITY`: all of them). The
+    /// whole vector is given once: the feed then lets go of its samples and
+    /// stretches, and a later call is an error.
     pub(crate) fn knots_to(&self, need_mm: f64) -> Result<(Vec<f64>, f64), PlanError> {
         let whole = self.starts.len().saturating_sub(1).max(1);
         let mut st = self.state.lock().unwrap_or_else(|e| e.into_inner());
         let frontier = |k: usize| match k >= whole {
             true => f64::INFINITY,
-            false => self.samples[self.starts[k]],
+            false => self.fronts[k],
         };
+        if st.whole {
+            return Err(PlanError::Committing);
+        }
         loop {
             let f = frontier(st.parts.len());
             if f == f64::INFINITY || (f >= need_mm && f > st.given) {
@@ -213,16 +244,22 @@ impl<'a> KnotFeed<'a> {
         let k = st.parts.len().min(whole);
         let f = frontier(k);
         st.given = f;
-        let mut v: Vec<f64> = Vec::with_capacity(self.samples.len() + self.samples.len() / 4);
+        let mut v: Vec<f64> = Vec::with_capacity(self.len + self.len / 4);
         for (i, p) in st.parts[..k].iter().enumerate() {
             v.extend_from_slice(&p[usize::from(i > 0)..]);
         }
-        drop(st);
         let lastk = self.starts.len() - 1;
         if k < lastk {
             // raw from the frontier to the last stretch
-            v.extend_from_slice(&self.samples[self.starts[k] + 1..=self.starts[lastk]]);
+            v.extend_from_slice(&st.samples[self.starts[k] + 1..=self.starts[lastk]]);
         }
+        if f == f64::INFINITY {
+            // (every stretch is in v: what the windows plan on from now on)
+            st.whole = true;
+            st.samples = Vec::new();
+            st.parts = Vec::new();
+        }
+        drop(st);
         if lastk > 0 {
             v.extend_from_slice(&self.last[1..]);
         }
@@ -283,6 +320,8 @@ mod tests {
             let (v2, f2) = feed.knots_to(f64::INFINITY).unwrap();
             assert_eq!(f2, f64::INFINITY);
             assert_eq!(v2, whole);
+            // given once: the samples and stretches are let go
+            assert!(matches!(feed.knots_to(f64::INFINITY), Err(PlanError::Committing)));
         });
     }
 
