@@ -869,11 +869,14 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
         if latest - h.backoff_mm < run_lo {
             let from = latest - h.backoff_mm - step;
             let holds_i = |t: &StreamedRun<NQ, NP>| t.ip.window().held_end() >= end;
-            let mut base = None;
+            // (the trial left as the base when the walk stops on it, not
+            // copied again)
+            let (mut base, mut at_base) = (None, false);
             for j in (0..=k).rev() {
                 let t = copy_into(&mut self.trial, &*self.history[j].0);
                 t.push(chunks)?;
-                if !holds_i(t) {
+                at_base = holds_i(t);
+                if !at_base {
                     break;
                 }
                 base = Some(j);
@@ -882,8 +885,12 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                 }
             }
             if let Some(j) = base {
-                let t = copy_into(&mut self.trial, &*self.history[j].0);
-                t.push(chunks)?;
+                if !at_base {
+                    copy_into(&mut self.trial, &*self.history[j].0).push(chunks)?;
+                }
+                let Some(t) = self.trial.as_deref_mut() else {
+                    return Ok(NOT_ALONE_MM);
+                };
                 t.run_to(from, chunks)?;
                 let mut before = vec![];
                 while !t.ip.is_done() && t.ip.s_mm() < run_lo - 0.5 * step {
