@@ -376,9 +376,12 @@ impl EndRows {
     /// instead of the whole path's): the stop join's control points
     /// renumbered from `c0`, the start join left out. That LP is the one on
     /// all columns: the start join's rows reach fixed control points only,
-    /// which an LP drops, and its weight in the objective falls on them.
-    /// `None` if the start join reaches control point `c0` or the stop join
-    /// begins before it.
+    /// which an LP drops, and its weight in the objective falls on them
+    /// (but for the small negative weight `crate::lp::trust_region` gives
+    /// the control points inside the stop segment, a fraction of the largest
+    /// weight among the LP's own columns, not the path's). `None` if the
+    /// start join reaches control point `c0` or the stop join begins before
+    /// it.
     pub fn past_start(&self, c0: usize) -> Option<EndRows> {
         if self.start.is_some_and(|j| j.basis.first + ORDER > c0) || self.stop.basis.first < c0 {
             return None;
