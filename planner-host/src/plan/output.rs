@@ -203,7 +203,7 @@ impl PlanOutput {
         if let (Some(w), Some(c)) = (&self.windows, &self.config.windows) {
             let _ = writeln!(
                 o,
-                "  {} windows of {} mm committing {} mm, {} LPs: the first {:.1} ms (commits {:.1} mm), the longest {:.1} ms, all {:.1} ms",
+                "  {} windows of {} mm committing {} mm, {} LPs: the first {:.1} ms (commits {:.1} mm), the longest {:.1} ms, all {:.1} ms; the widest on {} of q's {} control points",
                 w.windows,
                 c.window_mm,
                 c.commit_mm,
@@ -211,7 +211,9 @@ impl PlanOutput {
                 w.first_window_s * 1e3,
                 w.first_commit_mm,
                 w.max_window_s * 1e3,
-                w.windows_s * 1e3
+                w.windows_s * 1e3,
+                w.widest_columns,
+                self.q_ctrl.len()
             );
             if w.from_plan_before > 0 {
                 let _ = writeln!(
@@ -300,6 +302,10 @@ pub struct WindowStats {
     pub windows_s: f64,
     /// Path committed by the first window, mm.
     pub first_commit_mm: f64,
+    /// The most control points of q one window's LP was built on (its own
+    /// columns, fixed ones included): what a window's memory and set-up
+    /// follow, bounded by the window, not the path.
+    pub widest_columns: usize,
     /// Windows whose first LP, linearised at the pseudo-jerk plan, had no
     /// solution and that were solved from the window before's plan instead
     /// (`crate::lp::trust_region::WindowStart::Through`).

@@ -656,6 +656,7 @@ impl LpStage<'_> {
                 0 => end_rows.as_ref(),
                 _ => past_start.as_ref(),
             };
+            stats.widest_columns = stats.widest_columns.max(c1 + 1 - c0);
             let local_knots = &knots[c0..=c1 + ORDER];
             let fixed: Vec<Option<f64>> = (c0..=c1)
                 .map(|i| {
@@ -1015,6 +1016,13 @@ mod tests {
             );
             assert!(st.windows > 2);
             assert!(st.first_commit_mm < out.path_length_mm / 2.0);
+            // every window on its own columns, the last too (not the path's)
+            assert!(
+                st.widest_columns < out.q_ctrl.len() / 2,
+                "a window on {} of {} control points",
+                st.widest_columns,
+                out.q_ctrl.len()
+            );
             let first_commit = w.first.map_or(w.commit_mm, |f| f.commit_mm);
             assert!(
                 (st.first_commit_mm - first_commit).abs() < 5.0,
