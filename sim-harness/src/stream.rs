@@ -1198,6 +1198,22 @@ pub const SIM_WINDOW_Q: usize = 2048;
 /// Pieces of the simulated firmware's window.
 pub const SIM_WINDOW_P: usize = 4096;
 
+/// The process's peak resident memory so far, KiB: Linux's high-water
+/// mark (`VmHWM` in `/proc/self/status`, the figure `/usr/bin/time -v`
+/// prints as its maximum resident set size); `None` where the system does
+/// not tell. Of the whole process: in `feedsim stream`, the planning, the
+/// simulated firmware and the check together.
+pub fn peak_rss_kib() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    line.trim_start_matches("VmHWM:")
+        .trim()
+        .trim_end_matches("kB")
+        .trim()
+        .parse()
+        .ok()
+}
+
 /// What `feedsim stream` measured (`--json`).
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct StreamReport {
@@ -1219,6 +1235,9 @@ pub struct StreamReport {
     pub first_motion_ms: f64,
     /// Machining time over planning time.
     pub plan_realtime_factor: f64,
+    /// The process's peak resident memory when the run was checked, KiB
+    /// ([`peak_rss_kib`]: the planning, the simulation and the check).
+    pub peak_rss_kib: Option<u64>,
     /// Machining time over the host's time to have every chunk ready to
     /// send, planned and with its hold point ([`StreamReport::host_s`]):
     /// the host's streaming throughput, of which the hold-point search can
@@ -1642,6 +1661,7 @@ fn stream_through<const Q: usize, const P: usize>(
         hold_points_s,
         first_motion_ms: run.first_motion_s * 1e3,
         plan_realtime_factor: machining_time_s / plan_s,
+        peak_rss_kib: peak_rss_kib(),
         host_realtime_factor: machining_time_s / host_s,
         host_s,
         chunks: run.chunks,

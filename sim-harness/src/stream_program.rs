@@ -143,6 +143,9 @@ pub struct ProgramStreamReport {
     pub waits_ms: f64,
     /// Machining time over planning time.
     pub plan_realtime_factor: f64,
+    /// The process's peak resident memory when the last path was checked,
+    /// KiB ([`crate::stream::peak_rss_kib`]).
+    pub peak_rss_kib: Option<u64>,
     /// Machining time over the host's time to have every path's chunks
     /// ready, planned and with their hold points (the paths'
     /// [`crate::stream::StreamReport::host_s`] summed).
@@ -257,6 +260,7 @@ pub fn stream_program(
         first_motion_ms: 0.0,
         waits_ms: 0.0,
         plan_realtime_factor: 0.0,
+        peak_rss_kib: None,
         host_realtime_factor: 0.0,
         chunks: 0,
         bytes_per_mm: 0.0,
@@ -477,6 +481,7 @@ pub fn stream_program(
     sum.bytes_per_mm = framed_bytes / sum.length_mm;
     sum.plan_realtime_factor = sum.machining_time_s / sum.plan_s;
     sum.host_realtime_factor = sum.machining_time_s / ready_s;
+    sum.peak_rss_kib = crate::stream::peak_rss_kib();
     sum.path = out;
     Ok(sum)
 }

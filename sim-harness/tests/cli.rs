@@ -516,6 +516,15 @@ fn stream_reports_the_streamed_run_as_json_and_refuses_bad_options() {
         v["host_realtime_factor"].as_f64().unwrap(),
     );
     assert!(host > 0.0 && host <= plan, "host {host}, planning {plan}");
+    // the process's peak memory, where the system tells it (Linux)
+    if cfg!(target_os = "linux") {
+        assert!(
+            v["peak_rss_kib"]
+                .as_u64()
+                .is_some_and(|k| k > 1024 && k < 1 << 26),
+            "{v}"
+        );
+    }
     // the machining time is the plan's, plus what the stall's hold cost
     assert_streamed_whole_within_limits(&v);
     // (a first window that commits past its end)

@@ -447,6 +447,13 @@ fn ratios_text(label: &str, r: &planner_host::Ratios, ok: bool) -> String {
 }
 
 /// What the summary line says of a stream sent without the u form.
+/// "; peak RSS … MiB" where the system tells it.
+fn rss_text(kib: Option<u64>) -> String {
+    kib.map_or(String::new(), |k| {
+        format!("; peak RSS {:.1} MiB", k as f64 / 1024.0)
+    })
+}
+
 fn no_u_form_note(u_form: bool) -> &'static str {
     if u_form {
         ""
@@ -481,8 +488,8 @@ fn stream_program_cmd(
             no_u_form_note(rep.u_form), rep.link_baud, rep.latency_ms
         );
         outln!(
-            "  planning {:.3} s ({} windows), first motion after {:.1} ms, at rest between paths {:.1} ms in all; machining {:.3} s ({:.0}x the planning time, {:.0}x the host's with the hold points), the plans' own {:.3} s",
-            rep.plan_s, rep.windows, rep.first_motion_ms, rep.waits_ms, rep.machining_time_s, rep.plan_realtime_factor, rep.host_realtime_factor, rep.planned_time_s
+            "  planning {:.3} s ({} windows), first motion after {:.1} ms, at rest between paths {:.1} ms in all; machining {:.3} s ({:.0}x the planning time, {:.0}x the host's with the hold points), the plans' own {:.3} s{}",
+            rep.plan_s, rep.windows, rep.first_motion_ms, rep.waits_ms, rep.machining_time_s, rep.plan_realtime_factor, rep.host_realtime_factor, rep.planned_time_s, rss_text(rep.peak_rss_kib)
         );
         outln!(
             "{}",
@@ -970,8 +977,8 @@ fn run(cli: Cli) -> Result<(), Failure> {
                     no_u_form_note(rep.u_form), rep.link_baud, rep.latency_ms
                 );
                 outln!(
-                    "  planning {:.3} s ({} windows), hold points {:.3} s, first motion after {:.1} ms; machining {:.3} s ({:.0}x the planning time, {:.0}x the host's with the hold points), the plan's own {:.3} s",
-                    rep.plan_s, rep.windows, rep.hold_points_s, rep.first_motion_ms, rep.machining_time_s, rep.plan_realtime_factor, rep.host_realtime_factor, rep.planned_time_s
+                    "  planning {:.3} s ({} windows), hold points {:.3} s, first motion after {:.1} ms; machining {:.3} s ({:.0}x the planning time, {:.0}x the host's with the hold points), the plan's own {:.3} s{}",
+                    rep.plan_s, rep.windows, rep.hold_points_s, rep.first_motion_ms, rep.machining_time_s, rep.plan_realtime_factor, rep.host_realtime_factor, rep.planned_time_s, rss_text(rep.peak_rss_kib)
                 );
                 outln!(
                     "{}{}",
