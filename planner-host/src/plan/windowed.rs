@@ -629,7 +629,7 @@ impl LpStage<'_> {
             // between, every point is past the start segment (the first
             // window committed the start join) and before the stop segment.
             // (The last window on all n columns held a few vectors of the
-            // whole path's length: 150 MB of heap on a 603 m path, at its
+            // whole path's length: 120 MB of heap on a 603 m path, at its
             // end.)
             let r_max = win_caps.iter().fold(0.0f64, |m, c| m.max(c.2));
             let c0 = match i_l {
