@@ -291,6 +291,9 @@ impl LpStage<'_> {
                 v.push(p);
             }
         }
+        // (merged: a window's ~10,000 points not held three times over
+        // while the bisection's copy is made)
+        drop((at, inner));
         let lim = &self.cfg.limits;
         let cap = |p: &EvalPoint| trust_region::static_cap(lim, &p.geo);
         let mut out = Vec::with_capacity(v.len() + v.len() / 4);
