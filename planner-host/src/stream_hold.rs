@@ -262,6 +262,11 @@ impl<const NQ: usize, const NP: usize> StreamedRun<NQ, NP> {
     }
 }
 
+/// A Q40 arc length (the chunks' and the window's), mm.
+fn fx(x: i64) -> f64 {
+    x as f64 / (1u64 << 40) as f64
+}
+
 fn first_is_last(bytes: &[u8]) -> bool {
     Chunk::parse(bytes).is_ok_and(|c| c.info().is_last())
 }
@@ -622,7 +627,6 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                 self.how.period_s,
             )?));
         }
-        let fx = |x: i64| x as f64 / (1u64 << 40) as f64;
         loop {
             if let Some(s) = self.testing {
                 let Some(run) = self.run.as_mut() else {
@@ -955,7 +959,6 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
     /// came first) keep the last coarse test that passed (else the hold
     /// point found before); the last chunk has none (its s_c is its end).
     pub fn finish(mut self) -> Result<HoldPoints, HoldPointError> {
-        let fx = |x: i64| x as f64 / (1u64 << 40) as f64;
         let n = self.chunk_end.len();
         let now = self.started.elapsed().as_secs_f64();
         for k in 0..n {
@@ -1055,7 +1058,7 @@ fn hold_room_here<const NQ: usize, const NP: usize>(
         return None;
     }
     // rest ≤ end − margin − frac·(rest − press)
-    let end_mm = t.window().held_end() as f64 / (1u64 << 40) as f64;
+    let end_mm = fx(t.window().held_end());
     let limit_mm = (end_mm - how.margin_mm + how.margin_frac * t.s_mm()) / (1.0 + how.margin_frac);
     if t.hold().is_err() {
         return None;
@@ -1118,7 +1121,6 @@ pub fn presses_near_hold_points<const NQ: usize, const NP: usize>(
     period_s: f64,
     ticks: usize,
 ) -> Result<Vec<PressesNear>, HoldPointError> {
-    let fx = |x: i64| x as f64 / (1u64 << 40) as f64;
     let mut ends = Vec::with_capacity(chunks.len());
     for (k, b) in chunks.iter().enumerate() {
         ends.push(parse(k, b)?.info().s_b);

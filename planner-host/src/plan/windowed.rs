@@ -647,17 +647,20 @@ impl LpStage<'_> {
             } else {
                 c1
             };
-            let past_start = match (last, c0) {
-                (true, 1..) => end_rows.as_ref().and_then(|e| e.past_start(c0)),
-                _ => None,
+            let past_start = end_rows
+                .as_ref()
+                .filter(|_| last && c0 > 0)
+                .and_then(|e| e.past_start(c0));
+            // (the start join reaching the last window's columns: all of them)
+            let c0 = if last && past_start.is_none() && end_rows.is_some() {
+                0
+            } else {
+                c0
             };
-            let c0 = match last && past_start.is_none() && end_rows.is_some() {
-                true => 0,
-                false => c0,
-            };
-            let local_ends = match c0 {
-                0 => end_rows.as_ref(),
-                _ => past_start.as_ref(),
+            let local_ends = if c0 == 0 {
+                end_rows.as_ref()
+            } else {
+                past_start.as_ref()
             };
             stats.widest_columns = stats.widest_columns.max(c1 + 1 - c0);
             let local_knots = &knots[c0..=c1 + ORDER];
