@@ -332,6 +332,51 @@ fn stream_in_windows_sends_while_planning_and_holds_every_limit() {
     assert_streamed_whole_within_limits(&v);
 }
 
+/// `feedsim stream` plans a long path in windows while the machine runs
+/// unless told `--whole`: the 1.2 m meander in 200 mm windows (the default)
+/// against its whole plan first, the same motion within 1 %, every limit
+/// held either way; a path no longer than 400 mm (the Butterfly) is planned
+/// whole, with or without the flag; `--whole` with windows asked for is a
+/// usage error.
+#[test]
+fn stream_plans_a_long_path_in_windows_unless_told_whole() {
+    let meander = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../planner-host/curves/long/meander-1m.json"
+    );
+    let windowed = stream_json(meander);
+    let whole = stream_json(&format!("{meander} --whole"));
+    assert!(windowed["windows"].as_u64().unwrap() >= 5, "{windowed}");
+    assert_eq!(whole["windows"], 0, "{whole}");
+    assert_streamed_whole_within_limits(&windowed);
+    assert_streamed_whole_within_limits(&whole);
+    let t = |v: &serde_json::Value| v["machining_time_s"].as_f64().unwrap();
+    assert!(
+        (t(&windowed) / t(&whole) - 1.0).abs() < 0.01,
+        "{} against {}",
+        t(&windowed),
+        t(&whole)
+    );
+    // (the chunks are 32 mm long unless told: about 39 on 1.25 m)
+    let chunks = windowed["chunks"].as_u64().unwrap();
+    assert!((30..60).contains(&chunks), "{chunks} chunks");
+    assert_eq!(stream_json("butterfly")["windows"], 0);
+    let out = feedsim()
+        .args([
+            "stream",
+            "butterfly",
+            "--whole",
+            "--window-mm",
+            "100",
+            "--commit-mm",
+            "30",
+        ])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--whole"));
+}
+
 /// The Fan streamed in windows of 40 mm committing 30, shorter than a brake
 /// from its feed: some windows find no first plan from the pseudo-jerk LP
 /// and are solved from the window before's plan (before, the stream stopped

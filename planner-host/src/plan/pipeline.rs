@@ -243,7 +243,7 @@ fn plan_curve_inner(
     };
     // planned whole although windows were asked for: no longer than one
     let whole = match cfg.windows {
-        Some(w) => resume.is_none() && length <= w.window_mm,
+        Some(w) => resume.is_none() && w.plans_whole(length),
         None => true,
     };
     // the turning refinement of a stretch (each with its own memo of u(s))

@@ -9,8 +9,8 @@
 //! feedsim demo [--out DIR]
 //! feedsim report [CURVES...] [--densities 0.25,0.5,1,2] [--out DIR] [--formulations paper,default] [--qhat-bound B] [--objective O]
 //! feedsim override [SCENARIOS...] [--latency-ms 5] [--out DIR]
-//! feedsim stream CURVE [--link uart:BAUD] [--latency-ms 5] [--ring-bytes 16384] [--chunk-mm 8]
-//!                      [--window-mm W --commit-mm C] [--stall T:D]... [--override T:PCT]...
+//! feedsim stream CURVE [--link uart:BAUD] [--latency-ms 5] [--ring-bytes 16384] [--chunk-mm 32]
+//!                      [--window-mm 200 --commit-mm 150 | --whole] [--stall T:D]... [--override T:PCT]...
 //!                      [--faults corrupt:N,drop:N,duplicate:N,reorder:N,restart:S]
 //!                      [--no-u-form] [--tol 0.01] [--json]
 //! feedsim completions SHELL
@@ -194,8 +194,8 @@ enum Cmd {
         #[arg(long, default_value_t = 250.0)]
         period_us: f64,
     },
-    /// Stream a plan to the firmware over a simulated serial link: plan the curve (whole, or in
-    /// windows), cut the plan into checked chunks, find each chunk's hold point (where the
+    /// Stream a plan to the firmware over a simulated serial link: plan the curve in windows while
+    /// the machine runs (or whole first, with --whole), cut the plan into checked chunks, find each chunk's hold point (where the
     /// firmware, lacking the next chunk, presses a feed hold that still stops inside the chunks it
     /// holds) by the firmware's own dry run, send the chunks framed over a link of that rate and
     /// latency with credits from the firmware's ring, and run the firmware's streamed tick on
@@ -222,24 +222,30 @@ enum Cmd {
         #[arg(long, default_value_t = 16384)]
         ring_bytes: usize,
         /// Chunk length, mm (a chunk longer than a quarter of the ring is halved).
-        #[arg(long, default_value_t = 8.0)]
+        #[arg(long, default_value_t = 32.0)]
         chunk_mm: f64,
         /// The firmware's plan window, Q:P (q spans, pieces): 64:128 (the QEMU build's,
         /// about 40 KB of rows), 128:256, 256:512 or 2048:4096 (a host's). The hold points
         /// are found for it
         #[arg(long, default_value = "2048:4096")]
         window_rows: String,
-        /// Plan in windows of this much path (mm), with --commit-mm.
+        /// Plan in windows of this much path (mm), with --commit-mm, while the machine runs
+        /// [default: 200 mm committing 150, a path no longer than 400 mm planned whole; with
+        /// --window-mm, one no longer than a window].
         #[arg(long, requires = "commit_mm")]
         window_mm: Option<f64>,
         /// Path each window commits, mm.
         #[arg(long, requires = "window_mm")]
         commit_mm: Option<f64>,
+        /// Plan the whole path before the first motion, as `feedplan plan` does, instead of in
+        /// windows while the machine runs.
+        #[arg(long, conflicts_with_all = ["window_mm", "first_window", "host_slowdown", "ready_times"])]
+        whole: bool,
         /// The first window shorter, WINDOW_MM:COMMIT_MM: the machine waits for it alone.
         /// Its commit must reach past where a feed hold pressed while accelerating from
         /// rest comes to rest (and a chunk beyond), or the first motion waits for the
         /// second window too.
-        #[arg(long, requires = "window_mm")]
+        #[arg(long)]
         first_window: Option<planner_host::plan::FirstWindow>,
         /// The host sends no chunk until the hold points it has found reach this far along
         /// the path, mm (or the plan is complete): a later first motion, but no stop for
@@ -269,11 +275,11 @@ enum Cmd {
         host_replan_ms: Option<f64>,
         /// Planning in windows: a host this many times slower, each chunk ready this many
         /// times later than it was here (a slower computer beside the machine).
-        #[arg(long, default_value_t = 1.0, requires = "window_mm")]
+        #[arg(long, default_value_t = 1.0)]
         host_slowdown: f64,
         /// Planning in windows: write each chunk's ready time (s, one a line) to FILE, or,
         /// if FILE exists, read them from it (a run replayed with the same timing).
-        #[arg(long, requires = "window_mm")]
+        #[arg(long)]
         ready_times: Option<PathBuf>,
         /// Damage on the link: KIND:N,... with KIND corrupt, drop, duplicate or reorder
         /// (every Nth DATA frame sent, resends counted: a bit flipped, lost, sent twice,
@@ -853,6 +859,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
             window_rows,
             window_mm,
             commit_mm,
+            whole,
             first_window,
             start_runway_mm,
             stall,
@@ -941,12 +948,15 @@ fn run(cli: Cli) -> Result<(), Failure> {
                 latency_s: latency_ms * 1e-3,
                 ring_bytes,
                 chunk_mm,
-                windows: window_mm
-                    .zip(commit_mm)
-                    .map(|(w, c)| planner_host::plan::WindowConfig {
+                windows: (!whole).then(|| {
+                    let asked = window_mm
+                        .zip(commit_mm)
+                        .map(|(w, c)| planner_host::plan::WindowConfig::new(w, c));
+                    planner_host::plan::WindowConfig {
                         first: first_window,
-                        ..planner_host::plan::WindowConfig::new(w, c)
-                    }),
+                        ..asked.unwrap_or(sim_harness::stream::WINDOWS)
+                    }
+                }),
                 stalls,
                 window_rows,
                 period_s: period_us * 1e-6,
