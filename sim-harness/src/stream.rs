@@ -1279,8 +1279,13 @@ pub struct StreamReport {
     pub window_pieces: usize,
     /// Most pieces held at once.
     pub window_peak_pieces: usize,
-    /// Longest s_b − s_c of a chunk, mm (the rows a starvation hold needs).
+    /// Longest s_b − s_c of a chunk with a hold point of its own, mm (the
+    /// rows a starvation hold needs).
     pub hold_lead_max_mm: f64,
+    /// Chunks with no hold point of their own (no hold pressed in them
+    /// stops inside them: the firmware holds before them unless the next
+    /// one has come, [`planner_host::stream_hold::NOT_ALONE_MM`]).
+    pub chunks_without_hold_point: usize,
     /// Holds pressed for want of chunks.
     pub starvations: u64,
     /// Ticks stopping or held for want of chunks.
@@ -1686,7 +1691,13 @@ fn stream_through<const Q: usize, const P: usize>(
         ring_peak_bytes: run.ring_peak_bytes,
         window_pieces: P,
         window_peak_pieces: run.window_peak_pieces,
-        hold_lead_max_mm: hp.lead_mm.iter().copied().fold(0.0, f64::max),
+        hold_lead_max_mm: hp
+            .lead_mm
+            .iter()
+            .zip(&hp.s_c_mm)
+            .filter(|(_, &c)| c >= 0.0)
+            .fold(0.0, |m, (&l, _)| m.max(l)),
+        chunks_without_hold_point: hp.s_c_mm.iter().filter(|&&c| c < 0.0).count(),
         starvations: run.starvations,
         starved_ticks: run.starved_ticks,
         starved_room_min_mm: run

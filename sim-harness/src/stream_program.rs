@@ -168,8 +168,10 @@ pub struct ProgramStreamReport {
     pub window_pieces: usize,
     /// Most pieces held at once.
     pub window_peak_pieces: usize,
-    /// Longest hold lead of a chunk, mm.
+    /// Longest hold lead of a chunk with a hold point of its own, mm.
     pub hold_lead_max_mm: f64,
+    /// Chunks with no hold point of their own, on every path.
+    pub chunks_without_hold_point: usize,
     /// Holds pressed for want of chunks.
     pub starvations: u64,
     /// Ticks stopping or held for want of chunks.
@@ -272,6 +274,7 @@ pub fn stream_program(
         window_pieces: o.window_rows.1,
         window_peak_pieces: 0,
         hold_lead_max_mm: 0.0,
+        chunks_without_hold_point: 0,
         starvations: 0,
         starved_ticks: 0,
         machining_time_s: 0.0,
@@ -418,6 +421,7 @@ pub fn stream_program(
         sum.ring_peak_bytes = sum.ring_peak_bytes.max(rep.ring_peak_bytes);
         sum.window_peak_pieces = sum.window_peak_pieces.max(rep.window_peak_pieces);
         sum.hold_lead_max_mm = sum.hold_lead_max_mm.max(rep.hold_lead_max_mm);
+        sum.chunks_without_hold_point += rep.chunks_without_hold_point;
         sum.starvations += rep.starvations;
         sum.starved_ticks += rep.starved_ticks;
         sum.planned_time_s += rep.planned_time_s;

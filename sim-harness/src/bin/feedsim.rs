@@ -430,10 +430,20 @@ fn stream_failure(e: sim_harness::stream::StreamError) -> Failure {
 }
 
 /// A stream's ring and window line: (capacity, peak) of each, the longest
-/// hold lead, (starvation holds, ticks starved).
-fn ring_text(ring: (usize, usize), window: (usize, usize), lead_mm: f64, starved: (u64, u64)) -> String {
+/// hold lead and the chunks without a hold point of their own, (starvation
+/// holds, ticks starved).
+fn ring_text(
+    ring: (usize, usize),
+    window: (usize, usize),
+    (lead_mm, alone_not): (f64, usize),
+    starved: (u64, u64),
+) -> String {
+    let without = match alone_not {
+        0 => String::new(),
+        n => format!(" ({n} chunks without a hold point of their own)"),
+    };
     format!(
-        "  ring {} B (peak {} B), window {} pieces (peak {}), longest hold lead {lead_mm:.1} mm; {} starvation holds, {} ticks starved",
+        "  ring {} B (peak {} B), window {} pieces (peak {}), longest hold lead {lead_mm:.1} mm{without}; {} starvation holds, {} ticks starved",
         ring.0, ring.1, window.0, window.1, starved.0, starved.1
     )
 }
@@ -502,7 +512,7 @@ fn stream_program_cmd(
             ring_text(
                 (rep.ring_bytes, rep.ring_peak_bytes),
                 (rep.window_pieces, rep.window_peak_pieces),
-                rep.hold_lead_max_mm,
+                (rep.hold_lead_max_mm, rep.chunks_without_hold_point),
                 (rep.starvations, rep.starved_ticks)
             )
         );
@@ -995,7 +1005,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
                     ring_text(
                         (rep.ring_bytes, rep.ring_peak_bytes),
                         (rep.window_pieces, rep.window_peak_pieces),
-                        rep.hold_lead_max_mm,
+                        (rep.hold_lead_max_mm, rep.chunks_without_hold_point),
                         (rep.starvations, rep.starved_ticks)
                     ),
                     rep.starved_room_min_mm.map_or(String::new(), |r| format!(
