@@ -262,8 +262,9 @@ impl<const NQ: usize, const NP: usize> StreamedRun<NQ, NP> {
     }
 }
 
-/// A Q40 arc length (the chunks' and the window's), mm.
-fn fx(x: i64) -> f64 {
+/// A Q40 arc length (the chunks' and the plan window's: `held_end`,
+/// `hold_point`), mm.
+pub fn q40_mm(x: i64) -> f64 {
     x as f64 / (1u64 << 40) as f64
 }
 
@@ -703,7 +704,7 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                 return Ok(());
             }
             run.feed(chunks)?;
-            if !all && fx(run.ip.window().held_end()) - run.ip.s_mm() < RUN_BEHIND_MM {
+            if !all && q40_mm(run.ip.window().held_end()) - run.ip.s_mm() < RUN_BEHIND_MM {
                 return Ok(());
             }
             let sp = run.step(chunks)?;
@@ -964,7 +965,7 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
         for k in 0..n {
             if self.s_c[k].is_nan() {
                 self.s_c[k] = if k + 1 == n {
-                    fx(self.chunk_end[k])
+                    q40_mm(self.chunk_end[k])
                 } else {
                     self.last_pass.or(self.last_found).unwrap_or(0.0)
                 };
@@ -975,7 +976,7 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
             .s_c
             .iter()
             .zip(&self.chunk_end)
-            .map(|(c, &e)| (fx(e) - c).max(0.0))
+            .map(|(c, &e)| (q40_mm(e) - c).max(0.0))
             .collect();
         Ok(HoldPoints {
             lead_mm,
@@ -1058,7 +1059,7 @@ fn hold_room_here<const NQ: usize, const NP: usize>(
         return None;
     }
     // rest ≤ end − margin − frac·(rest − press)
-    let end_mm = fx(t.window().held_end());
+    let end_mm = q40_mm(t.window().held_end());
     let limit_mm = (end_mm - how.margin_mm + how.margin_frac * t.s_mm()) / (1.0 + how.margin_frac);
     if t.hold().is_err() {
         return None;
@@ -1140,7 +1141,7 @@ pub fn presses_near_hold_points<const NQ: usize, const NP: usize>(
             let i = due[next];
             open.push(PressesNear {
                 chunk: i,
-                end_mm: fx(ends[i]),
+                end_mm: q40_mm(ends[i]),
                 presses: vec![],
             });
             next += 1;

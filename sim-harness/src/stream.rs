@@ -456,7 +456,7 @@ fn motion_state<const NQ: usize, const NP: usize>(
     ipr: &Interpolator<'static, 0, 0, PlanWindow<NQ, NP>>,
 ) -> MotionState {
     let w = ipr.window();
-    let fx = |x: i64| x as f64 / (1u64 << 40) as f64;
+    let fx = planner_host::stream_hold::q40_mm;
     MotionState {
         s_mm: ipr.s_mm(),
         hold: ipr.hold_state(),
@@ -558,7 +558,7 @@ pub fn run_stream_head<const CAP: usize, const NQ: usize, const NP: usize>(
     let mut ring_bytes = 0usize;
     // (the largest s while starved, the end of the rows held then)
     let mut starve: Option<(f64, i64)> = None;
-    let fx = |x: i64| x as f64 / (1u64 << 40) as f64;
+    let fx = planner_host::stream_hold::q40_mm;
     let stalled = |t: f64| link.stalls.iter().any(|&(a, d)| t >= a && t < a + d);
     // starvation holds, resumes and a faulting tick's state on stderr
     let debug = std::env::var_os("FEEDLP_FAULT_DEBUG").is_some();
