@@ -1282,9 +1282,9 @@ pub struct StreamReport {
     /// Longest s_b − s_c of a chunk with a hold point of its own, mm (the
     /// rows a starvation hold needs).
     pub hold_lead_max_mm: f64,
-    /// Chunks with no hold point of their own (no hold pressed in them
-    /// stops inside them: the firmware holds before them unless the next
-    /// one has come, [`planner_host::stream_hold::NOT_ALONE_MM`]).
+    /// Chunks with no hold point of their own (no hold found that stops
+    /// inside the rows up to them, [`planner_host::stream_hold::NOT_ALONE_MM`]):
+    /// while one of them is the last chunk held, the firmware holds.
     pub chunks_without_hold_point: usize,
     /// Holds pressed for want of chunks.
     pub starvations: u64,

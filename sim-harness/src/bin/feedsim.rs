@@ -194,13 +194,13 @@ enum Cmd {
         #[arg(long, default_value_t = 250.0)]
         period_us: f64,
     },
-    /// Stream a plan to the firmware over a simulated serial link: plan the curve in windows while
-    /// the machine runs (or whole first, with --whole), cut the plan into checked chunks, find each chunk's hold point (where the
-    /// firmware, lacking the next chunk, presses a feed hold that still stops inside the chunks it
-    /// holds) by the firmware's own dry run, send the chunks framed over a link of that rate and
-    /// latency with credits from the firmware's ring, and run the firmware's streamed tick on
-    /// them; check the setpoints against every limit (50 ticks at rest before and after). Exit 5
-    /// if a limit is exceeded.
+    /// Stream a plan to the firmware over a simulated serial link: plan the curve in windows
+    /// while the machine runs (or whole first, with --whole), cut the plan into checked chunks,
+    /// find each chunk's hold point (where the firmware, lacking the next chunk, presses a feed
+    /// hold that still stops inside the chunks it holds) by the firmware's own dry run, send the
+    /// chunks framed over a link of that rate and latency with credits from the firmware's
+    /// ring, and run the firmware's streamed tick on them; check the setpoints against every
+    /// limit (50 ticks at rest before and after). Exit 5 if a limit is exceeded.
     #[command(after_help = EXIT_CODES)]
     Stream {
         /// The toolpath: a JSON file, a built-in curve (butterfly, circle, fan, star, trident), or a
