@@ -440,6 +440,7 @@ fn ring_text(
 ) -> String {
     let without = match alone_not {
         0 => String::new(),
+        1 => " (1 chunk without a hold point of its own)".to_string(),
         n => format!(" ({n} chunks without a hold point of their own)"),
     };
     format!(
