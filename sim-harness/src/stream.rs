@@ -31,7 +31,7 @@ use firmware_core::interp::{Feeding, Interpolator, SpliceError, Spliced, StreamH
 use firmware_core::stream::frame::encoded_max_len;
 use firmware_core::stream::{set_seq, Chunk, ChunkRing, PlanWindow};
 use firmware_core::{HoldState, Setpoint, Table};
-use planner_host::stream_hold::stream_head;
+use planner_host::stream_hold::{stream_head, NOT_ALONE_MM};
 
 use crate::stream_host::{Ask, Replacement, StreamHost};
 
@@ -1695,9 +1695,9 @@ fn stream_through<const Q: usize, const P: usize>(
             .lead_mm
             .iter()
             .zip(&hp.s_c_mm)
-            .filter(|(_, &c)| c >= 0.0)
+            .filter(|(_, &c)| c != NOT_ALONE_MM)
             .fold(0.0, |m, (&l, _)| m.max(l)),
-        chunks_without_hold_point: hp.s_c_mm.iter().filter(|&&c| c < 0.0).count(),
+        chunks_without_hold_point: hp.s_c_mm.iter().filter(|&&c| c == NOT_ALONE_MM).count(),
         starvations: run.starvations,
         starved_ticks: run.starved_ticks,
         starved_room_min_mm: run
