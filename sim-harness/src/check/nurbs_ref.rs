@@ -29,7 +29,7 @@
 use planner_host::Nurbs;
 
 /// Highest degree the fixed-size buffers hold (planner-host validates 2‥=5).
-const MAX_DEGREE: usize = 7;
+const MAX_DEGREE: usize = 5;
 
 /// Gauss–Legendre order of the arc-length quadrature.
 const GL_ORDER: usize = 16;
@@ -105,6 +105,16 @@ impl RefCurve {
 
     /// C(u), C′(u), C″(u), u clamped to the parameter range.
     pub(crate) fn derivs(&self, u: f64) -> Derivs {
+        self.derivs_up_to::<2>(u)
+    }
+
+    /// C(u) and its first `D` derivatives (D ≤ 2; the rest zero), u clamped
+    /// to the parameter range. The hodographs and de Boor passes of the
+    /// orders not asked for are skipped: a point needs one pass, the speed
+    /// two, all three orders three (and the orders computed are the same
+    /// bits whatever `D`: the same operations in the same order). The arc
+    /// length's quadrature asks for the speed sixteen times a setpoint.
+    fn derivs_up_to<const D: usize>(&self, u: f64) -> Derivs {
         let (u0, u1) = self.u_range();
         let u = u.clamp(u0, u1);
         let k = self.span_of(u);
@@ -113,10 +123,10 @@ impl RefCurve {
         let mut c = [[0.0; 4]; MAX_DEGREE + 1];
         c[..=p].copy_from_slice(&self.pw[k - p..=k]);
         let h0 = de_boor(&self.knots, k, p, u, c);
-        let (h1, h2) = if p >= 1 {
+        let (h1, h2) = if D >= 1 && p >= 1 {
             let d1 = hodograph(&self.knots, k, p, &c);
             let h1 = de_boor(&self.knots, k, p - 1, u, d1);
-            let h2 = if p >= 2 {
+            let h2 = if D >= 2 && p >= 2 {
                 let d2 = hodograph(&self.knots, k, p - 1, &d1);
                 de_boor(&self.knots, k, p - 2, u, d2)
             } else {
@@ -130,23 +140,26 @@ impl RefCurve {
         let mut out = [[0.0; 3]; 3];
         for a in 0..3 {
             let c0 = h0[a] / w;
-            let c1 = (h1[a] - h1[3] * c0) / w;
-            let c2 = (h2[a] - 2.0 * h1[3] * c1 - h2[3] * c0) / w;
             out[0][a] = c0;
-            out[1][a] = c1;
-            out[2][a] = c2;
+            if D >= 1 {
+                let c1 = (h1[a] - h1[3] * c0) / w;
+                out[1][a] = c1;
+                if D >= 2 {
+                    out[2][a] = (h2[a] - 2.0 * h1[3] * c1 - h2[3] * c0) / w;
+                }
+            }
         }
         out
     }
 
     /// C(u).
     pub(crate) fn point(&self, u: f64) -> [f64; 3] {
-        self.derivs(u)[0]
+        self.derivs_up_to::<0>(u)[0]
     }
 
     /// Parametric speed |C′(u)|.
     pub(crate) fn speed(&self, u: f64) -> f64 {
-        norm(self.derivs(u)[1])
+        norm(self.derivs_up_to::<1>(u)[1])
     }
 
     /// ∫ₐᵇ |C′| du by one Gauss–Legendre rule.
