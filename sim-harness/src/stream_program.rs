@@ -20,7 +20,11 @@
 //!   ([`planner_host::program::paths_each`]), after a first pass that makes
 //!   each, checks it against the machine's travel and drops it (a path past
 //!   the travel refuses the program before anything moves): the host holds
-//!   the program's moves and one path, not every path of a long program.
+//!   one path, not every path of a long program. A program given as its
+//!   text ([`ProgramSource::Text`], as `feedsim stream PART.ngc` gives it)
+//!   is read as it streams in both passes, its moves never all held (a
+//!   program that fails to read is refused by the first pass); one read
+//!   whole ([`ProgramSource::Read`]) holds its moves throughout.
 //! - **Continuity.** Each path's first setpoint is the previous path's last
 //!   within [`JOIN_TOL_MM`], else [`StreamError::Gap`].
 //! - **Time.** Path k + 1's session opens one servo period after path k's
@@ -60,10 +64,10 @@
 //!   it to end (and for the cycle start) instead of filling the ring while
 //!   it runs.
 
-use planner_host::gcode::Program;
+use planner_host::gcode::{Program, ReadOptions};
 use planner_host::program::{
-    check_travel, path_config, paths_each, program_stops, Path, PathKind, PathOptions, ProgramError,
-    ProgramOptions,
+    check_travel, path_config, paths_each, paths_each_read, program_stops, Path, PathKind, PathOptions,
+    ProgramError, ProgramOptions,
 };
 use planner_host::{Machine, Ratios};
 use serde::Serialize;
@@ -203,10 +207,58 @@ pub struct ProgramStreamReport {
     pub path: Vec<StreamedPath>,
 }
 
+/// Where a streamed program's moves come from.
+#[derive(Clone, Copy, Debug)]
+pub enum ProgramSource<'a> {
+    /// A program read whole before: its moves are all held while it
+    /// streams.
+    Read(&'a Program),
+    /// A program's text, read as it streams
+    /// ([`planner_host::program::paths_each_read`]), twice: through once
+    /// for the travel check and the program stops (a program that fails to
+    /// read is refused then, before anything moves), then path by path as
+    /// the machine goes. Neither pass holds the program's moves: memory
+    /// then grows with the longest path, not with the program.
+    Text(&'a str, ReadOptions),
+}
+
+impl ProgramSource<'_> {
+    /// Each path made with `opts`, in order, handed to `each` (false: no
+    /// more); the program's notes (stops, tool changes), whole.
+    fn each_path(
+        &self,
+        opts: &PathOptions,
+        each: &mut dyn FnMut(Path) -> bool,
+    ) -> Result<std::borrow::Cow<'_, Program>, ProgramError> {
+        match *self {
+            ProgramSource::Read(program) => {
+                paths_each(program, opts, each)?;
+                Ok(std::borrow::Cow::Borrowed(program))
+            }
+            ProgramSource::Text(text, read) => {
+                let (_, notes) = paths_each_read(text, read, opts, each)?;
+                Ok(std::borrow::Cow::Owned(notes))
+            }
+        }
+    }
+}
+
 /// Stream every path of `program` on `machine` (see the module docs); its
 /// paths are made with `popts`, planned at `o.period_s` and streamed with `o`.
 pub fn stream_program(
     program: &Program,
+    machine: &Machine,
+    popts: &ProgramOptions,
+    o: &StreamOptions,
+) -> Result<ProgramStreamReport, StreamError> {
+    stream_program_from(ProgramSource::Read(program), machine, popts, o)
+}
+
+/// [`stream_program`] on a program from `source`: one read whole, or its
+/// text read as it streams ([`ProgramSource::Text`]: the same paths and
+/// report, in memory bounded by the longest path).
+pub fn stream_program_from(
+    source: ProgramSource<'_>,
     machine: &Machine,
     popts: &ProgramOptions,
     o: &StreamOptions,
@@ -236,12 +288,13 @@ pub fn stream_program(
     // with it).
     let mut count = 0usize;
     let mut travel = Ok(());
-    paths_each(program, &path_opts, &mut |p| {
-        count += 1;
-        travel = check_travel(std::slice::from_ref(&p), machine);
-        travel.is_ok()
-    })
-    .map_err(|e| program_error(e.into()))?;
+    let program = source
+        .each_path(&path_opts, &mut |p| {
+            count += 1;
+            travel = check_travel(std::slice::from_ref(&p), machine);
+            travel.is_ok()
+        })
+        .map_err(program_error)?;
     travel.map_err(|e| program_error(e.into()))?;
     if count == 0 {
         return Err(program_error(ProgramError::Empty));
@@ -297,7 +350,7 @@ pub fn stream_program(
     // the operator's feed holds, until a path's session has pressed them
     let mut holds = o.holds.clone();
     // where the machine rests for a cycle start: program stops, tool changes
-    let mut stops = program_stops(program);
+    let mut stops = program_stops(&program);
     stops.extend(program.tool.iter().filter(|n| n.word == "M6").map(|n| n.line));
     stops.sort_unstable();
     let mut i = 0usize;
@@ -471,14 +524,15 @@ pub fn stream_program(
         i += 1;
         Ok(())
     };
-    paths_each(program, &path_opts, &mut |p| match each(p) {
-        Ok(()) => true,
-        Err(e) => {
-            failed = Some(e);
-            false
-        }
-    })
-    .map_err(|e| program_error(e.into()))?;
+    source
+        .each_path(&path_opts, &mut |p| match each(p) {
+            Ok(()) => true,
+            Err(e) => {
+                failed = Some(e);
+                false
+            }
+        })
+        .map_err(program_error)?;
     if let Some(e) = failed {
         return Err(e);
     }

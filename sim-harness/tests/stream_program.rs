@@ -10,7 +10,7 @@ use planner_host::gcode::{read_str, ReadOptions};
 use planner_host::program::{plan_program, PathKind, ProgramOptions};
 use planner_host::Machine;
 use sim_harness::stream::StreamOptions;
-use sim_harness::stream_program::{stream_program, ProgramStreamReport};
+use sim_harness::stream_program::{stream_program, stream_program_from, ProgramSource, ProgramStreamReport};
 
 fn own(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -422,4 +422,67 @@ fn a_streamed_program_waits_for_the_cycle_start_at_its_stops() {
     for (a, b) in at_once.path.iter().zip(&waited.path) {
         assert!((a.planned_time_s - b.planned_time_s).abs() < 1e-12);
     }
+}
+
+/// `feedsim stream PART.ngc` reads the program as it streams (its moves
+/// never all held): the same paths, chunks, stops and checks as the
+/// program read whole; a program that fails to read is refused before
+/// anything streams, the failing line named.
+#[test]
+fn a_program_read_as_it_streams_streams_as_the_program_read_whole() {
+    let chords = std::fs::read_to_string(own("feeds-chords.ngc")).unwrap();
+    let stops =
+        "G21 G17 G90 F600\nG1 X10\nM0\nG1 X20\nT2 M6\nG1 X30 Y5\nG1 X30.0000004 Y5\nG2 X40 Y5 I5\nM2\n";
+    let machine = Machine::table1();
+    let o = StreamOptions {
+        chunk_mm: 16.0,
+        cycle_start_s: Some(0.5),
+        ..StreamOptions::default()
+    };
+    let popts = ProgramOptions::default();
+    for (name, text) in [("feeds-chords.ngc", chords.as_str()), ("stops", stops)] {
+        let prog = read_str(text, ReadOptions::default()).unwrap();
+        let whole = stream_program(&prog, &machine, &popts, &o).unwrap();
+        let source = ProgramSource::Text(text, ReadOptions::default());
+        let read = stream_program_from(source, &machine, &popts, &o).unwrap();
+        let key = |r: &ProgramStreamReport| {
+            let paths: Vec<_> = r
+                .path
+                .iter()
+                .map(|p| {
+                    (
+                        p.kind,
+                        p.first_line,
+                        p.last_line,
+                        p.length_mm,
+                        p.vbar_mm_s,
+                        p.planned_time_s,
+                        p.after_stop_line,
+                        p.check_ok,
+                    )
+                })
+                .collect();
+            (
+                r.paths,
+                r.length_mm,
+                r.chunks,
+                r.planned_time_s,
+                r.program_stops,
+                paths,
+            )
+        };
+        assert_eq!(key(&whole), key(&read), "{name}");
+        assert!(read.check_ok && read.paths >= 3, "{name}");
+    }
+    // refused when the first pass reads the bad line, nothing streamed
+    let bad = "G21 G17 F600\nG1 X10\nG0 Z5\nG1 X20 Y5 Z0\nG2 X30 Y5 K5\nM2\n";
+    let e = stream_program_from(
+        ProgramSource::Text(bad, ReadOptions::default()),
+        &machine,
+        &popts,
+        &o,
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("LINE 5") && e.contains("'K'"), "{e}");
 }

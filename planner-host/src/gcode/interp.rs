@@ -51,8 +51,39 @@ pub fn read_bytes(bytes: &[u8], opts: ReadOptions) -> Result<Program, GcodeError
     read_str(text_of(bytes)?, opts)
 }
 
+/// [`read_str_each`] on bytes: [`GcodeError::NotText`] if they are not text.
+pub fn read_bytes_each(
+    bytes: &[u8],
+    opts: ReadOptions,
+    each: &mut dyn FnMut(&Program, Move) -> bool,
+) -> Result<Program, GcodeError> {
+    read_str_each(text_of(bytes)?, opts, each)
+}
+
 /// Read a program.
 pub fn read_str(text: &str, opts: ReadOptions) -> Result<Program, GcodeError> {
+    let mut moves = Vec::new();
+    let mut prog = read_str_each(text, opts, &mut |_, m| {
+        moves.push(m);
+        true
+    })?;
+    prog.moves = moves;
+    Ok(prog)
+}
+
+/// [`read_str`], each move handed to `each` as soon as its block is read,
+/// in order, with the program as read so far (its notes, warnings and
+/// counts; its `moves` empty), and not kept: a long program's moves are
+/// then never all held. `each` returns false to stop reading (the program
+/// returned then ends there). An error comes when the line that causes it
+/// is read, after the moves before it were handed on (a program that
+/// does not close a NURBS curve fails at its end): whoever must refuse a
+/// bad program before it moves reads it once through first.
+pub fn read_str_each(
+    text: &str,
+    opts: ReadOptions,
+    each: &mut dyn FnMut(&Program, Move) -> bool,
+) -> Result<Program, GcodeError> {
     let mut it = Interp::new();
     let mut prog = Program::default();
     let mut percent_open = false;
@@ -110,7 +141,18 @@ pub fn read_str(text: &str, opts: ReadOptions) -> Result<Program, GcodeError> {
             }
             it.params.set(key.clone(), *v);
         }
-        if it.block(&block, &mut prog)? {
+        let end = it.block(&block, &mut prog)?;
+        let mut stopped = false;
+        for m in std::mem::take(&mut prog.moves) {
+            if !stopped && !each(&prog, m) {
+                stopped = true;
+            }
+        }
+        if stopped {
+            prog.lines = line;
+            return Ok(prog);
+        }
+        if end {
             ended = true;
             break;
         }

@@ -65,7 +65,7 @@ pub(crate) struct Block {
 
 /// The program's text, or [`GcodeError::NotText`] at the first NUL byte or
 /// invalid UTF-8 sequence.
-pub(crate) fn text_of(bytes: &[u8]) -> Result<&str, GcodeError> {
+pub fn text_of(bytes: &[u8]) -> Result<&str, GcodeError> {
     let line_at = |k: usize| bytes[..k].iter().filter(|&&b| b == b'\n').count() + 1;
     if let Some(k) = bytes.iter().position(|&b| b == 0) {
         return Err(not_text(line_at(k), "\\x00", "a NUL byte: the file is not text"));

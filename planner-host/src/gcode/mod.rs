@@ -9,7 +9,9 @@
 //! - [`expr`] and [`params`]: values — numbers, `#` parameters, bracketed
 //!   expressions and functions;
 //! - [`interp`]: the modal state and the blocks' execution, in LinuxCNC's
-//!   order, to moves;
+//!   order, to moves: all of them ([`read_str`]), or each handed on as its
+//!   block is read ([`read_str_each`], for a program streamed as it is
+//!   read);
 //! - [`moves`]: the canonical moves and the program summary;
 //! - [`error`]: the typed errors, each with its line and word.
 //!
@@ -33,5 +35,5 @@ pub mod moves;
 pub mod params;
 
 pub use error::GcodeError;
-pub use interp::{read_bytes, read_str, ReadOptions};
+pub use interp::{read_bytes, read_bytes_each, read_str, read_str_each, ReadOptions};
 pub use moves::{ArcGeometry, Axis, Move, MoveKind, NoteWord, NurbsGeometry, PathControl, Plane, Program};

@@ -53,6 +53,14 @@
 //! toolpath stays connected, and a move between two curves that cannot
 //! absorb it is refused.
 //!
+//! **One move at a time.** The paths are made from the moves in order, each
+//! taken once (`PathMaker`): the open path, the move before (a short move
+//! after it may stretch it) and a short move waiting for the next one's kind
+//! are all that is held. So a program read as it streams
+//! ([`paths_each_read`]: the interpreter hands each block's moves on as it
+//! reads them) makes its paths without its moves ever all in memory, the
+//! same paths as the program read whole ([`paths_each`]).
+//!
 //! **Joining.** The pieces of a path ([`super::pieces`]) are brought to the
 //! largest degree among them (Bézier decomposition, degree elevation), each
 //! given a parameter interval proportional to its length, and concatenated
@@ -64,12 +72,13 @@
 
 use std::borrow::Cow;
 
-use crate::gcode::{Move, MoveKind, PathControl, Program};
+use crate::gcode::{read_str_each, Move, MoveKind, PathControl, Program, ReadOptions};
 use crate::geometry::curve::Nurbs;
 use crate::geometry::junction::CORNER_ANGLE_RAD;
 use crate::program::blend::{blend_corner, Blend};
 use crate::program::fit::{fit_chords, FitError};
 use crate::program::pieces::{self, angle_between, move_length, norm, sub, Piece, PieceError};
+use crate::program::plan::ProgramError;
 
 /// Largest tangent turn between two moves that still joins them into one
 /// path, rad.
@@ -298,13 +307,45 @@ pub fn paths_each(
     opts: &PathOptions,
     each: &mut dyn FnMut(Path) -> bool,
 ) -> Result<Paths, PathError> {
-    let mut made = Made {
-        notes: Paths::default(),
-        each,
-        stopped: false,
-    };
-    paths_into(program, opts, &mut made)?;
-    Ok(made.notes)
+    let mut maker = PathMaker::new(opts, each);
+    for m in &program.moves {
+        maker.take(Cow::Borrowed(m), program)?;
+        if maker.stopped() {
+            break;
+        }
+    }
+    maker.finish()
+}
+
+/// [`paths_each`] on a program read as it streams
+/// ([`crate::gcode::read_str_each`]): its moves are made into paths as the
+/// interpreter hands them on, so that neither the program's moves nor its
+/// paths are ever all held — a long program's memory is then that of its
+/// longest path, not its length. Returns the paths' notes (as
+/// [`paths_each`]) and the program as read (its notes, warnings and
+/// counts; no moves). The paths, warnings and errors are those of
+/// [`paths_each`] on the program read whole; but a program that fails,
+/// fails after the paths before the failing line were handed on: read it
+/// through once first where nothing may move before it is known good.
+pub fn paths_each_read(
+    text: &str,
+    read: ReadOptions,
+    opts: &PathOptions,
+    each: &mut dyn FnMut(Path) -> bool,
+) -> Result<(Paths, Program), ProgramError> {
+    let mut maker = PathMaker::new(opts, each);
+    let mut failed: Option<PathError> = None;
+    let program = read_str_each(text, read, &mut |prog, m| {
+        if let Err(e) = maker.take(Cow::Owned(m), prog) {
+            failed = Some(e);
+            return false;
+        }
+        !maker.stopped()
+    })?;
+    if let Some(e) = failed {
+        return Err(e.into());
+    }
+    Ok((maker.finish()?, program))
 }
 
 /// Where the paths go as they are made.
@@ -324,27 +365,181 @@ impl Made<'_> {
     }
 }
 
-fn paths_into(program: &Program, opts: &PathOptions, made: &mut Made<'_>) -> Result<(), PathError> {
-    let cap = |f: Option<f64>| f.map(|f| f.min(opts.feed_cap_mm_s));
-    let moves = drop_short(&program.moves, &mut made.notes.warnings)?;
-    let mut warned_tol: Vec<String> = Vec::new();
-    let mut warned_curve_corner = false;
-    let mut open: Option<Open> = None;
-    let mut prev_exact_stop = false;
-    let mut stops = program_stops(program);
-    stops.extend(program.tool.iter().filter(|n| n.word == "M6").map(|n| n.line));
-    let mut prev_line: Option<usize> = None;
-    for m in &moves {
+/// Paths made from moves handed in one at a time ([`PathMaker::take`]),
+/// in order: a program's paths whether it was read whole
+/// ([`paths_each`]) or is read as it streams ([`paths_each_read`]), the
+/// same paths, warnings and errors either way. It holds the open path,
+/// the move before (a short move after it may stretch it) and a short
+/// move waiting for the next one's kind, not the program's moves.
+struct PathMaker<'o, 'e, 'a> {
+    opts: &'o PathOptions,
+    made: Made<'e>,
+    /// The short-move rule's warnings, listed before the paths' own (as
+    /// when the rule ran over the whole program first).
+    short_warnings: Vec<String>,
+    /// The last move kept, not yet made into paths: a short move after it
+    /// may still stretch it.
+    last: Option<Cow<'a, Move>>,
+    /// A short move after a straight one, waiting for the next move's kind.
+    pending_short: Option<Cow<'a, Move>>,
+    /// A gap left by short moves: (line, where the tool should start, length).
+    gap: Option<(usize, [f64; 3], f64)>,
+    warned_tol: Vec<String>,
+    warned_curve_corner: bool,
+    open: Option<Open>,
+    prev_exact_stop: bool,
+    prev_line: Option<usize>,
+    /// The lines of the program stops and tool changes read so far, and
+    /// how many of the program's notes of each kind they came from.
+    stops: Vec<usize>,
+    notes_seen: (usize, usize),
+}
+
+/// A line or rapid: a short move's length can go to it.
+fn straight(k: MoveKind) -> bool {
+    matches!(k, MoveKind::Line | MoveKind::Rapid)
+}
+
+/// A program stop (M0, M1).
+fn is_program_stop(n: &crate::gcode::NoteWord) -> bool {
+    matches!(n.word.as_str(), "M0" | "M1" | "M00" | "M01")
+}
+
+impl<'o, 'e, 'a> PathMaker<'o, 'e, 'a> {
+    fn new(opts: &'o PathOptions, each: &'e mut dyn FnMut(Path) -> bool) -> Self {
+        PathMaker {
+            opts,
+            made: Made {
+                notes: Paths::default(),
+                each,
+                stopped: false,
+            },
+            short_warnings: Vec::new(),
+            last: None,
+            pending_short: None,
+            gap: None,
+            warned_tol: Vec::new(),
+            warned_curve_corner: false,
+            open: None,
+            prev_exact_stop: false,
+            prev_line: None,
+            stops: Vec::new(),
+            notes_seen: (0, 0),
+        }
+    }
+
+    /// `each` asked for no more paths.
+    fn stopped(&self) -> bool {
+        self.made.stopped
+    }
+
+    fn cap(&self, f: Option<f64>) -> Option<f64> {
+        f.map(|f| f.min(self.opts.feed_cap_mm_s))
+    }
+
+    /// The program stops and tool changes of `program` (as read so far)
+    /// not seen yet.
+    fn note_stops(&mut self, program: &Program) {
+        let (c, t) = self.notes_seen;
+        let new_stops = program
+            .program_control
+            .iter()
+            .skip(c)
+            .filter(|n| is_program_stop(n));
+        let new_tools = program.tool.iter().skip(t).filter(|n| n.word == "M6");
+        self.stops.extend(new_stops.chain(new_tools).map(|n| n.line));
+        self.notes_seen = (program.program_control.len(), program.tool.len());
+    }
+
+    /// The next move of `program` (as read up to it). Moves under 1 µm are
+    /// dropped, a neighbouring straight move stretched over a non-zero one
+    /// (the moves kept are borrowed where they can be, those changed
+    /// copied).
+    fn take(&mut self, m: Cow<'a, Move>, program: &Program) -> Result<(), PathError> {
+        self.note_stops(program);
+        if let Some(s) = self.pending_short.take() {
+            // stretch the move before unless this one can take it
+            if !straight(m.kind) {
+                if let Some(prev) = self.last.as_mut() {
+                    prev.to_mut().end = s.end;
+                }
+            } else {
+                self.gap = Some((s.line, s.start, move_length(&s)));
+            }
+        }
+        let len = move_length(&m);
+        if len < MIN_MOVE_MM {
+            self.short_warnings.push(format!(
+                "LINE {}: a move of {len:.3e} mm (under 1 um) is dropped",
+                m.line
+            ));
+            if norm(sub(m.end, m.start)) > 0.0 {
+                if self.last.as_ref().is_some_and(|p| straight(p.kind)) && self.gap.is_none() {
+                    self.pending_short = Some(m);
+                } else {
+                    let origin = self.gap.map_or(m.start, |g| g.1);
+                    self.gap = Some((m.line, origin, len));
+                }
+            }
+            return Ok(());
+        }
+        let mut m = m;
+        if let Some((line, origin, length_mm)) = self.gap.take() {
+            if straight(m.kind) {
+                m.to_mut().start = origin;
+            } else {
+                return Err(PathError::ShortMove { line, length_mm });
+            }
+        }
+        match self.last.replace(m) {
+            Some(prev) => self.path_move(&prev),
+            None => Ok(()),
+        }
+    }
+
+    /// The last moves made into paths, the last path closed; the warnings
+    /// and blended corners.
+    fn finish(mut self) -> Result<Paths, PathError> {
+        if let Some(s) = self.pending_short.take() {
+            if let Some(prev) = self.last.as_mut() {
+                prev.to_mut().end = s.end;
+            }
+        }
+        if let Some((line, _, length_mm)) = self.gap {
+            return Err(PathError::ShortMove { line, length_mm });
+        }
+        if let Some(prev) = self.last.take() {
+            self.path_move(&prev)?;
+        }
+        if let Some(o) = self.open.take() {
+            if !self.made.stopped {
+                close_into(o, &mut self.made)?;
+            }
+        }
+        let mut notes = self.made.notes;
+        self.short_warnings.append(&mut notes.warnings);
+        notes.warnings = self.short_warnings;
+        Ok(notes)
+    }
+
+    /// A move kept, into the open path or a new one.
+    fn path_move(&mut self, m: &Move) -> Result<(), PathError> {
+        if self.made.stopped {
+            return Ok(());
+        }
+        let capped = self.cap(m.feed_mm_s);
         // a program stop or tool change on the previous move's line or
         // between the two
-        let paused = prev_line.is_some_and(|a| stops.iter().any(|&s| a <= s && s < m.line));
-        prev_line = Some(m.line);
+        let paused = self
+            .prev_line
+            .is_some_and(|a| self.stops.iter().any(|&s| a <= s && s < m.line));
+        self.prev_line = Some(m.line);
         if let PathControl::Continuous {
             tolerance_mm,
             naive_cam_tolerance_mm,
         } = m.path_control
         {
-            let unused = if !opts.fit_chords {
+            let unused = if !self.opts.fit_chords {
                 Some("corners are exact stops (exact corners asked for)")
             } else if tolerance_mm.is_none() && naive_cam_tolerance_mm.is_some() {
                 Some("Q alone does not bound the path: corners are exact stops")
@@ -359,9 +554,12 @@ fn paths_into(program: &Program, opts: &PathOptions, made: &mut Made<'_>) -> Res
                 if let Some(q) = naive_cam_tolerance_mm {
                     w.push_str(&format!(" Q{q}"));
                 }
-                if !warned_tol.contains(&w) {
-                    made.notes.warnings.push(format!("LINE {}: {w}: {why}", m.line));
-                    warned_tol.push(w);
+                if !self.warned_tol.contains(&w) {
+                    self.made
+                        .notes
+                        .warnings
+                        .push(format!("LINE {}: {w}: {why}", m.line));
+                    self.warned_tol.push(w);
                 }
             }
         }
@@ -372,13 +570,15 @@ fn paths_into(program: &Program, opts: &PathOptions, made: &mut Made<'_>) -> Res
         } else {
             PathKind::Feed
         };
-        let tol = chord_tolerance(m).filter(|_| opts.fit_chords);
-        let blend_tol = path_tolerance(m).filter(|_| opts.fit_chords);
+        let tol = chord_tolerance(m).filter(|_| self.opts.fit_chords);
+        let blend_tol = path_tolerance(m).filter(|_| self.opts.fit_chords);
         let mut blended: Option<Blend> = None;
         // what the open path becomes: None (a stop before m), or its run
         // tolerance after m joins (Some(None): not a run of chords)
-        let joined: Option<Option<f64>> = match &open {
-            Some(o) if kind == PathKind::Feed && o.kind == PathKind::Feed && !prev_exact_stop && !paused => {
+        let joined: Option<Option<f64>> = match &self.open {
+            Some(o)
+                if kind == PathKind::Feed && o.kind == PathKind::Feed && !self.prev_exact_stop && !paused =>
+            {
                 let turn = match (
                     o.pieces.last().and_then(|p| p.1.end_tangent()),
                     piece.start_tangent(),
@@ -387,7 +587,7 @@ fn paths_into(program: &Program, opts: &PathOptions, made: &mut Made<'_>) -> Res
                     _ => f64::INFINITY,
                 };
                 let tangent = turn <= JOIN_ANGLE_RAD;
-                let same_feed = cap(o.feeds.last().copied().flatten()) == cap(m.feed_mm_s);
+                let same_feed = self.cap(o.feeds.last().copied().flatten()) == capped;
                 let run = match (o.chords, tol) {
                     (Some(r), Some(t)) if turn <= FIT_MAX_TURN_RAD => Some(Some(r.min(t))),
                     // a single line under G64 P may still go on tangentially into a curve
@@ -403,13 +603,13 @@ fn paths_into(program: &Program, opts: &PathOptions, made: &mut Made<'_>) -> Res
                     (curve_corner, blendable, o.last_tol, blend_tol, o.pieces.last())
                 {
                     blended = blend_corner(&last.1, &piece, ta.min(tb));
-                    if blended.is_none() && !warned_curve_corner {
-                        made.notes.warnings.push(format!(
+                    if blended.is_none() && !self.warned_curve_corner {
+                        self.made.notes.warnings.push(format!(
                             "LINE {}: the corner cannot be blended within G64 P{}: an exact stop",
                             m.line,
                             ta.min(tb)
                         ));
-                        warned_curve_corner = true;
+                        self.warned_curve_corner = true;
                     }
                 }
                 match blended {
@@ -420,7 +620,7 @@ fn paths_into(program: &Program, opts: &PathOptions, made: &mut Made<'_>) -> Res
             }
             _ => None,
         };
-        match (joined, open.as_mut()) {
+        match (joined, self.open.as_mut()) {
             (Some(run), Some(o)) => {
                 let (piece, len) = match blended.take() {
                     Some(bl) => {
@@ -429,8 +629,8 @@ fn paths_into(program: &Program, opts: &PathOptions, made: &mut Made<'_>) -> Res
                             last.2 = (last.2 - bl.cut_mm).max(MIN_MOVE_MM);
                         }
                         o.pieces.push((m.line, bl.blend, bl.blend_mm.max(MIN_MOVE_MM)));
-                        o.feeds.push(cap(m.feed_mm_s));
-                        made.notes.blended_corners += 1;
+                        o.feeds.push(capped);
+                        self.made.notes.blended_corners += 1;
                         (bl.after, (len - bl.cut_mm).max(MIN_MOVE_MM))
                     }
                     None => (piece, len),
@@ -438,35 +638,32 @@ fn paths_into(program: &Program, opts: &PathOptions, made: &mut Made<'_>) -> Res
                 o.chords = run;
                 o.last_tol = path_tolerance(m);
                 o.pieces.push((m.line, piece, len));
-                o.feeds.push(cap(m.feed_mm_s));
-                o.feed = match (o.feed, cap(m.feed_mm_s)) {
+                o.feeds.push(capped);
+                o.feed = match (o.feed, capped) {
                     (Some(a), Some(b)) => Some(a.max(b)),
                     (a, b) => a.or(b),
                 };
             }
             _ => {
-                if let Some(o) = open.take() {
-                    close_into(o, made)?;
-                    if made.stopped {
+                if let Some(o) = self.open.take() {
+                    close_into(o, &mut self.made)?;
+                    if self.made.stopped {
                         return Ok(());
                     }
                 }
-                open = Some(Open {
+                self.open = Some(Open {
                     kind,
                     last_tol: path_tolerance(m),
-                    feed: cap(m.feed_mm_s),
+                    feed: capped,
                     pieces: vec![(m.line, piece, len)],
-                    feeds: vec![cap(m.feed_mm_s)],
+                    feeds: vec![capped],
                     chords: tol,
                 });
             }
         }
-        prev_exact_stop = m.path_control == PathControl::ExactStop || kind == PathKind::Rapid;
+        self.prev_exact_stop = m.path_control == PathControl::ExactStop || kind == PathKind::Rapid;
+        Ok(())
     }
-    if let Some(o) = open.take() {
-        close_into(o, made)?;
-    }
-    Ok(())
 }
 
 /// The lines of the program stops (M0, M1) of `program`, in order: the
@@ -476,7 +673,7 @@ pub fn program_stops(program: &Program) -> Vec<usize> {
     program
         .program_control
         .iter()
-        .filter(|n| matches!(n.word.as_str(), "M0" | "M1" | "M00" | "M01"))
+        .filter(|n| is_program_stop(n))
         .map(|n| n.line)
         .collect()
 }
@@ -551,56 +748,6 @@ fn close_into(o: Open, made: &mut Made<'_>) -> Result<(), PathError> {
         }
     }
     Ok(())
-}
-
-/// Drop moves under 1 µm, stretching a neighbouring straight move over a
-/// non-zero one (the moves kept are borrowed, those changed copied: the
-/// program's moves are not held twice).
-fn drop_short<'a>(moves: &'a [Move], warnings: &mut Vec<String>) -> Result<Vec<Cow<'a, Move>>, PathError> {
-    let mut out: Vec<Cow<'a, Move>> = Vec::with_capacity(moves.len());
-    let mut gap: Option<(usize, [f64; 3], f64)> = None; // line, where the tool should start, length
-    let mut i = 0;
-    while i < moves.len() {
-        let m = &moves[i];
-        let len = move_length(m);
-        if len < MIN_MOVE_MM {
-            warnings.push(format!(
-                "LINE {}: a move of {len:.3e} mm (under 1 um) is dropped",
-                m.line
-            ));
-            if norm(sub(m.end, m.start)) > 0.0 {
-                let straight = |k: MoveKind| matches!(k, MoveKind::Line | MoveKind::Rapid);
-                if let Some(prev) = out.last_mut().filter(|p| straight(p.kind) && gap.is_none()) {
-                    // stretch the previous line unless the next one can take it
-                    let next_straight = moves.get(i + 1).is_some_and(|n| straight(n.kind));
-                    if !next_straight {
-                        prev.to_mut().end = m.end;
-                    } else {
-                        gap = Some((m.line, m.start, len));
-                    }
-                } else {
-                    let origin = gap.map_or(m.start, |g| g.1);
-                    gap = Some((m.line, origin, len));
-                }
-            }
-            i += 1;
-            continue;
-        }
-        let mut m = Cow::Borrowed(m);
-        if let Some((line, origin, length_mm)) = gap.take() {
-            if matches!(m.kind, MoveKind::Line | MoveKind::Rapid) {
-                m.to_mut().start = origin;
-            } else {
-                return Err(PathError::ShortMove { line, length_mm });
-            }
-        }
-        out.push(m);
-        i += 1;
-    }
-    if let Some((line, _, length_mm)) = gap {
-        return Err(PathError::ShortMove { line, length_mm });
-    }
-    Ok(out)
 }
 
 /// Join the pieces of an open path into one curve.

@@ -75,6 +75,10 @@ pub enum ProgramError {
     /// The program moves nothing.
     #[error("the program has no moves to plan")]
     Empty,
+    /// It cannot be read (when read as it streams:
+    /// [`crate::program::paths_each_read`]).
+    #[error(transparent)]
+    Read(#[from] crate::gcode::GcodeError),
     /// The program file cannot be written (a bug: the plans are checked before).
     #[error(transparent)]
     File(#[from] crate::program::file::ProgramFileError),

@@ -536,3 +536,112 @@ fn paths_made_one_at_a_time_are_the_paths_kept() {
     }
     assert!(several >= 3, "{several} programs of three paths or more");
 }
+
+/// A program read as it streams (`paths_each_read`) gives the paths,
+/// warnings, notes and errors of the program read whole (`paths_for`).
+mod read_as_it_streams {
+    use crate::gcode::{read_str, ReadOptions};
+    use crate::program::paths::{paths_each_read, paths_for, PathOptions};
+    use crate::program::plan::ProgramError;
+
+    /// The two ways compared on `text` with `opts`: what each made, or
+    /// the error each refused it with.
+    fn same_either_way(name: &str, text: &str, opts: &PathOptions) {
+        let read = ReadOptions::default();
+        let mut paths = Vec::new();
+        let streamed = paths_each_read(text, read, opts, &mut |p| {
+            paths.push(p);
+            true
+        });
+        let whole = match read_str(text, read) {
+            Err(e) => match streamed {
+                Err(ProgramError::Read(f)) => return assert_eq!(e, f, "{name}"),
+                other => panic!("{name}: read whole: {e}; as it streams: {other:?}"),
+            },
+            Ok(w) => w,
+        };
+        match (paths_for(&whole, opts), streamed) {
+            (Ok(w), Ok((mut s, program))) => {
+                s.paths = paths;
+                assert!(!w.paths.is_empty(), "{name}: no paths");
+                assert_eq!(w, s, "{name}");
+                let notes = crate::gcode::Program {
+                    moves: vec![],
+                    ..whole
+                };
+                assert_eq!(notes, program, "{name}");
+            }
+            (Err(e), Err(ProgramError::Path(f))) => assert_eq!(e, f, "{name}"),
+            (w, s) => panic!("{name}: read whole: {w:?}; as it streams: {s:?}"),
+        }
+    }
+
+    #[test]
+    fn every_program_of_ours_and_linuxcncs_makes_the_same_paths_read_as_it_streams() {
+        let root = concat!(env!("CARGO_MANIFEST_DIR"), "/programs");
+        let mut seen = 0;
+        for dir in ["own", "linuxcnc", "bench", "refused"] {
+            let mut names: Vec<_> = std::fs::read_dir(format!("{root}/{dir}"))
+                .unwrap()
+                .map(|e| e.unwrap().path())
+                .filter(|p| p.extension().is_some_and(|x| x == "ngc"))
+                .collect();
+            names.sort();
+            for p in names {
+                let text = std::fs::read_to_string(&p).unwrap();
+                let name = p.display().to_string();
+                same_either_way(&name, &text, &PathOptions::default());
+                let exact = PathOptions {
+                    fit_chords: false,
+                    ..PathOptions::default()
+                };
+                same_either_way(&name, &text, &exact);
+                seen += 1;
+            }
+        }
+        assert!(seen >= 40, "{seen} programs");
+    }
+
+    #[test]
+    fn short_moves_stops_and_tool_changes_make_the_same_paths_read_as_it_streams() {
+        let d = "G21 G17 F600\n";
+        let cases = [
+            // a short line between lines: dropped, the next line starts where it did
+            "G1 X10\nG1\nG1 X10.0000004\nG1 X20\nM2\n",
+            // two in a row, and one before the first move
+            "G1 X0.0000004\nG1 X10\nG1 X10.0000004\nG1 X10.0000008\nG1 X20\nM2\n",
+            // after a line and before an arc: the line stretched over it
+            "G1 X10\nG1 X10.0000004\nG2 X20.0000004 I5\nM2\n",
+            // at the end: the line before stretched
+            "G1 X10\nG1 X10.0000004\nM2\n",
+            // between two arcs: refused
+            "G2 X10 I5\nG1 X10.0000004\nG2 X20.0000004 I5\nM2\n",
+            // after an arc, before a line: the line starts where it did
+            "G2 X10 I5\nG1 X10.0000004\nG1 X20\nM2\n",
+            // program stops and a tool change end tangent paths at rest
+            "G1 X10\nM0\nG1 X20\nM1\nG1 X30\nT2 M6\nG1 X40\nM2\n",
+            // a short move after a stop
+            "G1 X10\nM0\nG1 X10.0000004\nG1 X20\nM2\n",
+        ];
+        for (k, body) in cases.iter().enumerate() {
+            let text = format!("{d}{body}");
+            same_either_way(&format!("case {k}"), &text, &PathOptions::default());
+        }
+    }
+
+    #[test]
+    fn a_program_that_fails_to_read_fails_read_as_it_streams_after_the_paths_before() {
+        // the first line's path is handed on (closed by the rapid) before the
+        // arc's line is read and refused; the rapid's path was still open
+        let text = "G21 G17 F600\nG1 X10\nG0 Z5\nG1 X20 Y5 Z0\nG2 X30 Y5 K5\nM2\n";
+        let mut made = 0;
+        let e = paths_each_read(text, ReadOptions::default(), &PathOptions::default(), &mut |_| {
+            made += 1;
+            true
+        })
+        .unwrap_err();
+        let whole = read_str(text, ReadOptions::default()).unwrap_err();
+        assert!(matches!(&e, ProgramError::Read(f) if *f == whole), "{e}");
+        assert_eq!(made, 1, "{e}");
+    }
+}

@@ -489,13 +489,16 @@ fn stream_program_cmd(
     use planner_host::gcode;
     let bytes =
         std::fs::read(path).map_err(|e| Failure::input(format!("cannot read {}: {e}", path.display())))?;
-    let prog = gcode::read_bytes(&bytes, gcode::ReadOptions { block_delete: false })
-        .map_err(|e| Failure::input(format!("{}: {e}", path.display())))?;
+    // (read as it streams: the program's moves are never all held)
+    let text = gcode::lex::text_of(&bytes).map_err(|e| Failure::input(format!("{}: {e}", path.display())))?;
+    let source =
+        sim_harness::stream_program::ProgramSource::Text(text, gcode::ReadOptions { block_delete: false });
     let popts = planner_host::program::ProgramOptions::default();
-    let rep = sim_harness::stream_program::stream_program(&prog, machine, &popts, opts).map_err(|e| {
-        let f = stream_failure(e);
-        Failure::new(f.code, format!("{}: {}", path.display(), f.message))
-    })?;
+    let rep =
+        sim_harness::stream_program::stream_program_from(source, machine, &popts, opts).map_err(|e| {
+            let f = stream_failure(e);
+            Failure::new(f.code, format!("{}: {}", path.display(), f.message))
+        })?;
     if json {
         outln!("{}", serde_json::to_string(&rep)?);
     } else {
