@@ -236,7 +236,7 @@ impl ProgramSource<'_> {
                 Ok(std::borrow::Cow::Borrowed(program))
             }
             ProgramSource::Text(text, read) => {
-                let (_, notes) = paths_each_read(text, read, opts, each)?;
+                let (_, notes) = paths_each_read(text, read, opts, each).map_err(ProgramError::from)?;
                 Ok(std::borrow::Cow::Owned(notes))
             }
         }

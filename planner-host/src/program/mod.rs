@@ -27,7 +27,7 @@ pub mod travel;
 pub use file::{Entry, EntryKind, FilePiece, ProgramFile, ProgramFileError};
 pub use paths::{
     paths_each, paths_each_read, paths_for, paths_of, program_stops, Fitted, Path, PathError, PathKind,
-    PathOptions, PathPiece, Paths,
+    PathOptions, PathPiece, Paths, ReadPathsError,
 };
 pub use plan::{path_config, plan_program, PlannedPath, PlannedProgram, ProgramError, ProgramOptions};
 pub use travel::{check_travel, TravelError};

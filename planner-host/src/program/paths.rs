@@ -72,13 +72,12 @@
 
 use std::borrow::Cow;
 
-use crate::gcode::{read_str_each, Move, MoveKind, PathControl, Program, ReadOptions};
+use crate::gcode::{read_str_each, GcodeError, Move, MoveKind, PathControl, Program, ReadOptions};
 use crate::geometry::curve::Nurbs;
 use crate::geometry::junction::CORNER_ANGLE_RAD;
 use crate::program::blend::{blend_corner, Blend};
 use crate::program::fit::{fit_chords, FitError};
 use crate::program::pieces::{self, angle_between, move_length, norm, sub, Piece, PieceError};
-use crate::program::plan::ProgramError;
 
 /// Largest tangent turn between two moves that still joins them into one
 /// path, rad.
@@ -317,6 +316,19 @@ pub fn paths_each(
     maker.finish()
 }
 
+/// Why a program read as it streams ([`paths_each_read`]) gives no more
+/// paths.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum ReadPathsError {
+    /// A line cannot be read.
+    #[error(transparent)]
+    Read(#[from] GcodeError),
+    /// Its moves do not give paths.
+    #[error(transparent)]
+    Path(#[from] PathError),
+}
+
 /// [`paths_each`] on a program read as it streams
 /// ([`crate::gcode::read_str_each`]): its moves are made into paths as the
 /// interpreter hands them on, so that neither the program's moves nor its
@@ -332,7 +344,7 @@ pub fn paths_each_read(
     read: ReadOptions,
     opts: &PathOptions,
     each: &mut dyn FnMut(Path) -> bool,
-) -> Result<(Paths, Program), ProgramError> {
+) -> Result<(Paths, Program), ReadPathsError> {
     let mut maker = PathMaker::new(opts, each);
     let mut failed: Option<PathError> = None;
     let program = read_str_each(text, read, &mut |prog, m| {

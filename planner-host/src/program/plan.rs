@@ -22,7 +22,9 @@ use crate::lp::feed_profile::FeedProfile;
 use crate::machine::Machine;
 use crate::plan::{plan_curve, PlanConfig, PlanError};
 use crate::program::file::{Entry, EntryKind, FilePiece, ProgramFile};
-use crate::program::paths::{paths_for, program_stops, Path, PathError, PathKind, PathOptions};
+use crate::program::paths::{
+    paths_for, program_stops, Path, PathError, PathKind, PathOptions, ReadPathsError,
+};
 use crate::program::travel::{check_travel, TravelError};
 
 /// Fewest sampling points of a path.
@@ -82,6 +84,15 @@ pub enum ProgramError {
     /// The program file cannot be written (a bug: the plans are checked before).
     #[error(transparent)]
     File(#[from] crate::program::file::ProgramFileError),
+}
+
+impl From<ReadPathsError> for ProgramError {
+    fn from(e: ReadPathsError) -> Self {
+        match e {
+            ReadPathsError::Read(e) => ProgramError::Read(e),
+            ReadPathsError::Path(e) => ProgramError::Path(e),
+        }
+    }
 }
 
 /// One planned path.

@@ -541,8 +541,7 @@ fn paths_made_one_at_a_time_are_the_paths_kept() {
 /// warnings, notes and errors of the program read whole (`paths_for`).
 mod read_as_it_streams {
     use crate::gcode::{read_str, ReadOptions};
-    use crate::program::paths::{paths_each_read, paths_for, PathOptions};
-    use crate::program::plan::ProgramError;
+    use crate::program::paths::{paths_each_read, paths_for, PathOptions, ReadPathsError};
 
     /// The two ways compared on `text` with `opts`: what each made, or
     /// the error each refused it with.
@@ -555,7 +554,7 @@ mod read_as_it_streams {
         });
         let whole = match read_str(text, read) {
             Err(e) => match streamed {
-                Err(ProgramError::Read(f)) => return assert_eq!(e, f, "{name}"),
+                Err(ReadPathsError::Read(f)) => return assert_eq!(e, f, "{name}"),
                 other => panic!("{name}: read whole: {e}; as it streams: {other:?}"),
             },
             Ok(w) => w,
@@ -571,7 +570,7 @@ mod read_as_it_streams {
                 };
                 assert_eq!(notes, program, "{name}");
             }
-            (Err(e), Err(ProgramError::Path(f))) => assert_eq!(e, f, "{name}"),
+            (Err(e), Err(ReadPathsError::Path(f))) => assert_eq!(e, f, "{name}"),
             (w, s) => panic!("{name}: read whole: {w:?}; as it streams: {s:?}"),
         }
     }
@@ -641,7 +640,7 @@ mod read_as_it_streams {
         })
         .unwrap_err();
         let whole = read_str(text, ReadOptions::default()).unwrap_err();
-        assert!(matches!(&e, ProgramError::Read(f) if *f == whole), "{e}");
+        assert!(matches!(&e, ReadPathsError::Read(f) if *f == whole), "{e}");
         assert_eq!(made, 1, "{e}");
     }
 }
