@@ -1422,6 +1422,10 @@ pub enum StreamError {
     /// The table did not parse (cannot happen for the planner's own).
     #[error("table: {0}")]
     Table(String),
+    /// A program's path rows could not be written out as the paths ended
+    /// ([`crate::stream_program::stream_program_rows`]).
+    #[error("writing the path rows: {0}")]
+    Rows(#[source] std::io::Error),
     /// Cutting into chunks failed.
     #[error(transparent)]
     Chunks(#[from] planner_host::stream::ChunkTableError),

@@ -256,12 +256,34 @@ pub fn stream_program(
 
 /// [`stream_program`] on a program from `source`: one read whole, or its
 /// text read as it streams ([`ProgramSource::Text`]: the same paths and
-/// report, in memory bounded by the longest path).
+/// report, in memory bounded by the longest path, its rows aside).
 pub fn stream_program_from(
     source: ProgramSource<'_>,
     machine: &Machine,
     popts: &ProgramOptions,
     o: &StreamOptions,
+) -> Result<ProgramStreamReport, StreamError> {
+    let mut rows = Vec::new();
+    let mut sum = stream_program_rows(source, machine, popts, o, &mut |p| {
+        rows.push(p);
+        Ok(())
+    })?;
+    sum.path = rows;
+    Ok(sum)
+}
+
+/// [`stream_program_from`] with each path's row handed to `row` as the
+/// path ends, in order, instead of kept: the report's
+/// [`ProgramStreamReport::path`] comes back empty. A long program's rows
+/// (a few hundred bytes a path) then need not be held: `feedsim stream
+/// PART.ngc --json` spools them to a file and writes them out at the end.
+/// An error from `row` stops the program there and is returned.
+pub fn stream_program_rows(
+    source: ProgramSource<'_>,
+    machine: &Machine,
+    popts: &ProgramOptions,
+    o: &StreamOptions,
+    row: &mut dyn FnMut(StreamedPath) -> Result<(), StreamError>,
 ) -> Result<ProgramStreamReport, StreamError> {
     if o.ready_times.is_some() {
         return Err(StreamError::Option(
@@ -305,7 +327,6 @@ pub fn stream_program_from(
     };
     let (mut host_s, mut machine_s) = (0.0f64, 0.0f64);
     let mut prev_end: Option<([f64; 3], usize, usize)> = None;
-    let mut out: Vec<StreamedPath> = Vec::with_capacity(count);
     let mut sum = ProgramStreamReport {
         schema_version: 1,
         paths: count,
@@ -358,8 +379,10 @@ pub fn stream_program_from(
         let index = i + 1;
         // (a stop on the line of the path before's last move, or between
         // the two: the operator's cycle start first)
-        let after_stop_line =
-            prev_end.and_then(|(_, _, last)| stops.iter().copied().find(|&s| last <= s && s < p.first_line));
+        let after_stop_line = prev_end.and_then(|(_, _, last)| {
+            let k = stops.partition_point(|&s| s < last);
+            stops.get(k).copied().filter(|&s| s < p.first_line)
+        });
         if after_stop_line.is_some() {
             sum.program_stops += 1;
             if let Some(w) = o.cycle_start_s {
@@ -500,7 +523,7 @@ pub fn stream_program_from(
             .collect();
         sum.machining_time_s = start_s + rep.machining_time_s - sum.first_motion_ms * 1e-3;
         sum.overrides += overrides.len();
-        out.push(StreamedPath {
+        row(StreamedPath {
             index,
             kind: p.kind,
             first_line: p.first_line,
@@ -520,7 +543,7 @@ pub fn stream_program_from(
             overrides,
             override_feed_ratio: rep.override_feed_ratio,
             check_ok: rep.check_ok,
-        });
+        })?;
         i += 1;
         Ok(())
     };
@@ -540,7 +563,6 @@ pub fn stream_program_from(
     sum.plan_realtime_factor = sum.machining_time_s / sum.plan_s;
     sum.host_realtime_factor = sum.machining_time_s / ready_s;
     sum.peak_rss_kib = crate::stream::peak_rss_kib();
-    sum.path = out;
     Ok(sum)
 }
 

@@ -671,3 +671,51 @@ fn stream_over_a_lossy_link_refuses_resends_and_runs_the_same_setpoints() {
     assert_eq!(lossy["starved_ticks"], 0, "{lossy}");
     assert_eq!(lossy["ratios"], clean["ratios"]);
 }
+
+#[test]
+fn stream_a_part_program_reports_every_path_and_refuses_a_bad_line_before_any_output() {
+    let program = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../planner-host/programs/own/corners-path-control.ngc");
+    let program = program.to_str().unwrap();
+    // the JSON: the program's figures and one row per path, in order (the
+    // rows are spooled as the paths end and written with the report)
+    let v = stream_json(program);
+    assert_streamed_whole_within_limits(&v);
+    let rows = v["path"].as_array().unwrap();
+    assert!(rows.len() >= 2, "{v}");
+    assert_eq!(v["paths"].as_u64().unwrap() as usize, rows.len());
+    let mut length = 0.0;
+    let mut start = f64::NEG_INFINITY;
+    for (k, r) in rows.iter().enumerate() {
+        assert_eq!(r["index"].as_u64().unwrap() as usize, k + 1, "{r}");
+        assert_eq!(r["check_ok"], true, "{r}");
+        let s = r["start_s"].as_f64().unwrap();
+        assert!(s > start, "{r}");
+        start = s;
+        length += r["length_mm"].as_f64().unwrap();
+    }
+    assert!((length - v["length_mm"].as_f64().unwrap()).abs() < 1e-9, "{v}");
+    // the text report names the program and its paths
+    let out = feedsim().args(["stream", program]).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains(&format!("{} paths", rows.len())), "{text}");
+    // a line that cannot be read: exit 3 naming it and its word, nothing on
+    // stdout (neither a half report nor rows)
+    let dir = temp_dir("bad-program");
+    let bad = dir.join("bad.ngc");
+    std::fs::write(&bad, "G21 G90 G17\nG1 X10 F600\nG1 X20\nG2 X30 Y0\nM2\n").unwrap();
+    for json in [true, false] {
+        let mut cmd = feedsim();
+        cmd.arg("stream").arg(&bad);
+        if json {
+            cmd.arg("--json");
+        }
+        let out = cmd.output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(3), "{err}");
+        assert!(err.contains("LINE 4") && err.contains("G2"), "{err}");
+        assert!(out.stdout.is_empty(), "{}", String::from_utf8_lossy(&out.stdout));
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -401,8 +401,9 @@ struct PathMaker<'o, 'e, 'a> {
     open: Option<Open>,
     prev_exact_stop: bool,
     prev_line: Option<usize>,
-    /// The lines of the program stops and tool changes read so far, and
-    /// how many of the program's notes of each kind they came from.
+    /// The lines of the program stops and tool changes read so far at or
+    /// after the last move's line, and how many of the program's notes of
+    /// each kind have been seen.
     stops: Vec<usize>,
     notes_seen: (usize, usize),
 }
@@ -546,6 +547,9 @@ impl<'o, 'e, 'a> PathMaker<'o, 'e, 'a> {
             .prev_line
             .is_some_and(|a| self.stops.iter().any(|&s| a <= s && s < m.line));
         self.prev_line = Some(m.line);
+        // (a stop before this move's line cannot pause a later one: the
+        // list keeps only those read ahead, not the program's every stop)
+        self.stops.retain(|&s| s >= m.line);
         if let PathControl::Continuous {
             tolerance_mm,
             naive_cam_tolerance_mm,

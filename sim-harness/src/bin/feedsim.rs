@@ -479,7 +479,15 @@ fn no_u_form_note(u_form: bool) -> &'static str {
     }
 }
 
-/// `feedsim stream PART.ngc`: every path streamed in turn.
+/// Paths of a program listed by name in the text report at most: a long
+/// program's (its paths planned at an override, those over a limit) are
+/// counted beyond these, not held.
+const PATHS_LISTED: usize = 20;
+
+/// `feedsim stream PART.ngc`: every path streamed in turn. A path's row
+/// leaves memory as the path ends: with `--json` into an unnamed spool file
+/// (the report is written whole at the end, nothing if the program fails),
+/// in the text report as the few it names.
 fn stream_program_cmd(
     path: &Path,
     machine: &planner_host::Machine,
@@ -487,6 +495,8 @@ fn stream_program_cmd(
     json: bool,
 ) -> Result<(), Failure> {
     use planner_host::gcode;
+    use sim_harness::stream::StreamError;
+    use std::io::{BufWriter, Seek as _, Write as _};
     let bytes =
         std::fs::read(path).map_err(|e| Failure::input(format!("cannot read {}: {e}", path.display())))?;
     // (read as it streams: the program's moves are never all held)
@@ -494,13 +504,62 @@ fn stream_program_cmd(
     let source =
         sim_harness::stream_program::ProgramSource::Text(text, gcode::ReadOptions { block_delete: false });
     let popts = planner_host::program::ProgramOptions::default();
-    let rep =
-        sim_harness::stream_program::stream_program_from(source, machine, &popts, opts).map_err(|e| {
-            let f = stream_failure(e);
-            Failure::new(f.code, format!("{}: {}", path.display(), f.message))
-        })?;
-    if json {
-        outln!("{}", serde_json::to_string(&rep)?);
+    let mut spool = match json {
+        true => Some(BufWriter::new(
+            tempfile::tempfile().map_err(|e| format!("a spool file for the path rows: {e}"))?,
+        )),
+        false => None,
+    };
+    let (mut planned, mut planned_more) = (Vec::new(), 0usize);
+    let (mut over, mut over_more) = (Vec::new(), 0usize);
+    let mut rows = 0usize;
+    let rep = sim_harness::stream_program::stream_program_rows(source, machine, &popts, opts, &mut |p| {
+        if let Some(w) = spool.as_mut() {
+            if rows > 0 {
+                w.write_all(b",").map_err(StreamError::Rows)?;
+            }
+            serde_json::to_writer(&mut *w, &p).map_err(|e| StreamError::Rows(e.into()))?;
+        } else {
+            if p.feed_factor != 1.0 {
+                match planned.len() < PATHS_LISTED {
+                    true => planned.push(format!("{} at {:.0} %", p.index, p.feed_factor * 100.0)),
+                    false => planned_more += 1,
+                }
+            }
+            if !p.check_ok {
+                match over.len() < PATHS_LISTED {
+                    true => over.push(p),
+                    false => over_more += 1,
+                }
+            }
+        }
+        rows += 1;
+        Ok(())
+    })
+    .map_err(|e| {
+        let f = stream_failure(e);
+        Failure::new(f.code, format!("{}: {}", path.display(), f.message))
+    })?;
+    if let Some(w) = spool {
+        // the report with its rows in place: `"path":[]` is its last field
+        let mut file = w
+            .into_inner()
+            .map_err(|e| format!("the path rows: {}", e.error()))?;
+        let head = serde_json::to_string(&rep)?;
+        let Some(head) = head.strip_suffix("[]}") else {
+            return Err(Failure::from("the stream report does not end with its paths"));
+        };
+        file.rewind()?;
+        let mut stdout = std::io::stdout().lock();
+        let written = stdout
+            .write_all(head.as_bytes())
+            .and_then(|_| stdout.write_all(b"["))
+            .and_then(|_| std::io::copy(&mut file, &mut stdout).map(drop))
+            .and_then(|_| stdout.write_all(b"]}\n"))
+            .and_then(|_| stdout.flush());
+        if let Err(e) = written {
+            planner_host::cli::stdout_failed(env!("CARGO_BIN_NAME"), e);
+        }
     } else {
         outln!(
             "{}: {} paths, {:.2} mm streamed in {} chunks, {:.1} bytes/mm framed{}, over uart:{} with {} ms latency",
@@ -534,13 +593,10 @@ fn stream_program_cmd(
                 rep.program_stops, rep.operator_wait_s
             );
         }
-        if rep.overrides > 0 || rep.path.iter().any(|p| p.feed_factor != 1.0) {
-            let planned: Vec<String> = rep
-                .path
-                .iter()
-                .filter(|p| p.feed_factor != 1.0)
-                .map(|p| format!("{} at {:.0} %", p.index, p.feed_factor * 100.0))
-                .collect();
+        if rep.overrides > 0 || !planned.is_empty() {
+            if planned_more > 0 {
+                planned.push(format!("and {planned_more} more"));
+            }
             outln!(
                 "  feed override: {} change(s) made while a path ran, paths planned at an override: {}; feed against each override once it holds: {:.4}",
                 rep.overrides,
@@ -548,7 +604,7 @@ fn stream_program_cmd(
                 rep.override_feed_ratio
             );
         }
-        for p in rep.path.iter().filter(|p| !p.check_ok) {
+        for p in &over {
             outln!(
                 "  path {} (LINE {}..{}) over its limits: {:?}",
                 p.index,
@@ -556,6 +612,9 @@ fn stream_program_cmd(
                 p.last_line,
                 p.ratios
             );
+        }
+        if over_more > 0 {
+            outln!("  and {over_more} more paths over their limits");
         }
     }
     if rep.check_ok {
@@ -576,7 +635,7 @@ fn load_curve(arg: &str) -> Result<Nurbs, Failure> {
 /// Curve arguments of `feedsim report` as files (the report reads files): an
 /// existing file as is, a built-in name written to a temporary directory that
 /// the returned guard removes. No arguments: the five built-in curves.
-fn report_curve_files(args: &[String]) -> Result<(Vec<PathBuf>, TempDir), Failure> {
+fn report_curve_files(args: &[String]) -> Result<(Vec<PathBuf>, tempfile::TempDir), Failure> {
     let names: Vec<String> = if args.is_empty() {
         planner_host::builtin::NAMES
             .iter()
@@ -585,7 +644,10 @@ fn report_curve_files(args: &[String]) -> Result<(Vec<PathBuf>, TempDir), Failur
     } else {
         args.to_vec()
     };
-    let tmp = TempDir(std::env::temp_dir().join(format!("feedsim-curves-{}", std::process::id())));
+    let tmp = tempfile::Builder::new()
+        .prefix("feedsim-curves-")
+        .tempdir()
+        .map_err(|e| format!("cannot create a temporary directory: {e}"))?;
     let mut files = Vec::new();
     for arg in &names {
         let path = Path::new(arg);
@@ -598,21 +660,11 @@ fn report_curve_files(args: &[String]) -> Result<(Vec<PathBuf>, TempDir), Failur
                 arg.clone(),
             )));
         };
-        std::fs::create_dir_all(&tmp.0).map_err(|e| format!("cannot create {}: {e}", tmp.0.display()))?;
-        let file = tmp.0.join(format!("{}.json", arg.to_ascii_lowercase()));
+        let file = tmp.path().join(format!("{}.json", arg.to_ascii_lowercase()));
         std::fs::write(&file, json).map_err(|e| format!("cannot write {}: {e}", file.display()))?;
         files.push(file);
     }
     Ok((files, tmp))
-}
-
-/// A directory removed when dropped.
-struct TempDir(PathBuf);
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
 }
 
 fn check_period(period_us: f64) -> Result<(), Failure> {
