@@ -15,8 +15,12 @@ export CARGO_TERM_COLOR=never
 SECS=${FUZZ_SECONDS:-60}
 TOOLCHAIN=${FUZZ_TOOLCHAIN:-nightly}
 
-echo "== fuzz corpus replay (stable)"
-cargo test -p e2e-tests --test fuzz_corpus
+# (FUZZ_REPLAY=0: the caller has replayed it already, e.g. in `cargo test
+# --workspace`, which runs tests/tests/fuzz_corpus.rs)
+if [ "${FUZZ_REPLAY:-1}" = 1 ]; then
+  echo "== fuzz corpus replay (stable)"
+  cargo test -p e2e-tests --test fuzz_corpus
+fi
 
 have_tools() {
   rustup run "$TOOLCHAIN" rustc --version >/dev/null 2>&1 && cargo fuzz --version >/dev/null 2>&1

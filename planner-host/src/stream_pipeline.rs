@@ -1,5 +1,5 @@
 //! The plan cut into chunks while it is planned: fed each
-//! [`Commit`](crate::plan::Commit) of windowed planning
+//! [`crate::plan::Commit`] of windowed planning
 //! ([`crate::plan::plan_curve_committing`]), a [`ChunkPipeline`] fits the
 //! pieces whose knot-span group q is now final over
 //! (`firmware_core::table::fit_pieces`, the table's own fit) and cuts the

@@ -100,12 +100,12 @@ pub fn piece_len(v: f64) -> f64 {
 pub struct PieceData {
     /// s at the piece's start, mm.
     pub s_start: f64,
-    /// The [`PIECE_F64_LEN`] 64-bit words: u_a (f64 bits), c, shift, b_k.
+    /// The `PIECE_F64_LEN` 64-bit words: u_a (f64 bits), c, shift, b_k.
     pub words: [u64; PIECE_F64_LEN],
     /// `[d1 … d5, w, 1/len]`.
     pub f32s: [f32; PIECE_F32_MAX],
     /// Largest distance of the fixed-point positions from the f64 reference
-    /// at [`FIT_CHECKS`] points of the piece, mm.
+    /// at `FIT_CHECKS` points of the piece, mm.
     pub fit_err: f64,
     /// Largest error of the f32 u form at the same points, mm along the
     /// path (|Δu|·|r′(u)|).

@@ -105,7 +105,7 @@
 //! (`>>` is the arithmetic shift, floor division by 2^g.) The planner's
 //! pieces make these small: each fitted per NURBS knot span with interior
 //! breaks on the 2⁻²⁰ mm grid and b₁ … b₇ rounded to the coarsest 2^g its
-//! fit tolerance allows ([`crate::servo_forms`]); any table's pieces
+//! fit tolerance allows (`servo_forms`); any table's pieces
 //! encode, only longer.
 //!
 //! Predictions without a previous piece, or with a τ out of range, are 0.

@@ -241,7 +241,7 @@ impl PRow {
 
 /// How far apart (Q40 mm, on any axis) two pieces of one path may meet:
 /// each is fitted to the curve at the exact arc length within
-/// [`FIT_TOL_MM`](crate::servo_forms::fit::FIT_TOL_MM), so they meet within
+/// `servo_forms::fit::FIT_TOL_MM`, so they meet within
 /// twice that, and rounding to Q40 adds a few units. Measured on the
 /// streamed Butterfly, meanders and programs: at most a few Q40 units
 /// (docs/streaming-design.md). A step above this is not the path's: a

@@ -51,15 +51,6 @@ pub fn read_bytes(bytes: &[u8], opts: ReadOptions) -> Result<Program, GcodeError
     read_str(text_of(bytes)?, opts)
 }
 
-/// [`read_str_each`] on bytes: [`GcodeError::NotText`] if they are not text.
-pub fn read_bytes_each(
-    bytes: &[u8],
-    opts: ReadOptions,
-    each: &mut dyn FnMut(&Program, Move) -> bool,
-) -> Result<Program, GcodeError> {
-    read_str_each(text_of(bytes)?, opts, each)
-}
-
 /// Read a program.
 pub fn read_str(text: &str, opts: ReadOptions) -> Result<Program, GcodeError> {
     let mut moves = Vec::new();
@@ -78,7 +69,8 @@ pub fn read_str(text: &str, opts: ReadOptions) -> Result<Program, GcodeError> {
 /// returned then ends there). An error comes when the line that causes it
 /// is read, after the moves before it were handed on (a program that
 /// does not close a NURBS curve fails at its end): whoever must refuse a
-/// bad program before it moves reads it once through first.
+/// bad program before it moves reads it once through first. A file's
+/// bytes become its text by [`super::lex::text_of`] (as in [`read_bytes`]).
 pub fn read_str_each(
     text: &str,
     opts: ReadOptions,

@@ -35,5 +35,5 @@ pub mod moves;
 pub mod params;
 
 pub use error::GcodeError;
-pub use interp::{read_bytes, read_bytes_each, read_str, read_str_each, ReadOptions};
+pub use interp::{read_bytes, read_str, read_str_each, ReadOptions};
 pub use moves::{ArcGeometry, Axis, Move, MoveKind, NoteWord, NurbsGeometry, PathControl, Plane, Program};

@@ -42,7 +42,7 @@
 //! every control point), and at any check point the rows whose exact value at
 //! the last iterate exceeded `activity` × limit (a row, once in, stays in).
 //! Each LP's interior-point solve starts from the last plan ([`crate::lp::banded_ipm`])
-//! and stops at a relative gap of [`LP_TOL`]. After each LP the exact
+//! and stops at a relative gap of `LP_TOL`. After each LP the exact
 //! kinematics (eqs. 1–6 as in [`crate::plan::verify`]) are evaluated at every check
 //! point; the best iterate with every exact ratio ≤ 1 + `tol` is the plan.
 //! This keeps the LPs at a few thousand banded rows (≤ 4 non-zeros each).
@@ -422,7 +422,7 @@ const CAP_RETRIES: usize = 3;
 
 /// The exact check's tolerance on q(s)/q_cap at the curvature jumps: the
 /// acceleration step there, |Δr″|·q, is bounded by that cap alone (no check
-/// point sees it). A converged LP holds its rows to [`LP_TOL`], so the caps
+/// point sees it). A converged LP holds its rows to `LP_TOL`, so the caps
 /// go into the LPs exact; 10⁻⁴ of q is 10⁻⁴ of that step.
 pub const CAP_TOL: f64 = 1e-4;
 

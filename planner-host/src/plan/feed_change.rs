@@ -18,7 +18,7 @@ pub struct FeedChange<'a> {
     /// vector), from the start or by an earlier replan.
     pub ctrl: &'a [f64],
     /// The running plan's feed limit along the path
-    /// ([`PlanOutput::feed_limit`]): it holds up to the new feed's start.
+    /// ([`PlanOutput::feed_limit`](crate::plan::PlanOutput::feed_limit)): it holds up to the new feed's start.
     pub before: &'a FeedProfile,
     /// The splice point s_b, mm: q is the running plan's up to it.
     pub s_mm: f64,

@@ -33,7 +33,7 @@
 //!
 //! The start and stop joins are the running plan's (its end rows): a splice
 //! in the start join, or within a window of the stop join, is refused
-//! ([`SpliceError`]).
+//! (`SpliceError`).
 
 use crate::plan::config::{Formulation, PlanConfig};
 use crate::plan::error::{PlanError, SpliceError};

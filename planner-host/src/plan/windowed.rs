@@ -23,7 +23,7 @@
 //!   never split between fixed and free control points.
 //!
 //! Each window is the certified sequence on its fixed control points
-//! ([`trust_region::solve_window_until`]: a pseudo-jerk LP, then linearised
+//! (`trust_region::solve_window_until`: a pseudo-jerk LP, then linearised
 //! LPs from min(q̂, the window before up to halfway between its commit and
 //! its end: the window before over its whole length, braking included, held
 //! the next one low, +8.8 % on the Butterfly), judged by its time up to that
@@ -39,7 +39,7 @@
 //! override window, solved on the rows that matter (`trust_region`'s lazy
 //! rows: the same LP). Refinement
 //! rounds run on the window's own dense re-evaluation points as the whole
-//! plan's do (points over [`REFINE_TRIGGER`], the peaks beside them and the
+//! plan's do (points over `REFINE_TRIGGER`, the peaks beside them and the
 //! hidden peaks become check points; the forced points past the commit carry
 //! over to the next window), and its control points up to about
 //! [`WindowConfig::commit_mm`] past the join are committed. The geometry
@@ -47,7 +47,7 @@
 //! the window touches, on both cores; the sampling and the curvature jumps
 //! are still the whole path's, and so is the knot vector, but for a long
 //! path whose windows commit as they go it is refined while the windows
-//! plan ([`LpStage::solve_windowed_fed`], `crate::plan::knot_feed`). Where a window reaches and
+//! plan (`LpStage::solve_windowed_fed`, `crate::plan::knot_feed`). Where a window reaches and
 //! what it commits follow from the knots and the curvature jumps alone, not
 //! from the plan before, so the next window's geometry is evaluated on the
 //! other core while a window's LPs are solved (from the second window on:
@@ -62,7 +62,7 @@
 //! in q̄₀; the tangent jerk rows at q̄₀ = q̂ there allow less braking than it
 //! needs, and the first LP has no solution. Such a window is solved again
 //! from the window before's plan, brake to rest included
-//! ([`trust_region::WindowStart::Through`]: a point of its first LP by
+//! (`trust_region::WindowStart::Through`: a point of its first LP by
 //! construction), and counted in [`WindowStats::from_plan_before`]. A
 //! window that still finds no plan is an error ([`PlanError::Window`]),
 //! never a plan past the limits.

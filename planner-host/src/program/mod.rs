@@ -13,7 +13,7 @@
 //! - [`travel`]: the machine's travel limits, checked before any motion;
 //! - [`plan`]: every path planned by [`crate::plan_curve`] at its feed or
 //!   the rapid velocity;
-//! - [`file`]: the program file, the tables in order with their source
+//! - [`mod@file`]: the program file, the tables in order with their source
 //!   lines, CRC-checked.
 
 pub mod blend;

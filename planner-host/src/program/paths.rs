@@ -6,7 +6,7 @@
 //!
 //! - the tangent is continuous: the end tangent of one move and the start
 //!   tangent of the next differ by at most [`JOIN_ANGLE_RAD`] (half the
-//!   planner's corner threshold [`CORNER_ANGLE_RAD`], so that a join this
+//!   planner's corner threshold `CORNER_ANGLE_RAD`, so that a join this
 //!   code accepts is never refused by the planner as a corner);
 //! - (the feed may change: each `F` applies from its block on, and the path
 //!   is planned with the feed limit v̄(s) of its blocks,
