@@ -305,7 +305,9 @@ enum Cmd {
         /// A ratio fails above 1 + TOL.
         #[arg(long, default_value_t = 0.01)]
         tol: f64,
-        /// Print one JSON object instead of the text summary.
+        /// Print one JSON object instead of the text summary (a part program's: its figures
+        /// and a row per path, kept in a temporary file as the paths end and printed when the
+        /// program has run: nothing is printed if it fails).
         #[arg(long)]
         json: bool,
     },
