@@ -24,7 +24,9 @@
 //!   text ([`ProgramSource::Text`], as `feedsim stream PART.ngc` gives it)
 //!   is read as it streams in both passes, its moves never all held (a
 //!   program that fails to read is refused by the first pass); one read
-//!   whole ([`ProgramSource::Read`]) holds its moves throughout.
+//!   whole ([`ProgramSource::Read`]) holds its moves throughout. Each
+//!   path's row of the report can leave as the path ends
+//!   ([`stream_program_rows`]).
 //! - **Continuity.** Each path's first setpoint is the previous path's last
 //!   within [`JOIN_TOL_MM`], else [`StreamError::Gap`].
 //! - **Time.** Path k + 1's session opens one servo period after path k's
@@ -203,7 +205,7 @@ pub struct ProgramStreamReport {
     pub override_feed_ratio: f64,
     /// Every path's check passed.
     pub check_ok: bool,
-    /// Each path.
+    /// Each path (empty from [`stream_program_rows`], which hands them on).
     pub path: Vec<StreamedPath>,
 }
 
