@@ -19,7 +19,7 @@ TOOLCHAIN=${FUZZ_TOOLCHAIN:-nightly}
 # --workspace`, which runs tests/tests/fuzz_corpus.rs)
 if [ "${FUZZ_REPLAY:-1}" = 1 ]; then
   echo "== fuzz corpus replay (stable)"
-  cargo test -p e2e-tests --test fuzz_corpus
+  cargo test -p e2e-tests --test suite fuzz_corpus::
 fi
 
 have_tools() {

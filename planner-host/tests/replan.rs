@@ -5,7 +5,7 @@
 //! can reach, every limit holds on the dense re-evaluation, and a change
 //! that cannot be planned is refused with what is wrong.
 //!
-//! Printed: `cargo test --release -p planner-host --test replan -- --nocapture`.
+//! Printed: `cargo test --release -p planner-host --test suite replan:: -- --nocapture`.
 
 use planner_host::lp::BasisRow;
 use planner_host::plan::replan::{replan, slowdown_mm, FeedChange};

@@ -1,7 +1,7 @@
 //! The built-in curves' planned tables cut into streaming chunks: the
 //! chunks decode to the table's own q spans and pieces, word for word, at
 //! several chunk lengths, with and without the u form; the stream's bytes
-//! per mm are printed (`cargo test -p planner-host --test stream -- --nocapture`).
+//! per mm are printed (`cargo test -p planner-host --test suite stream:: -- --nocapture`).
 
 use firmware_core::stream::{Chunk, ChunkRing};
 use firmware_core::Table;

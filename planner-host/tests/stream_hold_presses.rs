@@ -13,7 +13,7 @@
 //! Butterfly in 8 mm chunks and the Fan in 4 mm chunks through a 128:256
 //! window (measured: `examples/hold_press_spread.rs`).
 
-mod support;
+use crate::support;
 
 use firmware_core::Table;
 use planner_host::stream_hold::{on_big_stack, presses_near_hold_points, set_hold_points, HoldSearch};

@@ -6,7 +6,7 @@
 //! position), or rows that do not start and end at the head's points, are
 //! refused with nothing changed.
 
-mod support;
+use crate::support;
 
 use firmware_core::interp::Interpolator;
 use firmware_core::stream::{Chunk, PlanWindow, WindowError, JOIN_TOL_FX};

@@ -10,7 +10,7 @@
 //! The full family (200 curves × PAR/LEN/ADA × 0.5/1/2 points per mm) is
 //! the example `curve_family`; its figures are in docs/curve-family.md.
 //!
-//! `cargo test -p e2e-tests --test curve_family -- --nocapture` prints a
+//! `cargo test -p e2e-tests --test suite curve_family:: -- --nocapture` prints a
 //! row per curve.
 
 use e2e_tests::curve_family::sweep::{self, above, Failure, Run, KINDS, TOL};

@@ -6,7 +6,7 @@
 //! (certified) formulation at several sampling densities and hold every limit
 //! on a dense re-evaluation (20 points per knot span of q).
 //!
-//! `cargo test -p e2e-tests --test hard_curves -- --nocapture` prints a row
+//! `cargo test -p e2e-tests --test suite hard_curves:: -- --nocapture` prints a row
 //! per fixture and density: T, the worst dense ratio and its limit, plan time
 //! and the curvature jumps.
 

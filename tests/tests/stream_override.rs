@@ -7,7 +7,7 @@
 //! splice, against the feed limit of the change; the new feed holds from
 //! where the replan put it and is reached.
 //!
-//! Printed: `cargo test --release -p e2e-tests --test stream_override -- --nocapture`.
+//! Printed: `cargo test --release -p e2e-tests --test suite stream_override:: -- --nocapture`.
 
 use firmware_core::interp::Spliced;
 use firmware_core::stream::{set_seq, Chunk};
