@@ -149,6 +149,86 @@ fn copy_into<'s, T: Clone>(slot: &'s mut Option<Box<T>>, src: &T) -> &'s mut T {
     }
 }
 
+/// Boxes for a hold-point search's copies of its dry run, made on a thread
+/// of their own as the search starts
+/// ([`HoldPointSearch::with_spares`]).
+///
+/// A search keeps up to [`HISTORY`] copies of its dry run besides a trial
+/// and the pass before it: at a host's window each is over a megabyte, and
+/// first built as the tests need them, they cost more than the tests
+/// (measured on the 11 m meander with `perf`: page faults and copies were
+/// 60 % of the search thread's time up to the first hold point, some
+/// 30 ms). Built beside it, on the core the planning leaves free while the
+/// first motion waits for the search, they are ready when it needs them.
+/// A box taken is copied into whole (its rows held: [`PlanWindow`]'s
+/// `clone_from`) before it is read, as one of the search's own.
+struct Spares<const NQ: usize, const NP: usize> {
+    wanted: bool,
+    made: Option<std::sync::mpsc::Receiver<Box<StreamedRun<NQ, NP>>>>,
+    /// Boxes still to make: one fewer for each the search had to allocate
+    /// itself (none left over but one in the making).
+    to_make: std::sync::Arc<std::sync::atomic::AtomicUsize>,
+}
+
+impl<const NQ: usize, const NP: usize> Default for Spares<NQ, NP> {
+    fn default() -> Self {
+        Spares {
+            wanted: false,
+            made: None,
+            to_make: Default::default(),
+        }
+    }
+}
+
+impl<const NQ: usize, const NP: usize> Spares<NQ, NP> {
+    /// Boxes of the dry run the search starts on `head`'s plan with the
+    /// first `chunks`, made on a thread of their own (none if it cannot
+    /// start: the search then allocates its own).
+    fn start(&mut self, head: StreamHead, ends: Option<EndSegments>, chunks: &[Vec<u8>], period_s: f64) {
+        self.wanted = false;
+        let (tx, rx) = std::sync::mpsc::channel();
+        let chunks = chunks.to_vec();
+        let to_make = std::sync::Arc::clone(&self.to_make);
+        to_make.store(HISTORY + 2, std::sync::atomic::Ordering::Relaxed);
+        let maker = std::thread::Builder::new()
+            .stack_size(BIG_STACK_BYTES)
+            .spawn(move || {
+                let Ok(template) = StreamedRun::<NQ, NP>::start_with(&head, ends, &chunks, period_s) else {
+                    return;
+                };
+                while take_one(&to_make) {
+                    // (the search gone: no more)
+                    if tx.send(Box::new(template.clone())).is_err() {
+                        break;
+                    }
+                }
+            });
+        self.made = maker.is_ok().then_some(rx);
+    }
+
+    /// A box made, if one is ready (else the caller allocates one, and one
+    /// fewer is made).
+    fn take(&mut self) -> Option<Box<StreamedRun<NQ, NP>>> {
+        let made = self.made.as_ref()?.try_recv().ok();
+        if made.is_none() {
+            take_one(&self.to_make);
+        }
+        made
+    }
+
+    /// `src` copied into `slot`: into its box, else a spare, else a new one.
+    fn copy_into<'s>(
+        &mut self,
+        slot: &'s mut Option<Box<StreamedRun<NQ, NP>>>,
+        src: &StreamedRun<NQ, NP>,
+    ) -> &'s mut StreamedRun<NQ, NP> {
+        if slot.is_none() {
+            *slot = self.take();
+        }
+        copy_into(slot, src)
+    }
+}
+
 impl<const NQ: usize, const NP: usize> StreamedRun<NQ, NP> {
     /// At the start of `table`'s plan cut into `chunks`, the first chunks
     /// that fit pushed.
@@ -518,6 +598,8 @@ pub struct HoldPointSearch<const NQ: usize, const NP: usize> {
     scratch: Option<DryIp<NQ, NP>>,
     trial: Option<Box<StreamedRun<NQ, NP>>>,
     at_pass: Option<Box<StreamedRun<NQ, NP>>>,
+    /// Boxes for the copies, built beside the search ([`Spares`]).
+    spares: Spares<NQ, NP>,
 }
 
 /// Coarse tests the search keeps the dry run of, to look back from a
@@ -570,7 +652,16 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
             scratch: None,
             trial: None,
             at_pass: None,
+            spares: Spares::default(),
         }
+    }
+
+    /// The boxes the search copies its dry run into built on a thread of
+    /// their own as it starts ([`Spares`]): for a first motion that waits
+    /// for the first hold points while a core is free.
+    pub fn with_spares(mut self) -> Self {
+        self.spares.wanted = true;
+        self
     }
 
     /// The plan's end segments, the stop's fields final.
@@ -621,6 +712,9 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
         }
         let all = self.chunk_last.last().copied().unwrap_or(false);
         if self.run.is_none() {
+            if self.spares.wanted {
+                self.spares.start(self.head, self.ends, chunks, self.how.period_s);
+            }
             self.run = Some(Box::new(StreamedRun::start_with(
                 &self.head,
                 self.ends,
@@ -636,7 +730,7 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                 // (the chunks that came since the tick, into the window the
                 // tests cut back: as if they had been there at it)
                 run.push(chunks)?;
-                keep(&mut self.history, run, s);
+                keep(&mut self.history, &mut self.spares, run, s);
                 // Chunk i at this tick; on failure its hold point from the
                 // tests before, and chunk i + 1 at this tick.
                 let coarse = self.how.coarse_mm.max(self.how.step_mm);
@@ -710,7 +804,7 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
             let sp = run.step(chunks)?;
             if self.keep_at.is_some_and(|k| sp.s_mm >= k) {
                 self.keep_at = None;
-                keep(&mut self.history, run, sp.s_mm);
+                keep(&mut self.history, &mut self.spares, run, sp.s_mm);
             }
             let entered = self.entering
                 && self
@@ -764,7 +858,7 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                 found = Some(k);
                 break;
             }
-            let t = copy_into(&mut self.trial, &*self.history[k].0);
+            let t = self.spares.copy_into(&mut self.trial, &*self.history[k].0);
             t.push(chunks)?;
             if !holds_i(t) {
                 // (chunk i did not fit the window yet: nor the firmware's)
@@ -822,7 +916,9 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
         let h = self.how;
         let (step, coarse) = (h.step_mm, h.coarse_mm.max(h.step_mm));
         let (mut pass_s, mut fail_s) = (self.history[k].1, self.history[k + 1].1);
-        copy_into(&mut self.trial, &*self.history[k].0).push(chunks)?;
+        self.spares
+            .copy_into(&mut self.trial, &*self.history[k].0)
+            .push(chunks)?;
         // halving the stretch between a pass and a failure down to a coarse
         // step (the run at the pass kept in `at_pass` while one halfway on
         // is tested)
@@ -830,7 +926,7 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
             let (Some(t), at_pass) = (self.trial.as_deref_mut(), &mut self.at_pass) else {
                 return Ok(NOT_ALONE_MM);
             };
-            copy_into(at_pass, &*t);
+            self.spares.copy_into(at_pass, &*t);
             let goal = 0.5 * (pass_s + fail_s);
             t.run_to(goal, chunks)?;
             t.push(chunks)?;
@@ -878,7 +974,7 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
             // copied again)
             let (mut base, mut at_base) = (None, false);
             for j in (0..=k).rev() {
-                let t = copy_into(&mut self.trial, &*self.history[j].0);
+                let t = self.spares.copy_into(&mut self.trial, &*self.history[j].0);
                 t.push(chunks)?;
                 at_base = holds_i(t);
                 if !at_base {
@@ -891,7 +987,9 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
             }
             if let Some(j) = base {
                 if !at_base {
-                    copy_into(&mut self.trial, &*self.history[j].0).push(chunks)?;
+                    self.spares
+                        .copy_into(&mut self.trial, &*self.history[j].0)
+                        .push(chunks)?;
                 }
                 let Some(t) = self.trial.as_deref_mut() else {
                     return Ok(NOT_ALONE_MM);
@@ -939,7 +1037,7 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
             let Some(j) = self.history.iter().rposition(|r| r.1 <= s_c) else {
                 return Ok(NOT_ALONE_MM);
             };
-            let t = copy_into(&mut self.trial, &*self.history[j].0);
+            let t = self.spares.copy_into(&mut self.trial, &*self.history[j].0);
             t.push(chunks)?;
             t.run_to(s_c, chunks)?;
             t.push(chunks)?;
@@ -987,10 +1085,17 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
     }
 }
 
+/// One fewer of `count` if any are left.
+fn take_one(count: &std::sync::atomic::AtomicUsize) -> bool {
+    use std::sync::atomic::Ordering::Relaxed;
+    count.fetch_update(Relaxed, Relaxed, |n| n.checked_sub(1)).is_ok()
+}
+
 /// The dry run `run` at `s` kept at the history's end (into the oldest's
 /// box once it is full), unless kept there already.
 fn keep<const NQ: usize, const NP: usize>(
     history: &mut std::collections::VecDeque<(Box<StreamedRun<NQ, NP>>, f64)>,
+    spares: &mut Spares<NQ, NP>,
     run: &StreamedRun<NQ, NP>,
     s: f64,
 ) {
@@ -999,7 +1104,7 @@ fn keep<const NQ: usize, const NP: usize>(
     }
     let mut kept = match history.len() == HISTORY {
         true => history.pop_front().map(|h| h.0),
-        false => None,
+        false => spares.take(),
     };
     copy_into(&mut kept, run);
     if let Some(b) = kept {

@@ -418,6 +418,17 @@ pub fn plan_and_stream_from<const NQ: usize, const NP: usize>(
     // (the search tells how many messages it has taken in: the first
     // motion's gate below)
     let (taken_tx, taken_rx) = mpsc::channel::<usize>();
+    // The search's boxes built beside it where its first hold points are
+    // what the first motion waits for: a plan from rest in windows (not
+    // one no longer than a window, planned whole, as most paths of a part
+    // program are: their searches need few boxes; its control polygon is
+    // no shorter than the path)
+    let polygon_mm: f64 = curve
+        .points
+        .windows(2)
+        .map(|w| (0..3).map(|k| (w[1][k] - w[0][k]).powi(2)).sum::<f64>().sqrt())
+        .sum();
+    let spares = change.is_none() && cfg.windows.is_some_and(|w| !w.plans_whole(polygon_mm));
     let (plan, searched) = std::thread::scope(|scope| {
         // (the window and the dry run's copies of it live on this stack)
         let searcher = std::thread::Builder::new()
@@ -430,6 +441,9 @@ pub fn plan_and_stream_from<const NQ: usize, const NP: usize>(
                     match m {
                         Planned::Head(h) => {
                             let mut s = HoldPointSearch::new(&h, h.ends, *how, t0);
+                            if spares {
+                                s = s.with_spares();
+                            }
                             s.given.clone_from(&given);
                             search = Some(s);
                             head = Some(h);

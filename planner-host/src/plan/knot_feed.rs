@@ -195,8 +195,9 @@ impl<'a> KnotFeed<'a> {
         self.grown.notify_all();
     }
 
-    /// Refine on: the first window's plan has left (until then both cores
-    /// are the first window's, which the first motion waits for; a window
+    /// Refine on: the first window's plan has left and been told (until
+    /// then both cores are the first window's and then the search for its
+    /// chunks' hold points, which the first motion waits for; a window
     /// asking for more knots also starts the refinement).
     pub(crate) fn go(&self) {
         let mut st = self.state.lock().unwrap_or_else(|e| e.into_inner());

@@ -315,10 +315,6 @@ fn plan_curve_inner(
     let su_slot: SuSlot = Default::default();
     let sink = |c: &Commit| {
         let Some(f) = on_commit else { return };
-        // (the first window's plan is out: the knots refine on beside)
-        if let Some(feed) = &feed {
-            feed.go();
-        }
         // q is final below U_{through+1}; all of it with the last commit
         let need = match c.last {
             true => f64::INFINITY,
@@ -349,6 +345,13 @@ fn plan_curve_inner(
                 let k = slot.segments.len();
                 drop_front(&mut slot.breaks, &mut slot.segments, &mut slot.first, k);
             }
+        }
+        drop(slot);
+        // (the first window's plan is out and told, and the first motion's
+        // search has had the cores while it was told: the knots refine on
+        // beside the next windows)
+        if let Some(feed) = &feed {
+            feed.go();
         }
     };
     let sink: Option<&CommitSink<'_>> = on_commit.map(|_| &sink as &CommitSink<'_>);
