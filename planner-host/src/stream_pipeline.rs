@@ -423,12 +423,10 @@ pub fn plan_and_stream_from<const NQ: usize, const NP: usize>(
     // one no longer than a window, planned whole, as most paths of a part
     // program are: their searches need few boxes; its control polygon is
     // no shorter than the path)
-    let polygon_mm: f64 = curve
-        .points
-        .windows(2)
-        .map(|w| (0..3).map(|k| (w[1][k] - w[0][k]).powi(2)).sum::<f64>().sqrt())
-        .sum();
-    let spares = change.is_none() && cfg.windows.is_some_and(|w| !w.plans_whole(polygon_mm));
+    let spares = change.is_none()
+        && cfg
+            .windows
+            .is_some_and(|w| !w.plans_whole(curve.polygon_length_mm()));
     let (plan, searched) = std::thread::scope(|scope| {
         // (the window and the dry run's copies of it live on this stack)
         let searcher = std::thread::Builder::new()
