@@ -11,7 +11,9 @@
 # keep the programmed period, so the rate printed ("servo: ... Hz", against SysTick in
 # QEMU's virtual time) is QEMU's, not the board's; the run uses -icount (deterministic).
 # Usage: qemu-board.sh CURVE.json   (needs target/release/feedplan and feedsim, or
-# FEEDPLAN=... FEEDSIM=... pointing at them)
+# FEEDPLAN=... FEEDSIM=... pointing at them). The QEMU images are built in
+# boards/stm32f4/target/qemu (BOARD_TARGET_DIR=DIR, relative to boards/stm32f4, to
+# choose: CI builds them over the board's own release build, sharing its dependencies).
 set -euo pipefail
 curve=$1
 root=$(cd "$(dirname "$0")/.." && pwd)
@@ -22,13 +24,15 @@ host=$("${FEEDSIM:-$root/target/release/feedsim}" run "$table" --json)
 host_ticks=$(python3 -c 'import json,sys; print(json.loads(sys.argv[1])["setpoints"])' "$host")
 host_digest=$(python3 -c 'import json,sys; print(json.loads(sys.argv[1])["setpoint_digest"])' "$host")
 board=$root/boards/stm32f4
+tdir=${BOARD_TARGET_DIR:-target/qemu}
 (
   cd "$board"
   export BOARD_TABLE="$table"
-  cargo clippy --release --features qemu,baked-table --target-dir target/qemu -- -D warnings
-  cargo build --release --features qemu,baked-table --target-dir target/qemu
+  cargo clippy --release --features qemu,baked-table --target-dir "$tdir" -- -D warnings
+  cargo build --release --features qemu,baked-table --target-dir "$tdir"
 )
-elf=$board/target/qemu/thumbv7em-none-eabihf/release/board-stm32f4
+case $tdir in /*) ;; *) tdir=$board/$tdir ;; esac
+elf=$tdir/thumbv7em-none-eabihf/release/board-stm32f4
 qemu_args=(-M netduinoplus2 -nographic -icount shift=3,sleep=off -semihosting-config enable=on,target=native)
 out=$(timeout -k 5 120 qemu-system-arm "${qemu_args[@]}" -kernel "$elf" </dev/null 2>&1) || {
   echo "$out"; echo "board firmware under QEMU failed" >&2; exit 1; }
@@ -47,7 +51,7 @@ python3 "$root/firmware-core/mcu/bench_insn.py" "$elf" --machine netduinoplus2 \
 # at rest when the input is released, the resume taken, the run must end, and the steps
 # emitted must equal the last setpoint's position in steps.
 (cd "$board" && BOARD_TABLE="$table" BOARD_QEMU_HOLD_AT=2000 BOARD_QEMU_HOLD_TICKS=4000 \
-  cargo build --release --features qemu,baked-table --target-dir target/qemu)
+  cargo build --release --features qemu,baked-table --target-dir "$tdir")
 out=$(timeout -k 5 120 qemu-system-arm "${qemu_args[@]}" -kernel "$elf" </dev/null 2>&1) || {
   echo "$out"; echo "hold run failed" >&2; exit 1; }
 if ! grep -q '^feed hold:' <<<"$out" || ! grep -q '^resume:.*Held$' <<<"$out" || ! grep -q '^run: done' <<<"$out"; then
@@ -59,7 +63,7 @@ grep -E '^(feed hold|resume|ticks|steps):' <<<"$out" | sed 's/^/  hold run: /'
 frame=$(mktemp --suffix=.frame)
 if python3 "$board/frame-table.py" "$table" "$frame" 2>/dev/null; then
   # (the same target directory: only this crate is built again, over the image above)
-  (cd "$board" && cargo build --release --features qemu --target-dir target/qemu)
+  (cd "$board" && cargo build --release --features qemu --target-dir "$tdir")
   link_elf=$elf
   fifo=$(mktemp -d)
   mkfifo "$fifo/link.in" "$fifo/link.out"

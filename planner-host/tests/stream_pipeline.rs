@@ -352,6 +352,16 @@ fn fed_meander() -> (planner_host::Nurbs, PlanConfig) {
     (curve, cfg)
 }
 
+/// [`fed_meander`] planned whole without commits, once for the tests that
+/// read it (they run in one process).
+fn fed_meander_whole() -> &'static planner_host::plan::PlanOutput {
+    static WHOLE: std::sync::OnceLock<planner_host::plan::PlanOutput> = std::sync::OnceLock::new();
+    WHOLE.get_or_init(|| {
+        let (curve, cfg) = fed_meander();
+        plan_curve(&curve, &cfg).unwrap()
+    })
+}
+
 /// A path of more samples than three stretches of the knot refinement (the
 /// 1.2 m meander at 10 points per mm, windows of 100/40 mm, its sample
 /// intervals split where they turn by more than 0.01 rad, so that the
@@ -363,7 +373,7 @@ fn fed_meander() -> (planner_host::Nurbs, PlanConfig) {
 #[test]
 fn knots_refined_while_the_windows_plan_give_the_plan_on_the_whole_refined_vector() {
     let (curve, cfg) = fed_meander();
-    let whole = plan_curve(&curve, &cfg).unwrap();
+    let whole = fed_meander_whole();
     let opts = ChunkOptions {
         chunk_mm: 16.0,
         max_chunk_bytes: Some(4096),
@@ -413,7 +423,8 @@ fn knots_refined_while_the_windows_plan_give_the_plan_on_the_whole_refined_vecto
 fn a_committed_replan_on_a_path_refined_while_planned_keeps_the_running_plan_up_to_the_splice() {
     let (curve, cfg) = fed_meander();
     let cfg = PlanConfig { table: false, ..cfg };
-    let running = plan_curve_committing(&curve, &cfg, &|_: &Commit| {}).unwrap();
+    // (the plan committed as it went is this one, bit for bit: the test above)
+    let running = fed_meander_whole();
     let before = running.feed_limit();
     let change = FeedChange {
         ctrl: &running.q_ctrl,

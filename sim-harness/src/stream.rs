@@ -483,10 +483,103 @@ pub fn run_stream_head<const CAP: usize, const NQ: usize, const NP: usize>(
     head: &StreamHead,
     chunks: &[Vec<u8>],
     link: &StreamLink,
+    host: Option<&mut dyn StreamHost>,
+    each: &mut dyn FnMut(&Setpoint),
+) -> Result<StreamRun, StreamRunError> {
+    let mut ring: Box<ChunkRing<CAP, RING_SLOTS>> = Box::default();
+    run_through::<NQ, NP>(&mut *ring, head, chunks, link, host, each)
+}
+
+/// Chunk slots of the simulated firmware's ring.
+const RING_SLOTS: usize = 64;
+
+/// The firmware's chunk ring as the simulated run uses it, whatever its
+/// capacity. On the MCU the capacity is a const generic of
+/// [`ChunkRing`]; here the run's loop, by far the larger code, is compiled
+/// once for each window size and reaches the ring through this trait
+/// (nine ring sizes made nine copies of the loop for each window size).
+trait RingOf {
+    fn capacity(&self) -> usize;
+    fn push(
+        &mut self,
+        bytes: &[u8],
+    ) -> Result<firmware_core::stream::PushOk, firmware_core::stream::StreamError>;
+    fn free(&self) -> usize;
+    fn expected_seq(&self) -> Option<u32>;
+    fn len(&self) -> usize;
+    fn get(&self, i: usize) -> Option<Chunk<'_>>;
+    fn release_through(&mut self, s: i64) -> usize;
+    fn refuse_splice(&mut self);
+    fn refuse_head(&mut self) -> Option<u32>;
+}
+
+impl<const CAP: usize> RingOf for ChunkRing<CAP, RING_SLOTS> {
+    fn capacity(&self) -> usize {
+        CAP
+    }
+    fn push(
+        &mut self,
+        bytes: &[u8],
+    ) -> Result<firmware_core::stream::PushOk, firmware_core::stream::StreamError> {
+        ChunkRing::push(self, bytes)
+    }
+    fn free(&self) -> usize {
+        ChunkRing::free(self)
+    }
+    fn expected_seq(&self) -> Option<u32> {
+        ChunkRing::expected_seq(self)
+    }
+    fn len(&self) -> usize {
+        ChunkRing::len(self)
+    }
+    fn get(&self, i: usize) -> Option<Chunk<'_>> {
+        ChunkRing::get(self, i)
+    }
+    fn release_through(&mut self, s: i64) -> usize {
+        ChunkRing::release_through(self, s)
+    }
+    fn refuse_splice(&mut self) {
+        ChunkRing::refuse_splice(self)
+    }
+    fn refuse_head(&mut self) -> Option<u32> {
+        ChunkRing::refuse_head(self)
+    }
+}
+
+/// The chunks `ring` holds, oldest first.
+fn held(ring: &dyn RingOf) -> impl Iterator<Item = Chunk<'_>> + '_ {
+    (0..ring.len()).map_while(|i| ring.get(i))
+}
+
+/// A ring of `bytes` (a power of two, 4096 ..= 1 MiB; larger ones get 1 MiB).
+fn ring_of(bytes: usize) -> Box<dyn RingOf> {
+    fn boxed<const CAP: usize>() -> Box<dyn RingOf> {
+        Box::<ChunkRing<CAP, RING_SLOTS>>::default()
+    }
+    match bytes {
+        4096 => boxed::<4096>(),
+        8192 => boxed::<8192>(),
+        16384 => boxed::<16384>(),
+        32768 => boxed::<32768>(),
+        65536 => boxed::<65536>(),
+        131072 => boxed::<131072>(),
+        262144 => boxed::<262144>(),
+        524288 => boxed::<524288>(),
+        _ => boxed::<1048576>(),
+    }
+}
+
+/// [`run_stream_head`] into `ring`.
+fn run_through<const NQ: usize, const NP: usize>(
+    ring: &mut dyn RingOf,
+    head: &StreamHead,
+    chunks: &[Vec<u8>],
+    link: &StreamLink,
     mut host: Option<&mut dyn StreamHost>,
     each: &mut dyn FnMut(&Setpoint),
 ) -> Result<StreamRun, StreamRunError> {
     let head = *head;
+    let cap = ring.capacity();
     // the chunks as the host sends them (a splice replaces a tail)
     let mut sent = SentChunks::new(chunks, &link.ready_s);
     // (which of the link's substitutions went out)
@@ -506,12 +599,11 @@ pub fn run_stream_head<const CAP: usize, const NQ: usize, const NP: usize>(
     // flight (its stop segment only once it is taken)
     let mut stop_ends = head.ends;
     let mut splice_ends = None;
-    let mut ring: Box<ChunkRing<CAP, 64>> = Box::default();
     // host: the next chunk to send, the last acknowledged, the ring's free
     // bytes as last reported, when the firmware last spoke; the link busy
     // until `link_free_at`; frames down (arrival time, chunk, corrupted)
     // and up (seen by the host at, message)
-    let (mut next, mut acked, mut free) = (0usize, None::<usize>, CAP);
+    let (mut next, mut acked, mut free) = (0usize, None::<usize>, cap);
     let mut last_word = 0.0f64;
     // when the oldest frame still unacknowledged was sent: the resend's
     // timeout runs from it or from the firmware's last word, the later
@@ -569,7 +661,7 @@ pub fn run_stream_head<const CAP: usize, const NQ: usize, const NP: usize>(
         if let Some(at) = f.host_restart_s {
             if !restarted && t >= at {
                 restarted = true;
-                (next, acked, free) = (0, None, CAP);
+                (next, acked, free) = (0, None, cap);
                 up.clear();
                 rewound = None;
             }
@@ -775,7 +867,7 @@ pub fn run_stream_head<const CAP: usize, const NQ: usize, const NP: usize>(
                 Ok(ok) => {
                     last_seq = ok.seq;
                     // (a splice drops the chunks held from its start on)
-                    ring_bytes = ring.iter().map(|c| c.info().len).sum();
+                    ring_bytes = held(ring).map(|c| c.info().len).sum();
                     changed = true;
                     Up::Ack {
                         seq: ok.seq,
@@ -807,7 +899,7 @@ pub fn run_stream_head<const CAP: usize, const NQ: usize, const NP: usize>(
         if let (Some(ipr), Some(c)) = (ip.as_mut(), ring.get(0)) {
             if ipr.splices_rows(&c) {
                 let seq = c.info().seq;
-                let run_chunks: Vec<Chunk<'_>> = ring.iter().collect();
+                let run_chunks: Vec<Chunk<'_>> = held(ring).collect();
                 let taken = ipr.take_splice(&run_chunks);
                 let end = match taken {
                     Ok(Spliced::Taken(k)) => run_chunks.get(k.wrapping_sub(1)).map(|c| c.info().s_b),
@@ -844,7 +936,7 @@ pub fn run_stream_head<const CAP: usize, const NQ: usize, const NP: usize>(
                         up.push_back((t + link.latency_s, Up::Late { seq, held_end }));
                     }
                 }
-                ring_bytes = ring.iter().map(|c| c.info().len).sum();
+                ring_bytes = held(ring).map(|c| c.info().len).sum();
             }
         }
         // ring → window, as it has room
@@ -1738,15 +1830,12 @@ fn run_sized<const Q: usize, const P: usize>(
     host: Option<&mut dyn StreamHost>,
     each: &mut dyn FnMut(&Setpoint),
 ) -> Result<StreamRun, StreamError> {
-    Ok(match ring_bytes {
-        4096 => run_stream_head::<4096, Q, P>(head, chunks, link, host, each),
-        8192 => run_stream_head::<8192, Q, P>(head, chunks, link, host, each),
-        16384 => run_stream_head::<16384, Q, P>(head, chunks, link, host, each),
-        32768 => run_stream_head::<32768, Q, P>(head, chunks, link, host, each),
-        65536 => run_stream_head::<65536, Q, P>(head, chunks, link, host, each),
-        131072 => run_stream_head::<131072, Q, P>(head, chunks, link, host, each),
-        262144 => run_stream_head::<262144, Q, P>(head, chunks, link, host, each),
-        524288 => run_stream_head::<524288, Q, P>(head, chunks, link, host, each),
-        _ => run_stream_head::<1048576, Q, P>(head, chunks, link, host, each),
-    }?)
+    Ok(run_through::<Q, P>(
+        &mut *ring_of(ring_bytes),
+        head,
+        chunks,
+        link,
+        host,
+        each,
+    )?)
 }

@@ -337,6 +337,19 @@ fn plan_at(
     planner_host::plan::plan_curve(&case.curve, &cfg)
 }
 
+/// The plan of regression `k` ([`REGRESSIONS`]) at its sampling and
+/// density, made once for the tests that read it (they run in one process;
+/// these plans are the slow part of both).
+fn regression_plan(k: usize) -> &'static Result<planner_host::plan::PlanOutput, String> {
+    static PLANS: [std::sync::OnceLock<Result<planner_host::plan::PlanOutput, String>>; REGRESSIONS.len()] =
+        [const { std::sync::OnceLock::new() }; REGRESSIONS.len()];
+    PLANS[k].get_or_init(|| {
+        let (index, sampling, density) = REGRESSIONS[k];
+        let (case, _, sampling, _) = regression_case(index, sampling, density);
+        plan_at(&case, sampling, density).map_err(|e| e.to_string())
+    })
+}
+
 /// [`plan_at`], its error noted in `bad` under `name`.
 fn planned(
     case: &e2e_tests::curve_family::Case,
@@ -350,16 +363,10 @@ fn planned(
         .ok()
 }
 
-/// Run `case` through the firmware and note every setpoint ratio above
-/// 1 + [`TOL`] (with the sweep's rest padding), or the run's error.
-fn check_setpoints(
-    case: &e2e_tests::curve_family::Case,
-    sampling: (&'static str, planner_host::sampling::Sampling),
-    density: f64,
-    name: &str,
-    bad: &mut Vec<String>,
-) {
-    match &sweep::run(case, sampling, density).result {
+/// Note every setpoint ratio of `run` (the firmware's run of a plan, with
+/// the sweep's rest padding) above 1 + [`TOL`], or the run's error.
+fn check_run(run: &Run, name: &str, bad: &mut Vec<String>) {
+    match &run.result {
         Ok(m) => {
             for (k, p) in KINDS.iter().zip(m.setpoints()) {
                 if above(p.ratio, 1.0 + TOL) {
@@ -374,10 +381,14 @@ fn check_setpoints(
 #[test]
 fn runs_that_exceeded_or_stalled_now_hold_every_limit() {
     let mut bad = Vec::new();
-    for (index, sampling, density) in REGRESSIONS {
+    for (k, (index, sampling, density)) in REGRESSIONS.into_iter().enumerate() {
         let (case, label, sampling, name) = regression_case(index, sampling, density);
-        let Some(plan) = planned(&case, sampling, density, &name, &mut bad) else {
-            continue;
+        let plan = match regression_plan(k) {
+            Ok(plan) => plan,
+            Err(e) => {
+                bad.push(format!("{name}: {e}"));
+                continue;
+            }
         };
         let arc = planner_host::ArcLength::new(&case.curve);
         for per_span in [20, 200] {
@@ -388,7 +399,11 @@ fn runs_that_exceeded_or_stalled_now_hold_every_limit() {
                 ));
             }
         }
-        check_setpoints(&case, (label, sampling), density, &name, &mut bad);
+        check_run(
+            &sweep::run_planned(&case, (label, sampling), density, plan),
+            &name,
+            &mut bad,
+        );
     }
     assert!(bad.is_empty(), "{}", bad.join("\n"));
 }
@@ -402,10 +417,14 @@ fn runs_that_exceeded_or_stalled_now_hold_every_limit() {
 fn a_path_planned_whole_with_commits_is_retried_on_bisected_spans() {
     let mut retried = 0;
     let mut bad = Vec::new();
-    for (index, sampling, density) in REGRESSIONS.into_iter().filter(|r| r.0 == 30) {
+    for (k, (index, sampling, density)) in REGRESSIONS.into_iter().enumerate().filter(|r| r.1 .0 == 30) {
         let (case, _, sampling, name) = regression_case(index, sampling, density);
-        let Some(plan) = planned(&case, sampling, density, &name, &mut bad) else {
-            continue;
+        let plan = match regression_plan(k) {
+            Ok(plan) => plan,
+            Err(e) => {
+                bad.push(format!("{name}: {e}"));
+                continue;
+            }
         };
         if plan.knot_bisections == 0 {
             continue;
@@ -493,7 +512,11 @@ fn plans_hold_the_caps_at_curvature_jumps() {
                 ));
             }
         }
-        check_setpoints(&case, (label, sampling), density, &name, &mut bad);
+        check_run(
+            &sweep::run_planned(&case, (label, sampling), density, &plan),
+            &name,
+            &mut bad,
+        );
     }
     assert!(bad.is_empty(), "{}", bad.join("\n"));
 }

@@ -46,8 +46,14 @@ fn planned_curve_for<const Q: usize, const P: usize>(
     name: &str,
     chunk_mm: f64,
 ) -> Planned {
-    let out = plan_curve(curve, &PlanConfig::default()).unwrap();
-    let table = Table::parse(&out.table_bytes).unwrap();
+    let bytes = plan_curve(curve, &PlanConfig::default()).unwrap().table_bytes;
+    chunked_for::<Q, P>(bytes, name, chunk_mm)
+}
+
+/// The plan of `table_bytes` in chunks of about `chunk_mm`, hold points
+/// for a firmware window of `Q` q spans and `P` pieces.
+fn chunked_for<const Q: usize, const P: usize>(table_bytes: Vec<u8>, name: &str, chunk_mm: f64) -> Planned {
+    let table = Table::parse(&table_bytes).unwrap();
     let opts = ChunkOptions {
         chunk_mm,
         u_form: true,
@@ -62,7 +68,7 @@ fn planned_curve_for<const Q: usize, const P: usize>(
         hp.tests
     );
     Planned {
-        bytes: out.table_bytes,
+        bytes: table_bytes,
         chunks,
         s_c_mm: hp.s_c_mm,
     }
@@ -317,13 +323,22 @@ fn windows_full_mcu_window() {
     }
 }
 
+/// The 11 m meander's table with the default configuration, planned once
+/// for the tests that stream it (they run in one process).
+fn meander_11m_table() -> &'static [u8] {
+    static TABLE: std::sync::OnceLock<Vec<u8>> = std::sync::OnceLock::new();
+    TABLE.get_or_init(|| {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../planner-host/curves/long/meander-11m.json");
+        let curve = planner_host::cli::load_curve(&path).unwrap();
+        plan_curve(&curve, &PlanConfig::default()).unwrap().table_bytes
+    })
+}
+
 fn full_mcu_window(chunk_mm: f64) {
     const Q: usize = 128;
     const P: usize = 256;
-    let path =
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../planner-host/curves/long/meander-11m.json");
-    let curve = planner_host::cli::load_curve(&path).unwrap();
-    let p = planned_curve_for::<Q, P>(&curve, "meander-11m", chunk_mm);
+    let p = chunked_for::<Q, P>(meander_11m_table().to_vec(), "meander-11m", chunk_mm);
     let table = Table::parse(&p.bytes).unwrap();
     let run = run_stream::<{ 16 * 1024 }, Q, P>(&table, &p.chunks, &link(2e6, vec![])).unwrap();
     assert!(run.starvations >= 10, "{} starvations", run.starvations);

@@ -20,7 +20,7 @@ use std::collections::BTreeMap;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::time::Instant;
 
-use planner_host::{plan_curve, ArcLength, PlanConfig, PlanError, Sampling};
+use planner_host::{plan_curve, ArcLength, PlanConfig, PlanError, PlanOutput, Sampling};
 use serde_json::{json, Value};
 use sim_harness::check::{CheckReport, Peak};
 use sim_harness::{check_trajectory, run_table, CheckConfig, SimConfig, Trajectory};
@@ -247,14 +247,26 @@ pub fn plan_error_kind(e: &PlanError) -> &'static str {
 /// Plan, run and check `case` at one sampling and density; a panic
 /// anywhere is caught and recorded as [`Failure::Panic`].
 pub fn run(case: &Case, sampling: (&'static str, Sampling), density: f64) -> Run {
-    let result = catch_unwind(AssertUnwindSafe(|| measure(case, sampling.1, density))).unwrap_or_else(|p| {
-        let msg = p
-            .downcast_ref::<String>()
-            .cloned()
-            .or_else(|| p.downcast_ref::<&str>().map(|s| s.to_string()))
-            .unwrap_or_else(|| "(no message)".into());
-        Err(Failure::Panic(msg))
-    });
+    run_with(case, sampling, density, None)
+}
+
+/// [`run`] on `plan`, the plan of `case` at that sampling and density
+/// with the default configuration (planned by the caller, who checks it
+/// further): run and checked as [`run`] does, without planning it again.
+pub fn run_planned(case: &Case, sampling: (&'static str, Sampling), density: f64, plan: &PlanOutput) -> Run {
+    run_with(case, sampling, density, Some(plan))
+}
+
+fn run_with(case: &Case, sampling: (&'static str, Sampling), density: f64, plan: Option<&PlanOutput>) -> Run {
+    let result =
+        catch_unwind(AssertUnwindSafe(|| measure(case, sampling.1, density, plan))).unwrap_or_else(|p| {
+            let msg = p
+                .downcast_ref::<String>()
+                .cloned()
+                .or_else(|| p.downcast_ref::<&str>().map(|s| s.to_string()))
+                .unwrap_or_else(|| "(no message)".into());
+            Err(Failure::Panic(msg))
+        });
     Run {
         index: case.index,
         curve: case.curve.name.clone(),
@@ -269,7 +281,12 @@ pub fn run(case: &Case, sampling: (&'static str, Sampling), density: f64) -> Run
     }
 }
 
-fn measure(case: &Case, sampling: Sampling, density: f64) -> Result<Measured, Failure> {
+fn measure(
+    case: &Case,
+    sampling: Sampling,
+    density: f64,
+    planned: Option<&PlanOutput>,
+) -> Result<Measured, Failure> {
     let curve = &case.curve;
     let cfg = PlanConfig {
         sampling,
@@ -277,11 +294,23 @@ fn measure(case: &Case, sampling: Sampling, density: f64) -> Result<Measured, Fa
         ..PlanConfig::default()
     };
     let t0 = Instant::now();
-    let plan = plan_curve(curve, &cfg).map_err(|e| Failure::Plan {
-        kind: plan_error_kind(&e),
-        message: e.to_string(),
-    })?;
-    let plan_s = t0.elapsed().as_secs_f64();
+    let own;
+    let plan = match planned {
+        Some(p) => p,
+        None => {
+            own = plan_curve(curve, &cfg).map_err(|e| Failure::Plan {
+                kind: plan_error_kind(&e),
+                message: e.to_string(),
+            })?;
+            &own
+        }
+    };
+    // (NaN: planned by the caller, not timed here)
+    let plan_s = if planned.is_some() {
+        f64::NAN
+    } else {
+        t0.elapsed().as_secs_f64()
+    };
     let arc = ArcLength::new(curve);
     let d = plan.dense_check(curve, &arc, DENSE_PER_SPAN);
     let (r, at) = (d.ratios, d.argmax_s);
