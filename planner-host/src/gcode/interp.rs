@@ -34,6 +34,7 @@ use super::error::{arc, feed, nurbs, syntax, unsupported, GcodeError};
 use super::lex::{clean, read_block, text_of, Block};
 use super::moves::{ArcGeometry, Move, MoveKind, NoteWord, NurbsGeometry, PathControl, Plane, Program};
 use super::params::{ParamKey, Params, FIRST_SYSTEM};
+use crate::geometry::curve::{norm, sub};
 
 const MM_PER_INCH: f64 = 25.4;
 const TAU: f64 = std::f64::consts::TAU;
@@ -337,10 +338,6 @@ impl Letters {
 
 fn fmt_num(v: f64) -> String {
     format!("{v}")
-}
-
-fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
-    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
 }
 
 impl Interp {
@@ -1064,13 +1061,13 @@ impl Interp {
                         "a control point after the closing knot-only lines",
                     ));
                 }
-                if g.cps.is_empty() && dist(pt, start) > 1e-3 {
+                if g.cps.is_empty() && norm(sub(pt, start)) > 1e-3 {
                     return Err(nurbs(
                         line,
                         "G6.2",
                         format!(
                             "the first control point is {:.4} mm from the current point: the curve would start with a jump",
-                            dist(pt, start)
+                            norm(sub(pt, start))
                         ),
                     ));
                 }

@@ -597,6 +597,11 @@ fn binom(k: usize, i: usize) -> f64 {
     B[k][i]
 }
 
+/// Difference a − b.
+pub(crate) fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
 /// Euclidean norm.
 pub(crate) fn norm(v: [f64; 3]) -> f64 {
     dot(v, v).sqrt()

@@ -33,7 +33,7 @@
 //! the blend is a closed form, the cut a one-dimensional search.
 
 use crate::geometry::arc_length::ArcLength;
-use crate::geometry::curve::Nurbs;
+use crate::geometry::curve::{dot, norm, sub, Nurbs};
 use crate::program::pieces::Piece;
 
 /// Points of the blend (and of each cut-off part) the deviation is measured at.
@@ -238,20 +238,8 @@ fn add(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
 }
 
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
 fn scale(a: [f64; 3], k: f64) -> [f64; 3] {
     [a[0] * k, a[1] * k, a[2] * k]
-}
-
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-fn norm(a: [f64; 3]) -> f64 {
-    dot(a, a).sqrt()
 }
 
 #[cfg(test)]

@@ -43,7 +43,8 @@
 
 use firmware_core::math::basis::{self, BasisDerivs, MAX_DEGREE};
 
-use crate::program::pieces::{norm, sub, Piece};
+use crate::geometry::curve::{norm, sub};
+use crate::program::pieces::Piece;
 
 /// Degree of the fitted spline (C², curvature continuous).
 pub const FIT_DEGREE: usize = 3;

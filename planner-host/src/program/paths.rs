@@ -74,10 +74,11 @@ use std::borrow::Cow;
 
 use crate::gcode::{read_str_each, GcodeError, Move, MoveKind, PathControl, Program, ReadOptions};
 use crate::geometry::curve::Nurbs;
+use crate::geometry::curve::{norm, sub};
 use crate::geometry::junction::CORNER_ANGLE_RAD;
 use crate::program::blend::{blend_corner, Blend};
 use crate::program::fit::{fit_chords, FitError};
-use crate::program::pieces::{self, angle_between, move_length, norm, sub, Piece, PieceError};
+use crate::program::pieces::{self, angle_between, move_length, Piece, PieceError};
 
 /// Largest tangent turn between two moves that still joins them into one
 /// path, rad.

@@ -29,6 +29,7 @@
 use std::f64::consts::FRAC_PI_2;
 
 use crate::gcode::{Move, MoveKind};
+use crate::geometry::curve::{norm, sub};
 
 /// Largest distance between a fitted helix and the exact helix, mm.
 pub const HELIX_TOL_MM: f64 = 1e-4;
@@ -238,14 +239,6 @@ pub fn elevate_bezier(pts: &[[f64; 4]]) -> Vec<[f64; 4]> {
     }
     q.push(pts[p]);
     q
-}
-
-pub(crate) fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-pub(crate) fn norm(a: [f64; 3]) -> f64 {
-    (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
 }
 
 fn unit(a: [f64; 3]) -> Option<[f64; 3]> {

@@ -3,8 +3,9 @@
 
 use crate::gcode::{read_str, Move, MoveKind, ReadOptions};
 use crate::geometry::curve::Nurbs;
+use crate::geometry::curve::{norm, sub};
 use crate::program::paths::{paths_of, Paths};
-use crate::program::pieces::{norm, sub, ArcPath, HELIX_TOL_MM};
+use crate::program::pieces::{ArcPath, HELIX_TOL_MM};
 
 /// Points per move in the dense check.
 const DENSE: usize = 2000;
