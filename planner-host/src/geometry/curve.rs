@@ -45,10 +45,7 @@ impl Nurbs {
     /// Length of the control polygon, mm: no shorter than the curve (a
     /// bound that needs no arc length).
     pub fn polygon_length_mm(&self) -> f64 {
-        self.points
-            .windows(2)
-            .map(|w| norm([w[1][0] - w[0][0], w[1][1] - w[0][1], w[1][2] - w[0][2]]))
-            .sum()
+        self.points.windows(2).map(|w| norm(sub(w[1], w[0]))).sum()
     }
 
     /// A validated curve from its parts; the name is `"curve"`.
