@@ -217,7 +217,10 @@ struct WindowGeometry {
     /// Check points, and whether each is a knot (rows from the first LP).
     checks: Vec<(EvalPoint, bool)>,
     win_caps: Vec<crate::lp::JumpCap>,
-    dense: Vec<EvalPoint>,
+    /// The dense points: evaluated with the rest when the geometry is
+    /// made ahead, else beside the window's first solve (they are read
+    /// only after it).
+    dense: Option<Vec<EvalPoint>>,
 }
 
 impl LpStage<'_> {
@@ -507,7 +510,7 @@ impl LpStage<'_> {
         // check points and dense points. It depends on where the window
         // before committed only (not on its plan), so the next window's is
         // evaluated on the other core while this one's LPs are solved.
-        let geometry = |i_l: usize| -> WindowGeometry {
+        let geometry = |i_l: usize, with_dense: bool| -> WindowGeometry {
             let s_join = knots[i_l + ORDER - 1];
             // (the first window from rest as asked for, the others alike)
             let (window_mm, commit_mm) = match wc.first {
@@ -565,7 +568,7 @@ impl LpStage<'_> {
                 .copied()
                 .filter(|&(s, _, r)| s + r > lo_s && s - r < hi_s)
                 .collect();
-            let dense = self.dense_between(lo_s, hi_s, &win_caps);
+            let dense = with_dense.then(|| self.dense_between(lo_s, hi_s, &win_caps));
             WindowGeometry {
                 s_join,
                 i_m,
@@ -592,7 +595,7 @@ impl LpStage<'_> {
             let t = Instant::now();
             let g = match ahead.take() {
                 Some(g) => g,
-                None => geometry(i_l),
+                None => geometry(i_l, false),
             };
             let WindowGeometry {
                 s_join,
@@ -692,7 +695,6 @@ impl LpStage<'_> {
                 p
             };
             let mut pts: Vec<EvalPoint> = pts.iter().map(|p| shift(p, true)).collect();
-            let dense: Vec<EvalPoint> = dense.iter().map(|p| shift(p, true)).collect();
             let t_geo = t.elapsed().as_secs_f64();
             let settings = crate::lp::problem::SolverSettings {
                 banded_max_iter: Some(
@@ -762,15 +764,33 @@ impl LpStage<'_> {
             // for, and the search for their hold points after them)
             let mut t_lp1 = 0.0;
             let mut from_plan_before = false;
+            // (the dense points, when not made ahead, beside the first
+            // solve: on the first window, 85 % of its points)
+            let (first, dense) = match dense {
+                Some(d) => (None, d),
+                None => {
+                    let (f, d) = rayon::join(|| solve(&pts), || self.dense_between(lo_s, hi_s, &win_caps));
+                    t_lp1 = t.elapsed().as_secs_f64();
+                    (Some(f), d)
+                }
+            };
+            let dense: Vec<EvalPoint> = dense.iter().map(|p| shift(p, true)).collect();
             // (rayon's join, not a thread of its own: a plan may run on
             // the pool's threads, and one blocked joining a thread whose
             // evaluation waits for the pool deadlocks a 2-thread pool)
             let ahead_now = !last && stats.windows > 0;
             let (solved, next) = rayon::join(
                 || -> Result<_, PlanError> {
-                    let (mut plan, retried) = solve(&pts).map_err(window_err)?;
+                    let (mut plan, retried) = match first {
+                        Some(f) => f,
+                        None => {
+                            let f = solve(&pts);
+                            t_lp1 = t.elapsed().as_secs_f64();
+                            f
+                        }
+                    }
+                    .map_err(window_err)?;
                     from_plan_before |= retried;
-                    t_lp1 = t.elapsed().as_secs_f64();
                     lps.extend(plan.lps.iter().cloned());
                     for _ in 0..REFINE_ROUNDS {
                         let lp = FeedLp {
@@ -834,7 +854,7 @@ impl LpStage<'_> {
                     }
                     Ok(plan)
                 },
-                || ahead_now.then(|| geometry(i_c)),
+                || ahead_now.then(|| geometry(i_c, true)),
             );
             let plan = solved?;
             stats.from_plan_before += usize::from(from_plan_before);
