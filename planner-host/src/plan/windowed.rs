@@ -51,8 +51,9 @@
 //! what it commits follow from the knots and the curvature jumps alone, not
 //! from the plan before, so the next window's geometry is evaluated on the
 //! other core while a window's LPs are solved (from the second window on:
-//! the first one's chunks are what the first motion waits for); the plan
-//! is the same, bit for bit. The window's LPs are built
+//! the first one's chunks are what the first motion waits for; its dense
+//! points, read only after its first solve, are evaluated beside that
+//! solve); the plan is the same, bit for bit. The window's LPs are built
 //! on its own control points and the knots they span, never on all n of
 //! the path, so that a window costs as much on a 600 m path as on an 11 m
 //! one; they stop at a looser duality gap ([`WINDOW_GAP_LOOSENING`]).
