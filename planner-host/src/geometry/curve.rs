@@ -45,7 +45,7 @@ impl Nurbs {
     /// Length of the control polygon, mm: no shorter than the curve (a
     /// bound that needs no arc length).
     pub fn polygon_length_mm(&self) -> f64 {
-        self.points.windows(2).map(|w| norm(sub(w[1], w[0]))).sum()
+        polygon_length(&self.points)
     }
 
     /// A validated curve from its parts; the name is `"curve"`.
@@ -592,6 +592,12 @@ fn binom(k: usize, i: usize) -> f64 {
         [1.0, 3.0, 3.0, 1.0],
     ];
     B[k][i]
+}
+
+/// Length of a control polygon, mm (the sum of its legs): no shorter than
+/// the curve it controls.
+pub(crate) fn polygon_length(points: &[[f64; 3]]) -> f64 {
+    points.windows(2).map(|w| norm(sub(w[1], w[0]))).sum()
 }
 
 /// Difference a − b.

@@ -29,7 +29,7 @@
 use std::f64::consts::FRAC_PI_2;
 
 use crate::gcode::{Move, MoveKind};
-use crate::geometry::curve::{norm, sub};
+use crate::geometry::curve::{norm, polygon_length, sub};
 
 /// Largest distance between a fitted helix and the exact helix, mm.
 pub const HELIX_TOL_MM: f64 = 1e-4;
@@ -565,8 +565,9 @@ pub fn move_length(m: &Move) -> f64 {
     match m.kind {
         MoveKind::Rapid | MoveKind::Line => norm(sub(m.end, m.start)),
         MoveKind::Arc => ArcPath::of(m).map_or(0.0, |a| a.length()),
-        MoveKind::Nurbs => m.nurbs.as_ref().map_or(0.0, |g| {
-            g.control_points.windows(2).map(|w| norm(sub(w[1], w[0]))).sum()
-        }),
+        MoveKind::Nurbs => m
+            .nurbs
+            .as_ref()
+            .map_or(0.0, |g| polygon_length(&g.control_points)),
     }
 }
