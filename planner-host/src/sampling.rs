@@ -194,12 +194,6 @@ impl Turning {
         curvature_of(&d, self.floor) * norm(d[1])
     }
 
-    /// Number of quadrature pieces in the table (reported by the tests).
-    #[cfg(test)]
-    pub fn pieces(&self) -> usize {
-        self.piece_span.len()
-    }
-
     /// Total turning angle K(L), rad.
     pub fn total(&self) -> f64 {
         *self.k.last().unwrap_or(&0.0)

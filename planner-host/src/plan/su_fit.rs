@@ -751,39 +751,4 @@ mod tests {
             Err(CurveError::ZeroSpeed { .. })
         ));
     }
-
-    #[test]
-    #[ignore = "timing; run with --release --ignored"]
-    fn butterfly_timing() {
-        let c = butterfly();
-        let t = std::time::Instant::now();
-        let arc = ArcLength::new(&c);
-        let t1 = t.elapsed();
-        let map = SuMap::fit(&c, &arc, DEFAULT_TOL_MM).unwrap();
-        println!(
-            "ArcLength::new {:?}, SuMap::fit {:?} ({} segments)",
-            t1,
-            t.elapsed() - t1,
-            map.segments.len()
-        );
-        let t = std::time::Instant::now();
-        let turning = crate::sampling::Turning::new(&c, &arc);
-        println!(
-            "Turning::new {:?}: K(L) = {} rad, {} pieces; arc pieces {}",
-            t.elapsed(),
-            turning.total(),
-            turning.pieces(),
-            arc.table().count() - 1
-        );
-        for m in [383, 3829] {
-            for method in [
-                crate::sampling::Sampling::Par,
-                crate::sampling::Sampling::ada_default(),
-            ] {
-                let t = std::time::Instant::now();
-                let s = crate::sampling::sample(&c, &arc, method, m).unwrap();
-                println!("sample {method} m={m}: {:?} ({} points)", t.elapsed(), s.len());
-            }
-        }
-    }
 }
