@@ -73,8 +73,7 @@
 use std::borrow::Cow;
 
 use crate::gcode::{read_str_each, GcodeError, Move, MoveKind, PathControl, Program, ReadOptions};
-use crate::geometry::curve::Nurbs;
-use crate::geometry::curve::{norm, sub};
+use crate::geometry::curve::{norm, sub, Nurbs};
 use crate::geometry::junction::CORNER_ANGLE_RAD;
 use crate::program::blend::{blend_corner, Blend};
 use crate::program::fit::{fit_chords, FitError};

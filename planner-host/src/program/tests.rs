@@ -2,8 +2,7 @@
 //! within 1e-6 mm, helices within 1e-4 mm, NURBS as given), in all planes.
 
 use crate::gcode::{read_str, Move, MoveKind, ReadOptions};
-use crate::geometry::curve::Nurbs;
-use crate::geometry::curve::{norm, sub};
+use crate::geometry::curve::{norm, sub, Nurbs};
 use crate::program::paths::{paths_of, Paths};
 use crate::program::pieces::{ArcPath, HELIX_TOL_MM};
 
