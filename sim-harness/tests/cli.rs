@@ -725,3 +725,52 @@ fn stream_a_part_program_reports_every_path_and_refuses_a_bad_line_before_any_ou
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `--sampling` and `--density` reach the planner: the Butterfly streamed
+/// (planned whole: it is shorter than two windows) at ADA, half a point a
+/// millimetre, runs the plan `plan_curve` makes with them — the same
+/// machining time to the last digit the JSON carries, not the default
+/// density's — every limit held on the setpoints; fewer points and a coarser
+/// q make a smaller stream. A density that is no number > 0, and a sampling
+/// other than len for a part program (its paths are sampled len), are
+/// refused with exit code 2.
+#[test]
+fn stream_plans_at_the_sampling_and_density_asked() {
+    use planner_host::plan::{plan_curve, PlanConfig};
+    use planner_host::sampling::Sampling;
+    let coarse = stream_json("butterfly --sampling ada --density 0.5");
+    assert_streamed_whole_within_limits(&coarse);
+    let curve = planner_host::builtin::by_name("butterfly").unwrap().unwrap();
+    let cfg = PlanConfig {
+        sampling: "ada".parse::<Sampling>().unwrap(),
+        density_per_mm: 0.5,
+        ..PlanConfig::default()
+    };
+    let planned = plan_curve(&curve, &cfg).unwrap().predicted_time_s;
+    assert_eq!(coarse["planned_time_s"].as_f64().unwrap(), planned, "{coarse}");
+    let default = stream_json("butterfly");
+    let default_planned = plan_curve(&curve, &PlanConfig::default())
+        .unwrap()
+        .predicted_time_s;
+    assert_eq!(default["planned_time_s"].as_f64().unwrap(), default_planned);
+    assert_ne!(planned, default_planned);
+    assert!(
+        coarse["bytes_per_mm"].as_f64().unwrap() < default["bytes_per_mm"].as_f64().unwrap(),
+        "{coarse} {default}"
+    );
+    let program = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../planner-host/programs/own/corners-path-control.ngc");
+    let program = program.to_str().unwrap();
+    for (args, what) in [
+        (vec!["butterfly", "--density", "0"], "--density"),
+        (vec!["butterfly", "--density", "NaN"], "--density"),
+        (vec!["butterfly", "--density=-1"], "--density"),
+        (vec![program, "--sampling", "ada"], "--sampling"),
+    ] {
+        let out = feedsim().arg("stream").args(&args).output().unwrap();
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
+        assert!(String::from_utf8_lossy(&out.stderr).contains(what), "{args:?}");
+    }
+    // a part program at a density of its own: every path within the limits
+    assert_streamed_whole_within_limits(&stream_json(&format!("{program} --density 2")));
+}

@@ -229,14 +229,9 @@ enum Cmd {
         /// are found for it
         #[arg(long, default_value = "2048:4096")]
         window_rows: String,
-        /// Plan in windows of this much path (mm), with --commit-mm, while the machine runs
-        /// [default: 200 mm committing 150, a path no longer than 400 mm planned whole; with
-        /// --window-mm, one no longer than a window].
-        #[arg(long, requires = "commit_mm")]
-        window_mm: Option<f64>,
-        /// Path each window commits, mm.
-        #[arg(long, requires = "window_mm")]
-        commit_mm: Option<f64>,
+        /// How the host plans: windows, sampling (boxed: the variant's size).
+        #[command(flatten)]
+        plan: Box<StreamPlanArgs>,
         /// Plan the whole path before the first motion, as `feedplan plan` does, instead of in
         /// windows while the machine runs.
         #[arg(long, conflicts_with_all = ["window_mm", "first_window", "host_slowdown", "ready_times"])]
@@ -317,6 +312,26 @@ enum Cmd {
         /// The shell.
         shell: clap_complete::Shell,
     },
+}
+
+/// How `feedsim stream` plans the path: its windows and sampling.
+#[derive(clap::Args)]
+struct StreamPlanArgs {
+    /// Plan in windows of this much path (mm), with --commit-mm, while the machine runs
+    /// [default: 200 mm committing 150, a path no longer than 400 mm planned whole; with
+    /// --window-mm, one no longer than a window].
+    #[arg(long, requires = "commit_mm")]
+    window_mm: Option<f64>,
+    /// Path each window commits, mm.
+    #[arg(long, requires = "window_mm")]
+    commit_mm: Option<f64>,
+    /// Sampling of the toolpath: par, len or ada (paper §3); a part program is sampled len.
+    #[arg(long, default_value = "len")]
+    sampling: Sampling,
+    /// Sampling density, points per mm of arc length: fewer plan faster, for a little
+    /// machining time (docs/streaming-design.md, "Sampling density").
+    #[arg(long, default_value_t = 1.0)]
+    density: f64,
 }
 
 type BoxError = Box<dyn std::error::Error>;
@@ -494,6 +509,7 @@ fn stream_program_cmd(
     path: &Path,
     machine: &planner_host::Machine,
     opts: &sim_harness::stream::StreamOptions,
+    density_per_mm: f64,
     json: bool,
 ) -> Result<(), Failure> {
     use planner_host::gcode;
@@ -505,7 +521,10 @@ fn stream_program_cmd(
     let text = gcode::lex::text_of(&bytes).map_err(|e| Failure::input(format!("{}: {e}", path.display())))?;
     let source =
         sim_harness::stream_program::ProgramSource::Text(text, gcode::ReadOptions { block_delete: false });
-    let popts = planner_host::program::ProgramOptions::default();
+    let popts = planner_host::program::ProgramOptions {
+        density_per_mm,
+        ..planner_host::program::ProgramOptions::default()
+    };
     let mut spool = match json {
         true => Some(BufWriter::new(
             tempfile::tempfile().map_err(|e| format!("a spool file for the path rows: {e}"))?,
@@ -925,8 +944,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
             ring_bytes,
             chunk_mm,
             window_rows,
-            window_mm,
-            commit_mm,
+            plan,
             whole,
             first_window,
             start_runway_mm,
@@ -943,10 +961,21 @@ fn run(cli: Cli) -> Result<(), Failure> {
             tol,
             json,
         } => {
+            let StreamPlanArgs {
+                window_mm,
+                commit_mm,
+                sampling,
+                density,
+            } = *plan;
             let machine =
                 planner_host::cli::load_machine(machine.as_deref(), None).map_err(Failure::input)?;
             let period_us = period_us.unwrap_or(machine.servo_period_s * 1e6);
             check_period(period_us)?;
+            if !(density.is_finite() && density > 0.0) {
+                return Err(Failure::usage(format!(
+                    "--density {density}: must be a number > 0"
+                )));
+            }
             if !(host_slowdown.is_finite() && host_slowdown > 0.0) {
                 return Err(Failure::usage(format!(
                     "--host-slowdown {host_slowdown}: expected a factor > 0"
@@ -1038,11 +1067,18 @@ fn run(cli: Cli) -> Result<(), Failure> {
                 cycle_start_s: cycle_start_ms.map(|m| m * 1e-3),
             };
             if planner_host::cli::is_gcode_program(Path::new(&curve)) {
-                return stream_program_cmd(Path::new(&curve), &machine, &opts, json);
+                if sampling != Sampling::Len {
+                    return Err(Failure::usage(
+                        "--sampling goes with a curve: a part program's paths are sampled len",
+                    ));
+                }
+                return stream_program_cmd(Path::new(&curve), &machine, &opts, density, json);
             }
             let nurbs = load_curve(&curve)?;
             let base = planner_host::plan::PlanConfig {
                 limits: machine.limits,
+                sampling,
+                density_per_mm: density,
                 ..planner_host::plan::PlanConfig::default()
             };
             let rep = sim_harness::stream::stream_curve_with(&nurbs, &base, &opts).map_err(stream_failure)?;
