@@ -55,6 +55,7 @@ pub mod steps;
 pub mod stream;
 pub mod stream_host;
 pub mod stream_program;
+mod vec3;
 
 pub use check::{check_trajectory, CheckConfig, CheckReport, Trajectory};
 pub use geometry::CurveGeometry;

@@ -17,6 +17,8 @@
 
 use firmware_core::Limits;
 
+use crate::vec3::{dot, norm, sub};
+
 /// One servo tick: the interpolator's setpoint and the servos' answer.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Tick {
@@ -66,16 +68,6 @@ pub(crate) struct Projection {
     pub u: f64,
     /// Distance to it, mm.
     pub dist_mm: f64,
-}
-
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-fn norm(a: [f64; 3]) -> f64 {
-    dot(a, a).sqrt()
 }
 
 /// Nearest point of the toolpath to `p` near parameter `seed`: Newton on

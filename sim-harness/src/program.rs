@@ -32,15 +32,11 @@ use crate::csv::{push_row, write_atomic, CsvError, HEADER};
 use crate::geometry::CurveGeometry;
 use crate::metrics::Tick;
 use crate::run::{run_table, SimConfig, SimError};
+use crate::vec3::dist;
 
 /// Largest distance between one path's last setpoint and the next path's
 /// first, mm.
 pub const JOIN_TOL_MM: f64 = 1e-9;
-
-/// The distance between two positions, mm (a join's gap).
-pub(crate) fn distance_mm(a: [f64; 3], b: [f64; 3]) -> f64 {
-    (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>().sqrt()
-}
 
 /// Why a program could not be run.
 #[derive(Debug, thiserror::Error)]
@@ -203,7 +199,7 @@ pub fn run_program(bytes: &[u8], cfg: &SimConfig) -> Result<ProgramRun, ProgramR
         };
         let offset = match (run.ticks.last(), run.paths.last()) {
             (Some(prev), Some(pp)) => {
-                let d = distance_mm(prev.cmd_mm, first.cmd_mm);
+                let d = dist(prev.cmd_mm, first.cmd_mm);
                 if d.is_nan() || d > JOIN_TOL_MM {
                     return Err(ProgramRunError::Gap {
                         index,

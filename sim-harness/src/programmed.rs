@@ -37,6 +37,7 @@ use planner_host::program::pieces::ArcPath;
 use planner_host::Nurbs;
 
 use crate::program::ProgramRun;
+use crate::vec3::{dist, dot};
 
 /// Allowed distance to the programmed path where it is not toleranced, mm.
 pub const EXACT_MM: f64 = 1e-3;
@@ -281,15 +282,6 @@ fn circle_distance(a: &ArcPath, x: [f64; 3]) -> f64 {
     } else {
         ends
     }
-}
-
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
-    let d: [f64; 3] = std::array::from_fn(|k| a[k] - b[k]);
-    dot(d, d).sqrt()
 }
 
 fn tolerance(m: &Move) -> Option<f64> {

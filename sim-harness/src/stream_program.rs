@@ -74,10 +74,11 @@ use planner_host::program::{
 use planner_host::{Machine, Ratios};
 use serde::Serialize;
 
-use crate::program::{distance_mm, JOIN_TOL_MM};
+use crate::program::JOIN_TOL_MM;
 use crate::stream::{
     stream_curve_with, LinkCounts, LinkFaults, OverrideOutcome, OverrideRun, StreamError, StreamOptions,
 };
+use crate::vec3::dist;
 
 /// One path of a streamed program.
 #[derive(Debug, Clone, Serialize)]
@@ -438,7 +439,7 @@ pub fn stream_program_rows(
             source: Box::new(e),
         })?;
         if let Some((end, prev_index, prev_last_line)) = prev_end {
-            let d = distance_mm(rep.ends_mm[0], end);
+            let d = dist(rep.ends_mm[0], end);
             if d.is_nan() || d > JOIN_TOL_MM {
                 return Err(StreamError::Gap {
                     index,
