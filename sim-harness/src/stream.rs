@@ -1331,6 +1331,10 @@ pub struct StreamReport {
     pub plan_s: f64,
     /// Windows planned (0: the whole path at once).
     pub windows: usize,
+    /// How the path was sampled (paper §3): `par`, `len` or `ada`.
+    pub sampling: String,
+    /// The sampling's density, points per mm.
+    pub density_per_mm: f64,
     /// Wall time of the hold-point search (the firmware's dry run), s
     /// (windows: from the start of planning until the last was known).
     pub hold_points_s: f64,
@@ -1772,6 +1776,8 @@ fn stream_through<const Q: usize, const P: usize>(
         length_mm: out.path_length_mm,
         plan_s,
         windows: out.windows.as_ref().map_or(0, |w| w.windows),
+        sampling: cfg.sampling.to_string(),
+        density_per_mm: cfg.density_per_mm,
         hold_points_s,
         first_motion_ms: run.first_motion_s * 1e3,
         plan_realtime_factor: machining_time_s / plan_s,

@@ -143,6 +143,9 @@ pub struct ProgramStreamReport {
     pub plan_s: f64,
     /// Windows planned, all paths.
     pub windows: usize,
+    /// The paths' sampling density (len), points per mm (a short path's
+    /// at least [`planner_host::program::plan::MIN_POINTS`] points).
+    pub density_per_mm: f64,
     /// From the start until the first path's motion, ms.
     pub first_motion_ms: f64,
     /// The machine at rest between paths, waiting for the link or the
@@ -336,6 +339,7 @@ pub fn stream_program_rows(
         length_mm: 0.0,
         plan_s: 0.0,
         windows: 0,
+        density_per_mm: popts.density_per_mm,
         first_motion_ms: 0.0,
         waits_ms: 0.0,
         plan_realtime_factor: 0.0,

@@ -748,11 +748,19 @@ fn stream_plans_at_the_sampling_and_density_asked() {
     };
     let planned = plan_curve(&curve, &cfg).unwrap().predicted_time_s;
     assert_eq!(coarse["planned_time_s"].as_f64().unwrap(), planned, "{coarse}");
+    assert_eq!(
+        (&coarse["sampling"], &coarse["density_per_mm"]),
+        (&"ada".into(), &0.5.into())
+    );
     let default = stream_json("butterfly");
     let default_planned = plan_curve(&curve, &PlanConfig::default())
         .unwrap()
         .predicted_time_s;
     assert_eq!(default["planned_time_s"].as_f64().unwrap(), default_planned);
+    assert_eq!(
+        (&default["sampling"], &default["density_per_mm"]),
+        (&"len".into(), &1.0.into())
+    );
     assert_ne!(planned, default_planned);
     assert!(
         coarse["bytes_per_mm"].as_f64().unwrap() < default["bytes_per_mm"].as_f64().unwrap(),
@@ -772,5 +780,7 @@ fn stream_plans_at_the_sampling_and_density_asked() {
         assert!(String::from_utf8_lossy(&out.stderr).contains(what), "{args:?}");
     }
     // a part program at a density of its own: every path within the limits
-    assert_streamed_whole_within_limits(&stream_json(&format!("{program} --density 2")));
+    let dense = stream_json(&format!("{program} --density 2"));
+    assert_streamed_whole_within_limits(&dense);
+    assert_eq!(dense["density_per_mm"], 2.0);
 }
