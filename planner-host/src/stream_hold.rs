@@ -478,6 +478,9 @@ pub struct HoldPoints {
     pub s_c_mm: Vec<f64>,
     /// Hold tests run.
     pub tests: usize,
+    /// Ticks the tests ran, each hold pressed and ticked to rest (the
+    /// search's cost: a test is a whole stop).
+    pub hold_ticks: u64,
     /// Per chunk, the wall time from the search's start until its s_c was
     /// known, s: a host streaming as it searches may send chunk i then.
     pub known_after_s: Vec<f64>,
@@ -582,6 +585,8 @@ pub struct HoldPointSearch<const NQ: usize, const NP: usize> {
     keep_at: Option<f64>,
     next_test: f64,
     tests: usize,
+    /// Ticks of the tests' holds (and the ticks before a later press).
+    hold_ticks: u64,
     /// A test is due at the current tick, at this s.
     testing: Option<f64>,
     /// The dry run at its last coarse tests (oldest first, at most
@@ -645,6 +650,7 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
             keep_at: None,
             next_test: 0.0,
             tests: 0,
+            hold_ticks: 0,
             testing: None,
             history: Default::default(),
             entering: false,
@@ -774,6 +780,7 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                         &parse(self.i + 1, next)?,
                         &self.how,
                         0..1,
+                        &mut self.hold_ticks,
                     ) {
                         self.last_pass = Some(s);
                         self.first_room.get_or_insert((s, room));
@@ -865,7 +872,17 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                 break;
             }
             self.tests += 1;
-            if hold_room(&t.ip, &mut self.scratch, end, next, &self.how, 0..1).is_some() {
+            if hold_room(
+                &t.ip,
+                &mut self.scratch,
+                end,
+                next,
+                &self.how,
+                0..1,
+                &mut self.hold_ticks,
+            )
+            .is_some()
+            {
                 found = Some(k);
                 break;
             }
@@ -936,7 +953,17 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                 break;
             }
             self.tests += 1;
-            if hold_room(&t.ip, &mut self.scratch, end, next, &h, 0..1).is_some() {
+            if hold_room(
+                &t.ip,
+                &mut self.scratch,
+                end,
+                next,
+                &h,
+                0..1,
+                &mut self.hold_ticks,
+            )
+            .is_some()
+            {
                 pass_s = t.ip.s_mm();
             } else {
                 fail_s = t.ip.s_mm();
@@ -957,7 +984,16 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                 break;
             }
             self.tests += 1;
-            let passed = hold_room(&t.ip, &mut self.scratch, end, next, &h, 0..1).is_some();
+            let passed = hold_room(
+                &t.ip,
+                &mut self.scratch,
+                end,
+                next,
+                &h,
+                0..1,
+                &mut self.hold_ticks,
+            )
+            .is_some();
             tests.push((t.ip.s_mm(), passed));
             if !passed {
                 break;
@@ -999,7 +1035,16 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                 while !t.ip.is_done() && t.ip.s_mm() < run_lo - 0.5 * step {
                     t.push(chunks)?;
                     self.tests += 1;
-                    let passed = hold_room(&t.ip, &mut self.scratch, end, next, &h, 0..1).is_some();
+                    let passed = hold_room(
+                        &t.ip,
+                        &mut self.scratch,
+                        end,
+                        next,
+                        &h,
+                        0..1,
+                        &mut self.hold_ticks,
+                    )
+                    .is_some();
                     before.push((t.ip.s_mm(), passed));
                     let goal = t.ip.s_mm() + step;
                     t.run_to(goal, chunks)?;
@@ -1043,7 +1088,18 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
             t.push(chunks)?;
             self.tests += 1;
             let at = t.ip.s_mm() == s_c && t.ip.window().held_end() >= end;
-            if at && hold_room(&t.ip, &mut self.scratch, end, next, &h, 1..h.press_ticks).is_some() {
+            if at
+                && hold_room(
+                    &t.ip,
+                    &mut self.scratch,
+                    end,
+                    next,
+                    &h,
+                    1..h.press_ticks,
+                    &mut self.hold_ticks,
+                )
+                .is_some()
+            {
                 return Ok(s_c);
             }
             match tests.iter_mut().find(|x| x.0 == s_c) {
@@ -1080,6 +1136,7 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
             lead_mm,
             s_c_mm: self.s_c,
             tests: self.tests,
+            hold_ticks: self.hold_ticks,
             known_after_s: self.known,
         })
     }
@@ -1141,14 +1198,21 @@ fn hold_room<const NQ: usize, const NP: usize>(
     next: &Chunk<'_>,
     how: &HoldSearch,
     later: std::ops::Range<u32>,
+    ticked: &mut u64,
 ) -> Option<f64> {
     let mut least = f64::INFINITY;
     for k in later {
         let t = copy_into(scratch, ip);
-        for _ in 0..k {
-            t.tick().ok()?;
-        }
-        least = least.min(hold_room_here(t, s_end, next, how)?);
+        let room = 'test: {
+            for _ in 0..k {
+                if t.tick().is_err() {
+                    break 'test None;
+                }
+            }
+            hold_room_here(t, s_end, next, how)
+        };
+        *ticked += t.ticks().saturating_sub(ip.ticks());
+        least = least.min(room?);
     }
     Some(least)
 }

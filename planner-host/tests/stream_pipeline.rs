@@ -288,7 +288,11 @@ fn hold_points_alike() {
         st.plan_s * 1e3
     );
     assert_eq!(st.hold.s_c_mm, at_once.s_c_mm);
-    assert_eq!(st.hold.tests, at_once.tests);
+    assert_eq!(
+        (st.hold.tests, st.hold.hold_ticks),
+        (at_once.tests, at_once.hold_ticks)
+    );
+    assert!(at_once.hold_ticks > at_once.tests as u64);
     // the head it sent last is the table's
     assert_eq!(st.head, head);
     // planned without the finished table: nothing of the whole path kept,

@@ -1338,6 +1338,11 @@ pub struct StreamReport {
     /// Wall time of the hold-point search (the firmware's dry run), s
     /// (windows: from the start of planning until the last was known).
     pub hold_points_s: f64,
+    /// The search's tests: holds pressed in copies of the dry run.
+    pub hold_tests: usize,
+    /// The ticks those holds ran, each to rest (against the run's own
+    /// ticks: what the search costs).
+    pub hold_test_ticks: u64,
     /// From the start of planning until the motion starts, ms: the host
     /// sends each chunk as soon as it is cut and its hold point known
     /// (windows: while later windows are planned), the link carries it.
@@ -1779,6 +1784,8 @@ fn stream_through<const Q: usize, const P: usize>(
         sampling: cfg.sampling.to_string(),
         density_per_mm: cfg.density_per_mm,
         hold_points_s,
+        hold_tests: hp.tests,
+        hold_test_ticks: hp.hold_ticks,
         first_motion_ms: run.first_motion_s * 1e3,
         plan_realtime_factor: machining_time_s / plan_s,
         peak_rss_kib: peak_rss_kib(),

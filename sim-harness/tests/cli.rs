@@ -752,6 +752,16 @@ fn stream_plans_at_the_sampling_and_density_asked() {
         (&coarse["sampling"], &coarse["density_per_mm"]),
         (&"ada".into(), &0.5.into())
     );
+    // (the hold-point search's work: every test a hold ticked to rest, and
+    // at least one test a chunk but the last's)
+    let (tests, ticks) = (
+        coarse["hold_tests"].as_u64().unwrap(),
+        coarse["hold_test_ticks"].as_u64().unwrap(),
+    );
+    assert!(
+        tests + 1 >= coarse["chunks"].as_u64().unwrap() && ticks > tests,
+        "{coarse}"
+    );
     let default = stream_json("butterfly");
     let default_planned = plan_curve(&curve, &PlanConfig::default())
         .unwrap()
