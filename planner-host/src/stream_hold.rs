@@ -585,8 +585,6 @@ pub struct HoldPointSearch<const NQ: usize, const NP: usize> {
     keep_at: Option<f64>,
     next_test: f64,
     tests: usize,
-    /// Ticks of the tests' holds (and the ticks before a later press).
-    hold_ticks: u64,
     /// A test is due at the current tick, at this s.
     testing: Option<f64>,
     /// The dry run at its last coarse tests (oldest first, at most
@@ -597,10 +595,8 @@ pub struct HoldPointSearch<const NQ: usize, const NP: usize> {
     entering: bool,
     /// Hold points given for the first chunks ([`hold_points_given`]).
     pub(crate) given: Vec<f64>,
-    /// The copies a test cuts back and ticks, and a kept dry run tested
-    /// again, reused from test to test (a fresh copy of a host-sized
-    /// window is megabytes; into these only the rows held are copied).
-    scratch: Option<DryIp<NQ, NP>>,
+    /// The tests' copy of the dry run, and the ticks they ran.
+    tester: HoldTester<NQ, NP>,
     trial: Option<Box<StreamedRun<NQ, NP>>>,
     at_pass: Option<Box<StreamedRun<NQ, NP>>>,
     /// Boxes for the copies, built beside the search ([`Spares`]).
@@ -650,12 +646,11 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
             keep_at: None,
             next_test: 0.0,
             tests: 0,
-            hold_ticks: 0,
             testing: None,
             history: Default::default(),
             entering: false,
             given: vec![],
-            scratch: None,
+            tester: HoldTester::default(),
             trial: None,
             at_pass: None,
             spares: Spares::default(),
@@ -773,15 +768,10 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                         continue;
                     }
                     self.tests += 1;
-                    if let Some(room) = hold_room(
-                        &run.ip,
-                        &mut self.scratch,
-                        end,
-                        &parse(self.i + 1, next)?,
-                        &self.how,
-                        0..1,
-                        &mut self.hold_ticks,
-                    ) {
+                    if let Some(room) =
+                        self.tester
+                            .room(&run.ip, end, &parse(self.i + 1, next)?, &self.how, 0..1)
+                    {
                         self.last_pass = Some(s);
                         self.first_room.get_or_insert((s, room));
                         gap = self.gap_after(room);
@@ -872,17 +862,7 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                 break;
             }
             self.tests += 1;
-            if hold_room(
-                &t.ip,
-                &mut self.scratch,
-                end,
-                next,
-                &self.how,
-                0..1,
-                &mut self.hold_ticks,
-            )
-            .is_some()
-            {
+            if self.tester.room(&t.ip, end, next, &self.how, 0..1).is_some() {
                 found = Some(k);
                 break;
             }
@@ -953,17 +933,7 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                 break;
             }
             self.tests += 1;
-            if hold_room(
-                &t.ip,
-                &mut self.scratch,
-                end,
-                next,
-                &h,
-                0..1,
-                &mut self.hold_ticks,
-            )
-            .is_some()
-            {
+            if self.tester.room(&t.ip, end, next, &h, 0..1).is_some() {
                 pass_s = t.ip.s_mm();
             } else {
                 fail_s = t.ip.s_mm();
@@ -984,16 +954,7 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                 break;
             }
             self.tests += 1;
-            let passed = hold_room(
-                &t.ip,
-                &mut self.scratch,
-                end,
-                next,
-                &h,
-                0..1,
-                &mut self.hold_ticks,
-            )
-            .is_some();
+            let passed = self.tester.room(&t.ip, end, next, &h, 0..1).is_some();
             tests.push((t.ip.s_mm(), passed));
             if !passed {
                 break;
@@ -1035,16 +996,7 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                 while !t.ip.is_done() && t.ip.s_mm() < run_lo - 0.5 * step {
                     t.push(chunks)?;
                     self.tests += 1;
-                    let passed = hold_room(
-                        &t.ip,
-                        &mut self.scratch,
-                        end,
-                        next,
-                        &h,
-                        0..1,
-                        &mut self.hold_ticks,
-                    )
-                    .is_some();
+                    let passed = self.tester.room(&t.ip, end, next, &h, 0..1).is_some();
                     before.push((t.ip.s_mm(), passed));
                     let goal = t.ip.s_mm() + step;
                     t.run_to(goal, chunks)?;
@@ -1088,18 +1040,7 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
             t.push(chunks)?;
             self.tests += 1;
             let at = t.ip.s_mm() == s_c && t.ip.window().held_end() >= end;
-            if at
-                && hold_room(
-                    &t.ip,
-                    &mut self.scratch,
-                    end,
-                    next,
-                    &h,
-                    1..h.press_ticks,
-                    &mut self.hold_ticks,
-                )
-                .is_some()
-            {
+            if at && self.tester.room(&t.ip, end, next, &h, 1..h.press_ticks).is_some() {
                 return Ok(s_c);
             }
             match tests.iter_mut().find(|x| x.0 == s_c) {
@@ -1136,7 +1077,7 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
             lead_mm,
             s_c_mm: self.s_c,
             tests: self.tests,
-            hold_ticks: self.hold_ticks,
+            hold_ticks: self.tester.ticks,
             known_after_s: self.known,
         })
     }
@@ -1185,12 +1126,46 @@ fn hold_point_of_runs(tests: &[(f64, bool)], backoff_mm: f64) -> f64 {
     run.iter().rev().find(|t| t.0 <= target).unwrap_or(&run[0]).0
 }
 
+/// Where a search's hold tests run: the copies a test cuts back and ticks,
+/// and a kept dry run tested again, reused from test to test (a fresh copy
+/// of a host-sized window is megabytes; into these only the rows held are
+/// copied), and the ticks the tests ran.
+struct HoldTester<const NQ: usize, const NP: usize> {
+    scratch: Option<DryIp<NQ, NP>>,
+    /// Ticks of the tests' holds (and the ticks before a later press).
+    ticks: u64,
+}
+
+impl<const NQ: usize, const NP: usize> Default for HoldTester<NQ, NP> {
+    fn default() -> Self {
+        HoldTester {
+            scratch: None,
+            ticks: 0,
+        }
+    }
+}
+
+impl<const NQ: usize, const NP: usize> HoldTester<NQ, NP> {
+    /// [`hold_room`] in this tester's copy, its ticks counted.
+    fn room(
+        &mut self,
+        ip: &Interpolator<'static, 0, 0, PlanWindow<NQ, NP>>,
+        s_end: i64,
+        next: &Chunk<'_>,
+        how: &HoldSearch,
+        later: std::ops::Range<u32>,
+    ) -> Option<f64> {
+        hold_room(ip, &mut self.scratch, s_end, next, how, later, &mut self.ticks)
+    }
+}
+
 /// A copy of `ip` cut back to the chunks ending at `s_end` (Q40; those it
 /// holds, if fewer), the hold pressed `later` ticks on (one copy for each;
 /// 0: at its tick): does every one come to rest, without a fault, at least
 /// `margin_mm` before the end of the rows it holds, with room then for the
 /// chunk `next`? If so, how far before the furthest it may rest the one
 /// that came nearest came to rest, mm (∞ for no press).
+/// The ticks the copies ran are added to `ticked`.
 fn hold_room<const NQ: usize, const NP: usize>(
     ip: &Interpolator<'static, 0, 0, PlanWindow<NQ, NP>>,
     scratch: &mut Option<DryIp<NQ, NP>>,
