@@ -1146,7 +1146,13 @@ impl<const NQ: usize, const NP: usize> Default for HoldTester<NQ, NP> {
 }
 
 impl<const NQ: usize, const NP: usize> HoldTester<NQ, NP> {
-    /// [`hold_room`] in this tester's copy, its ticks counted.
+    /// A copy of `ip` cut back to the chunks ending at `s_end` (Q40; those
+    /// it holds, if fewer), the hold pressed `later` ticks on (one copy for
+    /// each; 0: at its tick): does every one come to rest, without a fault,
+    /// at least `margin_mm` before the end of the rows it holds, with room
+    /// then for the chunk `next`? If so, how far before the furthest it may
+    /// rest the one that came nearest came to rest, mm (∞ for no press).
+    /// The ticks the copies ran are counted.
     fn room(
         &mut self,
         ip: &Interpolator<'static, 0, 0, PlanWindow<NQ, NP>>,
@@ -1155,44 +1161,25 @@ impl<const NQ: usize, const NP: usize> HoldTester<NQ, NP> {
         how: &HoldSearch,
         later: std::ops::Range<u32>,
     ) -> Option<f64> {
-        hold_room(ip, &mut self.scratch, s_end, next, how, later, &mut self.ticks)
-    }
-}
-
-/// A copy of `ip` cut back to the chunks ending at `s_end` (Q40; those it
-/// holds, if fewer), the hold pressed `later` ticks on (one copy for each;
-/// 0: at its tick): does every one come to rest, without a fault, at least
-/// `margin_mm` before the end of the rows it holds, with room then for the
-/// chunk `next`? If so, how far before the furthest it may rest the one
-/// that came nearest came to rest, mm (∞ for no press).
-/// The ticks the copies ran are added to `ticked`.
-fn hold_room<const NQ: usize, const NP: usize>(
-    ip: &Interpolator<'static, 0, 0, PlanWindow<NQ, NP>>,
-    scratch: &mut Option<DryIp<NQ, NP>>,
-    s_end: i64,
-    next: &Chunk<'_>,
-    how: &HoldSearch,
-    later: std::ops::Range<u32>,
-    ticked: &mut u64,
-) -> Option<f64> {
-    let mut least = f64::INFINITY;
-    for k in later {
-        let t = copy_into(scratch, ip);
-        let room = 'test: {
-            for _ in 0..k {
-                if t.tick().is_err() {
-                    break 'test None;
+        let mut least = f64::INFINITY;
+        for k in later {
+            let t = copy_into(&mut self.scratch, ip);
+            let room = 'test: {
+                for _ in 0..k {
+                    if t.tick().is_err() {
+                        break 'test None;
+                    }
                 }
-            }
-            hold_room_here(t, s_end, next, how)
-        };
-        *ticked += t.ticks().saturating_sub(ip.ticks());
-        least = least.min(room?);
+                hold_room_here(t, s_end, next, how)
+            };
+            self.ticks += t.ticks().saturating_sub(ip.ticks());
+            least = least.min(room?);
+        }
+        Some(least)
     }
-    Some(least)
 }
 
-/// [`hold_room`] of one press, in place on `t`.
+/// [`HoldTester::room`] of one press, in place on `t`.
 fn hold_room_here<const NQ: usize, const NP: usize>(
     t: &mut Interpolator<'static, 0, 0, PlanWindow<NQ, NP>>,
     s_end: i64,
