@@ -588,7 +588,6 @@ pub struct HoldPointSearch<const NQ: usize, const NP: usize> {
     /// a fine scan's start ahead of a long coarse step.
     keep_at: Option<f64>,
     next_test: f64,
-    tests: usize,
     /// A test is due at the current tick, at this s.
     testing: Option<f64>,
     /// The dry run at its last coarse tests (oldest first, at most
@@ -649,7 +648,6 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
             cliff_mm: None,
             keep_at: None,
             next_test: 0.0,
-            tests: 0,
             testing: None,
             history: Default::default(),
             entering: false,
@@ -771,7 +769,6 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                         self.i += 1;
                         continue;
                     }
-                    self.tests += 1;
                     if let Some(room) =
                         self.tester
                             .room(&run.ip, end, &parse(self.i + 1, next)?, &self.how, 0..1)
@@ -865,7 +862,6 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                 // (chunk i did not fit the window yet: nor the firmware's)
                 break;
             }
-            self.tests += 1;
             if self.tester.room(&t.ip, end, next, &self.how, 0..1).is_some() {
                 found = Some(k);
                 break;
@@ -886,7 +882,7 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                 self.i,
                 self.known[self.i] * 1e3,
                 s_c,
-                self.tests,
+                self.tester.tests,
                 self.history.len()
             );
         }
@@ -936,7 +932,6 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                 std::mem::swap(&mut self.trial, &mut self.at_pass);
                 break;
             }
-            self.tests += 1;
             if self.tester.room(&t.ip, end, next, &h, 0..1).is_some() {
                 pass_s = t.ip.s_mm();
             } else {
@@ -957,7 +952,6 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
             if t.ip.is_done() || t.ip.s_mm() >= fail_s {
                 break;
             }
-            self.tests += 1;
             let passed = self.tester.room(&t.ip, end, next, &h, 0..1).is_some();
             tests.push((t.ip.s_mm(), passed));
             if !passed {
@@ -999,7 +993,6 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                 let mut before = vec![];
                 while !t.ip.is_done() && t.ip.s_mm() < run_lo - 0.5 * step {
                     t.push(chunks)?;
-                    self.tests += 1;
                     let passed = self.tester.room(&t.ip, end, next, &h, 0..1).is_some();
                     before.push((t.ip.s_mm(), passed));
                     let goal = t.ip.s_mm() + step;
@@ -1042,7 +1035,6 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
             t.push(chunks)?;
             t.run_to(s_c, chunks)?;
             t.push(chunks)?;
-            self.tests += 1;
             let at = t.ip.s_mm() == s_c && t.ip.window().held_end() >= end;
             if at && self.tester.room(&t.ip, end, next, &h, 1..h.press_ticks).is_some() {
                 return Ok(s_c);
@@ -1080,7 +1072,7 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
         Ok(HoldPoints {
             lead_mm,
             s_c_mm: self.s_c,
-            tests: self.tests,
+            tests: self.tester.tests,
             hold_ticks: self.tester.ticks,
             known_after_s: self.known,
         })
@@ -1133,9 +1125,12 @@ fn hold_point_of_runs(tests: &[(f64, bool)], backoff_mm: f64) -> f64 {
 /// Where a search's hold tests run: the copies a test cuts back and ticks,
 /// and a kept dry run tested again, reused from test to test (a fresh copy
 /// of a host-sized window is megabytes; into these only the rows held are
-/// copied), and the ticks the tests ran.
+/// copied), and what the tests cost: how many, and the ticks they ran.
 struct HoldTester<const NQ: usize, const NP: usize> {
     scratch: Option<DryIp<NQ, NP>>,
+    /// Tests run (one a call of [`HoldTester::room`], its presses
+    /// together).
+    tests: usize,
     /// Ticks of the tests' holds (and the ticks before a later press).
     ticks: u64,
 }
@@ -1144,6 +1139,7 @@ impl<const NQ: usize, const NP: usize> Default for HoldTester<NQ, NP> {
     fn default() -> Self {
         HoldTester {
             scratch: None,
+            tests: 0,
             ticks: 0,
         }
     }
@@ -1156,7 +1152,7 @@ impl<const NQ: usize, const NP: usize> HoldTester<NQ, NP> {
     /// at least `margin_mm` before the end of the rows it holds, with room
     /// then for the chunk `next`? If so, how far before the furthest it may
     /// rest the one that came nearest came to rest, mm (∞ for no press).
-    /// The ticks the copies ran are counted.
+    /// The test and the ticks its copies ran are counted.
     fn room(
         &mut self,
         ip: &Interpolator<'static, 0, 0, PlanWindow<NQ, NP>>,
@@ -1165,6 +1161,7 @@ impl<const NQ: usize, const NP: usize> HoldTester<NQ, NP> {
         how: &HoldSearch,
         later: std::ops::Range<u32>,
     ) -> Option<f64> {
+        self.tests += 1;
         let mut least = f64::INFINITY;
         for k in later {
             let t = copy_into(&mut self.scratch, ip);
