@@ -326,8 +326,10 @@ fn spiral_program() -> String {
 }
 
 /// The link's troubles on a streamed part program, in the program's time:
-/// a stall in the middle of its feed path, on an MCU-sized plan window,
-/// starves the machine there (it stops inside the chunks it holds and
+/// a stall in the middle of its feed path, on a small plan window (128 q
+/// spans, 256 pieces: a hold pressed at the spiral's start, riding the
+/// plan's acceleration, rests further on than 64:128 hold), starves the
+/// machine there (it stops inside the chunks it holds and
 /// resumes when they come), and frames damaged, lost, doubled and
 /// reordered, with the host restarting mid-path, are refused and sent
 /// again; every path runs to its end within every limit (50 ticks at rest
@@ -339,7 +341,7 @@ fn a_streamed_program_rides_out_a_stalled_and_damaged_link() {
     let machine = Machine::table1();
     let run = |stalls: Vec<(f64, f64)>, faults: LinkFaults| {
         let o = StreamOptions {
-            window_rows: (64, 128),
+            window_rows: (128, 256),
             ring_bytes: 4096,
             stalls,
             faults,
@@ -352,7 +354,7 @@ fn a_streamed_program_rides_out_a_stalled_and_damaged_link() {
     assert_eq!(clean.path[1].kind, PathKind::Feed);
     assert!(clean.check_ok && clean.starvations == 0, "{:?}", clean.ratios);
     // (the feed path runs from about 0.48 s to 5.5 s)
-    let stalled = run(vec![(1.0, 1.0)], LinkFaults::default());
+    let stalled = run(vec![(1.0, 3.0)], LinkFaults::default());
     let faults = LinkFaults {
         corrupt_every: 11,
         drop_every: 7,
@@ -360,7 +362,7 @@ fn a_streamed_program_rides_out_a_stalled_and_damaged_link() {
         reorder_every: 17,
         host_restart_s: Some(2.5),
     };
-    let damaged = run(vec![(1.0, 1.0)], faults);
+    let damaged = run(vec![(1.0, 3.0)], faults);
     for (what, rep) in [("stalled", &stalled), ("stalled and damaged", &damaged)] {
         assert!(rep.check_ok, "{what}: {:?}", rep.ratios);
         assert!(rep.path.iter().all(|p| p.check_ok), "{what}");

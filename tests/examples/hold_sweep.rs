@@ -8,7 +8,8 @@
 //! along the tangent alone from the same feed and acceleration (a lower
 //! bound: it ignores the axes), and the largest ratio to each limit on the
 //! setpoints of the 60 ticks before the press, the stop and 60 ticks at rest
-//! (finite differences, `sim_harness::metrics`), with the press that gave it.
+//! (finite differences, `sim_harness::metrics`), with the press that gave it
+//! (its arc length and the ticks run before it: a test can press there).
 //!
 //! ```text
 //! cargo run --release -p e2e-tests --example hold_sweep -- [--every 97] [CURVE …]
@@ -97,10 +98,12 @@ fn main() -> Result<(), String> {
             Interpolator::new(Table::parse(&out.table_bytes).map_err(text)?, PERIOD_S).map_err(text)?;
         let mut before: VecDeque<Setpoint> = VecDeque::new();
         let (mut lengths, mut over_ideal) = (vec![], vec![]);
-        let (mut all, mut at) = (Ratios::default(), (0.0, 0.0));
-        let mut k = 0u64;
+        // (the worst press: s, its largest ratio, ticks before it)
+        let (mut all, mut at) = (Ratios::default(), (0.0, 0.0, 0u64));
+        let (mut k, mut ticks_run) = (0u64, 0u64);
         while !run.is_done() {
             let sp = run.tick().map_err(text)?;
+            ticks_run += 1;
             let feed_before = before.back().map_or(0.0, |p| p.feed_mm_s);
             before.push_back(sp);
             if before.len() > PAD {
@@ -132,7 +135,7 @@ fn main() -> Result<(), String> {
             let ticks: Vec<Tick> = pts.iter().map(Tick::of_setpoint).collect();
             let r = metrics::compute(&ticks, PERIOD_S, &lim, None).ratios;
             if r.worst() > at.1 {
-                at = (s0, r.worst());
+                at = (s0, r.worst(), ticks_run);
             }
             all = all.max(r);
         }
@@ -153,8 +156,8 @@ fn main() -> Result<(), String> {
             q(&mut over_ideal, 0.9),
         );
         println!(
-            "  worst ratios: vel {:.4} acc {:.4} jerk {:.4} feed {:.4} tacc {:.4} tjerk {:.4} (largest {:.4}, pressed at {:.2} mm)",
-            all.vel, all.acc, all.jerk, all.feed, all.tacc, all.tjerk, at.1, at.0
+            "  worst ratios: vel {:.4} acc {:.4} jerk {:.4} feed {:.4} tacc {:.4} tjerk {:.4} (largest {:.4}, pressed at {:.2} mm after tick {})",
+            all.vel, all.acc, all.jerk, all.feed, all.tacc, all.tjerk, at.1, at.0, at.2
         );
     }
     Ok(())

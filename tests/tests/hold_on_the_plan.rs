@@ -12,6 +12,15 @@
 //!   the hold's first period took J as constant (its change is known from
 //!   the period before, and on the plan there was none) and braked into
 //!   it, 1.012×. The change is now seeded from the plan one period back.
+//! - the Fan at 30.98 mm (pressed every two ticks): the hold crept at the
+//!   μ cap's floor with λ a few 1e-6 below 1, μ came to 0 and its sign
+//!   turned at rounding, and a relaxed tick then took λ back up past 1,
+//!   clamped: 1.069× the y axis's jerk. A state not approaching (w ≤ 0,
+//!   not only w = 0) now never moves further away from the target.
+//! - the Butterfly at 177.31 mm, a stop (not on the plan) whose tangential
+//!   jerk reached 1.62× the limit while the μ cap's axis look-ahead counted
+//!   only the points where the axis decelerates: a ν taken for one axis is
+//!   every axis's and the tangent's. Every J against A counts again.
 
 use firmware_core::{HoldState, Interpolator, Setpoint, Table};
 use planner_host::plan::{self, PlanConfig};
@@ -44,6 +53,8 @@ fn a_hold_pressed_where_the_plans_jerk_changes_fast_keeps_every_limit() {
         ("fan", 6111, 174.86),
         ("fan", 16236, 459.80),
         ("butterfly", 7380, 129.26),
+        ("butterfly", 10786, 177.31),
+        ("fan", 1210, 30.98),
     ] {
         let curve = planner_host::builtin::by_name(name).unwrap().unwrap();
         let out = plan::plan_curve(&curve, &PlanConfig::default()).unwrap();

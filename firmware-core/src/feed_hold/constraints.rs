@@ -400,8 +400,7 @@ pub(crate) fn mu_cap(k: &Kin, lim: &HoldLimits, lam: f32, nu_r: f32) -> f32 {
 /// (else the end-of-tick acceleration constraint, one tick deep, meets the
 /// plan's growing A too late and the jerk limit cannot unwind μ in time);
 /// 3λμA must leave the plan's λ³|J| ahead room within [`RHO_AHEAD`] of
-/// RHO_J·j, on the axes only where J is against A and A against V (where
-/// the ν that takes 3λμA back brakes harder), tangentially everywhere.
+/// RHO_J·j, on the axes where J is against A, tangentially everywhere.
 pub(crate) fn mu_cap_ahead(k: &Kin, ahead: &Ahead, lim: &HoldLimits, lam: f32, nu_r: f32) -> f32 {
     let mut cap = f32::INFINITY;
     let (l2, l3, l3x) = (lam * lam, lam * lam * lam, 3.0 * lam);
@@ -477,9 +476,9 @@ pub(crate) struct Ahead {
     pub j: [f32; 4],
     /// Largest |A| where A·V < 0, mm/s².
     pub a_acc: [f32; 4],
-    /// Largest |J| where J·A < 0 and A·V < 0 (the axis decelerates), mm/s³.
+    /// Largest |J| where J·A < 0, mm/s³.
     pub j_jerk: [f32; 4],
-    /// Largest |A| where J·A < 0 and A·V < 0, mm/s².
+    /// Largest |A| where J·A < 0, mm/s².
     pub a_jerk: [f32; 4],
 }
 
@@ -512,15 +511,17 @@ impl Ahead {
                 up(&mut self.a_acc, a);
             }
             // On an axis, the jerk 3λμA a stop's braking (μ < 0) drives
-            // through the plan's A adds to a J against A, and the ν that
-            // takes it back has the sign of A·V: it brakes harder (which
-            // feeds 3λμA: self-reinforcing) only where A is against V;
-            // where the axis accelerates, it eases the braking. So only
-            // those points count (counting every J against A held a stop
-            // at the cap's floor through the plan's accelerations). The
-            // tangent keeps every point (`mu_cap_ahead`): its J jumps at
-            // the q knots, within a tick, whatever A's sign.
-            if a * v < 0.0 && j * a < 0.0 {
+            // through the plan's A adds to a J against A: those points
+            // count, whether the axis decelerates or accelerates there.
+            // (Counting only those where it decelerates, where the ν that
+            // takes 3λμA back brakes harder, shortened the stops by a
+            // tenth, but that ν is one for every axis and the tangent: a
+            // hold pressed at 177.31 mm on the Butterfly then ran its
+            // tangential jerk to 1.62× the limit,
+            // `tests/tests/hold_on_the_plan.rs`.) The tangent keeps every
+            // point (`mu_cap_ahead`): its J jumps at the q knots, within
+            // a tick, whatever A's sign.
+            if j * a < 0.0 {
                 up(&mut self.j_jerk, j);
                 up(&mut self.a_jerk, a);
             }

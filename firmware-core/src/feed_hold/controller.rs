@@ -101,15 +101,17 @@ pub(crate) fn approach(x: f32, w: f32, (ulo, uhi): (f32, f32), b: f32, kappa: f3
         (mx(clampf(u, ulo, top), -w / h), false)
     } else {
         let u = clampf(settle(mn(curve.unwrap_or(0.0), uhi), 2.0), ulo, top);
-        // Not yet approaching (w = 0: a hold pressed on the plan, a resume
-        // from rest): never away from the target, even where the interval
-        // lies wholly there (an infeasible tick's relaxation). Held at
-        // λ = 1, that is the plan, within every limit by construction;
-        // stepping λ past 1 and clamping it back gave up to 1.45× the axis
-        // jerk in forward differences (holds on the Fan at 174.86 and
-        // 459.80 mm, where the plan's jerk jumps within a tick:
-        // `tests/tests/hold_on_the_plan.rs`).
-        (if w == 0.0 { mx(u, 0.0) } else { u }, false)
+        // Not approaching (w = 0: a hold pressed on the plan, a resume
+        // from rest; w < 0: μ's sign turned at rounding, or a press during
+        // the other motion): never further away from the target, even
+        // where the interval lies wholly there (an infeasible tick's
+        // relaxation). Held at λ = 1, that is the plan, within every limit
+        // by construction; stepping λ past 1 and clamping it back gave up
+        // to 1.45× the axis jerk in forward differences (holds on the Fan
+        // at 174.86 and 459.80 mm, where the plan's jerk jumps within a
+        // tick, and at 30.98 mm, a few 1e-6 below λ = 1 with μ's sign
+        // turned: `tests/tests/hold_on_the_plan.rs`).
+        (mx(u, 0.0), false)
     }
 }
 

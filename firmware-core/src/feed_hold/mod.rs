@@ -90,7 +90,7 @@
 //! 1 − λ on an exponential tail, μ ≤ κ(1 − λ) (`Kin::tail_rate`): near
 //! λ = 1 the plan may leave only (1 − λ³)j of jerk, and it lands within
 //! `X_SNAP`. λ is monotone while approaching (w ≥ 0 is kept, and a state
-//! at w = 0 never takes a u < 0: on the plan, a relaxed tick follows it
+//! at w ≤ 0 never takes a u < 0: on the plan, a relaxed tick follows it
 //! rather than step λ past 1); λ is clamped to [0, 1], and a landing that
 //! the constraints did not allow is snapped (counted in
 //! [`HoldStats::forced`]).
