@@ -12,7 +12,7 @@
 //! (its arc length and the ticks run before it: a test can press there).
 //!
 //! ```text
-//! cargo run --release -p e2e-tests --example hold_sweep -- [--every 97] [CURVE …]
+//! cargo run --release -p e2e-tests --example hold_sweep -- [--every 97] [--max-ratio 1.01] [CURVE …]
 //! ```
 //!
 //! CURVE: a built-in name (butterfly, circle, fan, star, trident) or a curve
@@ -31,6 +31,10 @@ struct Args {
     /// Ticks between two presses (each on its own copy of the run).
     #[arg(long, default_value_t = 97)]
     every: u64,
+    /// Fail (exit 1, naming the curve and the press) where a curve's worst
+    /// ratio to a limit is above this (1.01: every limit within 1 %).
+    #[arg(long)]
+    max_ratio: Option<f64>,
     /// Built-in curve names or curve JSON files (default: the built-ins).
     curves: Vec<String>,
 }
@@ -87,6 +91,8 @@ fn main() -> Result<(), String> {
             .to_vec(),
         false => args.curves.clone(),
     };
+    // (the curves whose worst ratio is over --max-ratio)
+    let mut over = vec![];
     for name in &names {
         let curve = match planner_host::builtin::by_name(name) {
             Some(c) => c.map_err(text)?,
@@ -159,6 +165,15 @@ fn main() -> Result<(), String> {
             "  worst ratios: vel {:.4} acc {:.4} jerk {:.4} feed {:.4} tacc {:.4} tjerk {:.4} (largest {:.4}, pressed at {:.2} mm after tick {})",
             all.vel, all.acc, all.jerk, all.feed, all.tacc, all.tjerk, at.1, at.0, at.2
         );
+        if let Some(m) = args.max_ratio.filter(|&m| at.1 > m || at.1.is_nan()) {
+            over.push(format!(
+                "{}: {:.4} over {m} after a hold pressed at {:.2} mm after tick {}",
+                out.curve, at.1, at.0, at.2
+            ));
+        }
+    }
+    if !over.is_empty() {
+        return Err(over.join("; "));
     }
     Ok(())
 }
