@@ -140,7 +140,8 @@ fn main() -> Result<(), String> {
             over_ideal.push(len / ideal_stop_mm(sp.feed_mm_s, acc, lim.abar, lim.jbar).max(1e-9));
             let ticks: Vec<Tick> = pts.iter().map(Tick::of_setpoint).collect();
             let r = metrics::compute(&ticks, PERIOD_S, &lim, None).ratios;
-            if r.worst() > at.1 {
+            // (a NaN ratio is the worst: it stays, and fails --max-ratio)
+            if r.worst() > at.1 || r.worst().is_nan() {
                 at = (s0, r.worst(), ticks_run);
             }
             all = all.max(r);

@@ -1,6 +1,6 @@
-//! A feed hold pressed on the plan (λ = 1, μ = 0) where the plan's axis
-//! jerk is near the limit and changes fast, found by `cargo run --release
-//! -p e2e-tests --example hold_sweep`:
+//! Feed holds that went over a limit, each found by `cargo run --release
+//! -p e2e-tests --example hold_sweep` and mended: most pressed on the plan
+//! (λ = 1, μ = 0) where its axis jerk is near the limit and changes fast.
 //!
 //! - the Fan at 174.86 mm and 459.80 mm, where it jumps within a tick: the
 //!   hold's first constraint interval can lie wholly on the side of speeding
@@ -48,7 +48,7 @@ fn hold_after(bytes: &[u8], press: usize) -> Vec<Setpoint> {
 }
 
 #[test]
-fn a_hold_pressed_where_the_plans_jerk_changes_fast_keeps_every_limit() {
+fn feed_holds_that_went_over_a_limit_keep_every_limit() {
     for (name, press, near_mm) in [
         ("fan", 6111, 174.86),
         ("fan", 16236, 459.80),
