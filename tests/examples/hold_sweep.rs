@@ -11,8 +11,16 @@
 //! (finite differences, `sim_harness::metrics`), with the press that gave it
 //! (its arc length and the ticks run before it: a test can press there).
 //!
+//! With `--resume-after N` each stop rests N ticks and cycle start is pressed:
+//! the resume runs until it is back on the plan, and its setpoints count as
+//! well; with `--rehold K` too, the hold is pressed again K ticks into that
+//! resume, and after N ticks at rest the second resume runs back onto the
+//! plan (a stop pressed from a resume under way, as a starved stream or an
+//! operator presses it).
+//!
 //! ```text
-//! cargo run --release -p e2e-tests --example hold_sweep -- [--every 97] [--max-ratio 1.01] [CURVE …]
+//! cargo run --release -p e2e-tests --example hold_sweep -- [--every 97] [--max-ratio 1.01]
+//!     [--resume-after N [--rehold K]] [CURVE …]
 //! ```
 //!
 //! CURVE: a built-in name (butterfly, circle, fan, star, trident) or a curve
@@ -35,6 +43,14 @@ struct Args {
     /// ratio to a limit is above this (1.01: every limit within 1 %).
     #[arg(long)]
     max_ratio: Option<f64>,
+    /// Ticks each stop rests before cycle start is pressed: the resume back
+    /// onto the plan is measured too.
+    #[arg(long)]
+    resume_after: Option<u64>,
+    /// Press the hold again this many ticks into the resume (then rest and
+    /// resume once more).
+    #[arg(long, requires = "resume_after")]
+    rehold: Option<u64>,
     /// Built-in curve names or curve JSON files (default: the built-ins).
     curves: Vec<String>,
 }
@@ -42,6 +58,8 @@ struct Args {
 const PERIOD_S: f64 = 250e-6;
 /// Setpoints kept before a press and ticked at rest after it.
 const PAD: usize = 60;
+/// A stop or resume longer than four minutes of ticks is reported, not run on.
+const MAX_TICKS: usize = (240.0 / PERIOD_S) as usize;
 
 /// Length of the time-optimal stop from feed `v` and acceleration `a` ≥ 0
 /// with |s̈| ≤ `am`, |s⃛| ≤ `jm`: jerk −jm down to a peak deceleration p,
@@ -81,6 +99,62 @@ fn ideal_stop_mm(v: f64, a: f64, am: f64, jm: f64) -> f64 {
 /// `std::error::Error`).
 fn text<E: std::fmt::Debug>(e: E) -> String {
     format!("{e:?}")
+}
+
+/// From a stop at rest (`ip` held): `n` ticks at rest, cycle start, and the
+/// resume ticked until it is back on the plan (or the path ends); with
+/// `rehold`, the hold pressed again that many ticks into the resume, ticked
+/// to rest, and the same again without a second press. Every setpoint is
+/// pushed onto `pts`.
+fn resume_onto_plan(
+    ip: &mut Interpolator<'_>,
+    pts: &mut Vec<Setpoint>,
+    n: u64,
+    rehold: Option<u64>,
+) -> Result<(), String> {
+    let mut again = rehold;
+    loop {
+        for _ in 0..n {
+            pts.push(ip.tick().map_err(text)?);
+        }
+        match ip.resume() {
+            // (the stop rested at the path's end: nothing to resume)
+            Err(firmware_core::HoldError::Done) => return Ok(()),
+            r => r.map_err(text)?,
+        }
+        let mut k = 0u64;
+        while ip.hold_state() == HoldState::Resuming && !ip.is_done() {
+            if again == Some(k) {
+                again = None;
+                match ip.hold() {
+                    Err(firmware_core::HoldError::Done) => return Ok(()),
+                    r => r.map_err(text)?,
+                }
+                while ip.hold_state() != HoldState::Held && !ip.is_done() {
+                    pts.push(ip.tick().map_err(text)?);
+                    if pts.len() > MAX_TICKS {
+                        return Err(format!(
+                            "a hold pressed {k} ticks into a resume did not rest in 240 s (at {:.3} mm)",
+                            ip.s_mm()
+                        ));
+                    }
+                }
+                break;
+            }
+            pts.push(ip.tick().map_err(text)?);
+            k += 1;
+            if pts.len() > MAX_TICKS {
+                return Err(format!(
+                    "a resume did not reach the plan in 240 s (at {:.3} mm, {:?})",
+                    ip.s_mm(),
+                    ip.hold_state()
+                ));
+            }
+        }
+        if ip.hold_state() != HoldState::Held || ip.is_done() {
+            return Ok(());
+        }
+    }
 }
 
 fn main() -> Result<(), String> {
@@ -131,10 +205,18 @@ fn main() -> Result<(), String> {
             while held.hold_state() != HoldState::Held && !held.is_done() {
                 pts.push(held.tick().map_err(text)?);
             }
+            let len = held.s_mm() - s0;
+            if let Some(n) = args.resume_after {
+                resume_onto_plan(&mut held, &mut pts, n, args.rehold).map_err(|e| {
+                    format!("{}: pressed at {s0:.2} mm after tick {ticks_run}: {e}", out.curve)
+                })?;
+            }
             for _ in 0..PAD {
+                if held.is_done() {
+                    break;
+                }
                 pts.push(held.tick().map_err(text)?);
             }
-            let len = held.s_mm() - s0;
             let acc = ((sp.feed_mm_s - feed_before) / PERIOD_S).max(0.0);
             lengths.push(len);
             over_ideal.push(len / ideal_stop_mm(sp.feed_mm_s, acc, lim.abar, lim.jbar).max(1e-9));
