@@ -58,7 +58,9 @@ struct Args {
 const PERIOD_S: f64 = 250e-6;
 /// Setpoints kept before a press and ticked at rest after it.
 const PAD: usize = 60;
-/// A stop or resume longer than four minutes of ticks is reported, not run on.
+/// A press whose setpoints (the ticks before it, the stop, the rests and the
+/// resumes) pass four minutes of ticks without the resume back on the plan
+/// is reported, not run on.
 const MAX_TICKS: usize = (240.0 / PERIOD_S) as usize;
 
 /// Length of the time-optimal stop from feed `v` and acceleration `a` ≥ 0
