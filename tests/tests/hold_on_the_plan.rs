@@ -21,6 +21,13 @@
 //!   jerk reached 1.62× the limit while the μ cap's axis look-ahead counted
 //!   only the points where the axis decelerates: a ν taken for one axis is
 //!   every axis's and the tangent's. Every J against A counts again.
+//! - the Butterfly at 0.52 mm (`--resume-after 40 --rehold 1`): a hold
+//!   pressed one tick into a resume from rest, λ 3e-5 short of rest and μ
+//!   4e-9. The braking curve would have overshot within a period, and the
+//!   landing that replaced it was timed by the approach rate (2x/(μh) ≈ 3e7
+//!   ticks): ν ≈ 0, the machine crept at 0.004 mm/s and never rested. A
+//!   landing now takes at most the triangle from rest at the braking
+//!   deceleration.
 
 use firmware_core::{HoldState, Interpolator, Setpoint, Table};
 use planner_host::plan::{self, PlanConfig};
@@ -73,4 +80,65 @@ fn feed_holds_that_went_over_a_limit_keep_every_limit() {
             "{name}: a ratio over 1.01 after a hold pressed at {at} mm: {r:?}"
         );
     }
+}
+
+/// Ticks `it` until it rests, pushing every setpoint; false where it has
+/// not rested within `max` ticks.
+fn tick_to_rest(it: &mut Interpolator<'_>, pts: &mut Vec<Setpoint>, max: usize) -> bool {
+    for _ in 0..max {
+        if it.hold_state() == HoldState::Held {
+            return true;
+        }
+        pts.push(it.tick().unwrap());
+    }
+    it.hold_state() == HoldState::Held
+}
+
+#[test]
+fn a_hold_pressed_a_tick_into_a_resume_from_rest_rests_within_the_limits() {
+    let curve = planner_host::builtin::by_name("butterfly").unwrap().unwrap();
+    let out = plan::plan_curve(&curve, &PlanConfig::default()).unwrap();
+    let lim = Table::parse(&out.table_bytes).unwrap().limits();
+    let mut it = Interpolator::new(Table::parse(&out.table_bytes).unwrap(), PERIOD_S).unwrap();
+    let mut pts: Vec<Setpoint> = (0..291).map(|_| it.tick().unwrap()).collect();
+    pts.drain(..291 - PAD);
+    it.hold().unwrap();
+    // (a stop from 0.52 mm on the plan takes well under a second)
+    assert!(
+        tick_to_rest(&mut it, &mut pts, 4_000),
+        "the first stop did not rest"
+    );
+    for _ in 0..40 {
+        pts.push(it.tick().unwrap());
+    }
+    it.resume().unwrap();
+    pts.push(it.tick().unwrap());
+    assert_eq!(it.hold_state(), HoldState::Resuming);
+    let (s_press, v_press) = (it.s_mm(), pts[pts.len() - 1].feed_mm_s);
+    it.hold().unwrap();
+    let before = pts.len();
+    // (a tick into the resume it is all but at rest: a few ms, not seconds)
+    let rested = tick_to_rest(&mut it, &mut pts, 4_000);
+    assert!(
+        rested,
+        "a hold pressed a tick into a resume (at {s_press} mm, {v_press} mm/s) did not rest in 1 s: \
+         at {} mm, {} mm/s, {:?}",
+        it.s_mm(),
+        pts[pts.len() - 1].feed_mm_s,
+        it.hold_state()
+    );
+    let stop_ticks = pts.len() - before;
+    for _ in 0..PAD {
+        pts.push(it.tick().unwrap());
+    }
+    let ticks: Vec<Tick> = pts.iter().map(Tick::of_setpoint).collect();
+    let r = metrics::compute(&ticks, PERIOD_S, &lim, None).ratios;
+    eprintln!("butterfly, hold a tick into a resume: rested in {stop_ticks} ticks, {r:?}");
+    assert!(r.worst() <= 1.01, "a ratio over 1.01: {r:?}");
+    // (it rests where it was pressed, give or take the last tick's motion)
+    assert!(
+        (it.s_mm() - s_press).abs() < 1e-3,
+        "rested at {} mm, pressed at {s_press} mm",
+        it.s_mm()
+    );
 }
