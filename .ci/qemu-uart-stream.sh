@@ -5,7 +5,8 @@
 # from a host process (planner-host example stream_send, through QEMU's `-chardev pipe`), with
 # the credits of its ACKs taken 50 ms late each way, and runs the whole path; its setpoint
 # digest must equal the host's streamed run's. Prints both runs' figures: ticks, chunks, bytes,
-# the ring's and the window's peak use, the stack's high-water mark, flash and RAM.
+# the ring's and the window's peak use, the stack's high-water mark, flash and RAM; exit 1 when the
+# image's flash is over 64 KiB (FLASH_BUDGET bytes).
 #
 #   bash .ci/qemu-uart-stream.sh CURVE.json|NAME [CHUNK_MM] [WINDOW_MM:COMMIT_MM]
 #
@@ -17,8 +18,8 @@
 # bad and the out-of-order frames, NAK what it expects, ACK what it has, and still run the
 # host's setpoints; with frames corrupted, dropped or swapped the run must show refusals.
 #
-# NO_U_FORM=1 sends the chunks without the u form (stream_send --no-u-form): a smaller stream,
-# the same positions (the setpoints' u reads 0), so the same digest.
+# U_FORM=1 sends the chunks with the u form (stream_send --u-form): the setpoints report u, a
+# larger stream, the same positions, so the same digest.
 #
 # TICK_COUNT=1 runs the image built with the feature `tick-count` (its own target directory)
 # under bench_insn.py's counting plugin: every servo tick's Thumb instructions, by kind (start,
@@ -44,7 +45,7 @@ d=$(mktemp -d)
 trap 'rm -rf "$d"' EXIT
 mkfifo "$d/link.in" "$d/link.out"
 "$root/target/release/examples/stream_send" "$curve" --pipe "$d/link" --chunk-mm "$chunk_mm" \
-  --latency-ms 50 --digest ${FAULTS:+--faults "$FAULTS"} ${NO_U_FORM:+--no-u-form} "${windows[@]}" \
+  --latency-ms 50 --digest ${FAULTS:+--faults "$FAULTS"} ${U_FORM:+--u-form} "${windows[@]}" \
   >"$d/host.txt" 2>&1 &
 host_pid=$!
 set +e
@@ -90,6 +91,10 @@ if [ -z "$host_digest" ] || [ "$host_digest" != "$mcu_digest" ]; then
 fi
 if [ -n "${over:-}" ]; then
   echo "streamed ticks over the budget: $over" >&2; exit 1
+fi
+# the firmware without tables fits 64 KiB of flash (FLASH_BUDGET bytes)
+if [ -n "${text:-}" ] && [ "$text" -gt "${FLASH_BUDGET:-65536}" ]; then
+  echo "stream-run's flash, $text bytes, is over the budget of ${FLASH_BUDGET:-65536}" >&2; exit 1
 fi
 if [[ "${FAULTS:-}" =~ corrupt|drop|reorder ]]; then
   # (refused: a chunk that failed its checks or came out of order; bad: a frame that failed its

@@ -29,9 +29,9 @@
 //! has been quiet for two round trips and 3 s with chunks
 //! unacknowledged.
 //!
-//! `--no-u-form` sends the chunks without the u form (each piece's u(s)):
-//! the setpoints' u then reads 0 along the path, their positions (and the
-//! digest) are the same.
+//! `--u-form` sends the chunks with the u form (each piece's u(s)), so that
+//! the setpoints report u; without it (the default) their u reads 0 along
+//! the path, and their positions (and the digest) are the same.
 //!
 //! `--digest` prints the host's own streamed run's digest at the end (the same
 //! chunks through `PlanWindow` and the streamed interpolator, FNV-1a over
@@ -41,7 +41,7 @@
 //! ```text
 //! cargo run --release -p planner-host --example stream_send -- CURVE --pipe PATH
 //!     [--chunk-mm 8] [--ring-bytes 16384] [--latency-ms 50] [--windows W:C]
-//!     [--faults corrupt:N,drop:N,duplicate:N,reorder:N,restart:N] [--no-u-form]
+//!     [--faults corrupt:N,drop:N,duplicate:N,reorder:N,restart:N] [--u-form]
 //!     [--digest]
 //! ```
 
@@ -127,7 +127,7 @@ fn args() -> Result<Args, String> {
         digest: false,
         windows: None,
         faults: Faults::default(),
-        u_form: true,
+        u_form: false,
     };
     let mut it = std::env::args().skip(1);
     while let Some(x) = it.next() {
@@ -151,7 +151,7 @@ fn args() -> Result<Args, String> {
                 a.latency = Duration::from_secs_f64(ms.max(0.0) * 1e-3);
             }
             "--digest" => a.digest = true,
-            "--no-u-form" => a.u_form = false,
+            "--u-form" => a.u_form = true,
             "--windows" => {
                 let v = val("--windows")?;
                 let (w, c) = v.split_once(':').ok_or("--windows WINDOW_MM:COMMIT_MM")?;
@@ -166,7 +166,7 @@ fn args() -> Result<Args, String> {
         }
     }
     if a.curve.is_empty() || a.pipe.is_empty() {
-        return Err("usage: stream_send CURVE --pipe PATH [--chunk-mm 8] [--ring-bytes 16384] [--latency-ms 50] [--windows W:C] [--faults corrupt:N,drop:N,duplicate:N,reorder:N,restart:N] [--no-u-form] [--digest]".into());
+        return Err("usage: stream_send CURVE --pipe PATH [--chunk-mm 8] [--ring-bytes 16384] [--latency-ms 50] [--windows W:C] [--faults corrupt:N,drop:N,duplicate:N,reorder:N,restart:N] [--u-form] [--digest]".into());
     }
     Ok(a)
 }

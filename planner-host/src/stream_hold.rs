@@ -326,9 +326,32 @@ impl<const NQ: usize, const NP: usize> StreamedRun<NQ, NP> {
     /// [`StreamedRun::feed`], then one tick.
     pub fn step(&mut self, chunks: &[Vec<u8>]) -> Result<Setpoint, HoldPointError> {
         self.feed(chunks)?;
-        self.ip.tick().map_err(|f| HoldPointError::Fault {
-            tick: self.ip.ticks(),
-            fault: format!("{f:?}"),
+        let s_mm = self.ip.s_mm();
+        self.ip.tick().map_err(|f| {
+            // (a tick past the rows held while the next chunk waits for room
+            // in the window: the window's size, not a fault of the plan)
+            let waiting = chunks
+                .get(self.next)
+                .and_then(|b| Chunk::parse(b).ok())
+                .filter(|c| !self.ip.window().fits(c));
+            match waiting {
+                Some(c) => {
+                    let (free_q, free_p) = self.ip.window().free();
+                    HoldPointError::RowsRunOut {
+                        s_mm,
+                        next: self.next,
+                        rows: format!(
+                            "{} q spans and {} pieces, {free_q} and {free_p} free",
+                            c.info().n_q,
+                            c.info().n_p
+                        ),
+                    }
+                }
+                None => HoldPointError::Fault {
+                    tick: self.ip.ticks(),
+                    fault: format!("{f:?}"),
+                },
+            }
         })
     }
 
@@ -384,6 +407,19 @@ pub enum HoldPointError {
     /// The search's thread could not start or panicked.
     #[error("the hold-point search's thread failed")]
     Thread,
+    /// The reference run (chunks pushed as they fit, no hold) reached the
+    /// end of the rows its window holds with the next chunk still not
+    /// fitting: the window holds too little of the path for chunks this
+    /// long, so no hold point could keep a stop inside it.
+    #[error("the plan window holds too little for these chunks: the motion reaches the end of its rows at {s_mm:.3} mm with chunk {next} ({rows}) not fitting")]
+    RowsRunOut {
+        /// Where the motion was, mm.
+        s_mm: f64,
+        /// The chunk that did not fit.
+        next: usize,
+        /// Its rows, and the window's free ones (q spans, pieces).
+        rows: String,
+    },
     /// The reference run faulted.
     #[error("the streamed run faulted at tick {tick}: {fault}")]
     Fault {

@@ -1222,9 +1222,10 @@ pub struct StreamOptions {
     /// ready.
     pub start_runway_mm: f64,
     /// The chunks carry the u form (each piece's u(s), for the setpoints'
-    /// u); without it a stream is smaller and the setpoints' u reads 0
-    /// along the path (the end point's at the end; the positions are the
-    /// same bits).
+    /// u). Off by default: without it a stream is smaller (the Butterfly's
+    /// by 40 %) and the setpoints' u reads 0 along the path (the end
+    /// point's at the end); the positions, s, the feed and the time are the
+    /// same bits.
     pub u_form: bool,
     /// Frames damaged, lost, doubled or reordered on the link, and a host
     /// restart ([`LinkFaults`]).
@@ -1265,7 +1266,7 @@ impl Default for StreamOptions {
             host_replan_s: None,
             host_ahead_s: 0.0,
             start_runway_mm: 0.0,
-            u_form: true,
+            u_form: false,
             faults: LinkFaults::default(),
             holds: vec![],
             cycle_start_s: None,

@@ -487,8 +487,9 @@ fn stream_on_a_slower_host_replays_with_its_ready_times() {
 
 /// Through an MCU-sized window (128 q spans, 256 pieces) with a stalled
 /// link: hold points found for that window, starvation stops inside it,
-/// every limit held; a window too small for a stop from the start is
-/// refused with exit code 2, not run forever.
+/// every limit held; a window too small for the chunks (here a 32 mm chunk
+/// of 67 q spans against 64) is refused with exit code 2, naming the chunk,
+/// before any motion.
 #[test]
 fn stream_through_an_mcu_sized_window_starves_safely_or_is_refused() {
     let out = feedsim()
@@ -518,7 +519,11 @@ fn stream_through_an_mcu_sized_window_starves_safely_or_is_refused() {
         .output()
         .unwrap();
     assert_eq!(out.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&out.stderr).contains("--window-rows"));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("--window-rows") && err.contains("not fitting"),
+        "{err}"
+    );
 }
 
 /// A window that lets the motion start but holds too little of the path
@@ -643,15 +648,15 @@ fn stream_reports_the_streamed_run_as_json_and_refuses_bad_options() {
     }
 }
 
-/// `feedsim stream --no-u-form`: the Butterfly's stream under 100 bytes per
-/// mm (the u form, each piece's u(s), is most of the rest), and the same
-/// run: machining time, ratios, no starvation. (The host sends once its
-/// hold-point search has covered the whole path, `--start-runway-mm` past
-/// its end: sent as the search goes, a host slowed by other work, as a
-/// loaded test machine is, starved the start, and the two runs differed by
-/// the host's speed, not the encoding.)
+/// `feedsim stream` at its defaults: the Butterfly's stream under 100 bytes
+/// per mm, and `--u-form` (each piece's u(s), so that the setpoints report
+/// u) the same run in more bytes: machining time, ratios, no starvation.
+/// (The host sends once its hold-point search has covered the whole path,
+/// `--start-runway-mm` past its end: sent as the search goes, a host slowed
+/// by other work, as a loaded test machine is, starved the start, and the
+/// two runs differed by the host's speed, not the encoding.)
 #[test]
-fn stream_without_the_u_form_is_under_100_bytes_per_mm_on_the_butterfly() {
+fn stream_is_under_100_bytes_per_mm_on_the_butterfly_and_the_u_form_adds_to_it() {
     let run = |extra: &[&str]| -> serde_json::Value {
         let mut args = vec!["stream", "butterfly", "--start-runway-mm", "1000", "--json"];
         args.extend(extra);
@@ -659,8 +664,8 @@ fn stream_without_the_u_form_is_under_100_bytes_per_mm_on_the_butterfly() {
         assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
         serde_json::from_slice(&out.stdout).unwrap()
     };
-    let with_u = run(&[]);
-    let without_u = run(&["--no-u-form"]);
+    let without_u = run(&[]);
+    let with_u = run(&["--u-form"]);
     let bpm = |v: &serde_json::Value| v["bytes_per_mm"].as_f64().unwrap();
     assert_eq!(with_u["u_form"], true);
     assert_eq!(without_u["u_form"], false);

@@ -45,6 +45,34 @@ pub(crate) fn clampf(x: f32, lo: f32, hi: f32) -> f32 {
     mn(mx(x, lo), hi)
 }
 
+/// The landing law for n ticks from (x, w) (n ≥ 2 lands on a tick
+/// boundary later).
+#[inline(always)]
+fn land(x: f32, w: f32, h: f32, n: f32) -> f32 {
+    2.0 * (x - w * h * (n + 1.0) * 0.5) / (n * h * h)
+}
+
+/// A u that would leave less than two ticks to go without being on the
+/// landing parabola is replaced by a landing: in n_land ticks (the approach
+/// rate's own, 2x/(wh)), but never slower than the triangle from rest at
+/// the braking deceleration b, 2√(x/b)/h ticks. From a state on the braking
+/// curve (w ≥ √(bx)) that is n_land itself; from one far below it (w → 0
+/// with x > 0, as where a hold is pressed again a tick into a resume from
+/// rest) the approach rate's own landing is ~2x/(wh) ticks long and its
+/// u ≈ 0 leaves w there for good: the machine would creep and never rest.
+/// (Not inlined: [`approach`] calls it from both of its branches, and the
+/// image's flash is counted.)
+#[inline(never)]
+fn settle(x: f32, w: f32, b: f32, h: f32, u: f32, n_land: f32) -> f32 {
+    let (x1, w1) = (x - w * h - 0.5 * u * h * h, w + u * h);
+    if w1 > 0.0 && x1 < w1 * h {
+        let n_rest = libm::ceilf(2.0 * sqrt32(mx(x, 0.0) / b) / h);
+        land(x, w, h, mx(mn(n_land, n_rest), 2.0))
+    } else {
+        u
+    }
+}
+
 /// The control u for one tick of the double integrator ẋ = −w, ẇ = u (x
 /// the distance to go, w the approach rate), u within [ulo, uhi], planning
 /// with braking deceleration b (module docs); and whether this tick lands
@@ -75,26 +103,8 @@ pub(crate) fn approach(x: f32, w: f32, (ulo, uhi): (f32, f32), b: f32, kappa: f3
     } else {
         None
     };
-    // The landing law for n ticks (n ≥ 2 lands on a tick boundary later).
-    let land = |n: f32| 2.0 * (x - w * h * (n + 1.0) * 0.5) / (n * h2);
-    // A u that would leave less than two ticks to go without being on the
-    // landing parabola is replaced by a landing: in n_land ticks (the
-    // approach rate's own, 2x/(wh)), but never slower than the triangle from
-    // rest at the braking deceleration, 2√(x/b)/h ticks. From a state
-    // on the braking curve (w ≥ √(bx)) that is n_land itself; from one
-    // far below it (w → 0 with x > 0, as where a hold is pressed again a
-    // tick into a resume from rest) the approach rate's own landing is
-    // ~2x/(wh) ticks long and its u ≈ 0 leaves w there for good: the
-    // machine would creep and never rest.
-    let settle = |u: f32, n_land: f32| {
-        let (x1, w1) = (x - w * h - 0.5 * u * h2, w + u * h);
-        if w1 > 0.0 && x1 < w1 * h {
-            let n_rest = libm::ceilf(2.0 * sqrt32(mx(x, 0.0) / b) / h);
-            land(mx(mn(n_land, n_rest), 2.0))
-        } else {
-            u
-        }
-    };
+    let land = |n: f32| land(x, w, h, n);
+    let settle = |u: f32, n_land: f32| settle(x, w, b, h, u, n_land);
     let top = mx(uhi, ulo);
     if w > 0.0 {
         let n = mx(libm::ceilf(2.0 * x / (w * h)), 1.0);

@@ -12,7 +12,7 @@
 //! feedsim stream CURVE [--link uart:BAUD] [--latency-ms 5] [--ring-bytes 16384] [--chunk-mm 32]
 //!                      [--window-mm 200 --commit-mm 150 | --whole] [--stall T:D]... [--override T:PCT]...
 //!                      [--faults corrupt:N,drop:N,duplicate:N,reorder:N,restart:S]
-//!                      [--no-u-form] [--tol 0.01] [--json]
+//!                      [--u-form] [--tol 0.01] [--json]
 //! feedsim completions SHELL
 //! ```
 
@@ -289,11 +289,12 @@ enum Cmd {
         /// the next path streams then (default: the program goes on at once).
         #[arg(long)]
         cycle_start_ms: Option<f64>,
-        /// Chunks without the u form (each piece's u(s), six f32: about a third of the
-        /// Butterfly's stream): the setpoints' u then reads 0 along the path (the end
-        /// point's at the end); their positions are the same.
+        /// Chunks with the u form (each piece's u(s), six f32: 70 % more bytes on the
+        /// Butterfly) so that the setpoints report u, the curve parameter; without it
+        /// (the default) their u reads 0 along the path (the end point's at the end) and
+        /// the positions, s, the feed and the time are the same bits.
         #[arg(long)]
-        no_u_form: bool,
+        u_form: bool,
         /// Servo period, microseconds (default: the machine file's; the built-in machine's is 250).
         #[arg(long)]
         period_us: Option<f64>,
@@ -429,6 +430,14 @@ fn stream_failure(e: sim_harness::stream::StreamError) -> Failure {
             code: planner_host::cli::EXIT_USAGE,
             message: e.to_string(),
         },
+        // (the window too small for the chunks: the options, not the plan)
+        E::HoldPoints(e @ planner_host::stream_hold::HoldPointError::RowsRunOut { .. })
+        | E::Pipeline(planner_host::stream_pipeline::PipelineError::HoldPoints(
+            e @ planner_host::stream_hold::HoldPointError::RowsRunOut { .. },
+        )) => Failure {
+            code: planner_host::cli::EXIT_USAGE,
+            message: format!("{e} (a larger --window-rows or a shorter --chunk-mm)"),
+        },
         E::Program(p) => Failure::new(planner_host::cli::program_exit_code(&p), p),
         E::Path {
             index,
@@ -480,7 +489,7 @@ fn ratios_text(label: &str, r: &planner_host::Ratios, ok: bool) -> String {
     )
 }
 
-/// What the summary line says of a stream sent without the u form.
+/// What the summary line says of a stream sent with the u form.
 /// "; peak RSS … MiB" where the system tells it.
 fn rss_text(kib: Option<u64>) -> String {
     kib.map_or(String::new(), |k| {
@@ -488,11 +497,11 @@ fn rss_text(kib: Option<u64>) -> String {
     })
 }
 
-fn no_u_form_note(u_form: bool) -> &'static str {
+fn u_form_note(u_form: bool) -> &'static str {
     if u_form {
-        ""
+        " (with the u form)"
     } else {
-        " (no u form)"
+        ""
     }
 }
 
@@ -585,7 +594,7 @@ fn stream_program_cmd(
         outln!(
             "{}: {} paths, {:.2} mm streamed in {} chunks, {:.1} bytes/mm framed{}, over uart:{} with {} ms latency",
             path.display(), rep.paths, rep.length_mm, rep.chunks, rep.bytes_per_mm,
-            no_u_form_note(rep.u_form), rep.link_baud, rep.latency_ms
+            u_form_note(rep.u_form), rep.link_baud, rep.latency_ms
         );
         outln!(
             "  planning {:.3} s ({} windows), first motion after {:.1} ms, at rest between paths {:.1} ms in all; machining {:.3} s ({:.0}x the planning time, {:.0}x the host's with the hold points), the plans' own {:.3} s{}",
@@ -956,7 +965,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
             ready_times,
             faults,
             cycle_start_ms,
-            no_u_form,
+            u_form,
             period_us,
             tol,
             json,
@@ -1062,7 +1071,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
                 ready_times,
                 host_ahead_s: 0.0,
                 start_runway_mm,
-                u_form: !no_u_form,
+                u_form,
                 faults,
                 cycle_start_s: cycle_start_ms.map(|m| m * 1e-3),
             };
@@ -1088,7 +1097,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
                 outln!(
                     "{}: {:.2} mm streamed in {} chunks, {:.1} bytes/mm framed{}, over uart:{} with {} ms latency",
                     curve, rep.length_mm, rep.chunks, rep.bytes_per_mm,
-                    no_u_form_note(rep.u_form), rep.link_baud, rep.latency_ms
+                    u_form_note(rep.u_form), rep.link_baud, rep.latency_ms
                 );
                 outln!(
                     "  planning {:.3} s ({} windows), hold points {:.3} s, first motion after {:.1} ms; machining {:.3} s ({:.0}x the planning time, {:.0}x the host's with the hold points), the plan's own {:.3} s{}",
