@@ -16,11 +16,14 @@
 //! well; with `--rehold K` too, the hold is pressed again K ticks into that
 //! resume, and after N ticks at rest the second resume runs back onto the
 //! plan (a stop pressed from a resume under way, as a starved stream or an
-//! operator presses it).
+//! operator presses it). With `--resume-during K` instead, cycle start is
+//! pressed K ticks after the hold, its stop still under way (an operator who
+//! changes their mind, or a stream's chunk arriving during a starvation
+//! stop), and the resume runs back onto the plan.
 //!
 //! ```text
 //! cargo run --release -p e2e-tests --example hold_sweep -- [--every 97] [--max-ratio 1.01]
-//!     [--resume-after N [--rehold K]] [CURVE …]
+//!     [--resume-after N [--rehold K] | --resume-during K] [CURVE …]
 //! ```
 //!
 //! CURVE: a built-in name (butterfly, circle, fan, star, trident) or a curve
@@ -51,6 +54,11 @@ struct Args {
     /// resume once more).
     #[arg(long, requires = "resume_after")]
     rehold: Option<u64>,
+    /// Press cycle start this many ticks after the hold, while its stop is
+    /// still under way (or at rest, if it rested sooner): the resume from a
+    /// moving stop back onto the plan is measured too.
+    #[arg(long, conflicts_with = "resume_after")]
+    resume_during: Option<u64>,
     /// Built-in curve names or curve JSON files (default: the built-ins).
     curves: Vec<String>,
 }
@@ -159,6 +167,27 @@ fn resume_onto_plan(
     }
 }
 
+/// Cycle start pressed on `ip` (its stop under way or at rest), the resume
+/// ticked until it is back on the plan (or the path ends). Every setpoint
+/// is pushed onto `pts`.
+fn resume_under_way(ip: &mut Interpolator<'_>, pts: &mut Vec<Setpoint>) -> Result<(), String> {
+    match ip.resume() {
+        Err(firmware_core::HoldError::Done) => return Ok(()),
+        r => r.map_err(text)?,
+    }
+    while ip.hold_state() == HoldState::Resuming && !ip.is_done() {
+        pts.push(ip.tick().map_err(text)?);
+        if pts.len() > MAX_TICKS {
+            return Err(format!(
+                "a resume did not reach the plan in 240 s (at {:.3} mm, {:?})",
+                ip.s_mm(),
+                ip.hold_state()
+            ));
+        }
+    }
+    Ok(())
+}
+
 fn main() -> Result<(), String> {
     let args = Args::parse();
     let names: Vec<String> = match args.curves.is_empty() {
@@ -204,8 +233,18 @@ fn main() -> Result<(), String> {
                 r => r.map_err(text)?,
             }
             let mut pts: Vec<Setpoint> = before.iter().copied().collect();
-            while held.hold_state() != HoldState::Held && !held.is_done() {
+            let mut n = 0u64;
+            while held.hold_state() != HoldState::Held
+                && !held.is_done()
+                && args.resume_during.is_none_or(|k| n < k)
+            {
                 pts.push(held.tick().map_err(text)?);
+                n += 1;
+            }
+            if args.resume_during.is_some() && !held.is_done() {
+                resume_under_way(&mut held, &mut pts).map_err(|e| {
+                    format!("{}: pressed at {s0:.2} mm after tick {ticks_run}: {e}", out.curve)
+                })?;
             }
             let len = held.s_mm() - s0;
             if let Some(n) = args.resume_after {

@@ -28,6 +28,14 @@
 //!   ticks): ν ≈ 0, the machine crept at 0.004 mm/s and never rested. A
 //!   landing now takes at most the triangle from rest at the braking
 //!   deceleration.
+//! - the Fan at 405.22 mm (`--resume-during 20`): cycle start pressed 20
+//!   ticks into a stop that had barely begun (λ 0.99985, μ −0.046/s). The
+//!   resume's first period brought μ back to 0 at once, its ν·ṡ_p 6,660
+//!   mm/s³ within the tangential jerk the model left, but the plan's own
+//!   jerk, 9,143 mm/s³ at the period's start and taken as growing at the
+//!   last period's rate, reached its limit within the period (q‴ changes
+//!   at the dense knots there): 1.086× the tangential jerk. J's change over
+//!   a period now also comes from q (q″ linear in a span).
 
 use firmware_core::{HoldState, Interpolator, Setpoint, Table};
 use planner_host::plan::{self, PlanConfig};
@@ -141,4 +149,35 @@ fn a_hold_pressed_a_tick_into_a_resume_from_rest_rests_within_the_limits() {
         "rested at {} mm, pressed at {s_press} mm",
         it.s_mm()
     );
+}
+
+#[test]
+fn cycle_start_pressed_during_a_stop_where_the_plan_jerk_rises_keeps_the_limits() {
+    let curve = planner_host::builtin::by_name("fan").unwrap().unwrap();
+    let out = plan::plan_curve(&curve, &PlanConfig::default()).unwrap();
+    let lim = Table::parse(&out.table_bytes).unwrap().limits();
+    let mut it = Interpolator::new(Table::parse(&out.table_bytes).unwrap(), PERIOD_S).unwrap();
+    let press = 14_663;
+    let mut pts: Vec<Setpoint> = (0..press).map(|_| it.tick().unwrap()).collect();
+    pts.drain(..press - PAD);
+    let s_press = it.s_mm();
+    it.hold().unwrap();
+    for _ in 0..20 {
+        pts.push(it.tick().unwrap());
+    }
+    assert_eq!(it.hold_state(), HoldState::Stopping);
+    it.resume().unwrap();
+    let mut n = 0;
+    while it.hold_state() == HoldState::Resuming {
+        pts.push(it.tick().unwrap());
+        n += 1;
+        assert!(n < 40_000, "the resume did not reach the plan in 10 s");
+    }
+    for _ in 0..PAD {
+        pts.push(it.tick().unwrap());
+    }
+    let ticks: Vec<Tick> = pts.iter().map(Tick::of_setpoint).collect();
+    let r = metrics::compute(&ticks, PERIOD_S, &lim, None).ratios;
+    eprintln!("fan, cycle start 20 ticks into a stop pressed at {s_press:.2} mm: back on the plan in {n} ticks, {r:?}");
+    assert!(r.worst() <= 1.01, "a ratio over 1.01: {r:?}");
 }

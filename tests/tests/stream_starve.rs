@@ -401,3 +401,53 @@ fn finished_within_the_limits(table: &Table, run: &StreamRun) {
     let rep = check(table, &run.setpoints, TOL);
     assert!(rep.ok, "{}", rep.text());
 }
+
+/// The last chunk ready only once the machine has reached the hold point
+/// of the one before (a host that sends the path's end late): the firmware
+/// presses its starvation hold, and the chunk arrives during that stop,
+/// which the resume takes back onto the plan. On the Butterfly near 297 mm
+/// the plan's tangential jerk rises to its limit within the resume's first
+/// control period, and that period had reckoned J as growing at the last
+/// one's rate: up to 1.0145× the tangential jerk limit for an arrival
+/// 4.914 s after the start, now within it (J's change over a period comes
+/// from q as well). The arrival swept over 20 ms, a tick at a time.
+#[test]
+fn the_last_chunk_arriving_during_a_starvation_stop_resumes_within_the_limits() {
+    big_stack(last_chunk_during_the_stop);
+}
+
+fn last_chunk_during_the_stop() {
+    let curve = planner_host::builtin::by_name("butterfly").unwrap().unwrap();
+    let bytes = plan_curve(&curve, &PlanConfig::default()).unwrap().table_bytes;
+    let table = Table::parse(&bytes).unwrap();
+    let opts = ChunkOptions {
+        chunk_mm: 8.0,
+        ..ChunkOptions::default()
+    };
+    let mut chunks = chunk_table(&table, &opts).unwrap();
+    set_hold_points::<NQ, NP>(&table, &mut chunks, &HoldSearch::default()).unwrap();
+    let (mut worst, mut starved) = (0.0f64, 0);
+    for k in 0..80 {
+        let t_last = 4.905 + 0.25e-3 * f64::from(k);
+        let mut l = link(2e6, vec![]);
+        l.ready_s = vec![0.0; chunks.len()];
+        if let Some(r) = l.ready_s.last_mut() {
+            *r = t_last;
+        }
+        let run = run_stream::<CAP, NQ, NP>(&table, &chunks, &l).unwrap();
+        starved += run.starvations;
+        let last = run.setpoints.last().unwrap();
+        assert_eq!(last.s_mm, table.path_length_mm());
+        let rep = check(&table, &run.setpoints, TOL);
+        let w = rep
+            .ratios
+            .named()
+            .iter()
+            .map(|(_, p)| p.ratio)
+            .fold(0.0, f64::max);
+        worst = worst.max(w);
+        assert!(rep.ok, "last chunk ready at {t_last:.3} s: {}", rep.text());
+    }
+    println!("{starved} starvation stops over 80 arrivals; worst ratio {worst:.4}");
+    assert!(starved >= 40, "the late chunk starved only {starved} runs");
+}

@@ -66,7 +66,8 @@ fn land(x: f32, w: f32, h: f32, n: f32) -> f32 {
 fn settle(x: f32, w: f32, b: f32, h: f32, u: f32, n_land: f32) -> f32 {
     let (x1, w1) = (x - w * h - 0.5 * u * h * h, w + u * h);
     if w1 > 0.0 && x1 < w1 * h {
-        let n_rest = libm::ceilf(2.0 * sqrt32(mx(x, 0.0) / b) / h);
+        // (libm's √, as the feed's: linked already, where sqrt32 inlines)
+        let n_rest = libm::ceilf(2.0 * libm::sqrtf(mx(x, 0.0) / b) / h);
         land(x, w, h, mx(mn(n_land, n_rest), 2.0))
     } else {
         u

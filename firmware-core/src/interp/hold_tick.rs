@@ -631,6 +631,9 @@ impl<'a, const Q: usize, const W: usize, R: PlanRows<'a>> Interpolator<'a, Q, W,
         if !self.hold_kin(plan, s) {
             return false;
         }
+        if !seg {
+            self.period_growth();
+        }
         // (in the stop segment: coast through it, without the look-ahead)
         let coast = if seg { true } else { self.ahead_acc() };
         let fh = &mut self.fh;
@@ -663,6 +666,39 @@ impl<'a, const Q: usize, const W: usize, R: PlanRows<'a>> Interpolator<'a, Q, W,
         let back = self.s.saturating_sub(f32_to_fx(mx(0.0, p1) * hp));
         // (an unreadable piece leaves J's change at 0, as before)
         let _ = self.hold_kin([p1 - p2 * hp, p2 - p3 * hp, p3 - p4 * hp], back);
+    }
+
+    /// J's change over the coming control period as the plan's q gives it,
+    /// into the prepared kinematics' `dj` where it is larger than the last
+    /// period's change. Within a q span q″ is linear in s, so the plan's
+    /// tangential jerk ½q″ṡ at the period's end is ½(q″ + q‴Δs)(ṡ + ṡ′Δs),
+    /// Δs the most the period can cover (at λ = 1); the axes' jerk changes
+    /// by r′ times that. The last period's change foresees J only where q‴
+    /// stays the same: near the knots the LP refines, q‴ changes every few
+    /// periods, and the plan's jerk rose to its limit within one period that
+    /// had taken it as growing at the last one's rate (cycle start pressed
+    /// during a stop there: ν brought μ back to 0 in one period, 1.086×
+    /// the Fan's tangential jerk at 405 mm). A period that crosses a knot
+    /// is extrapolated on this span's q‴ too: the next span's, tried, gave
+    /// the same ratios on every sweep and did not fit the image's flash.
+    fn period_growth(&mut self) {
+        let [_, dq, ddq, dddq] = self.qs.qd;
+        let v = self.qs.v;
+        if !(v > 0.0) {
+            return;
+        }
+        let ds = PERIOD_TICKS as f32 * self.h * v;
+        let ddq_end = ddq + dddq * ds;
+        // (ṡ′ = s̈/ṡ = q′/(2ṡ); the axes' share r′ = V/ṡ)
+        let inv_v = 1.0 / v;
+        let grow = 0.5 * (ddq_end * (v + 0.5 * dq * inv_v * ds) - ddq * v) * inv_v;
+        let kin = &mut self.fh.prep.kin;
+        for (d, r) in kin.dj.iter_mut().zip(kin.v) {
+            let g = grow * r;
+            if g.abs() > d.abs() {
+                *d = g;
+            }
+        }
     }
 
     /// A hold or resume request between ticks: the next control period's
