@@ -39,7 +39,7 @@
 
 use firmware_core::{HoldState, Interpolator, Setpoint, Table};
 use planner_host::plan::{self, PlanConfig};
-use sim_harness::metrics::{self, Tick};
+use sim_harness::metrics::{self, Ratios, Tick};
 
 const PERIOD_S: f64 = 250e-6;
 /// Setpoints before the press and at rest after the stop in the check.
@@ -102,14 +102,32 @@ fn tick_to_rest(it: &mut Interpolator<'_>, pts: &mut Vec<Setpoint>, max: usize) 
     it.hold_state() == HoldState::Held
 }
 
+/// The built-in curve `name` planned and run for `ticks` ticks: the
+/// interpolator there, its last `PAD` setpoints and the plan's limits.
+fn run_to(name: &str, ticks: usize) -> (Interpolator<'static>, Vec<Setpoint>, firmware_core::Limits) {
+    let curve = planner_host::builtin::by_name(name).unwrap().unwrap();
+    let out = plan::plan_curve(&curve, &PlanConfig::default()).unwrap();
+    // (the table outlives the test's interpolator)
+    let bytes: &'static [u8] = Box::leak(out.table_bytes.into_boxed_slice());
+    let lim = Table::parse(bytes).unwrap().limits();
+    let mut it = Interpolator::new(Table::parse(bytes).unwrap(), PERIOD_S).unwrap();
+    let mut pts: Vec<Setpoint> = (0..ticks).map(|_| it.tick().unwrap()).collect();
+    pts.drain(..ticks.saturating_sub(PAD));
+    (it, pts, lim)
+}
+
+/// The ratios to every limit over `pts` and `PAD` more ticks of `it`.
+fn padded_ratios(it: &mut Interpolator<'_>, mut pts: Vec<Setpoint>, lim: &firmware_core::Limits) -> Ratios {
+    for _ in 0..PAD {
+        pts.push(it.tick().unwrap());
+    }
+    let ticks: Vec<Tick> = pts.iter().map(Tick::of_setpoint).collect();
+    metrics::compute(&ticks, PERIOD_S, lim, None).ratios
+}
+
 #[test]
 fn a_hold_pressed_a_tick_into_a_resume_from_rest_rests_within_the_limits() {
-    let curve = planner_host::builtin::by_name("butterfly").unwrap().unwrap();
-    let out = plan::plan_curve(&curve, &PlanConfig::default()).unwrap();
-    let lim = Table::parse(&out.table_bytes).unwrap().limits();
-    let mut it = Interpolator::new(Table::parse(&out.table_bytes).unwrap(), PERIOD_S).unwrap();
-    let mut pts: Vec<Setpoint> = (0..291).map(|_| it.tick().unwrap()).collect();
-    pts.drain(..291 - PAD);
+    let (mut it, mut pts, lim) = run_to("butterfly", 291);
     it.hold().unwrap();
     // (a stop from 0.52 mm on the plan takes well under a second)
     assert!(
@@ -136,11 +154,7 @@ fn a_hold_pressed_a_tick_into_a_resume_from_rest_rests_within_the_limits() {
         it.hold_state()
     );
     let stop_ticks = pts.len() - before;
-    for _ in 0..PAD {
-        pts.push(it.tick().unwrap());
-    }
-    let ticks: Vec<Tick> = pts.iter().map(Tick::of_setpoint).collect();
-    let r = metrics::compute(&ticks, PERIOD_S, &lim, None).ratios;
+    let r = padded_ratios(&mut it, pts, &lim);
     eprintln!("butterfly, hold a tick into a resume: rested in {stop_ticks} ticks, {r:?}");
     assert!(r.worst() <= 1.01, "a ratio over 1.01: {r:?}");
     // (it rests where it was pressed, give or take the last tick's motion)
@@ -153,13 +167,7 @@ fn a_hold_pressed_a_tick_into_a_resume_from_rest_rests_within_the_limits() {
 
 #[test]
 fn cycle_start_pressed_during_a_stop_where_the_plan_jerk_rises_keeps_the_limits() {
-    let curve = planner_host::builtin::by_name("fan").unwrap().unwrap();
-    let out = plan::plan_curve(&curve, &PlanConfig::default()).unwrap();
-    let lim = Table::parse(&out.table_bytes).unwrap().limits();
-    let mut it = Interpolator::new(Table::parse(&out.table_bytes).unwrap(), PERIOD_S).unwrap();
-    let press = 14_663;
-    let mut pts: Vec<Setpoint> = (0..press).map(|_| it.tick().unwrap()).collect();
-    pts.drain(..press - PAD);
+    let (mut it, mut pts, lim) = run_to("fan", 14_663);
     let s_press = it.s_mm();
     it.hold().unwrap();
     for _ in 0..20 {
@@ -173,11 +181,7 @@ fn cycle_start_pressed_during_a_stop_where_the_plan_jerk_rises_keeps_the_limits(
         n += 1;
         assert!(n < 40_000, "the resume did not reach the plan in 10 s");
     }
-    for _ in 0..PAD {
-        pts.push(it.tick().unwrap());
-    }
-    let ticks: Vec<Tick> = pts.iter().map(Tick::of_setpoint).collect();
-    let r = metrics::compute(&ticks, PERIOD_S, &lim, None).ratios;
+    let r = padded_ratios(&mut it, pts, &lim);
     eprintln!("fan, cycle start 20 ticks into a stop pressed at {s_press:.2} mm: back on the plan in {n} ticks, {r:?}");
     assert!(r.worst() <= 1.01, "a ratio over 1.01: {r:?}");
 }
