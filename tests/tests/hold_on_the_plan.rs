@@ -36,6 +36,14 @@
 //!   last period's rate, reached its limit within the period (q‴ changes
 //!   at the dense knots there): 1.086× the tangential jerk. J's change over
 //!   a period now also comes from q (q″ linear in a span).
+//! - the Butterfly at 247.10 mm (`--resume-during 1277`): cycle start
+//!   while the stop brakes in earnest (λ 0.910, μ −1.38/s). The resume
+//!   turns μ to +0.5/s where the plan's y jerk rises 2,800 mm/s³ a period,
+//!   and a piece break ahead, whose jump was down, replaced that rise as the
+//!   period's J change: the end-of-period row took J falling and let ν push
+//!   the y jerk to 1.047 of its limit. Of the candidates (the last period's
+//!   change, the jump at a break, q's), the one that ends the period with
+//!   the larger |J| now counts.
 
 use firmware_core::{HoldState, Interpolator, Setpoint, Table};
 use planner_host::plan::{self, PlanConfig};
@@ -183,5 +191,28 @@ fn cycle_start_pressed_during_a_stop_where_the_plan_jerk_rises_keeps_the_limits(
     }
     let r = padded_ratios(&mut it, pts, &lim);
     eprintln!("fan, cycle start 20 ticks into a stop pressed at {s_press:.2} mm: back on the plan in {n} ticks, {r:?}");
+    assert!(r.worst() <= 1.01, "a ratio over 1.01: {r:?}");
+}
+
+#[test]
+fn cycle_start_pressed_while_a_stop_brakes_keeps_the_axis_jerk() {
+    let (mut it, mut pts, lim) = run_to("butterfly", 15_365);
+    let s_press = it.s_mm();
+    it.hold().unwrap();
+    for _ in 0..1_277 {
+        pts.push(it.tick().unwrap());
+    }
+    assert_eq!(it.hold_state(), HoldState::Stopping);
+    it.resume().unwrap();
+    let mut n = 0;
+    while it.hold_state() == HoldState::Resuming {
+        pts.push(it.tick().unwrap());
+        n += 1;
+        assert!(n < 40_000, "the resume did not reach the plan in 10 s");
+    }
+    let r = padded_ratios(&mut it, pts, &lim);
+    eprintln!(
+        "butterfly, cycle start 1277 ticks into a stop pressed at {s_press:.2} mm: back on the plan in {n} ticks, {r:?}"
+    );
     assert!(r.worst() <= 1.01, "a ratio over 1.01: {r:?}");
 }

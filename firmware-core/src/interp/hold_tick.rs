@@ -669,8 +669,9 @@ impl<'a, const Q: usize, const W: usize, R: PlanRows<'a>> Interpolator<'a, Q, W,
     }
 
     /// J's change over the coming control period as the plan's q gives it,
-    /// into the prepared kinematics' `dj` where it is larger than the last
-    /// period's change. Within a q span q″ is linear in s, so the plan's
+    /// into the prepared kinematics' `dj` where it ends the period with a
+    /// larger |J| than the change there (the last period's, or the jump at a
+    /// piece break). Within a q span q″ is linear in s, so the plan's
     /// tangential jerk ½q″ṡ at the period's end is ½(q″ + q‴Δs)(ṡ + ṡ′Δs),
     /// Δs the most the period can cover (at λ = 1); the axes' jerk changes
     /// by r′ times that. The last period's change foresees J only where q‴
@@ -693,9 +694,9 @@ impl<'a, const Q: usize, const W: usize, R: PlanRows<'a>> Interpolator<'a, Q, W,
         let inv_v = 1.0 / v;
         let grow = 0.5 * (ddq_end * (v + 0.5 * dq * inv_v * ds) - ddq * v) * inv_v;
         let kin = &mut self.fh.prep.kin;
-        for (d, r) in kin.dj.iter_mut().zip(kin.v) {
+        for ((d, r), j) in kin.dj.iter_mut().zip(kin.v).zip(kin.j) {
             let g = grow * r;
-            if g.abs() > d.abs() {
+            if (j + g).abs() > (j + *d).abs() {
                 *d = g;
             }
         }
@@ -753,10 +754,11 @@ impl<'a, const Q: usize, const W: usize, R: PlanRows<'a>> Interpolator<'a, Q, W,
         if let Some(dr_n) = dr_n {
             // (the plan's axis jerk there: r‴ṡ³ + 3r″ṡs̈ + r′s⃛)
             let jn = Kin::jerk(dr_n, [p1, p2, p3]);
+            // (the larger J at the period's end counts: the jump, or J's
+            // own growth up to the break where that ends larger)
             for ((d, jn), j) in kin.dj.iter_mut().zip(jn.iter()).zip(kin.j.iter()) {
-                let jump = jn - j;
-                if jump.abs() > d.abs() {
-                    *d = jump;
+                if jn.abs() > (j + *d).abs() {
+                    *d = jn - j;
                 }
             }
         }
