@@ -173,12 +173,15 @@ fn a_hold_pressed_a_tick_into_a_resume_from_rest_rests_within_the_limits() {
     );
 }
 
-#[test]
-fn cycle_start_pressed_during_a_stop_where_the_plan_jerk_rises_keeps_the_limits() {
-    let (mut it, mut pts, lim) = run_to("fan", 14_663);
+/// The built-in curve `name` held after tick `press`, cycle start pressed
+/// `k` ticks later (the stop still under way) and the resume run back onto
+/// the plan: the ratios over it all (padded), where it was pressed and the
+/// resume's ticks.
+fn cycle_start_during_a_stop(name: &str, press: usize, k: usize) -> (Ratios, f64, usize) {
+    let (mut it, mut pts, lim) = run_to(name, press);
     let s_press = it.s_mm();
     it.hold().unwrap();
-    for _ in 0..20 {
+    for _ in 0..k {
         pts.push(it.tick().unwrap());
     }
     assert_eq!(it.hold_state(), HoldState::Stopping);
@@ -189,28 +192,19 @@ fn cycle_start_pressed_during_a_stop_where_the_plan_jerk_rises_keeps_the_limits(
         n += 1;
         assert!(n < 40_000, "the resume did not reach the plan in 10 s");
     }
-    let r = padded_ratios(&mut it, pts, &lim);
+    (padded_ratios(&mut it, pts, &lim), s_press, n)
+}
+
+#[test]
+fn cycle_start_pressed_during_a_stop_where_the_plan_jerk_rises_keeps_the_limits() {
+    let (r, s_press, n) = cycle_start_during_a_stop("fan", 14_663, 20);
     eprintln!("fan, cycle start 20 ticks into a stop pressed at {s_press:.2} mm: back on the plan in {n} ticks, {r:?}");
     assert!(r.worst() <= 1.01, "a ratio over 1.01: {r:?}");
 }
 
 #[test]
 fn cycle_start_pressed_while_a_stop_brakes_keeps_the_axis_jerk() {
-    let (mut it, mut pts, lim) = run_to("butterfly", 15_365);
-    let s_press = it.s_mm();
-    it.hold().unwrap();
-    for _ in 0..1_277 {
-        pts.push(it.tick().unwrap());
-    }
-    assert_eq!(it.hold_state(), HoldState::Stopping);
-    it.resume().unwrap();
-    let mut n = 0;
-    while it.hold_state() == HoldState::Resuming {
-        pts.push(it.tick().unwrap());
-        n += 1;
-        assert!(n < 40_000, "the resume did not reach the plan in 10 s");
-    }
-    let r = padded_ratios(&mut it, pts, &lim);
+    let (r, s_press, n) = cycle_start_during_a_stop("butterfly", 15_365, 1_277);
     eprintln!(
         "butterfly, cycle start 1277 ticks into a stop pressed at {s_press:.2} mm: back on the plan in {n} ticks, {r:?}"
     );
