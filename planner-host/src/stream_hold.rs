@@ -340,11 +340,10 @@ impl<const NQ: usize, const NP: usize> StreamedRun<NQ, NP> {
                     HoldPointError::RowsRunOut {
                         s_mm,
                         next: self.next,
-                        rows: format!(
-                            "{} q spans and {} pieces, {free_q} and {free_p} free",
-                            c.info().n_q,
-                            c.info().n_p
-                        ),
+                        n_q: c.info().n_q,
+                        n_p: c.info().n_p,
+                        free_q,
+                        free_p,
                     }
                 }
                 None => HoldPointError::Fault {
@@ -411,14 +410,20 @@ pub enum HoldPointError {
     /// end of the rows its window holds with the next chunk still not
     /// fitting: the window holds too little of the path for chunks this
     /// long, so no hold point could keep a stop inside it.
-    #[error("the plan window holds too little for these chunks: the motion reaches the end of its rows at {s_mm:.3} mm with chunk {next} ({rows}) not fitting")]
+    #[error("the plan window holds too little for these chunks: the motion reaches the end of its rows at {s_mm:.3} mm with chunk {next} ({n_q} q spans and {n_p} pieces, {free_q} and {free_p} free) not fitting")]
     RowsRunOut {
         /// Where the motion was, mm.
         s_mm: f64,
         /// The chunk that did not fit.
         next: usize,
-        /// Its rows, and the window's free ones (q spans, pieces).
-        rows: String,
+        /// Its q spans.
+        n_q: u16,
+        /// Its pieces.
+        n_p: u16,
+        /// The window's free q spans.
+        free_q: usize,
+        /// The window's free pieces.
+        free_p: usize,
     },
     /// The reference run faulted.
     #[error("the streamed run faulted at tick {tick}: {fault}")]

@@ -3,8 +3,8 @@
 //! and the scaled step of s ([`scaled_step`]).
 
 use crate::feed_hold::constraints::{
-    constraints, constraints_into, interval, interval_plain, mn, mu_cap_ahead, mx, sqrt32, Ahead, HoldLimits,
-    Interval, Kin, Lin, N_CONS, RHO_J,
+    constraints, constraints_into, interval, interval_plain, mn, mu_cap_ahead, mx, sqrt32, sqrt_rough, Ahead,
+    HoldLimits, Interval, Kin, Lin, N_CONS, RHO_J,
 };
 use crate::feed_hold::{HoldState, HoldStats};
 use crate::servo_forms::fixed::f32_to_fx;
@@ -66,8 +66,11 @@ fn land(x: f32, w: f32, h: f32, n: f32) -> f32 {
 fn settle(x: f32, w: f32, b: f32, h: f32, u: f32, n_land: f32) -> f32 {
     let (x1, w1) = (x - w * h - 0.5 * u * h * h, w + u * h);
     if w1 > 0.0 && x1 < w1 * h {
-        // (libm's √, as the feed's: linked already, where sqrt32 inlines)
-        let n_rest = libm::ceilf(2.0 * libm::sqrtf(mx(x, 0.0) / b) / h);
+        // (a bound, not a landing law: the rough √ is close enough, and
+        // libm's is a bit-by-bit loop on the M4F; x ≥ 0 here, and a NaN,
+        // infinite or negative x/b gives a huge bound, which `mn` passes
+        // over)
+        let n_rest = libm::ceilf(2.0 * sqrt_rough(x / b) / h);
         land(x, w, h, mx(mn(n_land, n_rest), 2.0))
     } else {
         u

@@ -489,7 +489,6 @@ fn ratios_text(label: &str, r: &planner_host::Ratios, ok: bool) -> String {
     )
 }
 
-/// What the summary line says of a stream sent with the u form.
 /// "; peak RSS … MiB" where the system tells it.
 fn rss_text(kib: Option<u64>) -> String {
     kib.map_or(String::new(), |k| {
@@ -497,6 +496,7 @@ fn rss_text(kib: Option<u64>) -> String {
     })
 }
 
+/// What the summary line says of a stream sent with the u form.
 fn u_form_note(u_form: bool) -> &'static str {
     if u_form {
         " (with the u form)"
