@@ -241,12 +241,13 @@ fn main() -> Result<(), String> {
                 pts.push(held.tick().map_err(text)?);
                 n += 1;
             }
+            // (the stop's length: to rest, or to cycle start with --resume-during)
+            let len = held.s_mm() - s0;
             if args.resume_during.is_some() && !held.is_done() {
                 resume_under_way(&mut held, &mut pts).map_err(|e| {
                     format!("{}: pressed at {s0:.2} mm after tick {ticks_run}: {e}", out.curve)
                 })?;
             }
-            let len = held.s_mm() - s0;
             if let Some(n) = args.resume_after {
                 resume_onto_plan(&mut held, &mut pts, n, args.rehold).map_err(|e| {
                     format!("{}: pressed at {s0:.2} mm after tick {ticks_run}: {e}", out.curve)
