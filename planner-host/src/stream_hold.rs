@@ -490,6 +490,19 @@ pub struct HoldSearch {
     /// period starts a tick later; the stop's length can differ by
     /// millimetres from one tick's press to the next: module docs).
     pub press_ticks: u32,
+    /// Chunks whose hold point is searched at least this far apart, mm
+    /// (their ends): the chunks between get none of their own
+    /// ([`NOT_ALONE_MM`]) and the firmware takes them only together with
+    /// the next one that has one (`Interpolator::holds_back`). 0: every
+    /// chunk's. A test costs a whole stop whatever the chunk's length, so
+    /// the search's work falls with the spacing; a starved stop then comes
+    /// up to that much earlier, and the ring must hold that much ahead.
+    pub every_mm: f64,
+    /// And the chunks from one with a hold point to the next at most this
+    /// many bytes (the ring must hold them all before the motion reaches
+    /// the first's hold point; 0: no bound but a quarter of the window's
+    /// rows, which always holds).
+    pub every_bytes: usize,
 }
 
 impl Default for HoldSearch {
@@ -505,6 +518,8 @@ impl Default for HoldSearch {
             predict_back_mm: 1.5,
             predict_max_mm: 64.0,
             press_ticks: 3,
+            every_mm: 0.0,
+            every_bytes: 0,
         }
     }
 }
@@ -605,6 +620,8 @@ pub struct HoldPointSearch<const NQ: usize, const NP: usize> {
     /// Per chunk known: its end (Q40) and whether it is the last.
     chunk_end: Vec<i64>,
     chunk_last: Vec<bool>,
+    /// Per chunk known: its bytes, q spans and pieces.
+    chunk_size: Vec<(usize, usize, usize)>,
     s_c: Vec<f64>,
     known: Vec<f64>,
     /// The chunk whose hold point is sought.
@@ -680,6 +697,7 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
             run: None,
             chunk_end: vec![],
             chunk_last: vec![],
+            chunk_size: vec![],
             s_c: vec![],
             known: vec![],
             i: 0,
@@ -748,6 +766,9 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
             let c = parse(k, bytes)?;
             self.chunk_end.push(c.info().s_b);
             self.chunk_last.push(c.info().is_last());
+            let info = c.info();
+            self.chunk_size
+                .push((bytes.len(), usize::from(info.n_q), usize::from(info.n_p)));
             self.s_c.push(f64::NAN);
             self.known.push(f64::NAN);
         }
@@ -810,6 +831,13 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                         self.i += 1;
                         continue;
                     }
+                    if self.spaced_out(end) {
+                        self.s_c[self.i] = NOT_ALONE_MM;
+                        (self.last_pass, self.first_room) = (None, None);
+                        self.known[self.i] = self.started.elapsed().as_secs_f64();
+                        self.i += 1;
+                        continue;
+                    }
                     if let Some(room) =
                         self.tester
                             .room(&run.ip, end, &parse(self.i + 1, next)?, &self.how, 0..1)
@@ -854,6 +882,26 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                 self.testing = Some(sp.s_mm);
             }
         }
+    }
+
+    /// Whether chunk i, ending at `end` (Q40), goes without a hold point of
+    /// its own: one before it has one, less than `every_mm` before its end,
+    /// and the chunks after that one up to chunk i fit `every_bytes` and a
+    /// quarter of the window's rows (the firmware takes them in together).
+    fn spaced_out(&self, end: i64) -> bool {
+        let every = self.how.every_mm;
+        if every <= 0.0 {
+            return false;
+        }
+        let Some(j) = (0..self.i).rev().find(|&j| self.s_c[j] >= 0.0) else {
+            return false;
+        };
+        let (mut b, mut q, mut p) = (0, 0, 0);
+        for &(cb, cq, cp) in &self.chunk_size[j + 1..=self.i] {
+            (b, q, p) = (b + cb, q + cq, p + cp);
+        }
+        let bytes_ok = self.how.every_bytes == 0 || b <= self.how.every_bytes;
+        q40_mm(end) - q40_mm(self.chunk_end[j]) < every - 1e-6 && bytes_ok && 4 * q <= NQ && 4 * p <= NP
     }
 
     /// The step to chunk i's next coarse test after one that passed and

@@ -51,3 +51,69 @@ fn a_circle_holds_every_limit() {
     assert!(r.worst() <= 1.01, "{r:?}");
     let _ = TABLE1;
 }
+
+/// Sampled coarser where the plan cruises (`cruise_density_per_mm`): the
+/// circle and the 1.2 m meander plan on fewer than half the control points,
+/// in the same machining time (within 0.01 %) and every limit on the dense
+/// re-evaluation; the Butterfly, whose feed is below the limit nearly
+/// everywhere, keeps every sample.
+#[test]
+fn coarser_where_the_plan_cruises_the_same_time_on_fewer_columns() {
+    let meander = planner_host::cli::load_curve(std::path::Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/curves/long/meander-1m.json"
+    )))
+    .unwrap();
+    let circle = planner_host::builtin::by_name("circle").unwrap().unwrap();
+    let butterfly = planner_host::builtin::butterfly().unwrap();
+    let coarse = PlanConfig {
+        cruise_density_per_mm: Some(0.125),
+        ..PlanConfig::default()
+    };
+    for (curve, thinned) in [(&circle, true), (&meander, true), (&butterfly, false)] {
+        let fine = plan::plan_curve(curve, &PlanConfig::default()).unwrap();
+        let (t, r) = check(curve, &coarse);
+        let n = plan::plan_curve(curve, &coarse).unwrap().control_points;
+        eprintln!(
+            "{}: {} → {n} control points, {:.6} → {t:.6} s",
+            curve.name, fine.control_points, fine.predicted_time_s
+        );
+        assert!(r.worst() <= 1.01, "{}: {r:?}", curve.name);
+        assert!(
+            (t / fine.predicted_time_s - 1.0).abs() < 1e-4,
+            "{}: {t} s against {} s",
+            curve.name,
+            fine.predicted_time_s
+        );
+        if thinned {
+            assert!(
+                2 * n < fine.control_points,
+                "{}: {n} of {}",
+                curve.name,
+                fine.control_points
+            );
+        } else {
+            assert_eq!(n, fine.control_points, "{}", curve.name);
+        }
+    }
+}
+
+/// Where the curvature caps the feed below its limit, or near either end
+/// (at rest), every sample within a stop's distance stays: on a line only
+/// the ends keep theirs.
+#[test]
+fn cruise_thinning_keeps_the_samples_near_the_ends() {
+    let line = Nurbs::line([0.0, 0.0, 0.0], [400.0, 0.0, 0.0]);
+    let arc = ArcLength::new(&line);
+    let samples: Vec<f64> = (0..=400).map(f64::from).collect();
+    let thin = plan::thin_cruising(samples.clone(), 8, &line, &arc, &TABLE1, &[]);
+    // (a stop from the feed limit: braking and the jerk's ramps, ~25 mm)
+    let l = TABLE1;
+    let reach = l.vbar * l.vbar / (2.0 * l.abar) + l.vbar * l.abar / l.jbar;
+    for s in samples.iter().filter(|&&s| s <= reach || s >= 400.0 - reach) {
+        assert!(thin.contains(s), "{s} mm dropped");
+    }
+    assert!(thin.windows(2).all(|w| w[1] - w[0] <= 8.0 + 1e-9));
+    assert!(thin.len() < 120, "{} samples kept", thin.len());
+    assert_eq!((thin[0], *thin.last().unwrap()), (0.0, 400.0));
+}

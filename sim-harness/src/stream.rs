@@ -1221,6 +1221,11 @@ pub struct StreamOptions {
     /// got ahead of ([`start_after_runway`]). 0: each chunk as soon as it is
     /// ready.
     pub start_runway_mm: f64,
+    /// Hold points searched for chunks at least this far apart, mm
+    /// (`HoldSearch::every_mm`; the chunks between at most an eighth of the
+    /// ring and a quarter of the window's rows): less search, a starved
+    /// stop up to that much earlier. 0: every chunk's.
+    pub hold_every_mm: f64,
     /// The chunks carry the u form (each piece's u(s), for the setpoints'
     /// u). Off by default: without it a stream is smaller (the Butterfly's
     /// by 40 %) and the setpoints' u reads 0 along the path (the end
@@ -1266,6 +1271,7 @@ impl Default for StreamOptions {
             host_replan_s: None,
             host_ahead_s: 0.0,
             start_runway_mm: 0.0,
+            hold_every_mm: 0.0,
             u_form: false,
             faults: LinkFaults::default(),
             holds: vec![],
@@ -1618,6 +1624,8 @@ fn stream_through<const Q: usize, const P: usize>(
     };
     let how = HoldSearch {
         period_s: o.period_s,
+        every_mm: o.hold_every_mm,
+        every_bytes: o.ring_bytes / 8,
         ..HoldSearch::default()
     };
     // Windows: chunks cut and hold points found as each window commits, the

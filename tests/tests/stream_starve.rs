@@ -185,20 +185,30 @@ fn stalled_link_into<const C: usize, const Q: usize, const P: usize>() {
 /// past its rows 81 mm into the path.
 #[test]
 fn a_host_slower_than_the_machine_starves_it_again_and_again_and_never_runs_past_the_rows() {
-    big_stack(slower_host);
+    big_stack(|| slower_host(0.0));
 }
 
-fn slower_host() {
+/// The same with hold points searched only for chunks at least 96 mm
+/// apart (`feedsim stream`'s default): the chunks between have none of
+/// their own, so the firmware holds them back until the next one that has
+/// is in, and each starved stop comes at that one's hold point.
+#[test]
+fn with_hold_points_96_mm_apart_a_starved_machine_still_stops_inside_its_rows() {
+    big_stack(|| slower_host(96.0));
+}
+
+fn slower_host(hold_every_mm: f64) {
     let path = concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/../planner-host/curves/long/meander-1m.json"
     );
     let curve = planner_host::cli::load_curve(std::path::Path::new(path)).unwrap();
-    let dir = std::env::temp_dir().join(format!("stream-starve-{}", std::process::id()));
+    let dir = std::env::temp_dir().join(format!("stream-starve-{}-{hold_every_mm}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let times = dir.join("ready.txt");
     let mut o = sim_harness::stream::StreamOptions {
         windows: Some(planner_host::plan::WindowConfig::new(120.0, 40.0)),
+        hold_every_mm,
         ..Default::default()
     };
     // (how many chunks: from a run that keeps up)
@@ -215,6 +225,14 @@ fn slower_host() {
     );
     assert!(rep.starvations >= 10, "only {} starvations", rep.starvations);
     assert!(rep.check_ok, "{:?}", rep.ratios);
+    if hold_every_mm > 0.0 {
+        // (most chunks went without a hold point of their own)
+        assert!(
+            2 * rep.chunks_without_hold_point > n,
+            "{} of {n} chunks without a hold point",
+            rep.chunks_without_hold_point
+        );
+    }
     // (the last chunk is ready 0.05 + 0.3·(n − 1) s after the start: the
     // path ends after it)
     assert!(rep.first_motion_ms * 1e-3 + rep.machining_time_s > 0.05 + 0.3 * (n - 1) as f64);

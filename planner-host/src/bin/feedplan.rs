@@ -73,6 +73,12 @@ enum Cmd {
         /// Sampling density, points per mm of arc length.
         #[arg(long, default_value_t = 1.0)]
         density: f64,
+        /// Sampling density where the plan can cruise at the feed limit, points per mm (a curve
+        /// sampled len, certified formulation): the samples kept only every DENSITY/CRUISE-th
+        /// there, where no bend, curvature jump or end within a stop's distance needs a lower
+        /// feed. Fewer columns for the LPs on long smooth paths, for a little machining time
+        #[arg(long)]
+        cruise_density: Option<f64>,
         /// Limits file (JSON: vbar, abar, jbar, v, a, j in mm and s); default the paper's Table 1.
         #[arg(long)]
         limits: Option<PathBuf>,
@@ -328,6 +334,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
             exact_corners,
             sampling,
             density,
+            cruise_density,
             limits: lim_path,
             output,
             json,
@@ -379,6 +386,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
                 formulation,
                 sampling,
                 density_per_mm: density,
+                cruise_density_per_mm: cruise_density,
                 limits,
                 objective: objective.unwrap_or(Objective::Uniform),
                 qhat_bound: qhat_bound.unwrap_or(QhatBound::None),

@@ -88,6 +88,14 @@ pub struct PlanConfig {
     /// (`crate::lp::feed_profile`). `None`: `limits.vbar` everywhere.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub feed_profile: Option<FeedProfile>,
+    /// Sampling density where the plan cruises, points per mm (LEN
+    /// sampling, certified formulation, no feed profile): the samples of
+    /// `density_per_mm` are kept only every so many where no point within
+    /// a stop's distance from the feed limit needs the feed lower
+    /// ([`crate::plan::knots::thin_cruising`]). `None`: `density_per_mm`
+    /// everywhere.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cruise_density_per_mm: Option<f64>,
     /// Plan q window by window ([`crate::plan::windowed`]) instead of as
     /// one sequence over the whole path.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -125,6 +133,7 @@ impl Default for PlanConfig {
             servo_period_s: 250e-6,
             override_levels: Vec::new(),
             feed_profile: None,
+            cruise_density_per_mm: None,
             windows: None,
             table: true,
         }

@@ -48,6 +48,92 @@ pub fn refine_turning(samples: &[f64], max_turn: f64, turn: impl Fn(f64, f64) ->
     out
 }
 
+/// The LEN samples `samples` (uniform in arc length, the first at 0 and the
+/// last at L) kept only every `every`-th (and the last) where the plan can
+/// cruise at the feed limit: a cubic q on spans `every` times longer
+/// follows a constant feed as well, and the LPs' columns and check points
+/// fall with the samples. A sample stays wherever the feed may have to be
+/// lower within `reach_mm` of it: where the curvature's cap
+/// ([`cruise_cap`]) is below the feed limit, at a curvature jump whose cap
+/// is, and near either end of the path (at rest).
+///
+/// The curvature is read once per sample interval, at its middle (one
+/// batched inversion u(s)): a bend narrower than an interval can be missed
+/// here, and then costs machining time only, never a limit: the turning
+/// refinement ([`refine_turning`]) still bisects any span that turns
+/// sharply, and the certified LPs hold every limit at their check points.
+pub fn thin_cruising(
+    samples: Vec<f64>,
+    every: usize,
+    curve: &Nurbs,
+    arc: &ArcLength,
+    limits: &Limits,
+    jump_caps: &[(f64, f64)],
+) -> Vec<f64> {
+    let n = samples.len();
+    if every < 2 || n < 2 * every + 1 {
+        return samples;
+    }
+    let h = samples[1] - samples[0];
+    let length = samples[n - 1];
+    let vbar = limits.vbar;
+    // (the stop's distance from the feed limit: braking and the jerk's ramps)
+    let (a, j) = (min3(limits.a).min(limits.abar), min3(limits.j).min(limits.jbar));
+    let reach_mm = (vbar * vbar / (2.0 * a) + vbar * a / j).max(2.0 * every as f64 * h);
+    let mids: Vec<f64> = samples.windows(2).map(|w| 0.5 * (w[0] + w[1])).collect();
+    let us = arc.u_of_s_sorted(&mids);
+    let floor = crate::geometry::arc_length::speed_floor(curve, length);
+    let cap = |u: f64| {
+        let d = arc.polys().derivs_in_span(curve.span_of(u), u, 2);
+        cruise_cap(crate::geometry::arc_length::curvature_of(&d, floor), a, j)
+    };
+    // slow[k]: interval k may need the feed lower
+    let mut slow: Vec<bool> = us.iter().map(|&u| cap(u) < vbar).collect();
+    for &(s, q_cap) in jump_caps {
+        if q_cap.sqrt() < vbar {
+            let k = ((s / h) as usize).min(slow.len() - 1);
+            slow[k] = true;
+        }
+    }
+    // near[k]: a slow interval (or an end) within reach of interval k
+    let r = (reach_mm / h).ceil() as usize;
+    let m = slow.len();
+    let mut last_slow: Option<usize> = None;
+    let mut near = vec![false; m];
+    for k in 0..m {
+        if slow[k] {
+            last_slow = Some(k);
+        }
+        near[k] = k < r || last_slow.is_some_and(|l| k - l <= r);
+    }
+    let mut next_slow: Option<usize> = None;
+    for k in (0..m).rev() {
+        if slow[k] {
+            next_slow = Some(k);
+        }
+        near[k] |= m - k <= r || next_slow.is_some_and(|l| l - k <= r);
+    }
+    samples
+        .iter()
+        .enumerate()
+        .filter(|&(i, _)| i % every == 0 || i == n - 1 || near[i.min(m - 1)] || near[i.saturating_sub(1)])
+        .map(|(_, &s)| s)
+        .collect()
+}
+
+fn min3(v: [f64; 3]) -> f64 {
+    v[0].min(v[1]).min(v[2])
+}
+
+/// The feed a curvature κ allows, mm/s, with half the acceleration `a`
+/// and the jerk `j` to spare ([`thin_cruising`]): √(a/2κ) and ∛(j/2κ²).
+pub fn cruise_cap(kappa: f64, a: f64, j: f64) -> f64 {
+    if kappa.is_nan() || kappa <= 0.0 {
+        return f64::INFINITY;
+    }
+    (0.5 * a / kappa).sqrt().min((0.5 * j / (kappa * kappa)).cbrt())
+}
+
 /// The turning angle ∫ₐᵇ |κ| ds of [`refine_turning`], integrated in the
 /// toolpath's parameter: ∫ |κ(u)|·|r_u| du over [u(a), u(b)] by 16-point
 /// Gauss–Legendre on one polynomial piece (the span holding the middle; the

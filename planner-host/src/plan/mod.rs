@@ -36,6 +36,7 @@ pub use crate::lp::machining_time::machining_time;
 pub use atomic_write::{replace_with, temp_beside, write_atomic, write_file_atomic};
 pub use config::{FirstWindow, Formulation, PlanConfig, WindowConfig};
 pub use error::PlanError;
+pub use knots::thin_cruising;
 pub use output::{LevelPlan, PlanOutput, WindowStats};
 pub use pipeline::{plan_curve, plan_curve_committing, plan_curve_with_progress, Commit, CommitSink};
 pub use stall::StallAt;

@@ -17,13 +17,15 @@ use crate::plan::config::{Formulation, PlanConfig};
 use crate::plan::error::PlanError;
 use crate::plan::feed_change::{FeedChangeAt, Resume};
 use crate::plan::knot_feed::{stretch_starts, KnotFeed, STRETCH};
-use crate::plan::knots::{end_room_knots, refine_turning, with_breaks, with_feed_breaks, TurnInU};
+use crate::plan::knots::{
+    end_room_knots, refine_turning, thin_cruising, with_breaks, with_feed_breaks, TurnInU,
+};
 use crate::plan::levels::validate_levels;
 use crate::plan::lp_stage::{check_points, LpStage, Refine, Solved};
 use crate::plan::output::PlanOutput;
 use crate::plan::su_fit::{drop_front, SetpointBudget, SuMap};
 use crate::plan::windowed::WindowStart;
-use crate::sampling;
+use crate::sampling::{self, Sampling};
 use firmware_core::Limits;
 
 /// Stretches of samples from which a path whose windows commit as they go
@@ -240,6 +242,22 @@ fn plan_curve_inner(
     let jumps = match cfg.formulation {
         Formulation::Paper => Vec::new(),
         Formulation::Certified => junction::curvature_jumps(curve, &arc, &cfg.limits, cfg.servo_period_s),
+    };
+    let samples = match cfg.cruise_density_per_mm {
+        Some(c)
+            if cfg.formulation == Formulation::Certified
+                && cfg.sampling == Sampling::Len
+                && cfg.feed_profile.is_none()
+                && c > 0.0
+                && c < cfg.density_per_mm =>
+        {
+            let every = (cfg.density_per_mm / c).round() as usize;
+            let caps: Vec<(f64, f64)> = jumps.iter().map(|j| (j.s_mm, j.q_cap)).collect();
+            let thin = thin_cruising(samples, every, curve, &arc, &cfg.limits, &caps);
+            dbg_t("thinned");
+            thin
+        }
+        _ => samples,
     };
     // planned whole although windows were asked for: no longer than one
     let whole = match cfg.windows {

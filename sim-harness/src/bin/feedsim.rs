@@ -247,6 +247,13 @@ enum Cmd {
         /// want of chunks while the planning has not yet got ahead of the machine.
         #[arg(long, default_value_t = 0.0)]
         start_runway_mm: f64,
+        /// Hold points searched for chunks at least this far apart, mm (their ends); the
+        /// chunks between have none of their own and the firmware takes them together with
+        /// the next that has. The search ticks a whole stop for each of its tests, about a
+        /// dozen a chunk whatever its length: wider spacing, less host CPU, and a stop for
+        /// want of chunks up to that much earlier. 0: every chunk its own
+        #[arg(long, default_value_t = 96.0)]
+        hold_every_mm: f64,
         /// A link stall: START:DURATION in seconds from the start of sending (repeatable).
         #[arg(long)]
         stall: Vec<String>,
@@ -333,6 +340,13 @@ struct StreamPlanArgs {
     /// machining time (docs/streaming-design.md, "Sampling density").
     #[arg(long, default_value_t = 1.0)]
     density: f64,
+    /// Sampling density where the plan can cruise at the feed limit, points per mm (a curve
+    /// sampled len): elsewhere --density. The samples are kept only every DENSITY/CRUISE-th
+    /// where no bend, curvature jump or end within a stop's distance needs a lower feed: the
+    /// same plan where it matters, fewer LP columns where it cruises; equal to --density to
+    /// keep every sample (docs/streaming-design.md, "Sampling density")
+    #[arg(long, default_value_t = 0.125)]
+    cruise_density: f64,
 }
 
 type BoxError = Box<dyn std::error::Error>;
@@ -957,6 +971,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
             whole,
             first_window,
             start_runway_mm,
+            hold_every_mm,
             stall,
             hold,
             overrides,
@@ -975,6 +990,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
                 commit_mm,
                 sampling,
                 density,
+                cruise_density,
             } = *plan;
             let machine =
                 planner_host::cli::load_machine(machine.as_deref(), None).map_err(Failure::input)?;
@@ -983,6 +999,11 @@ fn run(cli: Cli) -> Result<(), Failure> {
             if !(density.is_finite() && density > 0.0) {
                 return Err(Failure::usage(format!(
                     "--density {density}: must be a number > 0"
+                )));
+            }
+            if !(cruise_density.is_finite() && cruise_density > 0.0) {
+                return Err(Failure::usage(format!(
+                    "--cruise-density {cruise_density}: must be a number > 0"
                 )));
             }
             if !(host_slowdown.is_finite() && host_slowdown > 0.0) {
@@ -1071,6 +1092,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
                 ready_times,
                 host_ahead_s: 0.0,
                 start_runway_mm,
+                hold_every_mm,
                 u_form,
                 faults,
                 cycle_start_s: cycle_start_ms.map(|m| m * 1e-3),
@@ -1088,6 +1110,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
                 limits: machine.limits,
                 sampling,
                 density_per_mm: density,
+                cruise_density_per_mm: Some(cruise_density),
                 ..planner_host::plan::PlanConfig::default()
             };
             let rep = sim_harness::stream::stream_curve_with(&nurbs, &base, &opts).map_err(stream_failure)?;
