@@ -33,6 +33,10 @@
 //! the setpoints report u; without it (the default) their u reads 0 along
 //! the path, and their positions (and the digest) are the same.
 //!
+//! `--cruise-density C` (default 0.125, as `feedsim stream`) samples the
+//! plan at C points per mm where it cruises at the feed limit
+//! (`PlanConfig::cruise_density_per_mm`).
+//!
 //! `--digest` prints the host's own streamed run's digest at the end (the same
 //! chunks through `PlanWindow` and the streamed interpolator, FNV-1a over
 //! the setpoints' positions, as the firmware prints it): `.ci/qemu-uart-stream.sh`
@@ -42,7 +46,7 @@
 //! cargo run --release -p planner-host --example stream_send -- CURVE --pipe PATH
 //!     [--chunk-mm 8] [--ring-bytes 16384] [--latency-ms 50] [--windows W:C]
 //!     [--faults corrupt:N,drop:N,duplicate:N,reorder:N,restart:N] [--u-form]
-//!     [--digest]
+//!     [--cruise-density C] [--digest]
 //! ```
 
 use std::collections::VecDeque;
@@ -77,6 +81,8 @@ struct Args {
     faults: Faults,
     /// The chunks carry the u form.
     u_form: bool,
+    /// Points per mm where the plan cruises (`PlanConfig::cruise_density_per_mm`).
+    cruise: f64,
 }
 
 /// Every this many DATA transmissions a frame is lost so (0: never).
@@ -128,6 +134,7 @@ fn args() -> Result<Args, String> {
         windows: None,
         faults: Faults::default(),
         u_form: false,
+        cruise: 0.125,
     };
     let mut it = std::env::args().skip(1);
     while let Some(x) = it.next() {
@@ -152,6 +159,14 @@ fn args() -> Result<Args, String> {
             }
             "--digest" => a.digest = true,
             "--u-form" => a.u_form = true,
+            "--cruise-density" => {
+                a.cruise = val("--cruise-density")?
+                    .parse()
+                    .map_err(|e| format!("--cruise-density: {e}"))?;
+                if !(a.cruise.is_finite() && a.cruise > 0.0) {
+                    return Err(format!("--cruise-density {}: must be a number > 0", a.cruise));
+                }
+            }
             "--windows" => {
                 let v = val("--windows")?;
                 let (w, c) = v.split_once(':').ok_or("--windows WINDOW_MM:COMMIT_MM")?;
@@ -203,10 +218,11 @@ enum Planned {
 /// Plan `curve` whole and hand everything over at once.
 fn plan_whole(
     curve: &planner_host::Nurbs,
+    cfg: &PlanConfig,
     opts: &ChunkOptions,
     to: &mpsc::Sender<Planned>,
 ) -> Result<(), String> {
-    let out = plan_curve(curve, &PlanConfig::default()).map_err(|e| e.to_string())?;
+    let out = plan_curve(curve, cfg).map_err(|e| e.to_string())?;
     let table = Table::parse(&out.table_bytes).map_err(|e| e.to_string())?;
     let chunks = chunk_table(&table, opts).map_err(|e| e.to_string())?;
     let head = stream_head(&table).ok_or("no stream head")?;
@@ -221,13 +237,14 @@ fn plan_whole(
 /// (`stream_pipeline::plan_in_chunks`).
 fn plan_windows(
     curve: &planner_host::Nurbs,
+    base: &PlanConfig,
     (window_mm, commit_mm): (f64, f64),
     opts: &ChunkOptions,
     to: &mpsc::Sender<Planned>,
 ) {
     let cfg = PlanConfig {
         windows: Some(WindowConfig::new(window_mm, commit_mm)),
-        ..PlanConfig::default()
+        ..base.clone()
     };
     let to_m = Mutex::new(to.clone());
     let r = plan_in_chunks(curve, &cfg, opts, &|m| {
@@ -255,10 +272,14 @@ fn run() -> Result<(), String> {
     let (plan_tx, planned) = mpsc::channel::<Planned>();
     {
         let (curve, windows) = (curve.clone(), a.windows);
+        let cfg = PlanConfig {
+            cruise_density_per_mm: Some(a.cruise),
+            ..PlanConfig::default()
+        };
         std::thread::spawn(move || match windows {
-            Some(w) => plan_windows(&curve, w, &opts, &plan_tx),
+            Some(w) => plan_windows(&curve, &cfg, w, &opts, &plan_tx),
             None => {
-                if let Err(e) = plan_whole(&curve, &opts, &plan_tx) {
+                if let Err(e) = plan_whole(&curve, &cfg, &opts, &plan_tx) {
                     let _ = plan_tx.send(Planned::Done(Box::new(Err(e))));
                 }
             }

@@ -887,7 +887,8 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
     /// Whether chunk i, ending at `end` (Q40), goes without a hold point of
     /// its own: one before it has one, less than `every_mm` before its end,
     /// and the chunks after that one up to chunk i fit `every_bytes` and a
-    /// quarter of the window's rows (the firmware takes them in together).
+    /// quarter of the window's rows (the firmware takes them in together),
+    /// fewer than half a splice's run ([`SPLICE_RUN`]).
     fn spaced_out(&self, end: i64) -> bool {
         let every = self.how.every_mm;
         if every <= 0.0 {
@@ -901,7 +902,14 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
             (b, q, p) = (b + cb, q + cq, p + cp);
         }
         let bytes_ok = self.how.every_bytes == 0 || b <= self.how.every_bytes;
-        q40_mm(end) - q40_mm(self.chunk_end[j]) < every - 1e-6 && bytes_ok && 4 * q <= NQ && 4 * p <= NP
+        // (and a splice's run, at most SPLICE_RUN chunks, reaches one with
+        // a hold point with room to spare)
+        let few = self.i - j < SPLICE_RUN / 2;
+        q40_mm(end) - q40_mm(self.chunk_end[j]) < every - 1e-6
+            && bytes_ok
+            && few
+            && 4 * q <= NQ
+            && 4 * p <= NP
     }
 
     /// The step to chunk i's next coarse test after one that passed and

@@ -83,7 +83,7 @@ fn refusals_name_the_line_or_the_key_and_write_nothing() {
     std::fs::write(&typo, "[traj]\nmax_linear_velocty = 3\n").unwrap();
     let cutter = tmp("cutter.ngc");
     std::fs::write(&cutter, "G21 F600\nG1 X1\nG41 D1\nG1 X2\nM2\n").unwrap();
-    let cases: [Case; 6] = [
+    let cases: [Case; 8] = [
         (
             "travel",
             own("lines-feeds.ngc"),
@@ -119,6 +119,20 @@ fn refusals_name_the_line_or_the_key_and_write_nothing() {
             vec!["--override-levels", "50"],
             2,
             &["go with a curve"],
+        ),
+        (
+            "cruise",
+            own("lines-feeds.ngc"),
+            vec!["--cruise-density", "0.125"],
+            2,
+            &["--cruise-density", "go with a curve"],
+        ),
+        (
+            "cruise-zero",
+            own("lines-feeds.ngc"),
+            vec!["--cruise-density", "0"],
+            2,
+            &["--cruise-density 0: must be a number > 0"],
         ),
     ];
     for (case, program, extra, code, expect) in cases {

@@ -644,6 +644,16 @@ fn stream_reports_the_streamed_run_as_json_and_refuses_bad_options() {
         ),
         (&first_window[..], "the first 30 mm committing 40 mm", 2),
         (&["stream", "star", "--period-us", "0"][..], "--period-us", 2),
+        (
+            &["stream", "star", "--cruise-density", "0"][..],
+            "--cruise-density",
+            2,
+        ),
+        (
+            &["stream", "star", "--hold-every-mm=-1"][..],
+            "--hold-every-mm",
+            2,
+        ),
     ] {
         let out = feedsim().args(args).output().unwrap();
         assert_eq!(out.status.code(), Some(code), "{args:?}");
@@ -845,7 +855,7 @@ fn stream_plans_at_the_sampling_and_density_asked() {
 /// it cruises and hold points searched for chunks about 96 mm apart. Against
 /// every sample and every chunk's hold point: the same machining time
 /// (within 0.05 %), fewer control points' bytes, under half the search's
-/// hold tests, every limit and no starvation.
+/// hold tests, every limit and no starvation; and feed changes spliced in.
 #[test]
 fn stream_defaults_sample_coarser_where_the_path_cruises_and_space_the_hold_points() {
     let meander = concat!(
@@ -879,4 +889,10 @@ fn stream_defaults_sample_coarser_where_the_path_cruises_and_space_the_hold_poin
         full["hold_tests"]
     );
     assert!(f(&lean, "chunks_without_hold_point") > f(&full, "chunks_without_hold_point"));
+    // a feed change replans on the same coarser knots and splices in
+    let turned = run(&["--override", "1.0:50", "--override", "3.0:120"]);
+    assert_eq!(turned["check_ok"], true, "{turned}");
+    let changes = turned["overrides"].as_array().unwrap();
+    assert_eq!(changes.len(), 2, "{turned}");
+    assert!(changes.iter().all(|c| c["outcome"] == "effective"), "{turned}");
 }

@@ -357,10 +357,17 @@ fn run(cli: Cli) -> Result<(), Failure> {
                     "--objective and --qhat-bound go with --formulation paper",
                 ));
             }
+            if let Some(c) = cruise_density.filter(|c| !(c.is_finite() && *c > 0.0)) {
+                return Err(Failure::new(
+                    EXIT_USAGE,
+                    format!("--cruise-density {c}: must be a number > 0"),
+                ));
+            }
             let machine = planner_host::cli::load_machine(machine.as_deref(), lim_path.as_deref())
                 .map_err(|e| Failure::new(e.exit_code(), e))?;
             if planner_host::cli::is_gcode_program(&curve) {
                 if formulation != Formulation::Certified
+                    || cruise_density.is_some()
                     || sampling != Sampling::Len
                     || override_levels.is_some()
                     || window_mm.is_some()
@@ -370,7 +377,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
                 {
                     return Err(Failure::new(
                         EXIT_USAGE,
-                        "a G-code program is planned with the certified formulation, jerk-limited ends and the machine file's servo period: --formulation, --sampling, --ends, --checks-per-span, --override-levels, --window-mm and --period-us go with a curve",
+                        "a G-code program is planned with the certified formulation, jerk-limited ends and the machine file's servo period: --formulation, --sampling, --cruise-density, --ends, --checks-per-span, --override-levels, --window-mm and --period-us go with a curve",
                     ));
                 }
                 let opts = planner_host::program::ProgramOptions {

@@ -248,7 +248,8 @@ enum Cmd {
         #[arg(long, default_value_t = 0.0)]
         start_runway_mm: f64,
         /// Hold points searched for chunks at least this far apart, mm (their ends); the
-        /// chunks between have none of their own and the firmware takes them together with
+        /// chunks between (at most three, an eighth of the ring and a quarter of the plan
+        /// window's rows) have none of their own and the firmware takes them together with
         /// the next that has. The search ticks a whole stop for each of its tests, about a
         /// dozen a chunk whatever its length: wider spacing, less host CPU, and a stop for
         /// want of chunks up to that much earlier. 0: every chunk its own
@@ -1004,6 +1005,11 @@ fn run(cli: Cli) -> Result<(), Failure> {
             if !(cruise_density.is_finite() && cruise_density > 0.0) {
                 return Err(Failure::usage(format!(
                     "--cruise-density {cruise_density}: must be a number > 0"
+                )));
+            }
+            if !(hold_every_mm.is_finite() && hold_every_mm >= 0.0) {
+                return Err(Failure::usage(format!(
+                    "--hold-every-mm {hold_every_mm}: must be a number ≥ 0"
                 )));
             }
             if !(host_slowdown.is_finite() && host_slowdown > 0.0) {
