@@ -145,13 +145,13 @@ impl ChunkPipeline {
             self.groups_from(j);
         }
         // a plan whose knots are refined while it is planned
-        // (`crate::plan::knot_feed`) tells a longer vector when its windows
-        // pass the refined ones: the same knots up to there, where the
-        // control points taken so far stand
+        // (`crate::plan::knot_feed`) tells another vector when its windows
+        // pass the refined ones (longer where the turns were bisected,
+        // shorter where the cruise was thinned): the same knots up to
+        // there, where the control points taken so far stand
         if c.knots.len() != self.rows.q_knots.len() {
             let keep = self.taken + ORDER;
-            if c.knots.len() < self.rows.q_knots.len() || c.knots.get(..keep) != self.rows.q_knots.get(..keep)
-            {
+            if c.knots.get(..keep) != self.rows.q_knots.get(..keep) {
                 return Err(ChunkTableError::KnotsMoved { through: self.taken });
             }
             self.rows.q_knots = c.knots.to_vec();

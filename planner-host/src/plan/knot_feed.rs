@@ -64,6 +64,28 @@ pub(crate) fn feed_starts(len: usize, end: usize) -> Vec<usize> {
     starts
 }
 
+/// `starts` (stretch starts in `samples`, increasing, the first 0) each
+/// moved on to the first sample at or after it that `anchor` holds (or
+/// dropped at the end): stretches that begin and end on such samples. A
+/// thinning that keeps them ([`crate::plan::knots::Cruise`]) then thins
+/// every partition of the samples alike, and the knots of a replan are
+/// those of the plan it replaces.
+pub(crate) fn anchored(starts: Vec<usize>, samples: &[f64], anchor: &dyn Fn(f64) -> bool) -> Vec<usize> {
+    let last = samples.len().saturating_sub(1);
+    let mut out: Vec<usize> = Vec::with_capacity(starts.len());
+    for a in starts {
+        let a = if a == 0 {
+            0
+        } else {
+            (a..last).find(|&i| anchor(samples[i])).unwrap_or(last)
+        };
+        if a < last && out.last().is_none_or(|&b| a > b) {
+            out.push(a);
+        }
+    }
+    out
+}
+
 /// A knot vector refined stretch by stretch (see the module docs).
 pub(crate) struct KnotFeed<'a> {
     /// The first index of each stretch ([`feed_starts`]).
@@ -119,10 +141,11 @@ impl<'a> KnotFeed<'a> {
     pub(crate) fn new(
         samples: Vec<f64>,
         end: usize,
+        anchor: &dyn Fn(f64) -> bool,
         refine: &'a (dyn Fn(&[f64]) -> Vec<f64> + Sync),
         finish: &'a (dyn Fn(Vec<f64>) -> Result<Vec<f64>, PlanError> + Sync),
     ) -> Self {
-        let starts = feed_starts(samples.len(), end);
+        let starts = anchored(feed_starts(samples.len(), end), &samples, anchor);
         let stretch = |k: usize| &samples[starts[k]..=stretch_end(&starts, k, samples.len())];
         let (first, last) = rayon::join(|| refine(stretch(0)), || refine(stretch(starts.len() - 1)));
         let fronts = starts.iter().map(|&a| samples[a]).collect();
@@ -303,7 +326,7 @@ mod tests {
             v
         };
         let finish = |v: Vec<f64>| -> Result<Vec<f64>, PlanError> { Ok(v) };
-        let feed = KnotFeed::new(samples.clone(), 1000, &halve_wide, &finish);
+        let feed = KnotFeed::new(samples.clone(), 1000, &|_| true, &halve_wide, &finish);
         // before the thread: the first stretch refined, raw after it, the
         // last stretch refined
         let (v0, f0) = feed.knots_to(0.0).unwrap();
@@ -372,7 +395,7 @@ mod tests {
     fn a_stopped_feed_says_so_instead_of_waiting() {
         let samples: Vec<f64> = (0..4 * STRETCH).map(|i| i as f64).collect();
         let finish = |v: Vec<f64>| -> Result<Vec<f64>, PlanError> { Ok(v) };
-        let feed = KnotFeed::new(samples, STRETCH, &halve_wide, &finish);
+        let feed = KnotFeed::new(samples, STRETCH, &|_| true, &halve_wide, &finish);
         feed.stop();
         feed.run();
         assert!(feed.knots_to(f64::INFINITY).is_err());

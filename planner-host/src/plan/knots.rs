@@ -48,20 +48,148 @@ pub fn refine_turning(samples: &[f64], max_turn: f64, turn: impl Fn(f64, f64) ->
     out
 }
 
-/// The LEN samples `samples` (uniform in arc length, the first at 0 and the
-/// last at L) kept only every `every`-th (and the last) where the plan can
-/// cruise at the feed limit: a cubic q on spans `every` times longer
+/// The LEN samples of a path kept only every `every`-th where the plan can
+/// cruise at the feed limit ([`Cruise::thin`], stretch by stretch as the
+/// turning refinement goes): a cubic q on spans `every` times longer
 /// follows a constant feed as well, and the LPs' columns and check points
 /// fall with the samples. A sample stays wherever the feed may have to be
-/// lower within `reach_mm` of it: where the curvature's cap
-/// ([`cruise_cap`]) is below the feed limit, at a curvature jump whose cap
-/// is, and near either end of the path (at rest).
+/// lower within a stop's distance from the feed limit (v̄²/2ā + v̄·ā/j̄, at
+/// least two coarse spans): where the curvature's cap ([`cruise_cap`]) is
+/// below the feed limit, at a curvature jump whose cap is, and near either
+/// end of the path (at rest); and every toolpath knot stays.
 ///
-/// The curvature is read once per sample interval, at its middle (one
-/// batched inversion u(s)): a bend narrower than an interval can be missed
-/// here, and then costs machining time only, never a limit: the turning
-/// refinement ([`refine_turning`]) still bisects any span that turns
-/// sharply, and the certified LPs hold every limit at their check points.
+/// The curvature is read once per sample interval of the uniform grid, at
+/// its middle (one batched inversion u(s) per stretch): a bend narrower
+/// than an interval can be missed here, and then costs machining time
+/// only, never a limit: the turning refinement ([`refine_turning`]) still
+/// bisects any span that turns sharply, and the certified LPs hold every
+/// limit at their check points. Whether a sample stays depends on the
+/// sample alone (its place on the grid and the cells within reach), so a
+/// stretch thins the same alone or with the rest; a stretch's first and
+/// last samples always stay (the stretches share them).
+pub(crate) struct Cruise<'a> {
+    curve: &'a Nurbs,
+    arc: &'a ArcLength,
+    /// The grid's step (the LEN samples' spacing), mm, and its cells.
+    h: f64,
+    cells: usize,
+    length: f64,
+    every: usize,
+    vbar: f64,
+    a: f64,
+    j: f64,
+    reach: f64,
+    floor: f64,
+    /// The toolpath's knots (arc length, increasing): never thinned.
+    breaks: Vec<f64>,
+    /// The cells holding a curvature jump capped below the feed limit.
+    jump_cells: Vec<usize>,
+}
+
+impl<'a> Cruise<'a> {
+    /// Thinning for the `m` LEN samples of the path of `arc`, kept every
+    /// `every`-th where it cruises (`None`: fewer than 3 intervals a coarse
+    /// span or too few samples to thin).
+    pub(crate) fn new(
+        curve: &'a Nurbs,
+        arc: &'a ArcLength,
+        m: usize,
+        every: usize,
+        limits: &Limits,
+        jump_caps: &[(f64, f64)],
+    ) -> Option<Self> {
+        if every < 2 || m < 2 * every + 1 {
+            return None;
+        }
+        let length = arc.total();
+        let cells = m - 1;
+        let h = length / cells as f64;
+        let vbar = limits.vbar;
+        let (a, j) = (min3(limits.a).min(limits.abar), min3(limits.j).min(limits.jbar));
+        let reach = (vbar * vbar / (2.0 * a) + vbar * a / j).max(2.0 * every as f64 * h);
+        let mut jump_cells: Vec<usize> = jump_caps
+            .iter()
+            .filter(|&&(_, q_cap)| q_cap.sqrt() < vbar)
+            .map(|&(s, _)| ((s / h) as usize).min(cells - 1))
+            .collect();
+        jump_cells.sort_unstable();
+        Some(Cruise {
+            curve,
+            arc,
+            h,
+            cells,
+            length,
+            every,
+            vbar,
+            a,
+            j,
+            reach,
+            floor: crate::geometry::arc_length::speed_floor(curve, length),
+            breaks: arc.spans().iter().skip(1).map(|sp| sp.s0).collect(),
+            jump_cells,
+        })
+    }
+
+    /// Whether every thinning keeps the sample `s`: a toolpath knot, or a
+    /// grid sample at a multiple of `every` (stretches begin and end on
+    /// them: [`crate::plan::knot_feed::anchored`]).
+    pub(crate) fn anchor(&self, s: f64) -> bool {
+        let x = s / self.h;
+        let jx = x.round();
+        ((x - jx).abs() <= 1e-6 && (jx as usize).is_multiple_of(self.every))
+            || self.breaks.binary_search_by(|b| b.total_cmp(&s)).is_ok()
+    }
+
+    /// `stretch` (increasing samples, the toolpath's knots among them) with
+    /// the grid samples dropped where the plan cruises; its first and last
+    /// kept.
+    pub(crate) fn thin(&self, stretch: &[f64]) -> Vec<f64> {
+        let n = stretch.len();
+        if n < 3 {
+            return stretch.to_vec();
+        }
+        let h = self.h;
+        // the cells within reach of the stretch: slow ones counted
+        let lo = (((stretch[0] - self.reach) / h).floor().max(0.0) as usize).min(self.cells);
+        let hi = (((stretch[n - 1] + self.reach) / h).ceil().max(0.0) as usize + 1).min(self.cells);
+        let mids: Vec<f64> = (lo..hi).map(|c| (c as f64 + 0.5) * h).collect();
+        let us = self.arc.u_of_s_sorted(&mids);
+        let mut slow_before = Vec::with_capacity(us.len() + 1);
+        slow_before.push(0u32);
+        for (k, &u) in us.iter().enumerate() {
+            let d = self.arc.polys().derivs_in_span(self.curve.span_of(u), u, 2);
+            let kappa = crate::geometry::arc_length::curvature_of(&d, self.floor);
+            let slow = cruise_cap(kappa, self.a, self.j) < self.vbar
+                || self.jump_cells.binary_search(&(lo + k)).is_ok();
+            slow_before.push(slow_before[k] + u32::from(slow));
+        }
+        let cell = |x: f64| ((x / h).floor().max(0.0) as usize).clamp(lo, hi);
+        let keeps = |s: f64| {
+            let x = s / h;
+            let jx = x.round();
+            if (x - jx).abs() > 1e-6
+                || (jx as usize).is_multiple_of(self.every)
+                || s <= self.reach
+                || s >= self.length - self.reach
+                || self.breaks.binary_search_by(|b| b.total_cmp(&s)).is_ok()
+            {
+                return true;
+            }
+            // a slow cell within reach
+            let (c0, c1) = (cell(s - self.reach), (cell(s + self.reach) + 1).min(hi));
+            slow_before[c1 - lo] > slow_before[c0 - lo]
+        };
+        let mut out = Vec::with_capacity(n);
+        out.push(stretch[0]);
+        out.extend(stretch[1..n - 1].iter().copied().filter(|&s| keeps(s)));
+        out.push(stretch[n - 1]);
+        out
+    }
+}
+
+/// The LEN samples `samples` (uniform in arc length, the first at 0 and
+/// the last at L) of the path of `arc` thinned at once ([`Cruise`]): kept
+/// every `every`-th where the plan can cruise at the feed limit.
 pub fn thin_cruising(
     samples: Vec<f64>,
     every: usize,
@@ -70,55 +198,10 @@ pub fn thin_cruising(
     limits: &Limits,
     jump_caps: &[(f64, f64)],
 ) -> Vec<f64> {
-    let n = samples.len();
-    if every < 2 || n < 2 * every + 1 {
-        return samples;
+    match Cruise::new(curve, arc, samples.len(), every, limits, jump_caps) {
+        Some(c) => c.thin(&samples),
+        None => samples,
     }
-    let h = samples[1] - samples[0];
-    let length = samples[n - 1];
-    let vbar = limits.vbar;
-    // (the stop's distance from the feed limit: braking and the jerk's ramps)
-    let (a, j) = (min3(limits.a).min(limits.abar), min3(limits.j).min(limits.jbar));
-    let reach_mm = (vbar * vbar / (2.0 * a) + vbar * a / j).max(2.0 * every as f64 * h);
-    let mids: Vec<f64> = samples.windows(2).map(|w| 0.5 * (w[0] + w[1])).collect();
-    let us = arc.u_of_s_sorted(&mids);
-    let floor = crate::geometry::arc_length::speed_floor(curve, length);
-    let cap = |u: f64| {
-        let d = arc.polys().derivs_in_span(curve.span_of(u), u, 2);
-        cruise_cap(crate::geometry::arc_length::curvature_of(&d, floor), a, j)
-    };
-    // slow[k]: interval k may need the feed lower
-    let mut slow: Vec<bool> = us.iter().map(|&u| cap(u) < vbar).collect();
-    for &(s, q_cap) in jump_caps {
-        if q_cap.sqrt() < vbar {
-            let k = ((s / h) as usize).min(slow.len() - 1);
-            slow[k] = true;
-        }
-    }
-    // near[k]: a slow interval (or an end) within reach of interval k
-    let r = (reach_mm / h).ceil() as usize;
-    let m = slow.len();
-    let mut last_slow: Option<usize> = None;
-    let mut near = vec![false; m];
-    for k in 0..m {
-        if slow[k] {
-            last_slow = Some(k);
-        }
-        near[k] = k < r || last_slow.is_some_and(|l| k - l <= r);
-    }
-    let mut next_slow: Option<usize> = None;
-    for k in (0..m).rev() {
-        if slow[k] {
-            next_slow = Some(k);
-        }
-        near[k] |= m - k <= r || next_slow.is_some_and(|l| l - k <= r);
-    }
-    samples
-        .iter()
-        .enumerate()
-        .filter(|&(i, _)| i % every == 0 || i == n - 1 || near[i.min(m - 1)] || near[i.saturating_sub(1)])
-        .map(|(_, &s)| s)
-        .collect()
 }
 
 fn min3(v: [f64; 3]) -> f64 {
@@ -382,5 +465,49 @@ mod merge_breaks_tests {
         assert!(v.contains(&10.108902), "{v:?}");
         assert!(v.contains(&10.172784), "{v:?}");
         assert!(v.windows(2).all(|w| w[0] < w[1]), "{v:?}");
+    }
+}
+
+#[cfg(test)]
+mod cruise_tests {
+    use super::{with_breaks, Cruise};
+    use crate::geometry::arc_length::ArcLength;
+    use crate::plan::knot_feed::anchored;
+
+    /// Thinned stretch by stretch, from stretch starts moved onto samples
+    /// every thinning keeps, the 1.2 m meander's samples (its knots among
+    /// them) are those thinned at once, whatever the partition: a streamed
+    /// plan's knots, refined as its windows go, are then those a replan
+    /// finds, refined whole.
+    #[test]
+    fn the_cruise_thins_every_partition_alike() {
+        let curve = crate::cli::load_curve(std::path::Path::new(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/curves/long/meander-1m.json"
+        )))
+        .unwrap();
+        let arc = ArcLength::new(&curve);
+        let m = crate::sampling::points_for_density(arc.total(), 1.0);
+        let grid = crate::sampling::sample(&curve, &arc, crate::sampling::Sampling::Len, m).unwrap();
+        let samples = with_breaks(grid, &arc);
+        let cruise = Cruise::new(&curve, &arc, m, 8, &crate::limits::TABLE1, &[]).unwrap();
+        let whole = cruise.thin(&samples);
+        assert!(
+            2 * whole.len() < samples.len(),
+            "{} of {}",
+            whole.len(),
+            samples.len()
+        );
+        for every in [37, 100, 256, 613] {
+            let starts: Vec<usize> = (0..samples.len() - 1).step_by(every).collect();
+            let starts = anchored(starts, &samples, &|s| cruise.anchor(s));
+            let mut parts = Vec::new();
+            for (k, &a) in starts.iter().enumerate() {
+                let b = starts.get(k + 1).copied().unwrap_or(samples.len() - 1);
+                let p = cruise.thin(&samples[a..=b]);
+                parts.extend_from_slice(&p[usize::from(k > 0)..]);
+            }
+            assert_eq!(parts, whole, "stretches of {every} samples");
+        }
     }
 }

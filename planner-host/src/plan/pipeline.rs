@@ -16,10 +16,8 @@ use crate::lp::problem::EvalPoint;
 use crate::plan::config::{Formulation, PlanConfig};
 use crate::plan::error::PlanError;
 use crate::plan::feed_change::{FeedChangeAt, Resume};
-use crate::plan::knot_feed::{stretch_starts, KnotFeed, STRETCH};
-use crate::plan::knots::{
-    end_room_knots, refine_turning, thin_cruising, with_breaks, with_feed_breaks, TurnInU,
-};
+use crate::plan::knot_feed::{anchored, stretch_starts, KnotFeed};
+use crate::plan::knots::{end_room_knots, refine_turning, with_breaks, with_feed_breaks, Cruise, TurnInU};
 use crate::plan::levels::validate_levels;
 use crate::plan::lp_stage::{check_points, LpStage, Refine, Solved};
 use crate::plan::output::PlanOutput;
@@ -243,7 +241,11 @@ fn plan_curve_inner(
         Formulation::Paper => Vec::new(),
         Formulation::Certified => junction::curvature_jumps(curve, &arc, &cfg.limits, cfg.servo_period_s),
     };
-    let samples = match cfg.cruise_density_per_mm {
+    // sampled coarser where the plan cruises, stretch by stretch with the
+    // turning refinement (on a 603 m path the whole path's at once held the
+    // first motion back by 0.37 s)
+    let caps: Vec<(f64, f64)> = jumps.iter().map(|j| (j.s_mm, j.q_cap)).collect();
+    let cruise = match cfg.cruise_density_per_mm {
         Some(c)
             if cfg.formulation == Formulation::Certified
                 && cfg.sampling == Sampling::Len
@@ -252,14 +254,10 @@ fn plan_curve_inner(
                 && c < cfg.density_per_mm =>
         {
             let every = (cfg.density_per_mm / c).round() as usize;
-            let caps: Vec<(f64, f64)> = jumps.iter().map(|j| (j.s_mm, j.q_cap)).collect();
-            let thin = thin_cruising(samples, every, curve, &arc, &cfg.limits, &caps);
-            dbg_t("thinned");
-            thin
+            Cruise::new(curve, &arc, m, every, &cfg.limits, &caps)
         }
-        _ => samples,
-    };
-    // planned whole although windows were asked for: no longer than one
+        _ => None,
+    }; // planned whole although windows were asked for: no longer than one
     let whole = match cfg.windows {
         Some(w) => resume.is_none() && w.plans_whole(length),
         None => true,
@@ -270,6 +268,14 @@ fn plan_curve_inner(
         Formulation::Certified => TurnInU::new(curve, &arc).floor,
     };
     let refine = |stretch: &[f64]| {
+        let thinned;
+        let stretch = match &cruise {
+            Some(c) => {
+                thinned = c.thin(stretch);
+                &thinned[..]
+            }
+            None => stretch,
+        };
         let turn = TurnInU::with_floor(curve, &arc, floor);
         refine_turning(stretch, cfg.certified.max_turn_rad, |a, b| turn.turning(a, b))
     };
@@ -290,7 +296,9 @@ fn plan_curve_inner(
             if let Some(f) = &cfg.feed_profile {
                 samples = with_feed_breaks(samples, f.breaks());
             }
-            let ends = stretch_starts(samples.len());
+            // (stretches from samples every thinning keeps)
+            let anchor = |s: f64| cruise.as_ref().is_none_or(|c| c.anchor(s));
+            let ends = anchored(stretch_starts(samples.len()), &samples, &anchor);
             // a long path whose windows commit as they go from its start:
             // refined stretch by stretch while the windows plan (knot_feed);
             // a replan keeps the running plan's knots, refined whole
@@ -303,13 +311,16 @@ fn plan_curve_inner(
                     2.0 * (2.0 * longest + w.commit_mm)
                 });
                 let end = samples.partition_point(|&s| s < end_mm);
-                feed = Some(KnotFeed::new(samples, end, &refine, &finish));
+                feed = Some(KnotFeed::new(samples, end, &anchor, &refine, &finish));
                 Vec::new()
             } else {
                 // in stretches on both cores: they share their end samples, kept once
                 let parts: Vec<Vec<f64>> = ends
                     .par_iter()
-                    .map(|&a| refine(&samples[a..=(a + STRETCH).min(samples.len() - 1)]))
+                    .enumerate()
+                    .map(|(k, &a)| {
+                        refine(&samples[a..=ends.get(k + 1).copied().unwrap_or(samples.len() - 1)])
+                    })
                     .collect();
                 let mut refined = Vec::with_capacity(parts.iter().map(Vec::len).sum());
                 for (k, p) in parts.into_iter().enumerate() {

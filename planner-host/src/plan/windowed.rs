@@ -441,7 +441,8 @@ impl LpStage<'_> {
         let stop_first = end_rows.and_then(|e| join(e.stop.s)).map_or(n - 1, |j| j.0);
         let knot_at = |s: f64| knots.partition_point(|&u| u < s);
         // (what the windows on earlier vectors planned: the committed
-        // control points keep their indices, the vector only grows)
+        // control points keep their indices; past the frontier the vector
+        // grows where turns are bisected, shrinks where cruise is thinned)
         let mut committed = match std::mem::take(&mut run.committed) {
             // (zeros from the allocator, untouched until a window commits:
             // on a long path megabytes the first window need not wait for)
