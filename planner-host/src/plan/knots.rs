@@ -88,8 +88,8 @@ pub(crate) struct Cruise<'a> {
 
 impl<'a> Cruise<'a> {
     /// Thinning for the `m` LEN samples of the path of `arc`, kept every
-    /// `every`-th where it cruises (`None`: fewer than 3 intervals a coarse
-    /// span or too few samples to thin).
+    /// `every`-th where it cruises (`None`: `every` below 2, or fewer than
+    /// two coarse spans of samples).
     pub(crate) fn new(
         curve: &'a Nurbs,
         arc: &'a ArcLength,
