@@ -1159,15 +1159,28 @@ fn run_through<const NQ: usize, const NP: usize>(
     Err(StreamRunError::TooLong(limit))
 }
 
-/// The windows `feedsim stream` plans in unless told otherwise: 200 mm
-/// committing 150, a controller's look-ahead, so that the first motion
+/// The windows `feedsim stream` plans in unless told otherwise: 300 mm
+/// committing 250, a controller's look-ahead, so that the first motion
 /// comes after the first window and the memory follows the window, not the
-/// path; on the 11 m meander in 32 mm chunks they planned fastest of the
-/// layouts measured (docs/streaming-design.md). A path no longer than two
-/// windows is planned whole: its whole plan comes about as soon (the
-/// Butterfly, 383 mm: 0.08 s) and a few windows on a short path can come
-/// out slower than its whole plan (the Butterfly in these windows: +2.1 %).
+/// path. Sampled coarser where the plan cruises (`--cruise-density`), they
+/// planned the 11 m meander in 32 mm chunks fastest of the layouts measured
+/// (73–74× real time against 58–60× in 200/150 mm windows, the first motion
+/// as soon; at every sample 200/150 mm had been: docs/streaming-design.md).
+/// A path no longer than 400 mm is planned whole: its whole plan comes
+/// about as soon (the Butterfly, 383 mm: 0.08 s) and a few windows on a
+/// short path can come out slower than its whole plan (the Butterfly in
+/// 200/150 mm windows: +2.1 %).
 pub const WINDOWS: planner_host::plan::WindowConfig = planner_host::plan::WindowConfig {
+    whole_up_to_mm: 400.0,
+    ..planner_host::plan::WindowConfig::new(300.0, 250.0)
+};
+
+/// The windows a part program's paths are planned in unless told
+/// otherwise: 200 mm committing 150. Its paths keep every sample (a feed
+/// profile), and in 300/250 mm windows `3D_Chips.ngc` planned slower than
+/// it runs at times (starved 1,057 and 2,474 ticks in two runs on a loaded
+/// host, none in these windows).
+pub const PROGRAM_WINDOWS: planner_host::plan::WindowConfig = planner_host::plan::WindowConfig {
     whole_up_to_mm: 400.0,
     ..planner_host::plan::WindowConfig::new(200.0, 150.0)
 };

@@ -327,7 +327,7 @@ enum Cmd {
 #[derive(clap::Args)]
 struct StreamPlanArgs {
     /// Plan in windows of this much path (mm), with --commit-mm, while the machine runs
-    /// [default: 200 mm committing 150, a path no longer than 400 mm planned whole; with
+    /// [default: 300 mm committing 250 (a part program's paths 200 committing 150), a path no longer than 400 mm planned whole; with
     /// --window-mm, one no longer than a window].
     #[arg(long, requires = "commit_mm")]
     window_mm: Option<f64>,
@@ -1085,9 +1085,13 @@ fn run(cli: Cli) -> Result<(), Failure> {
                     let asked = window_mm
                         .zip(commit_mm)
                         .map(|(w, c)| planner_host::plan::WindowConfig::new(w, c));
+                    let default = match planner_host::cli::is_gcode_program(Path::new(&curve)) {
+                        true => sim_harness::stream::PROGRAM_WINDOWS,
+                        false => sim_harness::stream::WINDOWS,
+                    };
                     planner_host::plan::WindowConfig {
                         first: first_window,
-                        ..asked.unwrap_or(sim_harness::stream::WINDOWS)
+                        ..asked.unwrap_or(default)
                     }
                 }),
                 stalls,
