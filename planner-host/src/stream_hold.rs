@@ -764,9 +764,9 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
     pub fn advance(&mut self, chunks: &[Vec<u8>]) -> Result<(), HoldPointError> {
         for (k, bytes) in chunks.iter().enumerate().skip(self.chunk_end.len()) {
             let c = parse(k, bytes)?;
-            self.chunk_end.push(c.info().s_b);
-            self.chunk_last.push(c.info().is_last());
             let info = c.info();
+            self.chunk_end.push(info.s_b);
+            self.chunk_last.push(info.is_last());
             self.chunk_size
                 .push((bytes.len(), usize::from(info.n_q), usize::from(info.n_p)));
             self.s_c.push(f64::NAN);

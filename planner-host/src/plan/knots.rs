@@ -134,10 +134,16 @@ impl<'a> Cruise<'a> {
     /// grid sample at a multiple of `every` (stretches begin and end on
     /// them: [`crate::plan::knot_feed::anchored`]).
     pub(crate) fn anchor(&self, s: f64) -> bool {
+        self.grid_index(s).is_some_and(|j| j.is_multiple_of(self.every))
+            || self.breaks.binary_search_by(|b| b.total_cmp(&s)).is_ok()
+    }
+
+    /// The index of `s` on the LEN grid (`None`: not a grid sample, a
+    /// toolpath knot or a sample moved onto one).
+    fn grid_index(&self, s: f64) -> Option<usize> {
         let x = s / self.h;
         let jx = x.round();
-        ((x - jx).abs() <= 1e-6 && (jx as usize).is_multiple_of(self.every))
-            || self.breaks.binary_search_by(|b| b.total_cmp(&s)).is_ok()
+        ((x - jx).abs() <= 1e-6).then_some(jx as usize)
     }
 
     /// `stretch` (increasing samples, the toolpath's knots among them) with
@@ -165,13 +171,10 @@ impl<'a> Cruise<'a> {
         }
         let cell = |x: f64| ((x / h).floor().max(0.0) as usize).clamp(lo, hi);
         let keeps = |s: f64| {
-            let x = s / h;
-            let jx = x.round();
-            if (x - jx).abs() > 1e-6
-                || (jx as usize).is_multiple_of(self.every)
+            if self.grid_index(s).is_none()
+                || self.anchor(s)
                 || s <= self.reach
                 || s >= self.length - self.reach
-                || self.breaks.binary_search_by(|b| b.total_cmp(&s)).is_ok()
             {
                 return true;
             }

@@ -244,7 +244,6 @@ fn plan_curve_inner(
     // sampled coarser where the plan cruises, stretch by stretch with the
     // turning refinement (on a 603 m path the whole path's at once held the
     // first motion back by 0.37 s)
-    let caps: Vec<(f64, f64)> = jumps.iter().map(|j| (j.s_mm, j.q_cap)).collect();
     let cruise = match cfg.cruise_density_per_mm {
         Some(c)
             if cfg.formulation == Formulation::Certified
@@ -254,10 +253,12 @@ fn plan_curve_inner(
                 && c < cfg.density_per_mm =>
         {
             let every = (cfg.density_per_mm / c).round() as usize;
+            let caps: Vec<(f64, f64)> = jumps.iter().map(|j| (j.s_mm, j.q_cap)).collect();
             Cruise::new(curve, &arc, m, every, &cfg.limits, &caps)
         }
         _ => None,
-    }; // planned whole although windows were asked for: no longer than one
+    };
+    // planned whole although windows were asked for: no longer than one
     let whole = match cfg.windows {
         Some(w) => resume.is_none() && w.plans_whole(length),
         None => true,
