@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The streaming measurements of docs/streaming-design.md, as `feedsim stream` makes them with its
-# defaults (a path longer than 400 mm planned in windows of 300/250 mm while it runs, 32 mm chunks,
+# defaults (a path longer than 400 mm planned in windows of 400/350 mm while it runs, 32 mm chunks,
 # 2 Mbaud, 5 ms latency, 16 KiB ring): the 11 m meander RUNS times, a long curve (the 603 m
 # meander) and a long program (a repeated part), one line each with the first motion, the planning
 # and host real-time factors, the peak RSS, the machining time against the plan's, the starvation

@@ -13,7 +13,8 @@
 //! `coarse_mm` of the way (further while the holds rest far before the
 //! chunk's end, up to `coarse_max_mm`; once a chunk's tests have turned,
 //! the next chunk's straight to a little before where its own are
-//! predicted to turn), a copy of it cut back to the chunks up to chunk i
+//! predicted to turn, or where the room the last test left would run out),
+//! a copy of it cut back to the chunks up to chunk i
 //! ([`PlanWindow::truncate`]) with the hold pressed, ticked to rest. Where
 //! chunk i fails, the search looks back through the copies kept for the
 //! latest where it passes, halves the stretch to the failure down to a
@@ -78,6 +79,7 @@
 
 use firmware_core::interp::{Interpolator, SpliceError, Spliced, StreamHead};
 use firmware_core::math::source::Point4Array;
+use firmware_core::stream::layout::NO_HOLD_POINT;
 use firmware_core::stream::{commit_q20, set_commit, Chunk, ChunkError, PlanWindow, WindowError};
 use firmware_core::{EndSegments, F64Array, HoldState, InterpError, Setpoint, Table};
 
@@ -448,8 +450,8 @@ pub struct HoldSearch {
     /// coarse steps are most of the saving; equal to `step_mm`: every test
     /// at the fine step).
     pub coarse_mm: f64,
-    /// While a chunk's tests pass with room to spare, the next comes
-    /// further on: half the room the last left (from where its hold came
+    /// Until a chunk's tests have turned (from rest), while they pass with
+    /// room to spare, the next comes further on: half the room the last left (from where its hold came
     /// to rest to the furthest it may), at least `coarse_mm` and at most
     /// this, mm (equal to `coarse_mm`: a test every `coarse_mm`). A test
     /// costs a hold ticked to rest and, the first dozen, a fresh copy of
@@ -473,15 +475,23 @@ pub struct HoldSearch {
     pub backoff_mm: f64,
     /// Once a chunk's tests have turned, the next chunk's coarse tests go
     /// straight to this far before where its tests are predicted to turn
-    /// (from the room they leave: [`HoldPointSearch`]), mm, and on from
-    /// there every `coarse_mm`. A step that fails is halved back. Hold
+    /// (from the room they leave: [`HoldPointSearch::gap_after`]), mm, and
+    /// on from there every `coarse_mm`; or, where the chunk after it is
+    /// held already, to this far before where the room runs out. A step
+    /// that fails is looked back from (a copy of the dry run kept a fine
+    /// scan's width before it) and halved. Hold
     /// points still come from a run of passing tests either way, but where
     /// the tests fall moves them by up to a few millimetres, and a stop
     /// pressed in a resume's tail is not the dry run's: what keeps those
     /// inside their rows is the margins (module docs).
     pub predict_back_mm: f64,
-    /// The longest such step, mm.
+    /// The longest step to a predicted turn, mm.
     pub predict_max_mm: f64,
+    /// The longest step to where the room runs out (the chunk after chunk
+    /// i held), mm: more than the hold points' spacing (`every_mm` and a
+    /// chunk), so that a chunk's first test can go straight to near its
+    /// turn.
+    pub ahead_max_mm: f64,
     /// The hold point's own test presses the hold at its tick and at each
     /// of the ticks after it, this many presses in all; where one fails,
     /// the test counts as failed and the hold point is taken again from
@@ -517,6 +527,7 @@ impl Default for HoldSearch {
             backoff_mm: 1.0,
             predict_back_mm: 1.5,
             predict_max_mm: 64.0,
+            ahead_max_mm: 160.0,
             press_ticks: 3,
             every_mm: 0.0,
             every_bytes: 0,
@@ -540,6 +551,30 @@ pub struct HoldPoints {
     /// Per chunk, the wall time from the search's start until its s_c was
     /// known, s: a host streaming as it searches may send chunk i then.
     pub known_after_s: Vec<f64>,
+}
+
+impl HoldPoints {
+    /// The commit field of chunk `i`: its lead s_b − s_c (Q20 mm), or
+    /// [`NO_HOLD_POINT`] where it has no hold point of its own
+    /// ([`NOT_ALONE_MM`]; a lead s_b + 1 mm would not fit the field past
+    /// 4,096 mm of path, and the firmware would read a hold point on it).
+    pub fn commit_field(&self, i: usize) -> Option<u32> {
+        let (lead, s_c) = (*self.lead_mm.get(i)?, *self.s_c_mm.get(i)?);
+        Some(match s_c == NOT_ALONE_MM {
+            true => NO_HOLD_POINT,
+            false => commit_q20(lead),
+        })
+    }
+
+    /// The hold points written into `chunks`' commit fields (and CRCs).
+    pub fn write_into(&self, chunks: &mut [Vec<u8>]) -> Result<(), HoldPointError> {
+        for (index, c) in chunks.iter_mut().enumerate() {
+            if let Some(commit) = self.commit_field(index) {
+                set_commit(c, commit).map_err(|error| HoldPointError::Chunk { index, error })?;
+            }
+        }
+        Ok(())
+    }
 }
 
 fn parse(index: usize, b: &[u8]) -> Result<Chunk<'_>, HoldPointError> {
@@ -752,8 +787,8 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
     /// Run the search as far as `chunks` (the plan's chunks at hand, from
     /// its first) allow.
     ///
-    /// The dry run tests chunk i every `coarse_mm`, or up to
-    /// `coarse_max_mm` apart where the last test's hold left room. Where it
+    /// The dry run tests chunk i every `coarse_mm`, or further on where
+    /// the last test's hold left room ([`HoldPointSearch::gap_after`]). Where it
     /// fails, the search looks back through the dry runs kept at the
     /// earlier coarse tests for the latest at which chunk i passes, and
     /// tests every `step_mm` from there to the failure.
@@ -844,7 +879,13 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
                     {
                         self.last_pass = Some(s);
                         self.first_room.get_or_insert((s, room));
-                        gap = self.gap_after(room);
+                        // (the chunk after chunk i held: its tests, when
+                        // they come, have the copies kept from its entry)
+                        let ahead = self
+                            .chunk_end
+                            .get(self.i + 1)
+                            .is_some_and(|&e| run.ip.window().held_end() >= e);
+                        gap = self.gap_after(room, ahead);
                         // (a long step: the dry run kept a fine scan's
                         // start before the test, in case it fails)
                         if gap > coarse + self.how.step_mm {
@@ -925,10 +966,30 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
     /// row. Near the predicted turn the steps are `coarse_mm`; a chunk
     /// whose room falls below it without turning (no drop there) goes on
     /// by halves of its room as without a prediction.
-    fn gap_after(&self, room: f64) -> f64 {
+    ///
+    /// Where the chunk after chunk i is held already (`ahead`: a window
+    /// that holds far more than the chunks searched, as a host-sized one
+    /// does), the step goes to `predict_back_mm` before where the room
+    /// runs out, reckoned at a millimetre for each millimetre (it falls a
+    /// little more slowly: 0.93 mm a mm at full feed on the 11 m meander),
+    /// up to `ahead_max_mm`. A step that fails there is looked back from
+    /// the copy kept a fine scan's width before it, then halved. Measured
+    /// (`feedsim stream … --json`, `hold_tests`): the 11 m meander at the
+    /// defaults 1,619 → 1,307 tests (coarse ones 774 → 429) and 2.51 →
+    /// 1.98 million hold ticks; near its turns the room the chunk before
+    /// turned at stood at 38–54 mm and the steps crept there 2 and 8 mm at
+    /// a time, up to 17 tests a chunk. The 1.2 m meander 159 → 141, the
+    /// Butterfly 109 → 96; the same machining times, ratios and starved
+    /// ticks. Not where the chunk after is still to come (an MCU-sized
+    /// window): a chunk that enters the window during a long step has no
+    /// kept copy of the dry run holding it before the step's failure to
+    /// look back to, and went without a hold point (the Butterfly in a
+    /// 128:256 window, 32 mm chunks: two chunks, and its window stuck).
+    fn gap_after(&self, room: f64, ahead: bool) -> f64 {
         let h = &self.how;
         let coarse = h.coarse_mm.max(h.step_mm);
         match self.cliff_mm {
+            Some(_) if ahead => (room - h.predict_back_mm).min(h.ahead_max_mm).max(coarse),
             Some(c) if room - c - h.predict_back_mm > coarse => {
                 (room - c - h.predict_back_mm).min(h.predict_max_mm)
             }
@@ -1412,9 +1473,7 @@ pub fn set_hold_points_given<const NQ: usize, const NP: usize>(
     given: &[f64],
 ) -> Result<HoldPoints, HoldPointError> {
     let hp = hold_points_given::<NQ, NP>(table, chunks, how, given)?;
-    for (index, (c, &lead)) in chunks.iter_mut().zip(&hp.lead_mm).enumerate() {
-        set_commit(c, commit_q20(lead)).map_err(|error| HoldPointError::Chunk { index, error })?;
-    }
+    hp.write_into(chunks)?;
     Ok(hp)
 }
 

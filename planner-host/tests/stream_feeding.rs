@@ -140,8 +140,9 @@ fn every_hold_point_found_stops_the_starved_motion_inside_its_rows() {
 }
 
 /// Every chunk's hold point, found by the search spaced by the room its
-/// holds leave and by where they turned for the chunk before (the
-/// default) and by one testing every `coarse_mm`: a
+/// holds leave, by where they turned for the chunk before and, the chunk
+/// after held, by where the room runs out (the default) and by one testing
+/// every `coarse_mm`: a
 /// motion fed the chunks up to it only presses the hold there and comes to
 /// rest inside them. The spaced search runs fewer tests.
 fn every_hold_point_holds() {
@@ -151,6 +152,7 @@ fn every_hold_point_holds() {
     let every = HoldSearch {
         coarse_max_mm: spaced.coarse_mm,
         predict_max_mm: spaced.coarse_mm,
+        ahead_max_mm: spaced.coarse_mm,
         ..spaced
     };
     assert!(spaced.coarse_max_mm > spaced.coarse_mm);

@@ -1159,20 +1159,22 @@ fn run_through<const NQ: usize, const NP: usize>(
     Err(StreamRunError::TooLong(limit))
 }
 
-/// The windows `feedsim stream` plans in unless told otherwise: 300 mm
-/// committing 250, a controller's look-ahead, so that the first motion
+/// The windows `feedsim stream` plans in unless told otherwise: 400 mm
+/// committing 350, a controller's look-ahead, so that the first motion
 /// comes after the first window and the memory follows the window, not the
 /// path. Sampled coarser where the plan cruises (`--cruise-density`), they
 /// planned the 11 m meander in 32 mm chunks fastest of the layouts measured
-/// (73–74× real time against 58–60× in 200/150 mm windows, the first motion
-/// as soon; at every sample 200/150 mm had been: docs/streaming-design.md).
+/// (99–123× real time against 82–117× in 300/250 mm windows and 58–60× in
+/// 200/150 mm ones, the first motion 40–61 ms; at every sample 200/150 mm
+/// had been: docs/streaming-design.md, "Windows of 400/350 mm for
+/// curves").
 /// A path no longer than 400 mm is planned whole: its whole plan comes
 /// about as soon (the Butterfly, 383 mm: 0.08 s) and a few windows on a
 /// short path can come out slower than its whole plan (the Butterfly in
 /// 200/150 mm windows: +2.1 %).
 pub const WINDOWS: planner_host::plan::WindowConfig = planner_host::plan::WindowConfig {
     whole_up_to_mm: 400.0,
-    ..planner_host::plan::WindowConfig::new(300.0, 250.0)
+    ..planner_host::plan::WindowConfig::new(400.0, 350.0)
 };
 
 /// The windows a part program's paths are planned in unless told

@@ -469,3 +469,79 @@ fn last_chunk_during_the_stop() {
     println!("{starved} starvation stops over 80 arrivals; worst ratio {worst:.4}");
     assert!(starved >= 40, "the late chunk starved only {starved} runs");
 }
+
+/// A chunk without a hold point of its own that ends past 4,096 mm (its
+/// lead would not fit the commit field) is held back as any other: sent
+/// with the chunks before it and none after for seconds, it is not taken
+/// alone, and the machine runs on through the rows held without a stop.
+/// (Read as a lead, the saturated field put a hold point 4,096 mm before
+/// the chunk's end, on the path: the firmware took the chunk alone and
+/// stopped there for want of the next.)
+#[test]
+fn a_chunk_without_a_hold_point_far_along_the_path_is_held_back() {
+    big_stack(far_along);
+}
+
+fn far_along() {
+    use planner_host::stream_hold::NOT_ALONE_MM;
+    const RING: usize = 16 * 1024;
+    const Q: usize = 2048;
+    const P: usize = 4096;
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../planner-host/curves/long/meander-11m.json"
+    );
+    let curve = planner_host::cli::load_curve(std::path::Path::new(path)).unwrap();
+    let cfg = PlanConfig {
+        windows: Some(planner_host::plan::WindowConfig::new(300.0, 250.0)),
+        cruise_density_per_mm: Some(0.125),
+        ..PlanConfig::default()
+    };
+    let opts = ChunkOptions {
+        chunk_mm: 32.0,
+        u_form: false,
+        max_chunk_bytes: Some(RING / 4),
+        ..ChunkOptions::default()
+    };
+    let how = HoldSearch {
+        every_mm: 96.0,
+        every_bytes: RING / 8,
+        ..HoldSearch::default()
+    };
+    let st = planner_host::stream_pipeline::plan_and_stream::<Q, P>(&curve, &cfg, &opts, &how).unwrap();
+    let table = Table::parse(&st.plan.table_bytes).unwrap();
+    let ends: Vec<f64> = st
+        .chunks
+        .iter()
+        .map(|c| {
+            planner_host::stream_hold::q40_mm(firmware_core::stream::Chunk::parse(c).unwrap().info().s_b)
+        })
+        .collect();
+    // the first such chunk ending 400 mm past 4,096 mm: its misread hold
+    // point 400 mm along, reached in about 2.6 s
+    let k = (0..st.chunks.len())
+        .find(|&i| st.hold.s_c_mm[i] == NOT_ALONE_MM && ends[i] > 4496.0)
+        .unwrap();
+    let ready_s: Vec<f64> = (0..st.chunks.len())
+        .map(|i| if i <= k { 0.0 } else { 6.0 })
+        .collect();
+    let l = StreamLink {
+        ready_s,
+        ..link(2e6, vec![])
+    };
+    let run = run_stream::<RING, Q, P>(&table, &st.chunks, &l).unwrap();
+    println!(
+        "chunk {k} of {} without a hold point ends at {:.1} mm; {} starvations, {} ticks starved",
+        st.chunks.len(),
+        ends[k],
+        run.starvations,
+        run.starved_ticks
+    );
+    assert_eq!(run.starvations, 0, "{} ticks starved", run.starved_ticks);
+    let planned_ticks = (table.predicted_time_s() / T) as usize;
+    assert!(
+        run.setpoints.len() >= planned_ticks,
+        "{} setpoints",
+        run.setpoints.len()
+    );
+}

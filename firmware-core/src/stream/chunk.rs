@@ -13,7 +13,7 @@ use crate::servo_forms::q_span::{q_fixed, q_local, Q_FX_LEN, Q_LOCAL_LEN};
 use crate::stream::error::{ChunkError, Malformed};
 use crate::stream::layout::{
     field, flags, q_flags, COMMIT_FRAC, CRC_LEN, FIRST_Q_SPAN, HEADER_LEN, MAGIC, MIN_CHUNK_LEN,
-    Q_EXTRA_CTRL, Q_EXTRA_KNOTS, VERSION,
+    NO_HOLD_POINT, Q_EXTRA_CTRL, Q_EXTRA_KNOTS, VERSION,
 };
 use crate::stream::varint::Reader;
 use crate::table::crc32;
@@ -70,7 +70,13 @@ impl ChunkInfo {
         self.flags & flags::U_FORM != 0
     }
     /// s_c = s_b − commit (Q40 mm): a hold started at s ≤ s_c stops before s_b.
+    /// The field's largest value, [`NO_HOLD_POINT`], says the chunk has no
+    /// hold point of its own: `i64::MIN`, before any s (a lead of 4,096 mm
+    /// or more would otherwise put s_c on the path once s_b is past it).
     pub fn commit_point(&self) -> i64 {
+        if self.commit == NO_HOLD_POINT {
+            return i64::MIN;
+        }
         self.s_b
             .wrapping_sub(i64::from(self.commit) << (crate::servo_forms::fixed::FX_FRAC - COMMIT_FRAC))
     }

@@ -15,6 +15,10 @@ pub const CRC_LEN: usize = 4;
 pub const MIN_CHUNK_LEN: usize = HEADER_LEN + CRC_LEN;
 /// Bits of a Q20 value below the point (the `commit` field, mm).
 pub const COMMIT_FRAC: u32 = 20;
+/// The `commit` field of a chunk without a hold point of its own: its
+/// largest value (a lead of 4,096 mm, never a hold point's: a stop is
+/// searched inside the chunks held, a few hundred millimetres at most).
+pub const NO_HOLD_POINT: u32 = u32::MAX;
 /// The first knot span of q (order 4, clamped: spans 3 ..= N − 1).
 pub const FIRST_Q_SPAN: u32 = 3;
 /// q knots a chunk carries beyond one per span: U_{i₀−2} … U_{i₁+3} for

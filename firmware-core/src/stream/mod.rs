@@ -34,7 +34,8 @@
 //! |        |      | splice's: a held chunk's s_b, the plan replaced     |
 //! |        |      | from there)                                         |
 //! |     20 |    8 | s_b i64, Q40 mm (> s_a; L in the last chunk)        |
-//! |     28 |    4 | commit u32, Q20 mm: s_b − s_c                       |
+//! |     28 |    4 | commit u32, Q20 mm: s_b − s_c; u32::MAX no hold     |
+//! |        |      | point of its own (`NO_HOLD_POINT`)                  |
 //! |     32 |    2 | n_q u16, q spans (≥ 1)                              |
 //! |     34 |    2 | n_p u16, pieces (≥ 1)                               |
 //! |     36 |    4 | payload_len u32                                     |

@@ -93,6 +93,31 @@ fn chunk_header_fields_and_tiling() {
     }
 }
 
+/// The commit field's largest value says "no hold point of its own",
+/// wherever the chunk ends: a lead of 4,096 mm or more read as a lead
+/// would put a hold point on a path longer than that, and a firmware
+/// would take such a chunk alone (`Interpolator::holds_back`) and stop
+/// there for want of the next.
+#[test]
+fn a_chunk_without_a_hold_point_has_none_however_far_it_ends() {
+    use crate::stream::layout::NO_HOLD_POINT;
+    use crate::stream::{commit_q20, set_commit};
+    let bytes = line_table();
+    let t = Table::parse(&bytes).unwrap();
+    let mut chunk = chunk_table(&t, 20.0, false, 1, 0).swap_remove(1);
+    set_commit(&mut chunk, commit_q20(2.5)).unwrap();
+    let i = *Chunk::parse(&chunk).unwrap().info();
+    assert_eq!(i.commit_point(), i.s_b - (5i64 << 39));
+    set_commit(&mut chunk, NO_HOLD_POINT).unwrap();
+    let i = *Chunk::parse(&chunk).unwrap().info();
+    assert_eq!(i.commit, NO_HOLD_POINT);
+    assert_eq!(i.commit_point(), i64::MIN);
+    // (the largest lead a hold point may have: one step short)
+    set_commit(&mut chunk, NO_HOLD_POINT - 1).unwrap();
+    let i = *Chunk::parse(&chunk).unwrap().info();
+    assert_eq!(i.commit_point(), i.s_b - (i64::from(NO_HOLD_POINT - 1) << 20));
+}
+
 #[test]
 fn every_corrupted_byte_is_refused() {
     let bytes = line_table();

@@ -327,7 +327,7 @@ enum Cmd {
 #[derive(clap::Args)]
 struct StreamPlanArgs {
     /// Plan in windows of this much path (mm), with --commit-mm, while the machine runs
-    /// [default: 300 mm committing 250 (a part program's paths 200 committing 150), a path no longer than 400 mm planned whole; with
+    /// [default: 400 mm committing 350 (a part program's paths 200 committing 150), a path no longer than 400 mm planned whole; with
     /// --window-mm, one no longer than a window].
     #[arg(long, requires = "commit_mm")]
     window_mm: Option<f64>,

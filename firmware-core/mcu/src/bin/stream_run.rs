@@ -201,7 +201,7 @@ fn main() -> ! {
         .u(NQ as u64)
         .s(" q spans and ")
         .u(NP as u64)
-        .s(" pieces, waiting on UART0")
+        .s(" pieces, on UART0")
         .put();
     #[cfg(feature = "tick-count")]
     let mut log = {
