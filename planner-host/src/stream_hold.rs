@@ -451,12 +451,12 @@ pub struct HoldSearch {
     /// at the fine step).
     pub coarse_mm: f64,
     /// Until a chunk's tests have turned (from rest), while they pass with
-    /// room to spare, the next comes further on: half the room the last left (from where its hold came
-    /// to rest to the furthest it may), at least `coarse_mm` and at most
-    /// this, mm (equal to `coarse_mm`: a test every `coarse_mm`). A test
-    /// costs a hold ticked to rest and, the first dozen, a fresh copy of
-    /// the dry run; near the start a chunk's holds rest far before its
-    /// end. Hold points still come only from tests that passed with their
+    /// room to spare, the next comes further on: half the room the last
+    /// left (from where its hold came to rest to the furthest it may), at
+    /// least `coarse_mm` and at most this, mm (equal to `coarse_mm`: a test
+    /// every `coarse_mm`). A test costs a hold ticked to rest and, the
+    /// first dozen, a fresh copy of the dry run; near the start a chunk's
+    /// holds rest far before its end. Hold points still come only from tests that passed with their
     /// chunk the last one held; the spacing moves where the tests fall
     /// (module docs: the margins).
     pub coarse_max_mm: f64,
