@@ -363,8 +363,9 @@ pub enum Planned {
 
 /// Plan `curve` window by window, telling `on` the head after the first
 /// commit, each chunk as soon as it is final and the stop before the last
-/// chunks ([`Planned`]), on the planning thread; the finished plan at the
-/// end.
+/// chunks ([`Planned`]), in order, on the fitter's thread (the planning
+/// waits for `on` only until the first chunks are out); the finished plan
+/// at the end, every chunk told by then.
 pub fn plan_in_chunks(
     curve: &Nurbs,
     cfg: &PlanConfig,
@@ -589,8 +590,9 @@ pub fn plan_and_stream_from<const NQ: usize, const NP: usize>(
                 Ok((chunks, hp, t0.elapsed().as_secs_f64(), head))
             });
         let tx = Mutex::new(tx);
-        // The first motion's gate: a plan from rest waits, after its first
-        // chunks, until the search has gone as far as they allow (the first
+        // The first motion's gate (`on` runs on the fitter's thread, and
+        // the planning waits for it until the first chunks are out): a plan
+        // from rest waits, after its first chunks, until the search has gone as far as they allow (the first
         // hold points, which the machine waits for) before it plans the
         // next window, which would share the cores with the search. Its
         // chunks are needed only once the motion nears the end of the
