@@ -852,7 +852,7 @@ fn stream_plans_at_the_sampling_and_density_asked() {
 }
 
 /// `feedsim stream`'s defaults on a long smooth path: sampled coarser where
-/// it cruises and hold points searched for chunks about 96 mm apart. Against
+/// it cruises and hold points searched for chunks about 128 mm apart. Against
 /// every sample and every chunk's hold point: the same machining time
 /// (within 0.05 %), fewer control points' bytes, under half the search's
 /// hold tests, every limit and no starvation; and feed changes spliced in.

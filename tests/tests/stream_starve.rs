@@ -188,13 +188,13 @@ fn a_host_slower_than_the_machine_starves_it_again_and_again_and_never_runs_past
     big_stack(|| slower_host(0.0));
 }
 
-/// The same with hold points searched only for chunks at least 96 mm
+/// The same with hold points searched only for chunks at least 128 mm
 /// apart (`feedsim stream`'s default): the chunks between have none of
 /// their own, so the firmware holds them back until the next one that has
 /// is in, and each starved stop comes at that one's hold point.
 #[test]
-fn with_hold_points_96_mm_apart_a_starved_machine_still_stops_inside_its_rows() {
-    big_stack(|| slower_host(96.0));
+fn with_hold_points_128_mm_apart_a_starved_machine_still_stops_inside_its_rows() {
+    big_stack(|| slower_host(128.0));
 }
 
 fn slower_host(hold_every_mm: f64) {

@@ -17,7 +17,7 @@
 //! [`POS_ALONG_TOL_MM`](crate::servo_forms::check::POS_ALONG_TOL_MM)).
 
 use crate::math::basis::MAX_DEGREE;
-use crate::math::quadrature::{GL16_W, GL16_X, GL4_W, GL4_X};
+use crate::math::quadrature::{GL4_W, GL4_X, GL8_W, GL8_X};
 use crate::path::nurbs::{NurbsSpan, NurbsView};
 use crate::path::qspline::QSpline;
 use crate::path::su_map::{horner, SuSegment};
@@ -286,8 +286,12 @@ impl<'a> ArcRef<'a> {
         self.poly.speed(u)
     }
 
-    /// ∫ₐᵇ |r′(u)| du: 16-point Gauss–Legendre on up to 64 equal parts,
-    /// eight per knot span width.
+    /// ∫ₐᵇ |r′(u)| du: 8-point Gauss–Legendre on up to 64 equal parts,
+    /// eight per knot span width. (The 16-point rule on the same parts, as
+    /// this was first, agreed to 5e-15 mm on the five built-in curves and
+    /// the 11 m meander, every integral of a streamed run compared: the
+    /// rounding of the sums. Half the speed evaluations: the fit's arc
+    /// length was most of its time.)
     fn integral(&self, a: f64, b: f64) -> f64 {
         let w = self.knots.1 - self.knots.0;
         let n = libm::ceil(8.0 * libm::fabs(b - a) / w).clamp(1.0, 64.0) as usize;
@@ -296,7 +300,7 @@ impl<'a> ArcRef<'a> {
         for p in 0..n {
             let c = a + h * (p as f64 + 0.5);
             let mut part = 0.0;
-            for (&x, &wt) in GL16_X.iter().zip(GL16_W.iter()) {
+            for (&x, &wt) in GL8_X.iter().zip(GL8_W.iter()) {
                 part += wt * (self.speed(c - 0.5 * h * x) + self.speed(c + 0.5 * h * x));
             }
             sum += 0.5 * h * part;

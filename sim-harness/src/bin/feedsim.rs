@@ -252,8 +252,9 @@ enum Cmd {
         /// window's rows) have none of their own and the firmware takes them together with
         /// the next that has. The search ticks a whole stop for each of its tests, about a
         /// dozen a chunk whatever its length: wider spacing, less host CPU, and a stop for
-        /// want of chunks up to that much earlier. 0: every chunk its own
-        #[arg(long, default_value_t = 96.0)]
+        /// want of chunks up to that much earlier. The default, four chunks of 32 mm, is
+        /// the most a feed change's splice allows at that size. 0: every chunk its own
+        #[arg(long, default_value_t = 128.0)]
         hold_every_mm: f64,
         /// A link stall: START:DURATION in seconds from the start of sending (repeatable).
         #[arg(long)]
