@@ -538,8 +538,9 @@ impl Default for HoldSearch {
 /// What the search measured.
 #[derive(Clone, Debug, PartialEq)]
 pub struct HoldPoints {
-    /// Per chunk, s_b − s_c in mm (0 for the last chunk).
-    pub lead_mm: Vec<f64>,
+    /// Per chunk, s_b − s_c in mm (0 for the last chunk; `None` where
+    /// the chunk has no hold point of its own, [`NOT_ALONE_MM`]).
+    pub lead_mm: Vec<Option<f64>>,
     /// Per chunk, the s_c, mm (L for the last; [`NOT_ALONE_MM`] where no
     /// hold stops inside the chunks up to it).
     pub s_c_mm: Vec<f64>,
@@ -559,10 +560,9 @@ impl HoldPoints {
     /// ([`NOT_ALONE_MM`]; a lead s_b + 1 mm would not fit the field past
     /// 4,096 mm of path, and the firmware would read a hold point on it).
     pub fn commit_field(&self, i: usize) -> Option<u32> {
-        let (lead, s_c) = (*self.lead_mm.get(i)?, *self.s_c_mm.get(i)?);
-        Some(match s_c == NOT_ALONE_MM {
-            true => NO_HOLD_POINT,
-            false => commit_q20(lead),
+        Some(match *self.lead_mm.get(i)? {
+            None => NO_HOLD_POINT,
+            Some(lead) => commit_q20(lead),
         })
     }
 
@@ -1225,7 +1225,7 @@ impl<const NQ: usize, const NP: usize> HoldPointSearch<NQ, NP> {
             .s_c
             .iter()
             .zip(&self.chunk_end)
-            .map(|(c, &e)| (q40_mm(e) - c).max(0.0))
+            .map(|(&c, &e)| (c != NOT_ALONE_MM).then(|| (q40_mm(e) - c).max(0.0)))
             .collect();
         Ok(HoldPoints {
             lead_mm,

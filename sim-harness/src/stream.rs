@@ -1824,12 +1824,7 @@ fn stream_through<const Q: usize, const P: usize>(
         ring_peak_bytes: run.ring_peak_bytes,
         window_pieces: P,
         window_peak_pieces: run.window_peak_pieces,
-        hold_lead_max_mm: hp
-            .lead_mm
-            .iter()
-            .zip(&hp.s_c_mm)
-            .filter(|(_, &c)| c != NOT_ALONE_MM)
-            .fold(0.0, |m, (&l, _)| m.max(l)),
+        hold_lead_max_mm: hp.lead_mm.iter().flatten().fold(0.0, |m, &l| m.max(l)),
         chunks_without_hold_point: hp.s_c_mm.iter().filter(|&&c| c == NOT_ALONE_MM).count(),
         starvations: run.starvations,
         starved_ticks: run.starved_ticks,

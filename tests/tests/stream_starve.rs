@@ -61,7 +61,7 @@ fn chunked_for<const Q: usize, const P: usize>(table_bytes: Vec<u8>, name: &str,
     };
     let mut chunks = chunk_table(&table, &opts).unwrap();
     let hp = set_hold_points::<Q, P>(&table, &mut chunks, &HoldSearch::default()).unwrap();
-    let lead = hp.lead_mm.iter().copied().fold(0.0, f64::max);
+    let lead = hp.lead_mm.iter().flatten().copied().fold(0.0, f64::max);
     println!(
         "{name}: {} chunks, {} hold tests, longest lead s_b − s_c {lead:.1} mm",
         chunks.len(),
