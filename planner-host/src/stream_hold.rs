@@ -488,9 +488,9 @@ pub struct HoldSearch {
     /// The longest step to a predicted turn, mm.
     pub predict_max_mm: f64,
     /// The longest step to where the room runs out (the chunk after chunk
-    /// i held), mm: more than the hold points' spacing (`every_mm` and a
-    /// chunk), so that a chunk's first test can go straight to near its
-    /// turn.
+    /// i held), mm: at least the hold points' spacing and a chunk (160 =
+    /// `feedsim stream`'s 128 mm and a 32 mm chunk), so that a chunk's
+    /// first test can go straight to near its turn.
     pub ahead_max_mm: f64,
     /// The hold point's own test presses the hold at its tick and at each
     /// of the ticks after it, this many presses in all; where one fails,
